@@ -1,0 +1,10 @@
+#!/usr/bin/env bash
+# Newcomer command 1: install, build, and run the pipeline on the embedded default hand.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+bash scripts/build.sh
+OUT=${OUT:-out/default}
+./build/handskin run --back fixtures/default/back --palm fixtures/default/palm \
+  --rig fixtures/default/rig.json --out "$OUT" --pipeline pipelines/cubist.json
+echo "handskin: outputs are in $(pwd)/$OUT (report.json, back.ply, palm.ply)"

@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# Install every Debian package handskin needs (as root, or through sudo). Idempotent: when
+# everything is present it returns at once without touching apt.
+set -euo pipefail
+PACKAGES=(
+  build-essential cmake pkg-config clang libclang-rt-14-dev
+  libeigen3-dev libpcl-dev mpi-default-dev libflann-dev liblz4-dev libcgal-dev libopenmesh-dev libceres-dev
+  nlohmann-json3-dev libcli11-dev libpng-dev libgtest-dev libgmock-dev libbenchmark-dev
+)
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "setup: all ${#PACKAGES[@]} packages present"
+  exit 0
+fi
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+echo "setup: installing ${missing[*]}"
+$SUDO apt-get update -q
+DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"

@@ -1,0 +1,266 @@
+// handskin: range scans of a hand -> rigged skin. The command-line front end: it parses
+// options, calls the stages, prints progress to stderr and turns errors into one line.
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+
+#include "core/atomic_file.hpp"
+#include "core/errors.hpp"
+#include "core/json_util.hpp"
+#include "core/rig.hpp"
+#include "core/transform.hpp"
+#include "mesh/trimesh.hpp"
+#include "pipeline/options.hpp"
+#include "pipeline/run.hpp"
+#include "render/preview.hpp"
+#include "scan/cubist_io.hpp"
+#include "synth/hand_mesher.hpp"
+#include "synth/hand_model.hpp"
+#include "synth/replica.hpp"
+
+namespace fs = std::filesystem;
+using namespace handskin;
+
+namespace {
+
+struct Progress {
+  bool quiet = false;
+  std::chrono::steady_clock::time_point t0 = std::chrono::steady_clock::now();
+  void operator()(const std::string& tag, const std::string& msg) const {
+    if (quiet) return;
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::fprintf(stderr, "[%6.2fs] %s: %s\n", s, tag.c_str(), msg.c_str());
+  }
+};
+
+void check_options(bool ok, const std::string& where, const std::string& err) {
+  if (!ok) throw InputError(where, err);
+}
+
+// ---------------- synth hand ----------------
+struct SynthHandArgs {
+  std::string out = "hand";
+  HandShapeOptions shape;
+  HandMeshOptions mesh;
+  bool render = true;
+};
+
+void synth_hand(const SynthHandArgs& a, const Progress& progress) {
+  std::string err;
+  check_options(a.shape.IsValid(&err), "hand options", err);
+  check_options(a.mesh.IsValid(&err), "mesh options", err);
+  progress("synth hand", "building the skeleton and implicit surface");
+  const HandModel model = build_hand_model(a.shape);
+  progress("synth hand", "meshing with CGAL's surface mesher (a few seconds)");
+  const HandMeshResult r = mesh_hand(model, a.mesh);
+  ensure_directory(a.out);
+  const std::string mesh_path = (fs::path(a.out) / "hand.ply").string();
+  const std::string rig_path = (fs::path(a.out) / "hand_rig.json").string();
+  save_mesh(mesh_path, r.mesh);
+  save_rig(rig_path, model.rig);
+  if (a.render) {
+    RenderOptions ro;
+    ro.view = named_view("back");
+    write_file_atomic((fs::path(a.out) / "hand_back.png").string(), render_mesh_png({&r.mesh}, ro));
+    ro.view = named_view("side");
+    write_file_atomic((fs::path(a.out) / "hand_side.png").string(), render_mesh_png({&r.mesh}, ro));
+  }
+  progress("synth hand", std::to_string(r.health.vertices) + " vertices, " + std::to_string(r.health.faces) +
+                             " triangles, closed=" + (r.health.closed() ? "yes" : "no") +
+                             ", manifold=" + (r.health.manifold() ? "yes" : "no") +
+                             ", self-intersections=" + (r.self_intersects ? "yes" : "no") + ", meshed in " +
+                             std::to_string(r.seconds).substr(0, 5) + " s");
+  std::printf("%s\n%s\n", mesh_path.c_str(), rig_path.c_str());
+}
+
+// ---------------- synth scan ----------------
+struct SynthScanArgs {
+  std::string mesh, rig, out = "scans";
+  std::uint64_t seed = 1;
+  ReplicaOptions replica;
+  ScannerOptions scanner;
+  bool render = true;
+};
+
+void synth_scan(const SynthScanArgs& a, const Progress& progress) {
+  std::string err;
+  check_options(a.replica.IsValid(&err), "replica options", err);
+  check_options(a.scanner.IsValid(&err), "scanner options", err);
+  const TriMesh hand = load_mesh(a.mesh);
+  const Rig rig = load_rig(a.rig);
+  progress("synth scan", "placing markers and scanning both sides (seed " + std::to_string(a.seed) + ")");
+  const ScanPair pair = synthesize_scan_pair(hand, rig, a.replica, a.scanner, a.seed, !progress.quiet);
+  ensure_directory(a.out);
+  const fs::path out(a.out);
+  save_scan((out / "back").string(), pair.back.scan);
+  save_scan((out / "palm").string(), pair.palm.scan);
+  save_rig((out / "rig.json").string(), pair.rig_palm);
+  save_mesh((out / "truth_skin.ply").string(), pair.skin_palm);
+  Json truth;
+  truth["format"] = "handskin-truth/1";
+  truth["hand"] = "right";
+  truth["seed"] = a.seed;
+  truth["back_to_palm"] = isometry_to_json(pair.back_to_palm);
+  truth["palm_from_hand"] = isometry_to_json(pair.T_palm_hand);
+  truth["back_from_hand"] = isometry_to_json(pair.T_back_hand);
+  truth["marker_radius_mm"] = a.replica.marker_radius_mm;
+  Json mp = Json::array(), mb = Json::array(), returns = Json::array();
+  for (size_t k = 0; k < pair.markers_hand.size(); ++k) {
+    mp.push_back(to_json(pair.T_palm_hand * pair.markers_hand[k]));
+    mb.push_back(to_json(pair.T_back_hand * pair.markers_hand[k]));
+    returns.push_back({{"back", pair.back.returns_per_object[k + 1]}, {"palm", pair.palm.returns_per_object[k + 1]}});
+  }
+  truth["markers_palm"] = mp;
+  truth["markers_back"] = mb;
+  truth["marker_returns"] = returns;
+  truth["skin"] = "truth_skin.ply";
+  truth["scanner"] = {{"laser_tilt_deg", a.scanner.laser_tilt_deg},
+                      {"max_incidence_deg", a.scanner.max_incidence_deg},
+                      {"noise_sigma_mm", a.scanner.noise_sigma_mm},
+                      {"table_height_mm", a.scanner.table_height_mm},
+                      {"table_tilt_deg", a.scanner.table_tilt_deg}};
+  truth["placement_attempts"] = pair.placement_attempts;
+  save_json((out / "truth.json").string(), truth);
+  if (a.render) {
+    write_file_atomic((out / "back_preview.png").string(), render_scan_png(pair.back.scan));
+    write_file_atomic((out / "palm_preview.png").string(), render_scan_png(pair.palm.scan));
+  }
+  progress("synth scan", "back: " + std::to_string(pair.back.scan.count_valid()) + " returns, palm: " +
+                             std::to_string(pair.palm.scan.count_valid()) + " returns; " +
+                             std::to_string(pair.markers_hand.size()) + " markers visible in both");
+  for (const char* f : {"back.png", "back.json", "palm.png", "palm.json", "rig.json", "truth.json", "truth_skin.ply"})
+    std::printf("%s\n", (out / f).string().c_str());
+}
+
+// ---------------- render ----------------
+struct RenderArgs {
+  std::string mesh, scan, rig, out, view = "back";
+  int width = 800, height = 600;
+};
+
+void render(const RenderArgs& a) {
+  if (a.mesh.empty() == a.scan.empty()) throw InputError("render", "give exactly one of --mesh or --scan");
+  if (!a.scan.empty()) {
+    write_file_atomic(a.out, render_scan_png(load_scan(a.scan)));
+  } else {
+    const TriMesh mesh = load_mesh(a.mesh);
+    RenderOptions ro;
+    ro.width = a.width;
+    ro.height = a.height;
+    ro.view = named_view(a.view);
+    if (!a.rig.empty()) {
+      const Rig rig = load_rig(a.rig);
+      // Views are defined in the hand frame: bring the mesh frame there through the rig.
+      const Eigen::Isometry3d T = hand_frame_from_rig(rig);
+      ro.view = ro.view * T.linear();
+      for (const auto& j : rig.joints) ro.points.push_back(j);
+    }
+    write_file_atomic(a.out, render_mesh_png({&mesh}, ro));
+  }
+  std::printf("%s\n", a.out.c_str());
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"handskin: range scans of a hand -> a rigged, animatable skin (after Yasumuro 2000).\n"
+               "Millimetres and degrees everywhere; see docs/ for frames and formats."};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "handskin 0.1.0");
+  Progress progress;
+  app.add_flag("-q,--quiet", progress.quiet, "No progress lines on stderr");
+
+  // run
+  RunInputs run_in;
+  auto* run = app.add_subcommand("run", "Run the pipeline on a back/palm scan pair and a rig");
+  run->add_option("--back", run_in.back_stem, "Back scan stem (<stem>.png + <stem>.json)")->required();
+  run->add_option("--palm", run_in.palm_stem, "Palm scan stem")->required();
+  run->add_option("--rig", run_in.rig_path, "hand-rig/1 file, joints in the palm frame")->required();
+  run->add_option("--out", run_in.out_dir, "Output folder (created if needed)")->required();
+  run->add_option("--pipeline", run_in.pipeline_path, "Pipeline parameters (default: built-in = pipelines/cubist.json)");
+
+  // synth
+  auto* synth = app.add_subcommand("synth", "Make synthetic data: a default hand, or a scan pair of a hand");
+  synth->require_subcommand(1);
+  SynthHandArgs sh;
+  auto* shc = synth->add_subcommand("hand", "Build the default right hand (mesh + rig) in the open, flat posture");
+  shc->add_option("--out", sh.out, "Output folder: hand.ply, hand_rig.json, hand_back.png, hand_side.png")
+      ->capture_default_str();
+  shc->add_option("--hand-length", sh.shape.hand_length_mm, "Wrist joint to middle fingertip, mm [120, 260]")
+      ->capture_default_str();
+  shc->add_option("--spread", sh.shape.finger_spread_deg, "Extra angle between neighbouring fingers, deg [0, 15]")
+      ->capture_default_str();
+  shc->add_option("--thickness", sh.shape.thickness_scale, "Thickness multiplier [0.7, 1.4]")->capture_default_str();
+  shc->add_option("--width", sh.shape.width_scale, "Breadth multiplier [0.7, 1.4]")->capture_default_str();
+  shc->add_option("--thumb-abduction", sh.shape.thumb_abduction_deg, "Thumb metacarpal angle, deg [20, 70]")
+      ->capture_default_str();
+  shc->add_option("--facet-size", sh.mesh.facet_size_mm, "Mesher facet size bound, mm (smaller: more triangles)")
+      ->capture_default_str();
+  shc->add_option("--facet-distance", sh.mesh.facet_distance_mm, "Mesher facet distance bound, mm")->capture_default_str();
+  shc->add_option("--seed", sh.mesh.seed, "Mesher seed")->capture_default_str();
+  shc->add_flag("!--no-render", sh.render, "Do not write preview pictures");
+
+  SynthScanArgs ss;
+  auto* ssc = synth->add_subcommand("scan", "Scan a hand replica (hand + 9 markers) back up and palm up");
+  ssc->add_option("--mesh", ss.mesh, "Hand surface mesh (.ply/.obj/.off), same frame as --rig")->required();
+  ssc->add_option("--rig", ss.rig, "hand-rig/1 of that mesh")->required();
+  ssc->add_option("--out", ss.out, "Output folder")->capture_default_str();
+  ssc->add_option("--seed", ss.seed, "Random seed (markers, placements, noise)")->capture_default_str();
+  ssc->add_option("--marker-radius", ss.replica.marker_radius_mm, "Marker radius, mm")->capture_default_str();
+  ssc->add_option("--markers", ss.replica.marker_count, "Number of markers")->capture_default_str();
+  ssc->add_option("--max-yaw", ss.replica.max_yaw_deg, "Random yaw on the table, ± deg")->capture_default_str();
+  ssc->add_option("--noise", ss.scanner.noise_sigma_mm, "Depth noise sigma before quantisation, mm")->capture_default_str();
+  ssc->add_option("--laser-tilt", ss.scanner.laser_tilt_deg, "Laser sheet tilt from vertical, deg")->capture_default_str();
+  ssc->add_option("--max-incidence", ss.scanner.max_incidence_deg, "Steepest surface that returns, deg")
+      ->capture_default_str();
+  ssc->add_option("--table-height", ss.scanner.table_height_mm, "Table top above the Z origin, mm")->capture_default_str();
+  ssc->add_option("--table-tilt", ss.scanner.table_tilt_deg, "Table tilt about Y, deg")->capture_default_str();
+  ssc->add_option("--resolution", ss.scanner.scanlines, "Scanlines (and points per line)")->capture_default_str();
+  ssc->add_flag("!--no-render", ss.render, "Do not write preview pictures");
+
+  // render
+  RenderArgs ra;
+  auto* rc = app.add_subcommand("render", "Draw a mesh (shaded) or a scan (height colours) to a PNG");
+  rc->add_option("--mesh", ra.mesh, "Mesh to draw");
+  rc->add_option("--scan", ra.scan, "Scan stem to draw");
+  rc->add_option("--rig", ra.rig, "Rig of the mesh: views follow the hand, joints drawn as dots");
+  rc->add_option("--view", ra.view, "back, palm or side")->capture_default_str();
+  rc->add_option("--size", ra.width, "Picture width in pixels (height = 3/4 of it)")->capture_default_str();
+  rc->add_option("--out", ra.out, "PNG to write")->required();
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  try {
+    if (run->parsed()) {
+      if (!run_in.pipeline_path.empty()) run_in.options = load_pipeline(run_in.pipeline_path);
+      const RunResult r = run_pipeline(run_in, [&](const std::string& m) { progress("run", m); });
+      progress("run", "done in " + std::to_string(r.report["total_seconds"].get<double>()).substr(0, 5) + " s");
+      std::printf("outputs in %s (report: %s)\n", run_in.out_dir.c_str(), r.report_path.c_str());
+    } else if (shc->parsed()) {
+      synth_hand(sh, progress);
+    } else if (ssc->parsed()) {
+      ss.scanner.points = ss.scanner.scanlines;
+      synth_scan(ss, progress);
+    } else if (rc->parsed()) {
+      ra.height = ra.width * 3 / 4;
+      render(ra);
+    }
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 1;
+  } catch (const InternalError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 3;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 3;
+  }
+  return 0;
+}

@@ -1,0 +1,36 @@
+#pragma once
+/// Error kinds shared by every stage.
+///  - InputError: bad user input (a file, a key, an option). The CLI prints it as one line
+///    `error: <where>: <what>` and exits non-zero.
+///  - InternalError: a broken invariant (a bug), raised by HS_CHECK with file and line.
+#include <stdexcept>
+#include <string>
+
+namespace handskin {
+
+class InputError : public std::runtime_error {
+ public:
+  /// `where` names the file, option or key at fault; `what` says what is wrong with it.
+  InputError(std::string where, std::string what);
+  const std::string& where() const { return where_; }
+  const std::string& detail() const { return detail_; }
+
+ private:
+  std::string where_;
+  std::string detail_;
+};
+
+class InternalError : public std::logic_error {
+ public:
+  using std::logic_error::logic_error;
+};
+
+[[noreturn]] void fail_check(const char* cond, const char* file, int line, const std::string& msg);
+
+}  // namespace handskin
+
+/// Invariant check that stays in release builds (a bare assert would vanish).
+#define HS_CHECK(cond, msg)                                                   \
+  do {                                                                        \
+    if (!(cond)) ::handskin::fail_check(#cond, __FILE__, __LINE__, (msg));    \
+  } while (0)

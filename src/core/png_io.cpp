@@ -1,0 +1,170 @@
+#include "core/png_io.hpp"
+
+#include <png.h>
+
+#include <csetjmp>
+#include <cstring>
+
+#include "core/errors.hpp"
+
+namespace handskin {
+
+namespace {
+
+// libpng reports errors by longjmp; these helpers keep every C++ object with a
+// destructor outside the frames that libpng may jump over.
+struct ReadState {
+  const unsigned char* data;
+  size_t size;
+  size_t pos;
+  char message[256];
+};
+
+void on_error(png_structp png, png_const_charp msg) {
+  auto* st = static_cast<ReadState*>(png_get_error_ptr(png));
+  if (st) std::snprintf(st->message, sizeof(st->message), "%s", msg);
+  png_longjmp(png, 1);
+}
+void on_warning(png_structp, png_const_charp) {}
+
+void read_cb(png_structp png, png_bytep out, png_size_t n) {
+  auto* st = static_cast<ReadState*>(png_get_io_ptr(png));
+  if (st->pos + n > st->size) png_error(png, "file is truncated");
+  std::memcpy(out, st->data + st->pos, n);
+  st->pos += n;
+}
+
+enum class DecodeStatus { Ok, LibpngError, NotGray16, HasAlpha, TooLarge };
+
+// Two passes: header first (to validate and size the buffer), then pixels.
+DecodeStatus decode_impl(ReadState* st, int max_side, int* w, int* h, int* depth, int* ctype,
+                         std::vector<std::uint16_t>* pixels) {
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, st, on_error, on_warning);
+  if (!png) return DecodeStatus::LibpngError;
+  png_infop info = png_create_info_struct(png);
+  if (!info) {
+    png_destroy_read_struct(&png, nullptr, nullptr);
+    return DecodeStatus::LibpngError;
+  }
+  png_bytep* rows = nullptr;
+  if (setjmp(png_jmpbuf(png))) {
+    delete[] rows;
+    png_destroy_read_struct(&png, &info, nullptr);
+    return DecodeStatus::LibpngError;
+  }
+  png_set_user_limits(png, static_cast<png_uint_32>(max_side), static_cast<png_uint_32>(max_side));
+  png_set_read_fn(png, st, read_cb);
+  png_read_info(png, info);
+  *w = static_cast<int>(png_get_image_width(png, info));
+  *h = static_cast<int>(png_get_image_height(png, info));
+  *depth = png_get_bit_depth(png, info);
+  *ctype = png_get_color_type(png, info);
+  if (*depth != 16 || *ctype != PNG_COLOR_TYPE_GRAY) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    return DecodeStatus::NotGray16;
+  }
+  if (png_get_valid(png, info, PNG_INFO_tRNS)) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    return DecodeStatus::HasAlpha;
+  }
+  if (*w > max_side || *h > max_side) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    return DecodeStatus::TooLarge;
+  }
+  png_set_swap(png);  // PNG stores 16-bit big-endian
+  png_set_interlace_handling(png);
+  png_read_update_info(png, info);
+  pixels->assign(static_cast<size_t>(*w) * static_cast<size_t>(*h), 0);  // may throw: outside jumps
+  rows = new png_bytep[static_cast<size_t>(*h)];
+  for (int r = 0; r < *h; ++r) rows[r] = reinterpret_cast<png_bytep>(pixels->data() + static_cast<size_t>(r) * *w);
+  png_read_image(png, rows);
+  png_read_end(png, nullptr);
+  delete[] rows;
+  rows = nullptr;
+  png_destroy_read_struct(&png, &info, nullptr);
+  return DecodeStatus::Ok;
+}
+
+struct WriteBuffer {
+  std::string out;
+};
+void write_cb(png_structp png, png_bytep data, png_size_t n) {
+  static_cast<WriteBuffer*>(png_get_io_ptr(png))->out.append(reinterpret_cast<const char*>(data), n);
+}
+void flush_cb(png_structp) {}
+
+bool encode_impl(WriteBuffer* buf, int w, int h, int depth, int ctype, int level, const unsigned char* data,
+                 size_t row_bytes) {
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+  if (!png) return false;
+  png_infop info = png_create_info_struct(png);
+  png_bytep* rows = nullptr;
+  if (!info || setjmp(png_jmpbuf(png))) {
+    delete[] rows;
+    png_destroy_write_struct(&png, &info);
+    return false;
+  }
+  png_set_write_fn(png, buf, write_cb, flush_cb);
+  png_set_compression_level(png, level);
+  png_set_IHDR(png, info, static_cast<png_uint_32>(w), static_cast<png_uint_32>(h), depth, ctype,
+               PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_write_info(png, info);
+  if (depth == 16) png_set_swap(png);
+  rows = new png_bytep[static_cast<size_t>(h)];
+  for (int r = 0; r < h; ++r) rows[r] = const_cast<png_bytep>(data + static_cast<size_t>(r) * row_bytes);
+  png_write_image(png, rows);
+  png_write_end(png, nullptr);
+  delete[] rows;
+  png_destroy_write_struct(&png, &info);
+  return true;
+}
+
+}  // namespace
+
+Gray16Image decode_gray16_png(const std::string& bytes, const std::string& name, int max_side) {
+  static const unsigned char kSig[8] = {137, 80, 78, 71, 13, 10, 26, 10};
+  if (bytes.size() < 8 || std::memcmp(bytes.data(), kSig, 8) != 0) throw InputError(name, "not a PNG file");
+  ReadState st{reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size(), 0, {0}};
+  Gray16Image img;
+  int depth = 0, ctype = 0;
+  switch (decode_impl(&st, max_side, &img.width, &img.height, &depth, &ctype, &img.pixels)) {
+    case DecodeStatus::Ok:
+      return img;
+    case DecodeStatus::LibpngError:
+      throw InputError(name, std::string("unreadable PNG: ") + (st.message[0] ? st.message : "libpng error"));
+    case DecodeStatus::NotGray16: {
+      const char* kind = ctype == PNG_COLOR_TYPE_GRAY         ? "grayscale"
+                         : ctype == PNG_COLOR_TYPE_GRAY_ALPHA ? "grayscale+alpha"
+                         : ctype == PNG_COLOR_TYPE_RGB        ? "RGB"
+                         : ctype == PNG_COLOR_TYPE_RGB_ALPHA  ? "RGBA"
+                                                              : "palette";
+      throw InputError(name, "PNG must be 16-bit single-channel grayscale, got " + std::to_string(depth) +
+                                 "-bit " + kind);
+    }
+    case DecodeStatus::HasAlpha:
+      throw InputError(name, "PNG must have no alpha/transparency (tRNS chunk present)");
+    case DecodeStatus::TooLarge:
+      throw InputError(name, "PNG is larger than " + std::to_string(max_side) + " pixels on a side");
+  }
+  throw InternalError("unreachable");
+}
+
+std::string encode_gray16_png(const Gray16Image& img, int level) {
+  HS_CHECK(img.width > 0 && img.height > 0, "empty image");
+  HS_CHECK(img.pixels.size() == static_cast<size_t>(img.width) * img.height, "pixel count disagrees with size");
+  WriteBuffer buf;
+  const bool ok = encode_impl(&buf, img.width, img.height, 16, PNG_COLOR_TYPE_GRAY, level,
+                              reinterpret_cast<const unsigned char*>(img.pixels.data()), img.width * 2u);
+  HS_CHECK(ok, "libpng failed to encode");
+  return buf.out;
+}
+
+std::string encode_rgb8_png(int width, int height, const std::vector<std::uint8_t>& rgb) {
+  HS_CHECK(width > 0 && height > 0 && rgb.size() == static_cast<size_t>(width) * height * 3, "bad RGB image");
+  WriteBuffer buf;
+  const bool ok = encode_impl(&buf, width, height, 8, PNG_COLOR_TYPE_RGB, 6, rgb.data(), width * 3u);
+  HS_CHECK(ok, "libpng failed to encode");
+  return buf.out;
+}
+
+}  // namespace handskin

@@ -1,0 +1,27 @@
+#pragma once
+/// The `hand-rig/1` file: the 25 joint positions of the skeleton inside the scan, in the
+/// model (palm-scan) frame, millimetres (formats/hand-rig.md).
+#include <Eigen/Core>
+#include <array>
+#include <optional>
+#include <string>
+
+#include "core/dof.hpp"
+
+namespace handskin {
+
+struct Rig {
+  std::string frame = "palm";                       ///< frame the joints are expressed in
+  std::array<Eigen::Vector3d, kJointCount> joints;  ///< indexed as handskin::joints(), mm
+  std::optional<Eigen::Vector3d> palm_normal;       ///< unit, out of the back of the hand
+};
+
+/// Parse and validate rig JSON text (`file` names it in errors). Every joint required,
+/// unknown or duplicated names, non-finite values and coincident joints of one finger are
+/// errors naming the joint.
+Rig parse_rig(const std::string& text, const std::string& file);
+Rig load_rig(const std::string& file);
+std::string rig_to_json_text(const Rig& rig);
+void save_rig(const std::string& file, const Rig& rig);
+
+}  // namespace handskin

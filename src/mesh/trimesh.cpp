@@ -1,0 +1,72 @@
+#include "mesh/trimesh.hpp"
+
+#include <OpenMesh/Core/IO/MeshIO.hh>
+
+#include <cmath>
+#include <filesystem>
+#include <vector>
+
+#include "core/atomic_file.hpp"
+#include "core/errors.hpp"
+
+namespace handskin {
+
+TriMesh load_mesh(const std::string& path) {
+  read_file(path);  // existence and readability, with a clear message
+  TriMesh mesh;
+  OpenMesh::IO::Options opt;
+  if (!OpenMesh::IO::read_mesh(mesh, path, opt)) throw InputError(path, "unreadable mesh");
+  if (mesh.n_faces() == 0) throw InputError(path, "mesh has no faces");
+  for (auto v : mesh.vertices()) {
+    const auto& p = mesh.point(v);
+    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
+      throw InputError(path, "mesh holds non-finite coordinates");
+  }
+  return mesh;
+}
+
+void save_mesh(const std::string& path, const TriMesh& mesh) {
+  write_via_temp(path, [&](const std::string& tmp) {
+    OpenMesh::IO::Options opt = OpenMesh::IO::Options::Binary;
+    const std::string ext = std::filesystem::path(path).extension().string();
+    if (ext == ".obj" || ext == ".off") opt = OpenMesh::IO::Options::Default;
+    if (!OpenMesh::IO::write_mesh(mesh, tmp, opt, 10)) throw InputError(path, "cannot write mesh");
+  });
+}
+
+MeshHealth mesh_health(const TriMesh& mesh) {
+  MeshHealth h;
+  h.vertices = mesh.n_vertices();
+  h.faces = mesh.n_faces();
+  for (auto e : mesh.edges())
+    if (mesh.is_boundary(e)) ++h.boundary_edges;
+  for (auto v : mesh.vertices())
+    if (!mesh.is_manifold(v)) ++h.nonmanifold_vertices;
+  // Components by flood fill over face adjacency.
+  std::vector<int> comp(mesh.n_faces(), -1);
+  std::vector<int> stack;
+  for (auto f0 : mesh.faces()) {
+    if (comp[f0.idx()] >= 0) continue;
+    const int c = static_cast<int>(h.components++);
+    stack.assign(1, f0.idx());
+    comp[f0.idx()] = c;
+    while (!stack.empty()) {
+      const auto f = mesh.face_handle(stack.back());
+      stack.pop_back();
+      for (auto g : mesh.ff_range(f))
+        if (comp[g.idx()] < 0) {
+          comp[g.idx()] = c;
+          stack.push_back(g.idx());
+        }
+    }
+  }
+  for (auto f : mesh.faces()) {
+    auto it = mesh.cfv_iter(f);
+    const auto a = mesh.point(*it++), b = mesh.point(*it++), c = mesh.point(*it);
+    h.volume_mm3 += OpenMesh::dot(a, OpenMesh::cross(b, c)) / 6.0;
+    h.area_mm2 += 0.5 * OpenMesh::cross(b - a, c - a).norm();
+  }
+  return h;
+}
+
+}  // namespace handskin

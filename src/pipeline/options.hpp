@@ -1,0 +1,37 @@
+#pragma once
+/// Every stage's parameters, as held by `pipelines/*.json` (format "handskin-pipeline/1").
+/// The defaults here are the thesis's and equal `pipelines/cubist.json` (a test keeps them so).
+#include <string>
+
+#include "core/json_util.hpp"
+
+namespace handskin {
+
+struct PipelineOptions {
+  struct Ingest {
+    long min_returns = 1000;       ///< a scan with fewer measured samples is refused
+  } ingest;
+  struct Markers {                 ///< registration (thesis §4.1.1)
+    long count = 9;                ///< spherical markers on the replica
+    double radius_mm = 3.0;        ///< their radius
+  } markers;
+  struct Slicing {                 ///< skin strips (thesis §4.1.2–4.1.3)
+    long planes = 50;              ///< cross-section planes along the hand
+    long points_per_segment = 10;  ///< resampled points per plane and bone segment (eq. 4.1)
+  } slicing;
+  struct Patches {                 ///< Bézier skin (thesis §4.1.4, Table 4.1)
+    long count = 96;               ///< bicubic patches, palm 48 + back 48
+    long error_grid = 100;         ///< error measured against a grid of n x n surface cells
+  } patches;
+
+  /// False with a message naming the key when a value is out of range.
+  bool IsValid(std::string* error) const;
+};
+
+/// Parse a pipeline file. Unknown sections or keys are errors (a typo must not pass silently);
+/// missing keys keep their defaults.
+PipelineOptions parse_pipeline(const Json& j, const std::string& file);
+PipelineOptions load_pipeline(const std::string& file);
+Json pipeline_to_json(const PipelineOptions& o);
+
+}  // namespace handskin

@@ -1,0 +1,32 @@
+#pragma once
+/// `handskin run`: the whole pipeline from two scans and a rig to the outputs in one folder.
+/// Stages so far: ingest (both scans to point clouds). Later stages add themselves here.
+#include <functional>
+#include <string>
+
+#include "core/json_util.hpp"
+#include "pipeline/options.hpp"
+
+namespace handskin {
+
+struct RunInputs {
+  std::string back_stem;   ///< `<stem>.png` + `<stem>.json`, side "back"
+  std::string palm_stem;   ///< side "palm"
+  std::string rig_path;    ///< hand-rig/1, palm frame
+  std::string out_dir;
+  std::string pipeline_path;  ///< empty: built-in defaults (= pipelines/cubist.json)
+  PipelineOptions options;
+};
+
+using ProgressFn = std::function<void(const std::string&)>;
+
+struct RunResult {
+  Json report;   ///< what report.json holds
+  std::string report_path;
+};
+
+/// Run every stage; outputs are written atomically into `out_dir` (created if needed), the
+/// report last. Bad input throws InputError before any output is written.
+RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress);
+
+}  // namespace handskin

@@ -1,0 +1,118 @@
+#include "render/preview.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "core/errors.hpp"
+#include "core/png_io.hpp"
+
+namespace handskin {
+
+Eigen::Matrix3d named_view(const std::string& name) {
+  using Eigen::AngleAxisd;
+  using Eigen::Vector3d;
+  // Hand lies along +X; show it with the fingers up the picture.
+  const Eigen::Matrix3d up = AngleAxisd(M_PI / 2, Vector3d::UnitZ()).toRotationMatrix();
+  if (name == "back") return up;
+  if (name == "palm") return AngleAxisd(M_PI, Vector3d::UnitY()).toRotationMatrix() * up;
+  if (name == "side") return AngleAxisd(-M_PI / 2 * 0.8, Vector3d::UnitX()).toRotationMatrix() * up;
+  throw InputError("--view", "unknown view '" + name + "' (use back, palm or side)");
+}
+
+std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const RenderOptions& o) {
+  HS_CHECK(o.width > 0 && o.height > 0, "empty picture");
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e18), hi = -lo;
+  for (const TriMesh* m : meshes)
+    for (auto v : m->vertices()) {
+      const auto& p = m->point(v);
+      const Eigen::Vector3d q = o.view * Eigen::Vector3d(p[0], p[1], p[2]);
+      lo = lo.cwiseMin(q);
+      hi = hi.cwiseMax(q);
+    }
+  HS_CHECK(hi.x() >= lo.x(), "nothing to render");
+  const double scale = 0.92 * std::min(o.width / std::max(hi.x() - lo.x(), 1e-9), o.height / std::max(hi.y() - lo.y(), 1e-9));
+  const Eigen::Vector2d centre = 0.5 * (lo + hi).head<2>();
+  auto to_px = [&](const Eigen::Vector3d& q) {
+    return Eigen::Vector3d(o.width / 2.0 + (q.x() - centre.x()) * scale, o.height / 2.0 - (q.y() - centre.y()) * scale, q.z());
+  };
+  std::vector<float> depth(static_cast<size_t>(o.width) * o.height, -std::numeric_limits<float>::infinity());
+  std::vector<std::uint8_t> rgb(static_cast<size_t>(o.width) * o.height * 3);
+  for (size_t k = 0; k < rgb.size(); k += 3) rgb[k] = 246, rgb[k + 1] = 246, rgb[k + 2] = 248;
+  const Eigen::Vector3d light = Eigen::Vector3d(-0.4, 0.5, 1.0).normalized();
+
+  for (const TriMesh* m : meshes) {
+    TriMesh mesh = *m;
+    mesh.request_vertex_normals();
+    mesh.request_face_normals();
+    mesh.update_normals();
+    for (auto f : mesh.faces()) {
+      Eigen::Vector3d P[3], N[3];
+      int k = 0;
+      for (auto v : mesh.fv_range(f)) {
+        const auto& p = mesh.point(v);
+        const auto& n = mesh.normal(v);
+        P[k] = to_px(o.view * Eigen::Vector3d(p[0], p[1], p[2]));
+        N[k] = o.view * Eigen::Vector3d(n[0], n[1], n[2]);
+        ++k;
+      }
+      const double area = (P[1].x() - P[0].x()) * (P[2].y() - P[0].y()) - (P[2].x() - P[0].x()) * (P[1].y() - P[0].y());
+      if (std::abs(area) < 1e-12) continue;
+      const int x0 = std::max(0, static_cast<int>(std::floor(std::min({P[0].x(), P[1].x(), P[2].x()}))));
+      const int x1 = std::min(o.width - 1, static_cast<int>(std::ceil(std::max({P[0].x(), P[1].x(), P[2].x()}))));
+      const int y0 = std::max(0, static_cast<int>(std::floor(std::min({P[0].y(), P[1].y(), P[2].y()}))));
+      const int y1 = std::min(o.height - 1, static_cast<int>(std::ceil(std::max({P[0].y(), P[1].y(), P[2].y()}))));
+      for (int y = y0; y <= y1; ++y)
+        for (int x = x0; x <= x1; ++x) {
+          const double px = x + 0.5, py = y + 0.5;
+          const double w0 = ((P[1].x() - px) * (P[2].y() - py) - (P[2].x() - px) * (P[1].y() - py)) / area;
+          const double w1 = ((P[2].x() - px) * (P[0].y() - py) - (P[0].x() - px) * (P[2].y() - py)) / area;
+          const double w2 = 1.0 - w0 - w1;
+          if (w0 < 0 || w1 < 0 || w2 < 0) continue;
+          const double z = w0 * P[0].z() + w1 * P[1].z() + w2 * P[2].z();
+          const size_t idx = static_cast<size_t>(y) * o.width + x;
+          if (z <= depth[idx]) continue;
+          depth[idx] = static_cast<float>(z);
+          Eigen::Vector3d n = (w0 * N[0] + w1 * N[1] + w2 * N[2]).normalized();
+          if (n.z() < 0) n = -n;
+          const double shade = 0.25 + 0.75 * std::max(0.0, n.dot(light));
+          for (int c = 0; c < 3; ++c)
+            rgb[idx * 3 + c] = static_cast<std::uint8_t>(std::clamp(255.0 * o.colour[c] * shade, 0.0, 255.0));
+        }
+    }
+  }
+  for (const auto& p : o.points) {
+    const Eigen::Vector3d q = to_px(o.view * p);
+    for (int dy = -3; dy <= 3; ++dy)
+      for (int dx = -3; dx <= 3; ++dx) {
+        const int x = static_cast<int>(q.x()) + dx, y = static_cast<int>(q.y()) + dy;
+        if (x < 0 || y < 0 || x >= o.width || y >= o.height || dx * dx + dy * dy > 9) continue;
+        const size_t idx = static_cast<size_t>(y) * o.width + x;
+        rgb[idx * 3] = 200, rgb[idx * 3 + 1] = 30, rgb[idx * 3 + 2] = 40;
+      }
+  }
+  return encode_rgb8_png(o.width, o.height, rgb);
+}
+
+std::string render_scan_png(const RangeScan& scan) {
+  const int w = scan.meta.points, h = scan.meta.scanlines;
+  std::uint16_t lo = 65535, hi = 0;
+  for (std::uint16_t v : scan.values)
+    if (v) lo = std::min(lo, v), hi = std::max(hi, v);
+  std::vector<std::uint8_t> rgb(static_cast<size_t>(w) * h * 3, 0);
+  for (int i = 0; i < h; ++i)
+    for (int j = 0; j < w; ++j) {
+      const std::uint16_t v = scan.at(i, j);
+      if (!v) continue;
+      const double t = hi > lo ? static_cast<double>(v - lo) / (hi - lo) : 0.5;
+      // Blue (low) -> yellow (high) ramp, gamma-lifted so low relief stays visible.
+      const double g = std::pow(t, 0.6);
+      const size_t idx = (static_cast<size_t>(i) * w + j) * 3;
+      rgb[idx] = static_cast<std::uint8_t>(40 + 215 * g);
+      rgb[idx + 1] = static_cast<std::uint8_t>(60 + 170 * g);
+      rgb[idx + 2] = static_cast<std::uint8_t>(140 - 100 * g);
+    }
+  return encode_rgb8_png(w, h, rgb);
+}
+
+}  // namespace handskin

@@ -1,0 +1,31 @@
+#pragma once
+/// Preview pictures (PNG) for people who would rather look than read: a shaded mesh and a
+/// colour-coded range scan. A small software rasteriser, so no display or GPU is needed.
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+#include "mesh/trimesh.hpp"
+#include "scan/cubist_io.hpp"
+
+namespace handskin {
+
+struct RenderOptions {
+  int width = 800;
+  int height = 600;
+  /// Rotation applied before an orthographic view down -Z (camera frame: X right, Y up).
+  Eigen::Matrix3d view = Eigen::Matrix3d::Identity();
+  Eigen::Vector3f colour{0.87f, 0.72f, 0.62f};  ///< skin tone
+  std::vector<Eigen::Vector3d> points;          ///< optional joints/markers drawn as dots
+};
+
+/// Shaded orthographic render of one or more meshes (fit to the picture). Returns PNG bytes.
+std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const RenderOptions& options);
+
+/// Height image of a scan: colour ramp over the measured heights, black for no return.
+std::string render_scan_png(const RangeScan& scan);
+
+/// Standard views of the hand frame (X along the hand, Z out of the back): "back", "palm", "side".
+Eigen::Matrix3d named_view(const std::string& name);
+
+}  // namespace handskin

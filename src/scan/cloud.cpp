@@ -1,0 +1,87 @@
+#include "scan/cloud.hpp"
+
+#include <pcl/io/pcd_io.h>
+#include <pcl/io/ply_io.h>
+
+#include <cmath>
+#include <filesystem>
+#include <limits>
+
+#include "core/atomic_file.hpp"
+#include "core/errors.hpp"
+
+namespace handskin {
+
+namespace {
+std::string extension_of(const std::string& path) {
+  std::string e = std::filesystem::path(path).extension().string();
+  for (char& c : e) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return e;
+}
+}  // namespace
+
+Cloud::Ptr scan_to_organized_cloud(const RangeScan& scan) {
+  auto cloud = std::make_shared<Cloud>();
+  cloud->width = static_cast<std::uint32_t>(scan.meta.points);
+  cloud->height = static_cast<std::uint32_t>(scan.meta.scanlines);
+  cloud->is_dense = false;
+  cloud->points.resize(static_cast<size_t>(cloud->width) * cloud->height);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (int i = 0; i < scan.meta.scanlines; ++i)
+    for (int j = 0; j < scan.meta.points; ++j) {
+      pcl::PointXYZ& p = cloud->at(j, i);
+      if (scan.valid(i, j)) {
+        const Eigen::Vector3d q = scan.position(i, j);
+        p.x = static_cast<float>(q.x());
+        p.y = static_cast<float>(q.y());
+        p.z = static_cast<float>(q.z());
+      } else {
+        p.x = p.y = p.z = nan;
+      }
+    }
+  return cloud;
+}
+
+Cloud::Ptr dense_copy(const Cloud& cloud) {
+  auto out = std::make_shared<Cloud>();
+  out->reserve(cloud.size());
+  for (const auto& p : cloud.points)
+    if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)) out->push_back(p);
+  out->width = static_cast<std::uint32_t>(out->size());
+  out->height = 1;
+  out->is_dense = true;
+  return out;
+}
+
+Cloud::Ptr load_cloud(const std::string& path) {
+  const std::string ext = extension_of(path);
+  if (ext != ".ply" && ext != ".pcd") throw InputError(path, "unknown point-cloud extension (use .ply or .pcd)");
+  read_file(path);  // existence and readability, with a clear message
+  auto cloud = std::make_shared<Cloud>();
+  int rc = -1;
+  try {
+    rc = ext == ".ply" ? pcl::io::loadPLYFile(path, *cloud) : pcl::io::loadPCDFile(path, *cloud);
+  } catch (const std::exception& e) {
+    throw InputError(path, std::string("unreadable point cloud: ") + e.what());
+  }
+  if (rc < 0) throw InputError(path, "unreadable point cloud");
+  if (cloud->empty()) throw InputError(path, "point cloud holds no points");
+  for (const auto& p : cloud->points)
+    if (std::isinf(p.x) || std::isinf(p.y) || std::isinf(p.z))
+      throw InputError(path, "point cloud holds infinite coordinates");
+  // NaN points are how organised clouds say "no return": they are dropped.
+  Cloud::Ptr dense = dense_copy(*cloud);
+  if (dense->empty()) throw InputError(path, "point cloud holds no finite points");
+  return dense;
+}
+
+void save_cloud(const std::string& path, const Cloud& cloud) {
+  const std::string ext = extension_of(path);
+  if (ext != ".ply" && ext != ".pcd") throw InputError(path, "unknown point-cloud extension (use .ply or .pcd)");
+  write_via_temp(path, [&](const std::string& tmp) {
+    const int rc = ext == ".ply" ? pcl::io::savePLYFileBinary(tmp, cloud) : pcl::io::savePCDFileBinary(tmp, cloud);
+    if (rc < 0) throw InputError(path, "cannot write point cloud");
+  });
+}
+
+}  // namespace handskin

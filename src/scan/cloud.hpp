@@ -1,0 +1,28 @@
+#pragma once
+/// Point clouds (PCL) from range scans, and PLY/PCD I/O so scans from other devices can
+/// enter the pipeline.
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+
+#include <string>
+
+#include "scan/cubist_io.hpp"
+
+namespace handskin {
+
+using Cloud = pcl::PointCloud<pcl::PointXYZ>;
+
+/// Organised cloud in the scan's own frame (mm): width = points, height = scanlines,
+/// `cloud.at(j, i)` is sample (i, j); no-return samples are NaN (is_dense = false).
+Cloud::Ptr scan_to_organized_cloud(const RangeScan& scan);
+/// The same points without the no-return samples (scanline order kept).
+Cloud::Ptr dense_copy(const Cloud& cloud);
+
+/// Load a `.ply` or `.pcd` cloud (NaN points, an organised cloud's no-returns, are dropped).
+/// Throws InputError naming the file when it cannot be read, has an unknown extension,
+/// holds no finite points or holds infinite coordinates.
+Cloud::Ptr load_cloud(const std::string& path);
+/// Save as binary PLY or PCD by extension, atomically.
+void save_cloud(const std::string& path, const Cloud& cloud);
+
+}  // namespace handskin

@@ -1,0 +1,313 @@
+#include "synth/replica.hpp"
+
+#include <CGAL/AABB_face_graph_triangle_primitive.h>
+#include <CGAL/AABB_traits.h>
+#include <CGAL/AABB_tree.h>
+#include <CGAL/AABB_triangle_primitive.h>
+#include <CGAL/Simple_cartesian.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <map>
+
+#include "core/errors.hpp"
+#include "core/random.hpp"
+
+namespace handskin {
+
+namespace {
+using K = CGAL::Simple_cartesian<double>;
+using Triangle = K::Triangle_3;
+using TriIter = std::vector<Triangle>::const_iterator;
+using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, CGAL::AABB_triangle_primitive<K, TriIter>>>;
+constexpr double kDeg = M_PI / 180.0;
+
+std::vector<Eigen::Vector3d> mesh_points(const TriMesh& mesh, const Eigen::Isometry3d& T) {
+  std::vector<Eigen::Vector3d> v;
+  v.reserve(mesh.n_vertices());
+  for (auto vh : mesh.vertices()) {
+    const auto& p = mesh.point(vh);
+    v.push_back(T * Eigen::Vector3d(p[0], p[1], p[2]));
+  }
+  return v;
+}
+
+std::vector<std::array<int, 3>> mesh_faces(const TriMesh& mesh) {
+  std::vector<std::array<int, 3>> f;
+  f.reserve(mesh.n_faces());
+  for (auto fh : mesh.faces()) {
+    std::array<int, 3> t{};
+    int k = 0;
+    for (auto vh : mesh.fv_range(fh)) t[k++] = vh.idx();
+    f.push_back(t);
+  }
+  return f;
+}
+
+// First surface hit of a ray on the hand (hand frame); nullopt if it misses.
+struct RayCaster {
+  std::vector<Triangle> tris;
+  Tree tree;
+  explicit RayCaster(const std::vector<Eigen::Vector3d>& v, const std::vector<std::array<int, 3>>& f) {
+    for (const auto& t : f)
+      tris.emplace_back(K::Point_3(v[t[0]].x(), v[t[0]].y(), v[t[0]].z()),
+                        K::Point_3(v[t[1]].x(), v[t[1]].y(), v[t[1]].z()),
+                        K::Point_3(v[t[2]].x(), v[t[2]].y(), v[t[2]].z()));
+    tree.insert(tris.begin(), tris.end());
+    tree.build();
+  }
+  std::optional<std::pair<Eigen::Vector3d, Eigen::Vector3d>> cast(const Eigen::Vector3d& o,
+                                                                   const Eigen::Vector3d& d) const {
+    const auto hit = tree.first_intersection(K::Ray_3(K::Point_3(o.x(), o.y(), o.z()), K::Vector_3(d.x(), d.y(), d.z())));
+    if (!hit) return std::nullopt;
+    const K::Point_3* p = boost::get<K::Point_3>(&hit->first);
+    if (!p) return std::nullopt;
+    const Triangle& t = *hit->second;
+    const K::Vector_3 n = CGAL::cross_product(t[1] - t[0], t[2] - t[0]);
+    return std::make_pair(Eigen::Vector3d(p->x(), p->y(), p->z()), Eigen::Vector3d(n.x(), n.y(), n.z()).normalized());
+  }
+};
+
+// Largest-smallest difference between two markers' sorted distance lists: a marker is
+// identifiable from its distances only if this is large for every other marker.
+double min_signature_gap(const std::vector<Eigen::Vector3d>& c) {
+  const size_t n = c.size();
+  std::vector<std::vector<double>> sig(n);
+  for (size_t a = 0; a < n; ++a) {
+    for (size_t b = 0; b < n; ++b)
+      if (a != b) sig[a].push_back((c[a] - c[b]).norm());
+    std::sort(sig[a].begin(), sig[a].end());
+  }
+  double gap = 1e9;
+  for (size_t a = 0; a < n; ++a)
+    for (size_t b = a + 1; b < n; ++b) {
+      double d = 0;
+      for (size_t k = 0; k + 1 < n; ++k) d = std::max(d, std::abs(sig[a][k] - sig[b][k]));
+      gap = std::min(gap, d);
+    }
+  return gap;
+}
+
+Eigen::Isometry3d yaw_then(double yaw_deg, const Eigen::Matrix3d& base) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(yaw_deg * kDeg, Eigen::Vector3d::UnitZ()).toRotationMatrix() * base;
+  return T;
+}
+
+}  // namespace
+
+bool ReplicaOptions::IsValid(std::string* error) const {
+  auto bad = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (marker_count < 3 || marker_count > 12) return bad("marker_count must be in [3, 12]");
+  if (!(marker_radius_mm >= 0.5 && marker_radius_mm <= 10)) return bad("marker_radius_mm must be in [0.5, 10]");
+  if (!(min_signature_gap_mm >= 0 && min_signature_gap_mm <= 20)) return bad("min_signature_gap_mm must be in [0, 20]");
+  if (min_marker_returns < 1) return bad("min_marker_returns must be >= 1");
+  if (!(max_yaw_deg >= 0 && max_yaw_deg <= 45)) return bad("max_yaw_deg must be in [0, 45]");
+  return true;
+}
+
+void icosphere(const Eigen::Vector3d& centre, double radius, int levels, std::vector<Eigen::Vector3d>* vertices,
+               std::vector<std::array<int, 3>>* faces) {
+  const double t = (1.0 + std::sqrt(5.0)) / 2.0;
+  std::vector<Eigen::Vector3d> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
+                                    {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+  std::vector<std::array<int, 3>> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
+                                       {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                                       {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
+                                       {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
+  for (auto& p : v) p.normalize();
+  for (int l = 0; l < levels; ++l) {
+    std::map<std::pair<int, int>, int> mid;
+    auto midpoint = [&](int a, int b) {
+      const auto key = std::minmax(a, b);
+      auto it = mid.find(key);
+      if (it != mid.end()) return it->second;
+      v.push_back((v[a] + v[b]).normalized());
+      return mid[key] = static_cast<int>(v.size()) - 1;
+    };
+    std::vector<std::array<int, 3>> g;
+    for (const auto& tri : f) {
+      const int a = midpoint(tri[0], tri[1]), b = midpoint(tri[1], tri[2]), c = midpoint(tri[2], tri[0]);
+      g.push_back({tri[0], a, c});
+      g.push_back({tri[1], b, a});
+      g.push_back({tri[2], c, b});
+      g.push_back({a, b, c});
+    }
+    f.swap(g);
+  }
+  vertices->clear();
+  for (const auto& p : v) vertices->push_back(centre + radius * p);
+  *faces = f;
+}
+
+Eigen::Isometry3d hand_frame_from_rig(const Rig& rig) {
+  const auto J = [&](const char* n) { return rig.joints[joint_index(n).value()]; };
+  const Eigen::Vector3d o = J("wrist");
+  const Eigen::Vector3d x = (J("middle-finger-phalanx-proximal") - o).normalized();
+  Eigen::Vector3d z = rig.palm_normal ? *rig.palm_normal
+                                      : x.cross(J("index-finger-phalanx-proximal") - J("pinky-finger-phalanx-proximal"));
+  z = (z - z.dot(x) * x).normalized();
+  const Eigen::Vector3d y = z.cross(x);
+  Eigen::Matrix3d R;  // rows: hand axes in rig coordinates
+  R.row(0) = x;
+  R.row(1) = y;
+  R.row(2) = z;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  T.translation() = -R * o;
+  return T;
+}
+
+ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const ReplicaOptions& ro,
+                              const ScannerOptions& so, std::uint64_t seed, bool verbose) {
+  std::string err;
+  if (!ro.IsValid(&err)) throw InputError("replica options", err);
+  if (!so.IsValid(&err)) throw InputError("scanner options", err);
+  Rng rng(seed);
+
+  // Work in the hand frame.
+  const Eigen::Isometry3d T_hand_rig = hand_frame_from_rig(rig_in);
+  const std::vector<Eigen::Vector3d> hv = mesh_points(hand_in, T_hand_rig);
+  const std::vector<std::array<int, 3>> hf = mesh_faces(hand_in);
+  RayCaster caster(hv, hf);
+  Rig rig_hand = rig_in;
+  for (auto& j : rig_hand.joints) j = T_hand_rig * j;
+  const auto J = [&](const char* n) { return rig_hand.joints[joint_index(n).value()]; };
+
+  // --- markers: on the ulnar flank, the radial flank and the wrist end, irregularly spaced ---
+  const Eigen::Vector3d l0 = J("pinky-finger-metacarpal"), l1 = J("pinky-finger-phalanx-proximal");
+  const Eigen::Vector3d i0 = J("index-finger-metacarpal"), i1 = J("index-finger-phalanx-proximal");
+  const double width = (J("index-finger-phalanx-proximal") - J("pinky-finger-phalanx-proximal")).norm();
+  std::vector<Eigen::Vector3d> markers;
+  const double r = ro.marker_radius_mm;
+  for (int attempt = 0; attempt < 500 && markers.empty(); ++attempt) {
+    std::vector<Eigen::Vector3d> c;
+    // Marker slots: 3 ulnar, 3 wrist end, the rest radial (for 9 markers: 3 radial).
+    const int n_ulnar = (ro.marker_count + 2) / 3, n_wrist = (ro.marker_count + 1) / 3;
+    const int n_radial = ro.marker_count - n_ulnar - n_wrist;
+    bool ok = true;
+    auto place = [&](const Eigen::Vector3d& origin, const Eigen::Vector3d& dir) {
+      const auto hit = caster.cast(origin, dir);
+      // Must land on a flank (normal roughly horizontal) so both scans see the sphere.
+      if (!hit || std::abs(hit->second.z()) > 0.45) ok = false;
+      else c.push_back(hit->first);
+    };
+    for (int k = 0; k < n_ulnar && ok; ++k) {
+      const double u = (k + 0.5) / n_ulnar + rng.uniform(-0.12, 0.12);
+      const Eigen::Vector3d q = l0 + u * (l1 - l0);
+      place({q.x(), q.y() - 200.0, rng.uniform(-4.0, 2.0)}, Eigen::Vector3d::UnitY());
+    }
+    for (int k = 0; k < n_radial && ok; ++k) {
+      const double u = 0.55 + 0.45 * (k + 0.5) / n_radial + rng.uniform(-0.06, 0.06);
+      const Eigen::Vector3d q = i0 + u * (i1 - i0);
+      place({q.x(), q.y() + 200.0, rng.uniform(-4.0, 2.0)}, -Eigen::Vector3d::UnitY());
+    }
+    for (int k = 0; k < n_wrist && ok; ++k) {
+      const double v = -0.55 + 1.1 * (k + 0.5) / n_wrist + rng.uniform(-0.08, 0.08);
+      place({-200.0, v * 0.3 * width, rng.uniform(-6.0, 6.0)}, Eigen::Vector3d::UnitX());
+    }
+    if (!ok) continue;
+    for (size_t a = 0; a < c.size() && ok; ++a)
+      for (size_t b = a + 1; b < c.size() && ok; ++b)
+        if ((c[a] - c[b]).norm() < 2 * r + 3.0) ok = false;
+    if (ok && min_signature_gap(c) >= ro.min_signature_gap_mm) markers = c;
+  }
+  if (markers.empty())
+    throw InputError("--mesh", "cannot place the markers on this hand's flanks and wrist end with an irregular pattern");
+
+  // Replica triangles in the hand frame: object 0 = hand, 1.. = markers.
+  std::vector<std::vector<Eigen::Vector3d>> sphere_v(markers.size());
+  std::vector<std::array<int, 3>> sphere_f;
+  for (size_t k = 0; k < markers.size(); ++k) icosphere(markers[k], r, 4, &sphere_v[k], &sphere_f);
+
+  auto build_scene = [&](const Eigen::Isometry3d& T) {
+    Scene s;
+    std::vector<Eigen::Vector3d> v;
+    for (const auto& p : hv) v.push_back(T * p);
+    s.add(v, hf, 0);
+    for (size_t k = 0; k < markers.size(); ++k) {
+      v.clear();
+      for (const auto& p : sphere_v[k]) v.push_back(T * p);
+      s.add(v, sphere_f, static_cast<int>(k) + 1);
+    }
+    return s;
+  };
+
+  // Placement: back up = hand +Z up, fingers toward scanner -X (the wrist end faces the
+  // laser); palm up = the same turned 180° about the hand's long axis.
+  const Eigen::Matrix3d R_back = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const Eigen::Matrix3d R_palm = R_back * Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  auto place_on_table = [&](const Eigen::Matrix3d& base) {
+    for (int attempt = 0; attempt < 200; ++attempt) {
+      Eigen::Isometry3d T = yaw_then(rng.uniform(-ro.max_yaw_deg, ro.max_yaw_deg), base);
+      Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
+      for (const auto& p : hv) {
+        lo = lo.cwiseMin(T * p);
+        hi = hi.cwiseMax(T * p);
+      }
+      for (const auto& c : markers) {
+        lo = lo.cwiseMin(((T * c).array() - r).matrix());
+        hi = hi.cwiseMax(((T * c).array() + r).matrix());
+      }
+      const double margin = 3.0;
+      const double x0 = margin - lo.x(), x1 = so.x_extent_mm - margin - hi.x();
+      const double y0 = margin - lo.y(), y1 = so.y_extent_mm - margin - hi.y();
+      if (x1 < x0 || y1 < y0) continue;
+      T.pretranslate(Eigen::Vector3d(rng.uniform(x0, x1), rng.uniform(y0, y1), 0.0));
+      // Rest on the table: lowest point 0.2 mm above the (possibly tilted) table top.
+      double clearance = 1e9;
+      for (const auto& p : hv) {
+        const Eigen::Vector3d q = T * p;
+        clearance = std::min(clearance, q.z() - so.table_z(q.x()));
+      }
+      for (const auto& c : markers) {
+        const Eigen::Vector3d q = T * c;
+        clearance = std::min(clearance, q.z() - r - so.table_z(q.x()));
+      }
+      T.pretranslate(Eigen::Vector3d(0, 0, 0.2 - clearance));
+      return T;
+    }
+    throw InputError("--mesh", "the replica does not fit on the " + std::to_string(so.x_extent_mm) + " x " +
+                                   std::to_string(so.y_extent_mm) + " mm table");
+  };
+
+  ScanPair out;
+  out.markers_hand = markers;
+  for (int attempt = 1; attempt <= 20; ++attempt) {
+    out.placement_attempts = attempt;
+    out.T_back_hand = place_on_table(R_back);
+    out.T_palm_hand = place_on_table(R_palm);
+    const std::uint64_t noise_seed_back = rng.next(), noise_seed_palm = rng.next();
+    if (verbose) std::fprintf(stderr, "[synth scan] placement %d: scanning back side...\n", attempt);
+    out.back = simulate_scan(build_scene(out.T_back_hand), so, ScanSide::Back, noise_seed_back);
+    if (verbose) std::fprintf(stderr, "[synth scan] placement %d: scanning palm side...\n", attempt);
+    out.palm = simulate_scan(build_scene(out.T_palm_hand), so, ScanSide::Palm, noise_seed_palm);
+    bool visible = true;
+    for (size_t k = 0; k < markers.size(); ++k)
+      if (out.back.returns_per_object[k + 1] < static_cast<size_t>(ro.min_marker_returns) ||
+          out.palm.returns_per_object[k + 1] < static_cast<size_t>(ro.min_marker_returns))
+        visible = false;
+    if (visible) {
+      out.back_to_palm = out.T_palm_hand * out.T_back_hand.inverse();
+      const Eigen::Isometry3d T_palm_rig = out.T_palm_hand * T_hand_rig;
+      out.rig_palm = rig_in;
+      out.rig_palm.frame = "palm";
+      for (auto& j : out.rig_palm.joints) j = T_palm_rig * j;
+      if (rig_in.palm_normal) out.rig_palm.palm_normal = (T_palm_rig.linear() * *rig_in.palm_normal).normalized();
+      out.skin_palm = hand_in;
+      for (auto vh : out.skin_palm.vertices()) {
+        const auto& p = out.skin_palm.point(vh);
+        const Eigen::Vector3d q = T_palm_rig * Eigen::Vector3d(p[0], p[1], p[2]);
+        out.skin_palm.set_point(vh, TriMesh::Point(q.x(), q.y(), q.z()));
+      }
+      return out;
+    }
+    if (verbose) std::fprintf(stderr, "[synth scan] a marker is hidden in one scan; drawing a new placement\n");
+  }
+  throw InputError("--mesh", "no placement found in which every marker is visible in both scans");
+}
+
+}  // namespace handskin

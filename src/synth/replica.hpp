@@ -1,0 +1,47 @@
+#pragma once
+/// The plaster replica (hand + nine spherical markers), its two placements on the table and
+/// the synthetic scan pair with its ground truth.
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+#include "core/rig.hpp"
+#include "mesh/trimesh.hpp"
+#include "synth/scanner.hpp"
+
+namespace handskin {
+
+struct ReplicaOptions {
+  int marker_count = 9;            ///< markers on the flanks and the wrist end
+  double marker_radius_mm = 3.0;   ///< sphere radius; centres on the surface (half embedded)
+  double min_signature_gap_mm = 2.5;  ///< markers must differ this much in their distance pattern
+  int min_marker_returns = 12;     ///< samples each marker must return in each scan
+  double max_yaw_deg = 15.0;       ///< random yaw on the table, ±
+  bool IsValid(std::string* error) const;
+};
+
+/// Sphere triangulation by subdividing an icosahedron `levels` times (20·4^levels faces).
+void icosphere(const Eigen::Vector3d& centre, double radius, int levels, std::vector<Eigen::Vector3d>* vertices,
+               std::vector<std::array<int, 3>>* faces);
+
+/// Hand frame from a rig: origin at the wrist, X toward the middle MCP, Z out of the back
+/// (palm_normal when given), Y = Z × X (toward the thumb of a right hand). Returns T_hand_rig.
+Eigen::Isometry3d hand_frame_from_rig(const Rig& rig);
+
+struct ScanPair {
+  ScanSimulation back, palm;
+  Eigen::Isometry3d T_back_hand, T_palm_hand;     ///< scanner frame from hand frame
+  Eigen::Isometry3d back_to_palm;                 ///< p_palm = back_to_palm · p_back
+  std::vector<Eigen::Vector3d> markers_hand;      ///< marker centres, hand frame
+  Rig rig_palm;                                   ///< joints in the palm scan's frame
+  TriMesh skin_palm;                              ///< the true skin (no markers), palm frame
+  int placement_attempts = 0;
+};
+
+/// Build the replica from `hand` + `rig` (same frame), place it twice on the table (back up,
+/// then turned over about its long axis) with random yaw and shift, and scan both sides.
+/// Every marker is visible in both scans (placements are redrawn until so, or InputError).
+ScanPair synthesize_scan_pair(const TriMesh& hand, const Rig& rig, const ReplicaOptions& replica,
+                              const ScannerOptions& scanner, std::uint64_t seed, bool verbose);
+
+}  // namespace handskin
