@@ -12,9 +12,18 @@ for target in scan rig; do
   corpus=$(mktemp -d)
   cp fuzz/corpus/"$target"/* "$corpus"/ 2>/dev/null || true
   echo "fuzz: $target for ${SECONDS_PER_TARGET}s"
+  log=$(mktemp)
+  set +e
   ./build-fuzz/fuzz_"$target" -max_total_time="$SECONDS_PER_TARGET" -max_len=65536 -rss_limit_mb=2048 \
-    -print_final_stats=1 "$corpus" 2>&1 | grep -E "^(stat::number_of_executed_units|Done|==)" || true
-  # libFuzzer exits non-zero on a crash; rerun the status check explicitly.
-  ./build-fuzz/fuzz_"$target" -runs=0 "$corpus" >/dev/null 2>&1
+    -print_final_stats=1 "$corpus" >"$log" 2>&1
+  rc=$?
+  set -e
+  grep -E "^stat::number_of_executed_units|^Done" "$log" || true
+  if [ "$rc" -ne 0 ]; then
+    tail -n 60 "$log"
+    echo "fuzz: $target FAILED (exit $rc)"
+    exit "$rc"
+  fi
+  rm -f "$log"
   rm -rf "$corpus"
 done

@@ -1,5 +1,6 @@
 #include "core/json_util.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 
@@ -9,8 +10,31 @@
 namespace handskin {
 
 Json parse_json_object(const std::string& text, const std::string& file) {
-  Json j = Json::parse(text, nullptr, /*allow_exceptions=*/false);
-  if (j.is_discarded()) throw InputError(file, "not valid JSON");
+  Json j;
+  try {
+    j = Json::parse(text);
+  } catch (const Json::exception& e) {
+    // Keep the parser's position and context ("line 3, column 20: ... last read: '...'"),
+    // which names the offending key for NaN, inf or overflowing numbers.
+    std::string m = e.what();
+    const size_t at = m.find("parse error at ");
+    if (at != std::string::npos) throw InputError(file, "not valid JSON: " + m.substr(at + 15));
+    // Number overflow (e.g. 1e999) carries no position: find the token and the key before it.
+    const size_t q = m.find("parsing '");
+    if (q != std::string::npos) {
+      const std::string token = m.substr(q + 9, m.find('\'', q + 9) - (q + 9));
+      const size_t pos = text.find(token);
+      if (pos != std::string::npos) {
+        const long line = 1 + std::count(text.begin(), text.begin() + static_cast<long>(pos), '\n');
+        const size_t kend = text.rfind("\":", pos);
+        const size_t kbeg = kend == std::string::npos ? kend : text.rfind('"', kend - 1);
+        const std::string key = kbeg == std::string::npos ? "" : text.substr(kbeg + 1, kend - kbeg - 1);
+        throw InputError(file, "not valid JSON: line " + std::to_string(line) + (key.empty() ? "" : ", key '" + key + "'") +
+                                   ": number '" + token + "' is out of range");
+      }
+    }
+    throw InputError(file, "not valid JSON: " + m);
+  }
   if (!j.is_object()) throw InputError(file, "expected a JSON object at the top level");
   return j;
 }

@@ -18,6 +18,9 @@ struct ReadState {
   size_t size;
   size_t pos;
   char message[256];
+  // Allocated after setjmp: kept here, not in a local, because locals changed after setjmp
+  // are indeterminate once libpng longjmps back (found by the fuzzer as a leak).
+  png_bytep* rows;
 };
 
 void on_error(png_structp png, png_const_charp msg) {
@@ -46,9 +49,10 @@ DecodeStatus decode_impl(ReadState* st, int max_side, int* w, int* h, int* depth
     png_destroy_read_struct(&png, nullptr, nullptr);
     return DecodeStatus::LibpngError;
   }
-  png_bytep* rows = nullptr;
+  st->rows = nullptr;
   if (setjmp(png_jmpbuf(png))) {
-    delete[] rows;
+    delete[] st->rows;
+    st->rows = nullptr;
     png_destroy_read_struct(&png, &info, nullptr);
     return DecodeStatus::LibpngError;
   }
@@ -75,18 +79,20 @@ DecodeStatus decode_impl(ReadState* st, int max_side, int* w, int* h, int* depth
   png_set_interlace_handling(png);
   png_read_update_info(png, info);
   pixels->assign(static_cast<size_t>(*w) * static_cast<size_t>(*h), 0);  // may throw: outside jumps
-  rows = new png_bytep[static_cast<size_t>(*h)];
-  for (int r = 0; r < *h; ++r) rows[r] = reinterpret_cast<png_bytep>(pixels->data() + static_cast<size_t>(r) * *w);
-  png_read_image(png, rows);
+  st->rows = new png_bytep[static_cast<size_t>(*h)];
+  for (int r = 0; r < *h; ++r)
+    st->rows[r] = reinterpret_cast<png_bytep>(pixels->data() + static_cast<size_t>(r) * *w);
+  png_read_image(png, st->rows);
   png_read_end(png, nullptr);
-  delete[] rows;
-  rows = nullptr;
+  delete[] st->rows;
+  st->rows = nullptr;
   png_destroy_read_struct(&png, &info, nullptr);
   return DecodeStatus::Ok;
 }
 
 struct WriteBuffer {
   std::string out;
+  png_bytep* rows = nullptr;  // see ReadState::rows
 };
 void write_cb(png_structp png, png_bytep data, png_size_t n) {
   static_cast<WriteBuffer*>(png_get_io_ptr(png))->out.append(reinterpret_cast<const char*>(data), n);
@@ -98,9 +104,10 @@ bool encode_impl(WriteBuffer* buf, int w, int h, int depth, int ctype, int level
   png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
   if (!png) return false;
   png_infop info = png_create_info_struct(png);
-  png_bytep* rows = nullptr;
+  buf->rows = nullptr;
   if (!info || setjmp(png_jmpbuf(png))) {
-    delete[] rows;
+    delete[] buf->rows;
+    buf->rows = nullptr;
     png_destroy_write_struct(&png, &info);
     return false;
   }
@@ -110,11 +117,12 @@ bool encode_impl(WriteBuffer* buf, int w, int h, int depth, int ctype, int level
                PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
   png_write_info(png, info);
   if (depth == 16) png_set_swap(png);
-  rows = new png_bytep[static_cast<size_t>(h)];
-  for (int r = 0; r < h; ++r) rows[r] = const_cast<png_bytep>(data + static_cast<size_t>(r) * row_bytes);
-  png_write_image(png, rows);
+  buf->rows = new png_bytep[static_cast<size_t>(h)];
+  for (int r = 0; r < h; ++r) buf->rows[r] = const_cast<png_bytep>(data + static_cast<size_t>(r) * row_bytes);
+  png_write_image(png, buf->rows);
   png_write_end(png, nullptr);
-  delete[] rows;
+  delete[] buf->rows;
+  buf->rows = nullptr;
   png_destroy_write_struct(&png, &info);
   return true;
 }
@@ -124,7 +132,7 @@ bool encode_impl(WriteBuffer* buf, int w, int h, int depth, int ctype, int level
 Gray16Image decode_gray16_png(const std::string& bytes, const std::string& name, int max_side) {
   static const unsigned char kSig[8] = {137, 80, 78, 71, 13, 10, 26, 10};
   if (bytes.size() < 8 || std::memcmp(bytes.data(), kSig, 8) != 0) throw InputError(name, "not a PNG file");
-  ReadState st{reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size(), 0, {0}};
+  ReadState st{reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size(), 0, {0}, nullptr};
   Gray16Image img;
   int depth = 0, ctype = 0;
   switch (decode_impl(&st, max_side, &img.width, &img.height, &depth, &ctype, &img.pixels)) {

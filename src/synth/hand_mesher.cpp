@@ -45,7 +45,8 @@ HandMeshResult mesh_hand(const HandModel& model, const HandMeshOptions& options)
   if (!options.IsValid(&err)) throw InputError("mesh options", err);
   const auto t0 = std::chrono::steady_clock::now();
   // make_surface_mesh draws its initial points from CGAL's default random, which is seeded
-  // from the clock: reseed it so the same options give the same mesh.
+  // from the clock: reseed it. (Its refinement queue is ordered by cell addresses, so the mesh
+  // is reproducible per fresh process, as the CLI runs it, not between calls in one process.)
   CGAL::get_default_random() = CGAL::Random(options.seed);
 
   // Bounding sphere centred inside the palm (the oracle needs a negative value there).

@@ -1,0 +1,261 @@
+// Formats: the DOF table, cubist-range/1, hand-rig/1, point clouds, pipeline files.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <set>
+
+#include "core/atomic_file.hpp"
+#include "core/dof.hpp"
+#include "core/errors.hpp"
+#include "core/png_io.hpp"
+#include "core/rig.hpp"
+#include "pipeline/options.hpp"
+#include "scan/cloud.hpp"
+#include "scan/cubist_io.hpp"
+#include "test_util.hpp"
+
+using namespace handskin;
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::string kFixture = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
+
+// Expect `fn` to throw InputError whose message contains every needle.
+template <class F>
+void expect_input_error(F fn, std::initializer_list<std::string> needles) {
+  try {
+    fn();
+    FAIL() << "no error thrown";
+  } catch (const InputError& e) {
+    for (const auto& n : needles) EXPECT_NE(std::string(e.what()).find(n), std::string::npos) << "missing \"" << n << "\" in: " << e.what();
+  }
+}
+
+RangeScan small_scan() {
+  RangeScan s;
+  s.meta.scanlines = 5;
+  s.meta.points = 7;
+  s.meta.x_origin_mm = 1.5;
+  s.meta.x_step_mm = 0.5;
+  s.meta.y_origin_mm = -2;
+  s.meta.y_step_mm = 0.25;
+  s.meta.z_origin_mm = 3;
+  s.meta.z_step_mm = 0.2;
+  s.meta.side = ScanSide::Palm;
+  s.meta.notes = "test";
+  for (int k = 0; k < 35; ++k) s.values.push_back(static_cast<std::uint16_t>(k % 4 == 0 ? 0 : 1000 + 37 * k));
+  return s;
+}
+
+std::string meta_text(const std::string& replace_key = "", const std::string& value = "") {
+  Json j = Json::parse(scan_meta_to_json_text(small_scan().meta));
+  if (!replace_key.empty()) {
+    if (value == "<erase>") j.erase(replace_key);
+    else j[replace_key] = Json::parse(value);
+  }
+  return j.dump();
+}
+
+std::string gray16_png(int w, int h) {
+  Gray16Image img{w, h, std::vector<std::uint16_t>(static_cast<size_t>(w) * h, 500)};
+  return encode_gray16_png(img);
+}
+
+}  // namespace
+
+TEST(DofTable, CountsNamesAndAliases) {
+  EXPECT_EQ(joints().size(), 25u);
+  EXPECT_EQ(dofs().size(), 35u);
+  std::set<std::string> names;
+  for (const auto& d : dofs()) names.insert(d.name);
+  EXPECT_EQ(names.size(), 35u);
+  EXPECT_EQ(dofs()[*dof_index("I2.flex")].name, "index.mcp.flex");
+  EXPECT_EQ(dofs()[*dof_index("l4.flex")].name, "little.dip.flex");
+  EXPECT_EQ(dofs()[*dof_index("T3.flex")].name, "thumb.ip.flex");
+  EXPECT_EQ(dofs()[*dof_index("T1.abd")].name, "thumb.cmc.abd");
+  EXPECT_EQ(*dof_index("wrist.rz"), 5);
+  EXPECT_FALSE(dof_index("thumb.dip.flex"));
+  EXPECT_FALSE(dof_index("index.mcp"));
+  EXPECT_EQ(joints()[*joint_index("L2")].name, std::string("pinky-finger-phalanx-proximal"));
+  // Parents come before children, every finger chain starts at the wrist.
+  for (int i = 1; i < kJointCount; ++i) EXPECT_LT(joints()[i].parent, i);
+  EXPECT_EQ(finger_chain(Finger::Thumb).size(), 4u);
+  EXPECT_EQ(finger_chain(Finger::Little).size(), 5u);
+}
+
+TEST(CubistRange, RoundTrip) {
+  const std::string dir = test::temp_dir("scan");
+  const RangeScan s = small_scan();
+  save_scan(dir + "/a", s);
+  const RangeScan r = load_scan(dir + "/a");
+  EXPECT_EQ(r.values, s.values);
+  EXPECT_EQ(r.meta.scanlines, 5);
+  EXPECT_EQ(r.meta.points, 7);
+  EXPECT_DOUBLE_EQ(r.meta.x_origin_mm, 1.5);
+  EXPECT_DOUBLE_EQ(r.meta.y_step_mm, 0.25);
+  EXPECT_EQ(r.meta.side, ScanSide::Palm);
+  EXPECT_EQ(r.meta.notes, "test");
+  // Position of sample (i, j) follows the spec's formulas.
+  const Eigen::Vector3d p = r.position(2, 3);
+  EXPECT_DOUBLE_EQ(p.x(), 1.5 + 2 * 0.5);
+  EXPECT_DOUBLE_EQ(p.y(), -2 + 3 * 0.25);
+  EXPECT_NEAR(p.z(), 3 + r.at(2, 3) * 0.2, 1e-12);
+  // No temporary files left beside the outputs.
+  size_t files = 0;
+  for (auto& e : fs::directory_iterator(dir)) files += e.is_regular_file();
+  EXPECT_EQ(files, 2u);
+}
+
+TEST(CubistRange, ReadsTheFixture) {
+  const RangeScan back = load_scan(kFixture + "back");
+  EXPECT_EQ(back.meta.scanlines, 512);
+  EXPECT_EQ(back.meta.points, 512);
+  EXPECT_EQ(back.meta.side, ScanSide::Back);
+  EXPECT_NEAR(back.meta.x_step_mm, 250.0 / 512, 1e-12);
+  EXPECT_GT(back.count_valid(), 100000u);
+}
+
+TEST(CubistRange, BadPngs) {
+  const std::string meta = meta_text();
+  const std::string good = gray16_png(7, 5);
+  expect_input_error([&] { decode_scan("hello, not a png", "x.png", meta, "x.json"); }, {"x.png", "not a PNG"});
+  expect_input_error([&] { decode_scan(good.substr(0, good.size() / 2), "x.png", meta, "x.json"); },
+                     {"x.png", "unreadable PNG"});
+  expect_input_error([&] { decode_scan(test::make_png(7, 5, 8, 0, std::vector<std::uint8_t>(35, 9)), "x.png", meta, "x.json"); },
+                     {"x.png", "16-bit", "8-bit"});
+  expect_input_error([&] { decode_scan(test::make_png(7, 5, 16, 2, std::vector<std::uint8_t>(7 * 5 * 6, 9)), "x.png", meta, "x.json"); },
+                     {"x.png", "RGB"});
+  expect_input_error([&] { decode_scan(test::make_png(7, 5, 16, 4, std::vector<std::uint8_t>(7 * 5 * 4, 9)), "x.png", meta, "x.json"); },
+                     {"x.png", "alpha"});
+  expect_input_error([&] { decode_scan(gray16_png(6, 5), "x.png", meta, "x.json"); }, {"x.json", "points", "6 columns"});
+  expect_input_error([&] { decode_scan(gray16_png(7, 4), "x.png", meta, "x.json"); }, {"x.json", "scanlines", "4 rows"});
+  Gray16Image empty{7, 5, std::vector<std::uint16_t>(35, 0)};
+  expect_input_error([&] { decode_scan(encode_gray16_png(empty), "x.png", meta, "x.json"); }, {"x.png", "empty scan"});
+}
+
+TEST(CubistRange, BadMetadata) {
+  const std::string png = gray16_png(7, 5);
+  auto with = [&](const std::string& key, const std::string& v) {
+    return [=] { decode_scan(png, "x.png", meta_text(key, v), "x.json"); };
+  };
+  expect_input_error(with("z_step_mm", "<erase>"), {"x.json", "missing key 'z_step_mm'"});
+  expect_input_error(with("x_step_mm", "\"0.5\""), {"x.json", "'x_step_mm'", "number"});
+  expect_input_error(with("x_step_mm", "0"), {"x.json", "'x_step_mm'", "> 0"});
+  expect_input_error(with("y_step_mm", "-0.1"), {"x.json", "'y_step_mm'", "> 0"});
+  // JSON has no NaN or infinity; such values are parse errors that point at the key.
+  std::string inf_meta = meta_text();
+  inf_meta.replace(inf_meta.find("\"z_origin_mm\":") + 14, 3, "1e999");
+  expect_input_error([&] { decode_scan(png, "x.png", inf_meta, "x.json"); }, {"x.json", "not valid JSON", "z_origin_mm"});
+  std::string nan_meta = meta_text();
+  nan_meta.replace(nan_meta.find("\"x_step_mm\":") + 12, 3, "NaN");
+  expect_input_error([&] { decode_scan(png, "x.png", nan_meta, "x.json"); }, {"x.json", "not valid JSON", "x_step_mm"});
+  expect_input_error(with("scanlines", "5.5"), {"x.json", "'scanlines'", "integer"});
+  expect_input_error(with("points", "0"), {"x.json", "'points'"});
+  expect_input_error(with("side", "\"top\""), {"x.json", "'side'"});
+  expect_input_error(with("format", "\"cubist-range/2\""), {"x.json", "'format'"});
+  expect_input_error([&] { decode_scan(png, "x.png", "[1,2]", "x.json"); }, {"x.json", "object"});
+  expect_input_error([&] { load_scan("/nonexistent/stem"); }, {"/nonexistent/stem.json", "no such file"});
+  // Unknown keys are ignored, per the spec.
+  EXPECT_NO_THROW(decode_scan(png, "x.png", meta_text("vendor_extra", "42"), "x.json"));
+}
+
+TEST(HandRig, RoundTripAndAliases) {
+  const Rig rig = load_rig(kFixture + "rig.json");
+  EXPECT_EQ(rig.frame, "palm");
+  ASSERT_TRUE(rig.palm_normal);
+  const Rig back = parse_rig(rig_to_json_text(rig), "mem");
+  for (int i = 0; i < kJointCount; ++i) EXPECT_EQ(back.joints[i], rig.joints[i]);
+  // Thesis aliases are accepted as joint names.
+  Json j = Json::parse(rig_to_json_text(rig));
+  j["joints"]["I2"] = j["joints"]["index-finger-phalanx-proximal"];
+  j["joints"].erase("index-finger-phalanx-proximal");
+  EXPECT_EQ(parse_rig(j.dump(), "mem").joints[*joint_index("I2")], rig.joints[*joint_index("I2")]);
+}
+
+TEST(HandRig, BadRigs) {
+  const std::string good = read_file(kFixture + "rig.json");
+  auto edit = [&](auto fn) {
+    Json j = Json::parse(good);
+    fn(j);
+    return j.dump();
+  };
+  expect_input_error([&] { parse_rig(edit([](Json& j) { j["joints"].erase("ring-finger-tip"); }), "r.json"); },
+                     {"r.json", "missing joint 'ring-finger-tip'"});
+  expect_input_error([&] { parse_rig(edit([](Json& j) { j["joints"]["sixth-finger-tip"] = {1, 2, 3}; }), "r.json"); },
+                     {"r.json", "unknown joint 'sixth-finger-tip'"});
+  expect_input_error([&] { parse_rig(edit([](Json& j) { j["joints"]["wrist"] = {1, 2}; }), "r.json"); },
+                     {"r.json", "'wrist'", "3 numbers"});
+  expect_input_error([&] { parse_rig(edit([](Json& j) { j["joints"]["wrist"] = {1, "a", 2}; }), "r.json"); },
+                     {"r.json", "'wrist'"});
+  expect_input_error([&] { parse_rig(edit([](Json& j) { j["joints"]["L2"] = j["joints"]["pinky-finger-phalanx-proximal"]; }), "r.json"); },
+                     {"r.json", "given twice"});
+  expect_input_error([&] {
+    parse_rig(edit([](Json& j) { j["joints"]["index-finger-tip"] = j["joints"]["index-finger-phalanx-distal"]; }), "r.json");
+  }, {"r.json", "'index-finger-tip'", "same place"});
+  expect_input_error([&] { parse_rig(edit([](Json& j) { j["palm_normal"] = {0, 0, 0}; }), "r.json"); },
+                     {"r.json", "palm_normal"});
+  expect_input_error([&] { parse_rig(edit([](Json& j) { j["format"] = "hand-rig/9"; }), "r.json"); }, {"r.json", "format"});
+  expect_input_error([&] { parse_rig(edit([](Json& j) { j["units"] = "cm"; }), "r.json"); }, {"r.json", "units"});
+  // Duplicated key in the raw text (a JSON parser would keep only one).
+  std::string dup = good;
+  const size_t at = dup.find("\"wrist\"");
+  ASSERT_NE(at, std::string::npos);
+  dup.insert(at, "\"wrist\": [0, 0, 0],\n    ");
+  expect_input_error([&] { parse_rig(dup, "r.json"); }, {"r.json", "'wrist'", "twice"});
+  std::string inf = good;
+  const size_t c = inf.find('[', inf.find("\"wrist\""));
+  inf.replace(c, inf.find(']', c) - c + 1, "[1e999, 0, 0]");
+  expect_input_error([&] { parse_rig(inf, "r.json"); }, {"r.json", "not valid JSON", "1e999"});
+}
+
+TEST(Clouds, OrganisedLayoutAndFileRoundTrip) {
+  const RangeScan s = small_scan();
+  const Cloud::Ptr org = scan_to_organized_cloud(s);
+  EXPECT_EQ(org->width, 7u);
+  EXPECT_EQ(org->height, 5u);
+  EXPECT_FALSE(org->is_dense);
+  EXPECT_TRUE(std::isnan(org->at(0, 0).x));  // value 0 = no return
+  const Eigen::Vector3d p = s.position(1, 2);
+  EXPECT_FLOAT_EQ(org->at(2, 1).x, static_cast<float>(p.x()));
+  EXPECT_FLOAT_EQ(org->at(2, 1).z, static_cast<float>(p.z()));
+  const Cloud::Ptr dense = dense_copy(*org);
+  EXPECT_EQ(dense->size(), s.count_valid());
+  const std::string dir = test::temp_dir("cloud");
+  for (const char* ext : {".ply", ".pcd"}) {
+    save_cloud(dir + "/c" + ext, *dense);
+    const Cloud::Ptr back = load_cloud(dir + "/c" + ext);
+    ASSERT_EQ(back->size(), dense->size());
+    for (size_t k = 0; k < back->size(); ++k) EXPECT_FLOAT_EQ(back->points[k].y, dense->points[k].y);
+  }
+  // An organised cloud with NaNs loads as its measured points.
+  save_cloud(dir + "/org.pcd", *org);
+  EXPECT_EQ(load_cloud(dir + "/org.pcd")->size(), s.count_valid());
+  test::write_text(dir + "/junk.ply", "ply\nformat nonsense\n");
+  expect_input_error([&] { load_cloud(dir + "/junk.ply"); }, {"junk.ply"});
+  expect_input_error([&] { load_cloud(dir + "/c.xyz"); }, {"c.xyz", "extension"});
+  expect_input_error([&] { load_cloud(dir + "/missing.ply"); }, {"missing.ply", "no such file"});
+}
+
+TEST(Pipeline, ShippedFileEqualsBuiltInDefaults) {
+  const std::string file = std::string(HANDSKIN_SOURCE_DIR) + "/pipelines/cubist.json";
+  const PipelineOptions o = load_pipeline(file);
+  EXPECT_EQ(pipeline_to_json(o), pipeline_to_json(PipelineOptions{}));
+  EXPECT_EQ(o.slicing.planes, 50);
+  EXPECT_EQ(o.slicing.points_per_segment, 10);
+  EXPECT_EQ(o.patches.count, 96);
+  EXPECT_DOUBLE_EQ(o.markers.radius_mm, 3.0);
+}
+
+TEST(Pipeline, BadFiles) {
+  Json j = pipeline_to_json(PipelineOptions{});
+  j["slicing"]["planez"] = 3;
+  expect_input_error([&] { parse_pipeline(j, "p.json"); }, {"p.json", "slicing.planez"});
+  j = pipeline_to_json(PipelineOptions{});
+  j["markers"]["radius_mm"] = -1.0;
+  expect_input_error([&] { parse_pipeline(j, "p.json"); }, {"p.json", "radius_mm"});
+  j = pipeline_to_json(PipelineOptions{});
+  j["registration"] = Json::object();
+  expect_input_error([&] { parse_pipeline(j, "p.json"); }, {"p.json", "registration"});
+}

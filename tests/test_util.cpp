@@ -1,0 +1,85 @@
+#include "test_util.hpp"
+
+#include <zlib.h>
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <unistd.h>
+#include <sys/wait.h>
+
+namespace handskin::test {
+
+std::string temp_dir(const std::string& tag) {
+  namespace fs = std::filesystem;
+  static int counter = 0;
+  const fs::path p = fs::temp_directory_path() / ("handskin-test-" + std::to_string(::getpid()) + "-" + tag + "-" +
+                                                  std::to_string(counter++));
+  fs::remove_all(p);
+  fs::create_directories(p);
+  return p.string();
+}
+
+std::string make_png(int w, int h, int depth, int colour_type, const std::vector<std::uint8_t>& raw) {
+  auto be32 = [](std::uint32_t v) {
+    return std::string{static_cast<char>(v >> 24), static_cast<char>(v >> 16), static_cast<char>(v >> 8),
+                       static_cast<char>(v)};
+  };
+  auto chunk = [&](const std::string& type, const std::string& data) {
+    const std::string td = type + data;
+    const auto crc = static_cast<std::uint32_t>(crc32(0, reinterpret_cast<const Bytef*>(td.data()), td.size()));
+    return be32(static_cast<std::uint32_t>(data.size())) + td + be32(crc);
+  };
+  const int channels = colour_type == 2 ? 3 : colour_type == 4 ? 2 : colour_type == 6 ? 4 : 1;
+  const size_t row_bytes = static_cast<size_t>(w) * channels * depth / 8;
+  std::string filtered;
+  for (int r = 0; r < h; ++r) {
+    filtered.push_back('\0');
+    filtered.append(reinterpret_cast<const char*>(raw.data()) + r * row_bytes, row_bytes);
+  }
+  uLongf n = compressBound(filtered.size());
+  std::string z(n, '\0');
+  compress(reinterpret_cast<Bytef*>(z.data()), &n, reinterpret_cast<const Bytef*>(filtered.data()), filtered.size());
+  z.resize(n);
+  std::string ihdr = be32(w) + be32(h);
+  ihdr += static_cast<char>(depth);
+  ihdr += static_cast<char>(colour_type);
+  ihdr += std::string(3, '\0');
+  return std::string("\x89PNG\r\n\x1a\n", 8) + chunk("IHDR", ihdr) + chunk("IDAT", z) + chunk("IEND", "");
+}
+
+int run(const std::string& cmd, std::string* output) {
+  FILE* pipe = ::popen((cmd + " 2>&1").c_str(), "r");
+  if (!pipe) return -1;
+  std::array<char, 4096> buf{};
+  output->clear();
+  while (size_t n = std::fread(buf.data(), 1, buf.size(), pipe)) output->append(buf.data(), n);
+  const int status = ::pclose(pipe);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+double winding_number(const TriMesh& mesh, const Eigen::Vector3d& p) {
+  // Van Oosterom–Strackee solid angle per triangle.
+  double total = 0;
+  for (auto f : mesh.faces()) {
+    Eigen::Vector3d v[3];
+    int k = 0;
+    for (auto vh : mesh.fv_range(f)) {
+      const auto& q = mesh.point(vh);
+      v[k++] = Eigen::Vector3d(q[0], q[1], q[2]) - p;
+    }
+    const double a = v[0].norm(), b = v[1].norm(), c = v[2].norm();
+    const double num = v[0].dot(v[1].cross(v[2]));
+    const double den = a * b * c + v[0].dot(v[1]) * c + v[1].dot(v[2]) * a + v[2].dot(v[0]) * b;
+    total += 2.0 * std::atan2(num, den);
+  }
+  return total / (4.0 * M_PI);
+}
+
+void write_text(const std::string& path, const std::string& text) {
+  std::ofstream(path, std::ios::binary) << text;
+}
+
+}  // namespace handskin::test

@@ -1,0 +1,21 @@
+#pragma once
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "mesh/trimesh.hpp"
+
+namespace handskin::test {
+
+/// A fresh empty folder under the system temp dir, removed at exit.
+std::string temp_dir(const std::string& tag);
+/// PNG of any depth/colour type built by hand (zlib), for inputs libpng's writer won't make.
+std::string make_png(int w, int h, int depth, int colour_type, const std::vector<std::uint8_t>& raw_rows_no_filter);
+/// Run a shell command; returns exit code, stdout+stderr in *output.
+int run(const std::string& cmd, std::string* output);
+/// Generalised winding number of point p w.r.t. a closed triangle mesh (≈1 inside, ≈0 outside).
+double winding_number(const TriMesh& mesh, const Eigen::Vector3d& p);
+void write_text(const std::string& path, const std::string& text);
+
+}  // namespace handskin::test
