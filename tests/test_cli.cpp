@@ -69,6 +69,16 @@ TEST(Cli, BadInputIsOneLineAndLeavesNoOutput) {
   EXPECT_NE(out.find("marker_radius_mm"), std::string::npos) << out;
 }
 
+TEST(Cli, ConvertBetweenScansAndClouds) {
+  const std::string dir = test::temp_dir("conv");
+  std::string out;
+  ASSERT_EQ(test::run(kBin + " -q convert --in " + kFix + "back --out " + dir + "/b.pcd", &out), 0) << out;
+  ASSERT_EQ(test::run(kBin + " -q convert --in " + dir + "/b.pcd --out " + dir + "/b --side back", &out), 0) << out;
+  EXPECT_EQ(load_scan(dir + "/b").values, load_scan(kFix + "back").values);
+  EXPECT_EQ(test::run(kBin + " -q convert --in " + dir + "/b.pcd --out " + dir + "/c", &out), 1);
+  EXPECT_NE(out.find("--side"), std::string::npos) << out;
+}
+
 TEST(Cli, SynthScanRunsOnAnotherHand) {
   const std::string dir = test::temp_dir("synth");
   std::string out;

@@ -238,6 +238,23 @@ TEST(Clouds, OrganisedLayoutAndFileRoundTrip) {
   expect_input_error([&] { load_cloud(dir + "/missing.ply"); }, {"missing.ply", "no such file"});
 }
 
+TEST(Clouds, ScanToCloudToScanIsExact) {
+  const RangeScan s = load_scan(kFixture + "palm");
+  size_t dropped = 1;
+  const RangeScan back = cloud_to_scan(*dense_copy(*scan_to_organized_cloud(s)), s.meta, &dropped);
+  EXPECT_EQ(dropped, 0u);
+  EXPECT_EQ(back.values, s.values);
+  // Points off the grid are dropped and counted; the highest point of a cell wins.
+  Cloud c;
+  c.push_back(pcl::PointXYZ(-50.0f, 0.0f, 10.0f));
+  c.push_back(pcl::PointXYZ(2.0f, -1.0f, 10.0f));   // sample (1, 4) of small_scan's grid
+  c.push_back(pcl::PointXYZ(2.1f, -0.95f, 12.0f));  // the same sample, higher
+  const RangeScan r = cloud_to_scan(c, small_scan().meta, &dropped);
+  EXPECT_EQ(dropped, 1u);
+  EXPECT_EQ(r.count_valid(), 1u);
+  EXPECT_EQ(r.at(1, 4), std::lround((12.0 - 3.0) / 0.2));
+}
+
 TEST(Pipeline, ShippedFileEqualsBuiltInDefaults) {
   const std::string file = std::string(HANDSKIN_SOURCE_DIR) + "/pipelines/cubist.json";
   const PipelineOptions o = load_pipeline(file);

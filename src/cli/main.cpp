@@ -16,6 +16,7 @@
 #include "pipeline/options.hpp"
 #include "pipeline/run.hpp"
 #include "render/preview.hpp"
+#include "scan/cloud.hpp"
 #include "scan/cubist_io.hpp"
 #include "synth/hand_mesher.hpp"
 #include "synth/hand_model.hpp"
@@ -163,6 +164,43 @@ void render(const RenderArgs& a) {
   std::printf("%s\n", a.out.c_str());
 }
 
+// ---------------- convert ----------------
+struct ConvertArgs {
+  std::string in, out, like, side;
+};
+
+bool is_cloud_path(const std::string& p) {
+  const std::string e = fs::path(p).extension().string();
+  return e == ".ply" || e == ".pcd";
+}
+
+void convert(const ConvertArgs& a, const Progress& progress) {
+  if (!is_cloud_path(a.in)) {
+    if (!is_cloud_path(a.out)) throw InputError("--out", "converting a scan needs a .ply or .pcd output");
+    const RangeScan scan = load_scan(a.in);
+    save_cloud(a.out, *dense_copy(*scan_to_organized_cloud(scan)));
+    progress("convert", std::to_string(scan.count_valid()) + " points written");
+  } else {
+    if (is_cloud_path(a.out)) {
+      save_cloud(a.out, *load_cloud(a.in));
+    } else {
+      // The grid comes from an existing scan's sidecar (--like) or the CUBIST defaults.
+      ScanMeta meta = a.like.empty() ? ScanMeta{} : parse_scan_meta(read_file(a.like + ".json"), a.like + ".json");
+      if (a.side == "back") meta.side = ScanSide::Back;
+      else if (a.side == "palm") meta.side = ScanSide::Palm;
+      else if (a.like.empty()) throw InputError("--side", "give --side back or --side palm (or --like <stem>)");
+      meta.device = "converted from " + fs::path(a.in).filename().string();
+      size_t dropped = 0;
+      const RangeScan scan = cloud_to_scan(*load_cloud(a.in), meta, &dropped);
+      if (scan.count_valid() == 0) throw InputError(a.in, "no point falls on the scan grid");
+      save_scan(a.out, scan);
+      progress("convert", std::to_string(scan.count_valid()) + " samples, " + std::to_string(dropped) +
+                              " points off the grid or out of range dropped");
+    }
+  }
+  std::printf("%s\n", a.out.c_str());
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -231,6 +269,14 @@ int main(int argc, char** argv) {
   rc->add_option("--size", ra.width, "Picture width in pixels (height = 3/4 of it)")->capture_default_str();
   rc->add_option("--out", ra.out, "PNG to write")->required();
 
+  // convert
+  ConvertArgs ca;
+  auto* cc = app.add_subcommand("convert", "Convert between scans (<stem>) and point clouds (.ply/.pcd)");
+  cc->add_option("--in", ca.in, "Scan stem or .ply/.pcd cloud")->required();
+  cc->add_option("--out", ca.out, "Scan stem or .ply/.pcd cloud")->required();
+  cc->add_option("--like", ca.like, "Cloud -> scan: take the grid from this scan's sidecar (default: CUBIST 512 x 512)");
+  cc->add_option("--side", ca.side, "Cloud -> scan: back or palm");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -248,6 +294,8 @@ int main(int argc, char** argv) {
     } else if (ssc->parsed()) {
       ss.scanner.points = ss.scanner.scanlines;
       synth_scan(ss, progress);
+    } else if (cc->parsed()) {
+      convert(ca, progress);
     } else if (rc->parsed()) {
       ra.height = ra.width * 3 / 4;
       render(ra);

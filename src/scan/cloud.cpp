@@ -3,6 +3,7 @@
 #include <pcl/io/pcd_io.h>
 #include <pcl/io/ply_io.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -51,6 +52,27 @@ Cloud::Ptr dense_copy(const Cloud& cloud) {
   out->height = 1;
   out->is_dense = true;
   return out;
+}
+
+RangeScan cloud_to_scan(const Cloud& cloud, const ScanMeta& meta, size_t* dropped) {
+  RangeScan scan;
+  scan.meta = meta;
+  scan.values.assign(static_cast<size_t>(meta.scanlines) * meta.points, 0);
+  size_t lost = 0;
+  for (const auto& p : cloud.points) {
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
+    const long i = std::lround((p.x - meta.x_origin_mm) / meta.x_step_mm);
+    const long j = std::lround((p.y - meta.y_origin_mm) / meta.y_step_mm);
+    const long v = std::lround((p.z - meta.z_origin_mm) / meta.z_step_mm);
+    if (i < 0 || j < 0 || i >= meta.scanlines || j >= meta.points || v < 1 || v > 65535) {
+      ++lost;
+      continue;
+    }
+    auto& cell = scan.values[static_cast<size_t>(i) * meta.points + static_cast<size_t>(j)];
+    cell = std::max(cell, static_cast<std::uint16_t>(v));
+  }
+  if (dropped) *dropped = lost;
+  return scan;
 }
 
 Cloud::Ptr load_cloud(const std::string& path) {

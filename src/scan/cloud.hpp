@@ -18,6 +18,12 @@ Cloud::Ptr scan_to_organized_cloud(const RangeScan& scan);
 /// The same points without the no-return samples (scanline order kept).
 Cloud::Ptr dense_copy(const Cloud& cloud);
 
+/// Rasterise a cloud in a scanner frame into a range image on `meta`'s grid: each point goes
+/// to its nearest sample, the highest point of a sample wins (the view from above), heights
+/// are quantised to `z_step_mm`. Points off the grid or outside the 16-bit height range are
+/// dropped and counted in `*dropped` (if given). Inverse of scan_to_organized_cloud.
+RangeScan cloud_to_scan(const Cloud& cloud, const ScanMeta& meta, size_t* dropped = nullptr);
+
 /// Load a `.ply` or `.pcd` cloud (NaN points, an organised cloud's no-returns, are dropped).
 /// Throws InputError naming the file when it cannot be read, has an unknown extension,
 /// holds no finite points or holds infinite coordinates.
