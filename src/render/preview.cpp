@@ -16,7 +16,11 @@ Eigen::Matrix3d named_view(const std::string& name) {
   const Eigen::Matrix3d up = AngleAxisd(M_PI / 2, Vector3d::UnitZ()).toRotationMatrix();
   if (name == "back") return up;
   if (name == "palm") return AngleAxisd(M_PI, Vector3d::UnitY()).toRotationMatrix() * up;
-  if (name == "side") return AngleAxisd(-M_PI / 2 * 0.8, Vector3d::UnitX()).toRotationMatrix() * up;
+  if (name == "side") {  // from the thumb side, fingers to the left, back of the hand up
+    Eigen::Matrix3d R;
+    R << -1, 0, 0, 0, 0, 1, 0, 1, 0;
+    return R;
+  }
   throw InputError("--view", "unknown view '" + name + "' (use back, palm or side)");
 }
 
