@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # Build the libFuzzer targets of the scan and rig readers with clang (a separate build tree)
-# and run each for a bounded time. Usage: scripts/fuzz.sh [seconds-per-target]
+# and run each for a fixed number of inputs from a fixed seed, so a run is reproducible
+# (a time cap guards slow machines). Usage: scripts/fuzz.sh [runs-per-target] [seed]
 set -euo pipefail
 cd "$(dirname "$0")/.."
-SECONDS_PER_TARGET=${1:-20}
+RUNS=${1:-500000}
+SEED=${2:-1}
 if [ ! -f build-fuzz/CMakeCache.txt ]; then
   CC=clang CXX=clang++ cmake -S . -B build-fuzz -DHANDSKIN_FUZZ_ONLY=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
 fi
@@ -11,10 +13,10 @@ cmake --build build-fuzz -j "${JOBS:-2}" >/dev/null
 for target in scan rig; do
   corpus=$(mktemp -d)
   cp fuzz/corpus/"$target"/* "$corpus"/ 2>/dev/null || true
-  echo "fuzz: $target for ${SECONDS_PER_TARGET}s"
+  echo "fuzz: $target, $RUNS inputs from seed $SEED"
   log=$(mktemp)
   set +e
-  ./build-fuzz/fuzz_"$target" -max_total_time="$SECONDS_PER_TARGET" -max_len=65536 -rss_limit_mb=2048 \
+  ./build-fuzz/fuzz_"$target" -runs="$RUNS" -seed="$SEED" -max_total_time=300 -max_len=65536 -rss_limit_mb=2048 \
     -print_final_stats=1 "$corpus" >"$log" 2>&1
   rc=$?
   set -e
