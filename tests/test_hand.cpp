@@ -141,7 +141,6 @@ TEST(ScanPair, TruthIsConsistentWithTheScans) {
   // Marker samples of both scans, taken to the palm frame, lie on the true spheres there.
   for (const ScanSimulation* sim : {&pair.back, &pair.palm}) {
     const Eigen::Isometry3d T = sim == &pair.back ? pair.back_to_palm : Eigen::Isometry3d::Identity();
-    const Eigen::Isometry3d T_scan_hand = sim == &pair.back ? pair.T_back_hand : pair.T_palm_hand;
     double worst = 0;
     for (int i = 0; i < so.scanlines; ++i)
       for (int j = 0; j < so.points; ++j) {
@@ -150,7 +149,6 @@ TEST(ScanPair, TruthIsConsistentWithTheScans) {
         const Eigen::Vector3d p_palm = T * sim->scan.position(i, j);
         const Eigen::Vector3d c_palm = pair.T_palm_hand * pair.markers_hand[ob - 1];
         worst = std::max(worst, std::abs((p_palm - c_palm).norm() - ro.marker_radius_mm));
-        (void)T_scan_hand;
       }
     EXPECT_LT(worst, 0.45);  // quantisation 0.1 + 4 sigma noise + sampling slant
   }
