@@ -273,6 +273,12 @@ TEST(Pipeline, BadFiles) {
   j["markers"]["radius_mm"] = -1.0;
   expect_input_error([&] { parse_pipeline(j, "p.json"); }, {"p.json", "radius_mm"});
   j = pipeline_to_json(PipelineOptions{});
-  j["registration"] = Json::object();
-  expect_input_error([&] { parse_pipeline(j, "p.json"); }, {"p.json", "registration"});
+  j["registration"]["icp_gate"] = 1.0;  // a typo of icp_gate_mm
+  expect_input_error([&] { parse_pipeline(j, "p.json"); }, {"p.json", "registration.icp_gate"});
+  j = pipeline_to_json(PipelineOptions{});
+  j["registration"]["icp_trim"] = 1.5;
+  expect_input_error([&] { parse_pipeline(j, "p.json"); }, {"p.json", "registration.icp_trim"});
+  j = pipeline_to_json(PipelineOptions{});
+  j["surfacing"] = Json::object();  // no such stage
+  expect_input_error([&] { parse_pipeline(j, "p.json"); }, {"p.json", "surfacing"});
 }

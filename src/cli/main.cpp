@@ -201,6 +201,71 @@ void convert(const ConvertArgs& a, const Progress& progress) {
   std::printf("%s\n", a.out.c_str());
 }
 
+// ---------------- register ----------------
+struct RegisterArgs {
+  std::string back, palm, out = "registration", markers, pipeline, truth;
+  bool no_refine = false;
+};
+
+RangeScan load_side(const std::string& stem, ScanSide side, const char* flag) {
+  RangeScan s = load_scan(stem);
+  if (s.meta.side != side)
+    throw InputError(stem + ".json", std::string("key 'side' is \"") + side_name(s.meta.side) +
+                                         "\" but this scan was given as " + flag);
+  return s;
+}
+
+void register_command(const RegisterArgs& a, const Progress& progress) {
+  PipelineOptions po;
+  if (!a.pipeline.empty()) po = load_pipeline(a.pipeline);
+  RegistrationOptions ro = registration_options(po);
+  if (a.no_refine) ro.refine_enabled = false;
+  const RangeScan back = load_side(a.back, ScanSide::Back, "--back");
+  const RangeScan palm = load_side(a.palm, ScanSide::Palm, "--palm");
+  MarkerHints hints;
+  if (!a.markers.empty()) hints = load_marker_hints(a.markers);
+  // Truth (synthetic data): read before any work so a bad file fails early.
+  Json truth;
+  Eigen::Isometry3d T_true = Eigen::Isometry3d::Identity();
+  std::vector<Eigen::Vector3d> skin;
+  if (!a.truth.empty()) {
+    truth = load_json_object(a.truth);
+    if (get_string(truth, "format", a.truth) != "handskin-truth/1")
+      throw InputError(a.truth, "key 'format' must be \"handskin-truth/1\"");
+    T_true = isometry_from_json(require(truth, "back_to_palm", a.truth), "back_to_palm", a.truth);
+    const TriMesh m = load_mesh((fs::path(a.truth).parent_path() / get_string(truth, "skin", a.truth)).string());
+    for (auto vh : m.vertices()) skin.emplace_back(m.point(vh)[0], m.point(vh)[1], m.point(vh)[2]);
+  }
+  Registration reg = register_scans(back, palm, a.back + ".png", a.palm + ".png", ro,
+                                    a.markers.empty() ? nullptr : &hints,
+                                    [&](const std::string& m) { progress("register", m); });
+  for (const auto& w : reg.warnings) progress("register", "warning: " + w);
+  if (!a.truth.empty()) {
+    Json t;
+    for (const auto& [name, T] : {std::pair<const char*, Eigen::Isometry3d>{"marker_only", reg.marker_only},
+                                  {"chosen", reg.back_to_palm}}) {
+      const RegistrationError e = registration_error(T, T_true, skin);
+      t[name] = {{"rotation_deg", e.rotation_deg}, {"skin_mean_mm", e.mean_mm}, {"skin_max_mm", e.max_mm}};
+    }
+    t["file"] = a.truth;
+    reg.report["against_truth"] = t;
+  }
+  ensure_directory(a.out);
+  save_json((fs::path(a.out) / "registration.json").string(), reg.report);
+  save_merged((fs::path(a.out) / "merged.ply").string(), *reg.merged);
+  const Json& r = reg.report;
+  std::printf("%s: %s, %zu of %zu/%zu markers matched, marker rms %.4f mm (refined %.4f mm), %zu merged points\n",
+              r["status"].get<std::string>().c_str(), r["method"].get<std::string>().c_str(),
+              r["matching"]["pairs_back_palm"].size(), r["scans"]["back"]["markers"].size(),
+              r["scans"]["palm"]["markers"].size(), r["marker_only"]["rms_mm"].get<double>(),
+              r["refined"]["rms_mm"].get<double>(), reg.merged->size());
+  if (r.contains("against_truth"))
+    std::printf("against truth: rotation %.5f deg, skin mean %.4f mm, max %.4f mm\n",
+                r["against_truth"]["chosen"]["rotation_deg"].get<double>(),
+                r["against_truth"]["chosen"]["skin_mean_mm"].get<double>(),
+                r["against_truth"]["chosen"]["skin_max_mm"].get<double>());
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -219,6 +284,20 @@ int main(int argc, char** argv) {
   run->add_option("--rig", run_in.rig_path, "hand-rig/1 file, joints in the palm frame")->required();
   run->add_option("--out", run_in.out_dir, "Output folder (created if needed)")->required();
   run->add_option("--pipeline", run_in.pipeline_path, "Pipeline parameters (default: built-in = pipelines/cubist.json)");
+
+  run->add_option("--markers", run_in.markers_path,
+                  "Manual marker positions (handskin-markers/1) for scans whose bumps the detector misses");
+
+  // register
+  RegisterArgs rg;
+  auto* regc = app.add_subcommand("register", "Register the back scan into the palm scan's frame and merge them");
+  regc->add_option("--back", rg.back, "Back scan stem (<stem>.png + <stem>.json)")->required();
+  regc->add_option("--palm", rg.palm, "Palm scan stem")->required();
+  regc->add_option("--out", rg.out, "Output folder: registration.json, merged.ply")->capture_default_str();
+  regc->add_option("--markers", rg.markers, "Manual marker positions (handskin-markers/1), replacing detection");
+  regc->add_option("--pipeline", rg.pipeline, "Pipeline parameters (markers, registration sections)");
+  regc->add_option("--truth", rg.truth, "truth.json of a synthetic pair: add the errors against it to the report");
+  regc->add_flag("--no-refine", rg.no_refine, "Keep the marker-only fit (no joint sphere/ICP refinement)");
 
   // synth
   auto* synth = app.add_subcommand("synth", "Make synthetic data: a default hand, or a scan pair of a hand");
@@ -289,6 +368,8 @@ int main(int argc, char** argv) {
       const RunResult r = run_pipeline(run_in, [&](const std::string& m) { progress("run", m); });
       progress("run", "done in " + std::to_string(r.report["total_seconds"].get<double>()).substr(0, 5) + " s");
       std::printf("outputs in %s (report: %s)\n", run_in.out_dir.c_str(), r.report_path.c_str());
+    } else if (regc->parsed()) {
+      register_command(rg, progress);
     } else if (shc->parsed()) {
       synth_hand(sh, progress);
     } else if (ssc->parsed()) {

@@ -12,6 +12,18 @@ bool PipelineOptions::IsValid(std::string* error) const {
   if (ingest.min_returns < 1) return bad("ingest.min_returns must be >= 1");
   if (markers.count < 3) return bad("markers.count must be >= 3");
   if (!(markers.radius_mm > 0 && markers.radius_mm <= 20)) return bad("markers.radius_mm must be in (0, 20]");
+  if (!(registration.table_margin_mm >= 0 && registration.table_margin_mm <= 20))
+    return bad("registration.table_margin_mm must be in [0, 20]");
+  if (!(registration.match_tolerance_mm > 0 && registration.match_tolerance_mm <= 10))
+    return bad("registration.match_tolerance_mm must be in (0, 10]");
+  if (!(registration.marker_clearance_mm >= 0 && registration.marker_clearance_mm <= 10))
+    return bad("registration.marker_clearance_mm must be in [0, 10]");
+  if (!(registration.icp_gate_mm > 0 && registration.icp_gate_mm <= 10))
+    return bad("registration.icp_gate_mm must be in (0, 10]");
+  if (!(registration.icp_normal_deg > 0 && registration.icp_normal_deg <= 90))
+    return bad("registration.icp_normal_deg must be in (0, 90]");
+  if (!(registration.icp_trim > 0 && registration.icp_trim <= 1)) return bad("registration.icp_trim must be in (0, 1]");
+  if (registration.icp_max_iterations > 200) return bad("registration.icp_max_iterations must be in [0, 200]");
   if (slicing.planes < 3 || slicing.planes > 1000) return bad("slicing.planes must be in [3, 1000]");
   if (slicing.points_per_segment < 2 || slicing.points_per_segment > 200)
     return bad("slicing.points_per_segment must be in [2, 200]");
@@ -23,7 +35,7 @@ bool PipelineOptions::IsValid(std::string* error) const {
 PipelineOptions parse_pipeline(const Json& j, const std::string& file) {
   if (get_string(j, "format", file) != "handskin-pipeline/1")
     throw InputError(file, "key 'format' must be \"handskin-pipeline/1\"");
-  reject_unknown_keys(j, {"format", "description", "ingest", "markers", "slicing", "patches"}, file, "");
+  reject_unknown_keys(j, {"format", "description", "ingest", "markers", "registration", "slicing", "patches"}, file, "");
   PipelineOptions o;
   auto section = [&](const char* name) -> const Json* {
     if (!j.contains(name)) return nullptr;
@@ -38,6 +50,22 @@ PipelineOptions parse_pipeline(const Json& j, const std::string& file) {
     reject_unknown_keys(*s, {"count", "radius_mm"}, file, "markers");
     o.markers.count = get_int_or(*s, "count", o.markers.count, file + ": markers", 3);
     o.markers.radius_mm = get_finite_or(*s, "radius_mm", o.markers.radius_mm, file + ": markers");
+  }
+  if (const Json* s = section("registration")) {
+    reject_unknown_keys(*s,
+                        {"table_margin_mm", "match_tolerance_mm", "marker_clearance_mm", "refine", "icp_gate_mm",
+                         "icp_normal_deg", "icp_trim", "icp_max_iterations"},
+                        file, "registration");
+    auto& r = o.registration;
+    const std::string f = file + ": registration";
+    r.table_margin_mm = get_finite_or(*s, "table_margin_mm", r.table_margin_mm, f);
+    r.match_tolerance_mm = get_finite_or(*s, "match_tolerance_mm", r.match_tolerance_mm, f);
+    r.marker_clearance_mm = get_finite_or(*s, "marker_clearance_mm", r.marker_clearance_mm, f);
+    r.refine = get_bool_or(*s, "refine", r.refine, f);
+    r.icp_gate_mm = get_finite_or(*s, "icp_gate_mm", r.icp_gate_mm, f);
+    r.icp_normal_deg = get_finite_or(*s, "icp_normal_deg", r.icp_normal_deg, f);
+    r.icp_trim = get_finite_or(*s, "icp_trim", r.icp_trim, f);
+    r.icp_max_iterations = get_int_or(*s, "icp_max_iterations", r.icp_max_iterations, f, 0);
   }
   if (const Json* s = section("slicing")) {
     reject_unknown_keys(*s, {"planes", "points_per_segment"}, file, "slicing");
@@ -54,6 +82,21 @@ PipelineOptions parse_pipeline(const Json& j, const std::string& file) {
   return o;
 }
 
+RegistrationOptions registration_options(const PipelineOptions& o) {
+  RegistrationOptions r;
+  r.expected_markers = o.markers.count;
+  r.spheres.radius_mm = o.markers.radius_mm;
+  r.prepare.table_margin_mm = o.registration.table_margin_mm;
+  r.match_tolerance_mm = o.registration.match_tolerance_mm;
+  r.marker_clearance_mm = o.registration.marker_clearance_mm;
+  r.refine_enabled = o.registration.refine;
+  r.refine.gate_mm = o.registration.icp_gate_mm;
+  r.refine.normal_deg = o.registration.icp_normal_deg;
+  r.refine.trim = o.registration.icp_trim;
+  r.refine.max_iterations = static_cast<int>(o.registration.icp_max_iterations);
+  return r;
+}
+
 PipelineOptions load_pipeline(const std::string& file) { return parse_pipeline(load_json_object(file), file); }
 
 Json pipeline_to_json(const PipelineOptions& o) {
@@ -61,6 +104,11 @@ Json pipeline_to_json(const PipelineOptions& o) {
   j["format"] = "handskin-pipeline/1";
   j["ingest"] = {{"min_returns", o.ingest.min_returns}};
   j["markers"] = {{"count", o.markers.count}, {"radius_mm", o.markers.radius_mm}};
+  const auto& r = o.registration;
+  j["registration"] = {{"table_margin_mm", r.table_margin_mm},     {"match_tolerance_mm", r.match_tolerance_mm},
+                       {"marker_clearance_mm", r.marker_clearance_mm}, {"refine", r.refine},
+                       {"icp_gate_mm", r.icp_gate_mm},             {"icp_normal_deg", r.icp_normal_deg},
+                       {"icp_trim", r.icp_trim},                   {"icp_max_iterations", r.icp_max_iterations}};
   j["slicing"] = {{"planes", o.slicing.planes}, {"points_per_segment", o.slicing.points_per_segment}};
   j["patches"] = {{"count", o.patches.count}, {"error_grid", o.patches.error_grid}};
   return j;

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "core/json_util.hpp"
+#include "register/registration.hpp"
 
 namespace handskin {
 
@@ -15,6 +16,16 @@ struct PipelineOptions {
     long count = 9;                ///< spherical markers on the replica
     double radius_mm = 3.0;        ///< their radius
   } markers;
+  struct Registration {            ///< back scan into the palm frame (docs/algorithms.md)
+    double table_margin_mm = 1.0;  ///< samples this close above the table plane are table
+    double match_tolerance_mm = 0.5;   ///< marker distances must agree this well between scans
+    double marker_clearance_mm = 0.5;  ///< samples within radius + this of a marker are not skin
+    bool refine = true;            ///< refine the marker fit (markers as anchors + gated ICP)
+    double icp_gate_mm = 0.5;      ///< ICP pairs farther apart are not the same surface
+    double icp_normal_deg = 20.0;  ///< ... nor pairs whose normals differ more
+    double icp_trim = 0.9;         ///< fraction of gated pairs kept
+    long icp_max_iterations = 15;  ///< correspondence rounds
+  } registration;
   struct Slicing {                 ///< skin strips (thesis §4.1.2–4.1.3)
     long planes = 50;              ///< cross-section planes along the hand
     long points_per_segment = 10;  ///< resampled points per plane and bone segment (eq. 4.1)
@@ -33,5 +44,7 @@ struct PipelineOptions {
 PipelineOptions parse_pipeline(const Json& j, const std::string& file);
 PipelineOptions load_pipeline(const std::string& file);
 Json pipeline_to_json(const PipelineOptions& o);
+/// The registration stage's options from the pipeline's `markers` and `registration` sections.
+RegistrationOptions registration_options(const PipelineOptions& o);
 
 }  // namespace handskin

@@ -6,6 +6,7 @@
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
 #include "core/rig.hpp"
+#include "register/registration.hpp"
 #include "scan/cloud.hpp"
 #include "scan/cubist_io.hpp"
 
@@ -57,12 +58,37 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   const Rig rig = load_rig(in.rig_path);
   if (rig.frame != "palm")
     throw InputError(in.rig_path, "key 'frame' is \"" + rig.frame + "\"; the pipeline needs joints in the palm frame");
+  MarkerHints hints;
+  if (!in.markers_path.empty()) hints = load_marker_hints(in.markers_path);
   const Cloud::Ptr back_cloud = dense_copy(*scan_to_organized_cloud(back));
   const Cloud::Ptr palm_cloud = dense_copy(*scan_to_organized_cloud(palm));
   stages.push_back({{"name", "ingest"},
                     {"seconds", t_ingest.seconds()},
                     {"back", scan_figures(back, in.back_stem)},
                     {"palm", scan_figures(palm, in.palm_stem)}});
+
+  // --- registration: the back scan into the palm frame, merged cloud ---
+  const StageTimer t_reg;
+  const Registration reg =
+      register_scans(back, palm, in.back_stem + ".png", in.palm_stem + ".png", registration_options(in.options),
+                     in.markers_path.empty() ? nullptr : &hints, progress);
+  for (const auto& w : reg.warnings) progress("warning: " + w);
+  const Json& rr = reg.report;
+  stages.push_back({{"name", "registration"},
+                    {"seconds", t_reg.seconds()},
+                    {"status", rr["status"]},
+                    {"warnings", rr["warnings"]},
+                    {"method", rr["method"]},
+                    {"markers_found", {{"back", rr["scans"]["back"]["markers"].size()},
+                                       {"palm", rr["scans"]["palm"]["markers"].size()}}},
+                    {"markers_matched", rr["matching"]["pairs_back_palm"].size()},
+                    {"marker_only_rms_mm", rr["marker_only"]["rms_mm"]},
+                    {"refined_rms_mm", rr["refined"]["rms_mm"]},
+                    {"sphere_rms_mm", {{"marker_only", rr["marker_only"]["sphere_rms_mm"]},
+                                       {"refined", rr["refined"]["sphere_rms_mm"]}}},
+                    {"icp_overlap_fraction", rr["refined"]["icp"]["overlap_fraction"]},
+                    {"merged_points", rr["merged"]["points"]},
+                    {"timings_ms", rr["timings_ms"]}});
 
   // --- write: the two clouds in their scanner frames ---
   progress("write: point clouds");
@@ -73,10 +99,15 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   const std::string palm_ply = (fs::path(in.out_dir) / "palm.ply").string();
   save_cloud(back_ply, *back_cloud);
   save_cloud(palm_ply, *palm_cloud);
+  const std::string reg_json = (fs::path(in.out_dir) / "registration.json").string();
+  const std::string merged_ply = (fs::path(in.out_dir) / "merged.ply").string();
+  save_json(reg_json, reg.report);
+  save_merged(merged_ply, *reg.merged);
   stages.push_back({{"name", "write"}, {"seconds", t_write.seconds()}});
 
   report["stages"] = stages;
-  report["outputs"] = {{"back_cloud", back_ply}, {"palm_cloud", palm_ply}};
+  report["outputs"] = {{"back_cloud", back_ply}, {"palm_cloud", palm_ply}, {"registration", reg_json},
+                       {"merged_cloud", merged_ply}};
   report["total_seconds"] = total.seconds();
   RunResult r;
   r.report_path = (fs::path(in.out_dir) / "report.json").string();

@@ -1,6 +1,7 @@
 #pragma once
 /// `handskin run`: the whole pipeline from two scans and a rig to the outputs in one folder.
-/// Stages so far: ingest (both scans to point clouds). Later stages add themselves here.
+/// Stages so far: ingest (both scans to point clouds), registration (back into the palm
+/// frame, merged cloud). Later stages add themselves here.
 #include <functional>
 #include <string>
 
@@ -14,6 +15,7 @@ struct RunInputs {
   std::string palm_stem;   ///< side "palm"
   std::string rig_path;    ///< hand-rig/1, palm frame
   std::string out_dir;
+  std::string markers_path;   ///< optional handskin-markers/1 (manual marker positions)
   std::string pipeline_path;  ///< empty: built-in defaults (= pipelines/cubist.json)
   PipelineOptions options;
 };

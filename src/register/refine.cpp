@@ -1,0 +1,292 @@
+#include "register/refine.hpp"
+
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+#include <pcl/kdtree/kdtree_flann.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "core/errors.hpp"
+
+namespace handskin {
+
+bool RefineOptions::IsValid(std::string* error) const {
+  auto bad = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (!(gate_mm > 0 && gate_mm <= 10)) return bad("icp gate_mm must be in (0, 10]");
+  if (!(normal_deg > 0 && normal_deg <= 90)) return bad("icp normal_deg must be in (0, 90]");
+  if (!(trim > 0 && trim <= 1)) return bad("icp trim must be in (0, 1]");
+  if (max_iterations < 0 || max_iterations > 200) return bad("icp max_iterations must be in [0, 200]");
+  if (min_surface_pairs < 3) return bad("icp min_surface_pairs must be >= 3");
+  if (surface_stride < 1) return bad("icp surface_stride must be >= 1");
+  if (!(max_departure_deg > 0) || !(max_departure_mm > 0)) return bad("icp max_departure must be > 0");
+  return true;
+}
+
+void transform_difference(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double* deg, double* mm) {
+  const Eigen::Isometry3d d = a * b.inverse();
+  *deg = Eigen::AngleAxisd(d.linear()).angle() * 180.0 / M_PI;
+  *mm = d.translation().norm();
+}
+
+namespace {
+
+// pose = (angle-axis, translation): q = R p + t.
+struct BackOnSphere {
+  BackOnSphere(const Eigen::Vector3d& p, double r, double w) : p_(p), r_(r), w_(w) {}
+  template <typename T>
+  bool operator()(const T* pose, const T* c, T* res) const {
+    const T p[3] = {T(p_.x()), T(p_.y()), T(p_.z())};
+    T q[3];
+    ceres::AngleAxisRotatePoint(pose, p, q);
+    const T dx = q[0] + pose[3] - c[0], dy = q[1] + pose[4] - c[1], dz = q[2] + pose[5] - c[2];
+    res[0] = T(w_) * (ceres::sqrt(dx * dx + dy * dy + dz * dz) - T(r_));
+    return true;
+  }
+  Eigen::Vector3d p_;
+  double r_, w_;
+};
+
+struct PalmOnSphere {
+  PalmOnSphere(const Eigen::Vector3d& p, double r, double w) : p_(p), r_(r), w_(w) {}
+  template <typename T>
+  bool operator()(const T* c, T* res) const {
+    const T dx = T(p_.x()) - c[0], dy = T(p_.y()) - c[1], dz = T(p_.z()) - c[2];
+    res[0] = T(w_) * (ceres::sqrt(dx * dx + dy * dy + dz * dz) - T(r_));
+    return true;
+  }
+  Eigen::Vector3d p_;
+  double r_, w_;
+};
+
+struct PointToPlane {
+  PointToPlane(const Eigen::Vector3d& p, const Eigen::Vector3d& q, const Eigen::Vector3d& n) : p_(p), q_(q), n_(n) {}
+  template <typename T>
+  bool operator()(const T* pose, T* res) const {
+    const T p[3] = {T(p_.x()), T(p_.y()), T(p_.z())};
+    T x[3];
+    ceres::AngleAxisRotatePoint(pose, p, x);
+    res[0] = T(n_.x()) * (x[0] + pose[3] - T(q_.x())) + T(n_.y()) * (x[1] + pose[4] - T(q_.y())) +
+             T(n_.z()) * (x[2] + pose[5] - T(q_.z()));
+    return true;
+  }
+  Eigen::Vector3d p_, q_, n_;
+};
+
+void to_pose(const Eigen::Isometry3d& T, double pose[6]) {
+  const Eigen::Matrix3d R = T.linear();
+  ceres::RotationMatrixToAngleAxis(ceres::ColumnMajorAdapter3x3(R.data()), pose);
+  for (int k = 0; k < 3; ++k) pose[3 + k] = T.translation()(k);
+}
+
+Eigen::Isometry3d from_pose(const double pose[6]) {
+  Eigen::Matrix3d R;
+  ceres::AngleAxisToRotationMatrix(pose, ceres::ColumnMajorAdapter3x3(R.data()));
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  T.translation() = Eigen::Vector3d(pose[3], pose[4], pose[5]);
+  return T;
+}
+
+ceres::Solver::Options solver_options() {
+  ceres::Solver::Options o;
+  o.linear_solver_type = ceres::SPARSE_SCHUR;  // pose + independent centres: Schur on the centres
+  o.max_num_iterations = 30;
+  o.function_tolerance = 1e-12;
+  o.parameter_tolerance = 1e-12;
+  o.logging_type = ceres::SILENT;
+  o.num_threads = 1;
+  return o;
+}
+
+}  // namespace
+
+double marker_sphere_rms(const std::vector<MarkerSamples>& markers, const Eigen::Isometry3d& T, double r,
+                         std::vector<Eigen::Vector3d>* centres) {
+  double ss = 0;
+  size_t n = 0;
+  if (centres) centres->clear();
+  for (const auto& m : markers) {
+    // Start from the mean of the two caps' samples pushed inward is unnecessary: the palm
+    // cap's own fit is close, so start at the samples' mean and let the solver move it.
+    Eigen::Vector3d start = Eigen::Vector3d::Zero();
+    for (const auto& p : m.palm) start += p;
+    for (const auto& p : m.back) start += T * p;
+    start /= static_cast<double>(m.palm.size() + m.back.size());
+    double c[3] = {start.x(), start.y(), start.z()};
+    ceres::Problem problem;
+    for (size_t k = 0; k < m.palm.size(); ++k)
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<PalmOnSphere, 1, 3>(new PalmOnSphere(m.palm[k], r, m.palm_weight[k])),
+          nullptr, c);
+    for (size_t k = 0; k < m.back.size(); ++k)
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<PalmOnSphere, 1, 3>(new PalmOnSphere(T * m.back[k], r, m.back_weight[k])),
+          nullptr, c);
+    ceres::Solver::Options o;
+    o.linear_solver_type = ceres::DENSE_QR;
+    o.logging_type = ceres::SILENT;
+    o.max_num_iterations = 50;
+    o.function_tolerance = 1e-12;
+    ceres::Solver::Summary summary;
+    ceres::Solve(o, &problem, &summary);
+    ss += 2.0 * summary.final_cost;
+    n += m.palm.size() + m.back.size();
+    if (centres) centres->emplace_back(c[0], c[1], c[2]);
+  }
+  return n ? std::sqrt(ss / static_cast<double>(n)) : 0.0;
+}
+
+RefineResult refine_registration(const PreparedScan& back, const PreparedScan& palm, const std::vector<char>& back_skin,
+                                 const std::vector<char>& palm_skin, const std::vector<MarkerSamples>& markers,
+                                 const Eigen::Isometry3d& T0, double r, const RefineOptions& o) {
+  std::string err;
+  if (!o.IsValid(&err)) throw InputError("registration options", err);
+  RefineResult out;
+  out.T = T0;
+  std::vector<Eigen::Vector3d> centres;
+  out.marker_rms_start = marker_sphere_rms(markers, T0, r, &centres);
+
+  // Palm skin samples with normals in a k-d tree (PCL/FLANN), centred for float precision.
+  std::vector<int> palm_ids;
+  pcl::PointCloud<pcl::PointXYZ>::Ptr tree_pts(new pcl::PointCloud<pcl::PointXYZ>);
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+  for (size_t k = 0; k < palm.points.size(); ++k)
+    if (palm_skin[k] && palm.has_normal(k)) {
+      palm_ids.push_back(static_cast<int>(k));
+      origin += palm.points[k];
+    }
+  pcl::KdTreeFLANN<pcl::PointXYZ> tree;
+  if (!palm_ids.empty()) {
+    origin /= static_cast<double>(palm_ids.size());
+    for (int k : palm_ids) {
+      const Eigen::Vector3d d = palm.points[k] - origin;
+      tree_pts->push_back(pcl::PointXYZ(static_cast<float>(d.x()), static_cast<float>(d.y()), static_cast<float>(d.z())));
+    }
+    tree.setInputCloud(tree_pts);
+  }
+  std::vector<int> back_ids;
+  for (size_t k = 0; k < back.points.size(); k += o.surface_stride)
+    if (back_skin[k] && back.has_normal(k)) back_ids.push_back(static_cast<int>(k));
+  out.surface_tried = back_ids.size();
+
+  double pose[6];
+  to_pose(T0, pose);
+  const double cos_gate = std::cos(o.normal_deg * M_PI / 180.0);
+  struct Pair {
+    int b, p;
+    double res;
+  };
+  std::vector<Pair> pairs;
+  for (int it = 0; it < std::max(1, o.max_iterations); ++it) {
+    const Eigen::Isometry3d T = from_pose(pose);
+    // --- correspondences: nearest palm skin sample, gated by distance and normal, trimmed ---
+    pairs.clear();
+    if (!palm_ids.empty() && o.max_iterations > 0) {
+      std::vector<Pair> found(back_ids.size(), Pair{-1, -1, 0});
+#pragma omp parallel for schedule(static)
+      for (long k = 0; k < static_cast<long>(back_ids.size()); ++k) {
+        const int b = back_ids[k];
+        const Eigen::Vector3d x = T * back.points[b];
+        const Eigen::Vector3d d = x - origin;
+        std::vector<int> idx(1);
+        std::vector<float> d2(1);
+        // A radius search bounded by the gate: a back sample across the hand from every palm
+        // sample (most of them) is settled at once instead of by a long nearest search.
+        if (tree.radiusSearch(pcl::PointXYZ(static_cast<float>(d.x()), static_cast<float>(d.y()), static_cast<float>(d.z())),
+                              o.gate_mm, idx, d2, 1) < 1)
+          continue;
+        const int p = palm_ids[idx[0]];
+        const Eigen::Vector3d nb = T.linear() * back.normals[b];
+        if (nb.dot(palm.normals[p]) < cos_gate) continue;
+        found[k] = {b, p, std::abs(palm.normals[p].dot(x - palm.points[p]))};
+      }
+      for (const auto& f : found)
+        if (f.b >= 0) pairs.push_back(f);
+      std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) {
+        return a.res != b.res ? a.res < b.res : a.b < b.b;
+      });
+      pairs.resize(static_cast<size_t>(std::floor(o.trim * static_cast<double>(pairs.size()))));
+    }
+    const bool use_surface = static_cast<long>(pairs.size()) >= o.min_surface_pairs;
+    out.surface_pairs = use_surface ? pairs.size() : 0;
+
+    // --- one joint solve: transform + marker centres ---
+    ceres::Problem problem;
+    std::vector<std::array<double, 3>> c(centres.size());
+    for (size_t m = 0; m < centres.size(); ++m) c[m] = {centres[m].x(), centres[m].y(), centres[m].z()};
+    for (size_t m = 0; m < markers.size(); ++m) {
+      for (size_t k = 0; k < markers[m].back.size(); ++k)
+        problem.AddResidualBlock(new ceres::AutoDiffCostFunction<BackOnSphere, 1, 6, 3>(
+                                     new BackOnSphere(markers[m].back[k], r, markers[m].back_weight[k])),
+                                 nullptr, pose, c[m].data());
+      for (size_t k = 0; k < markers[m].palm.size(); ++k)
+        problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PalmOnSphere, 1, 3>(
+                                     new PalmOnSphere(markers[m].palm[k], r, markers[m].palm_weight[k])),
+                                 nullptr, c[m].data());
+    }
+    if (use_surface)
+      for (const auto& pr : pairs)
+        problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PointToPlane, 1, 6>(new PointToPlane(
+                                     back.points[pr.b], palm.points[pr.p], palm.normals[pr.p])),
+                                 nullptr, pose);
+    ceres::Solver::Summary summary;
+    ceres::Solve(solver_options(), &problem, &summary);
+    for (size_t m = 0; m < centres.size(); ++m) centres[m] = Eigen::Vector3d(c[m][0], c[m][1], c[m][2]);
+    out.iterations = it + 1;
+
+    double deg, mm;
+    transform_difference(from_pose(pose), T, &deg, &mm);
+    if (!use_surface) {  // nothing to re-pair: the marker solve is final
+      out.converged = summary.termination_type == ceres::CONVERGENCE;
+      break;
+    }
+    if (deg < o.converged_deg && mm < o.converged_mm) {
+      out.converged = true;
+      break;
+    }
+  }
+  out.T = from_pose(pose);
+  out.centres = centres;
+  if (out.surface_pairs > 0) {
+    double ss = 0;
+    for (const auto& pr : pairs) {
+      const double d = palm.normals[pr.p].dot(out.T * back.points[pr.b] - palm.points[pr.p]);
+      ss += d * d;
+    }
+    out.surface_rms_mm = std::sqrt(ss / static_cast<double>(pairs.size()));
+  }
+  out.overlap_fraction =
+      out.surface_tried ? static_cast<double>(out.surface_pairs) / static_cast<double>(out.surface_tried) : 0.0;
+  out.marker_rms_end = marker_sphere_rms(markers, out.T, r, &out.centres);
+
+  // --- guard ---
+  double deg, mm;
+  transform_difference(out.T, T0, &deg, &mm);
+  char buf[256];
+  if (!out.T.matrix().allFinite()) {
+    out.note = "the refinement diverged";
+  } else if (out.marker_rms_end > out.marker_rms_start * 1.01 + 1e-6) {
+    std::snprintf(buf, sizeof buf, "the refinement worsened the marker fit (%.4f -> %.4f mm)", out.marker_rms_start,
+                  out.marker_rms_end);
+    out.note = buf;
+  } else if (deg > o.max_departure_deg || mm > o.max_departure_mm) {
+    std::snprintf(buf, sizeof buf, "the refinement strayed %.3f deg / %.3f mm from the marker fit (allowed %.3f / %.3f)",
+                  deg, mm, o.max_departure_deg, o.max_departure_mm);
+    out.note = buf;
+  } else {
+    out.accepted = true;
+    std::snprintf(buf, sizeof buf, "%s after %d round(s); %zu surface pairs", out.converged ? "converged" : "stopped",
+                  out.iterations, out.surface_pairs);
+    out.note = buf;
+  }
+  return out;
+}
+
+}  // namespace handskin

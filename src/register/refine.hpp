@@ -1,0 +1,70 @@
+#pragma once
+/// Registration, step 5: refinement of the marker fit that cannot collapse the hand.
+///
+/// One least-squares problem (Ceres) over the rigid transform and the matched markers'
+/// centres: every back and palm sample of a matched marker must lie on one sphere of the
+/// known radius (the markers are the anchors), plus point-to-plane ICP terms for back/palm
+/// sample pairs that are truly the same surface — within a distance gate, normals agreeing
+/// (a top-surface point never pairs with the bottom one across the hand), trimmed. The
+/// correspondences are re-found until the transform settles. A guard keeps the marker-only
+/// result when the refinement worsens the marker fit or strays beyond it.
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+#include "register/prepare.hpp"
+
+namespace handskin {
+
+struct RefineOptions {
+  double gate_mm = 0.5;           ///< ICP pairs farther apart than this are not the same surface
+  double normal_deg = 20.0;       ///< ... nor are pairs whose normals differ by more than this
+  double trim = 0.9;              ///< keep this fraction of the gated pairs (smallest residuals)
+  int max_iterations = 15;        ///< correspondence rounds
+  long min_surface_pairs = 200;   ///< fewer gated pairs: the markers alone decide
+  int surface_stride = 2;         ///< every n-th back sample is tried for a pair
+  double converged_deg = 1e-5;    ///< stop when a round turns the transform less than this
+  double converged_mm = 1e-4;     ///< ... and moves it less than this
+  double max_departure_deg = 0.2; ///< a refinement this far from the marker-only fit is refused
+  double max_departure_mm = 0.5;
+  bool IsValid(std::string* error) const;
+};
+
+/// The samples of one matched marker in both scans (each in its own scanner frame), with
+/// their depth weights.
+struct MarkerSamples {
+  std::vector<Eigen::Vector3d> back, palm;
+  std::vector<double> back_weight, palm_weight;
+};
+
+/// Depth-weighted RMS of all marker samples against one sphere per marker, with the back
+/// samples mapped by `T` and each centre re-fitted (`centres`, palm frame, if given).
+/// How well T makes the two caps of every marker one sphere.
+double marker_sphere_rms(const std::vector<MarkerSamples>& markers, const Eigen::Isometry3d& T, double radius,
+                         std::vector<Eigen::Vector3d>* centres = nullptr);
+
+struct RefineResult {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();  ///< the refined back_to_palm (use only if accepted)
+  int iterations = 0;
+  bool converged = false;
+  size_t surface_pairs = 0;        ///< gated, trimmed ICP pairs in the last round
+  size_t surface_tried = 0;        ///< back samples tried for a pair
+  double overlap_fraction = 0;     ///< surface_pairs / surface_tried
+  double surface_rms_mm = 0;       ///< point-to-plane RMS of those pairs
+  double marker_rms_start = 0;     ///< marker_sphere_rms at the marker-only transform
+  double marker_rms_end = 0;       ///< ... at the refined transform
+  std::vector<Eigen::Vector3d> centres;  ///< joint sphere centres, palm frame
+  bool accepted = false;           ///< false: the guard kept the marker-only result
+  std::string note;                ///< why it was refused, or how it ended
+};
+
+/// `back_skin` / `palm_skin`: which prepared samples are skin (not marker) and may pair.
+RefineResult refine_registration(const PreparedScan& back, const PreparedScan& palm,
+                                 const std::vector<char>& back_skin, const std::vector<char>& palm_skin,
+                                 const std::vector<MarkerSamples>& markers, const Eigen::Isometry3d& T0,
+                                 double radius, const RefineOptions& options);
+
+/// Rotation angle (deg) and translation (mm) of a ∘ b⁻¹.
+void transform_difference(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double* deg, double* mm);
+
+}  // namespace handskin

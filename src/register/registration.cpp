@@ -1,0 +1,368 @@
+#include "register/registration.hpp"
+
+#include <pcl/io/ply_io.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include "core/atomic_file.hpp"
+#include "core/errors.hpp"
+#include "core/transform.hpp"
+
+namespace handskin {
+
+bool RegistrationOptions::IsValid(std::string* error) const {
+  if (!prepare.IsValid(error) || !spheres.IsValid(error) || !refine.IsValid(error)) return false;
+  auto bad = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (expected_markers < 3) return bad("expected_markers must be >= 3");
+  if (!(match_tolerance_mm > 0 && match_tolerance_mm <= 10)) return bad("match_tolerance_mm must be in (0, 10]");
+  if (!(accept_residual_mm >= 0 && accept_residual_mm <= 10)) return bad("accept_residual_mm must be in [0, 10]");
+  if (!(marker_clearance_mm >= 0 && marker_clearance_mm <= 10)) return bad("marker_clearance_mm must be in [0, 10]");
+  return true;
+}
+
+MarkerHints load_marker_hints(const std::string& file) {
+  const Json j = load_json_object(file);
+  if (get_string(j, "format", file) != "handskin-markers/1")
+    throw InputError(file, "key 'format' must be \"handskin-markers/1\"");
+  reject_unknown_keys(j, {"format", "description", "back", "palm"}, file, "");
+  MarkerHints h;
+  h.file = file;
+  for (const char* side : {"back", "palm"}) {
+    if (!j.contains(side)) continue;
+    if (!j[side].is_array()) throw InputError(file, std::string("key '") + side + "' must be an array of [x, y, z]");
+    std::vector<Eigen::Vector3d> v;
+    for (size_t k = 0; k < j[side].size(); ++k)
+      v.push_back(to_vec3(j[side][k], std::string(side) + "[" + std::to_string(k) + "]", file));
+    if (v.size() < 3) throw InputError(file, std::string("key '") + side + "' lists fewer than 3 markers");
+    (std::string(side) == "back" ? h.back : h.palm) = v;
+  }
+  if (!h.back && !h.palm) throw InputError(file, "neither 'back' nor 'palm' is given");
+  return h;
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+std::string fmt(const char* f, double a = 0, double b = 0, double c = 0) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, f, a, b, c);
+  return buf;
+}
+
+std::string where(const Eigen::Vector3d& p) { return fmt("(%.1f, %.1f, %.1f)", p.x(), p.y(), p.z()); }
+
+Json round_vec(const Eigen::Vector3d& v) {
+  auto r = [](double x) { return std::round(x * 1e4) / 1e4; };
+  return Json::array({r(v.x()), r(v.y()), r(v.z())});
+}
+
+// Samples that are not within (radius + clearance) of any of `centres` (scan frame).
+std::vector<char> skin_mask(const PreparedScan& s, const std::vector<Eigen::Vector3d>& centres, double reach) {
+  std::vector<char> skin(s.points.size(), 1);
+  for (size_t k = 0; k < s.points.size(); ++k)
+    for (const auto& c : centres)
+      if ((s.points[k] - c).squaredNorm() < reach * reach) {
+        skin[k] = 0;
+        break;
+      }
+  return skin;
+}
+
+std::vector<SphereFit> find_markers(const PreparedScan& s, const RegistrationOptions& o,
+                                    const std::optional<std::vector<Eigen::Vector3d>>& hints,
+                                    const std::string& hints_file, const std::string& scan_file, Json* side_report) {
+  std::vector<SphereFit> found;
+  if (hints) {
+    for (size_t k = 0; k < hints->size(); ++k) {
+      std::string why;
+      auto f = fit_sphere_near(s, (*hints)[k], o.spheres.hint_search_mm, o.spheres, &why);
+      if (!f)
+        throw InputError(hints_file, std::string(side_name(s.side)) + "[" + std::to_string(k) + "] at " +
+                                         where((*hints)[k]) + ": " + why);
+      f->manual = true;
+      found.push_back(std::move(*f));
+    }
+    (*side_report)["marker_source"] = "manual";
+  } else {
+    std::vector<SphereCandidateReport> cands;
+    found = detect_spheres(s, o.spheres, &cands);
+    (*side_report)["marker_source"] = "detected";
+    (*side_report)["candidates_examined"] = cands.size();
+    Json rej = Json::array();
+    for (const auto& c : cands)
+      if (!c.rejected_because.empty() && rej.size() < 20)
+        rej.push_back({{"near", round_vec(c.centre)}, {"votes", c.votes}, {"reason", c.rejected_because}});
+    (*side_report)["rejected_candidates"] = rej;
+  }
+  if (found.size() < 3)
+    throw InputError(scan_file, "found " + std::to_string(found.size()) + " marker sphere(s) of radius " +
+                                    fmt("%.2f", o.spheres.radius_mm) +
+                                    " mm, need at least 3 (give approximate positions with --markers)");
+  return found;
+}
+
+}  // namespace
+
+Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_scan, const std::string& back_file,
+                            const std::string& palm_file, const RegistrationOptions& o, const MarkerHints* hints,
+                            const RegisterProgress& progress) {
+  std::string err;
+  if (!o.IsValid(&err)) throw InputError("registration options", err);
+  const double r = o.spheres.radius_mm;
+  Registration out;
+  Json rep;
+  rep["format"] = "handskin-registration/1";
+  Json timings;
+
+  // --- 1. table, speckle, normals ---
+  progress("register: removing the table and speckle");
+  auto t = Clock::now();
+  const PreparedScan back = prepare_scan(back_scan, o.prepare, back_file);
+  const PreparedScan palm = prepare_scan(palm_scan, o.prepare, palm_file);
+  timings["prepare_ms"] = ms_since(t);
+
+  // --- 2. markers in each scan ---
+  progress("register: finding the marker spheres");
+  t = Clock::now();
+  Json side_rep[2];
+  const std::string hints_file = hints ? hints->file : "";
+  const std::vector<SphereFit> mb =
+      find_markers(back, o, hints ? hints->back : std::nullopt, hints_file, back_file, &side_rep[1]);
+  const std::vector<SphereFit> mp =
+      find_markers(palm, o, hints ? hints->palm : std::nullopt, hints_file, palm_file, &side_rep[0]);
+  timings["markers_ms"] = ms_since(t);
+  for (const auto* side : {&mb, &mp})
+    if (static_cast<long>(side->size()) != o.expected_markers)
+      out.warnings.push_back(std::string(side == &mb ? "back" : "palm") + " scan: " + std::to_string(side->size()) +
+                             " marker spheres found, " + std::to_string(o.expected_markers) + " expected");
+
+  // --- 3. matching by distance pattern, 4. rigid fit ---
+  progress("register: matching the markers");
+  t = Clock::now();
+  std::vector<Eigen::Vector3d> cb, cp;
+  for (const auto& f : mb) cb.push_back(f.centre);
+  for (const auto& f : mp) cp.push_back(f.centre);
+  const MarkerMatch match = match_markers(cb, cp, o.match_tolerance_mm);
+  timings["match_ms"] = ms_since(t);
+  const std::string both = back_file + " + " + palm_file;
+  if (match.pairs.size() < 3)
+    throw InputError(both, "the marker patterns do not match: no 3 of the back scan's " + std::to_string(cb.size()) +
+                               " markers have the distances of 3 of the palm scan's " + std::to_string(cp.size()) +
+                               fmt(" within %.2f mm (scans of two different objects?)", o.match_tolerance_mm));
+  if (match.runner_up_pairs == match.pairs.size())
+    throw InputError(both, "ambiguous marker pattern: two different matchings each pair " +
+                               std::to_string(match.pairs.size()) +
+                               fmt(" markers (residual %.3f and %.3f mm); give the markers an irregular layout",
+                                   match.rms_mm, match.runner_up_rms_mm));
+  if (match.pairs.size() == 3)
+    out.warnings.push_back("only 3 markers matched: the fit has no redundancy to check it");
+  std::vector<int> partner_b(cb.size(), -1), partner_p(cp.size(), -1);
+  for (const auto& [b, p] : match.pairs) {
+    partner_b[b] = p;
+    partner_p[p] = b;
+  }
+  for (size_t k = 0; k < cb.size(); ++k)
+    if (partner_b[k] < 0)
+      out.warnings.push_back("back marker " + std::to_string(k) + " at " + where(cb[k]) +
+                             " has no partner in the palm scan and is not used");
+  for (size_t k = 0; k < cp.size(); ++k)
+    if (partner_p[k] < 0)
+      out.warnings.push_back("palm marker " + std::to_string(k) + " at " + where(cp[k]) +
+                             " has no partner in the back scan and is not used");
+  out.marker_only = match.back_to_palm;
+
+  // --- 5. guarded refinement ---
+  std::vector<MarkerSamples> samples;
+  for (const auto& [b, p] : match.pairs) {
+    MarkerSamples m;
+    for (int k : mb[b].inliers) {
+      m.back.push_back(back.points[k]);
+      m.back_weight.push_back(depth_weight(back.points[k], mb[b].centre, r));
+    }
+    for (int k : mp[p].inliers) {
+      m.palm.push_back(palm.points[k]);
+      m.palm_weight.push_back(depth_weight(palm.points[k], mp[p].centre, r));
+    }
+    samples.push_back(std::move(m));
+  }
+  // Marker neighbourhoods are not skin, in either scan: own detections and the other side's
+  // mapped across (a marker missed on one side still must not pass for skin).
+  const double reach = r + o.marker_clearance_mm;
+  std::vector<Eigen::Vector3d> all_b = cb, all_p = cp;
+  for (const auto& c : cp) all_b.push_back(out.marker_only.inverse() * c);
+  for (const auto& c : cb) all_p.push_back(out.marker_only * c);
+  const std::vector<char> skin_b = skin_mask(back, all_b, reach), skin_p = skin_mask(palm, all_p, reach);
+
+  progress("register: refining (markers as anchors, gated ICP)");
+  t = Clock::now();
+  RefineOptions ro = o.refine;
+  if (!o.refine_enabled) ro.max_iterations = 0;
+  const RefineResult ref = refine_registration(back, palm, skin_b, skin_p, samples, out.marker_only, r, ro);
+  timings["refine_ms"] = ms_since(t);
+  out.refined = o.refine_enabled && ref.accepted;
+  out.back_to_palm = out.refined ? ref.T : out.marker_only;
+  if (o.refine_enabled && !ref.accepted) out.warnings.push_back("refinement refused, marker-only fit kept: " + ref.note);
+
+  // --- checks against the marker radius and the scanner's resolution ---
+  const double accept = o.accept_residual_mm > 0 ? o.accept_residual_mm : std::max(2.0 * palm.z_step, 0.1 * r);
+  auto residuals = [&](const Eigen::Isometry3d& T, double* rms, double* mx) {
+    Json a = Json::array();
+    double ss = 0;
+    *mx = 0;
+    for (const auto& [b, p] : match.pairs) {
+      const double d = (T * cb[b] - cp[p]).norm();
+      a.push_back(std::round(d * 1e5) / 1e5);
+      ss += d * d;
+      *mx = std::max(*mx, d);
+    }
+    *rms = std::sqrt(ss / static_cast<double>(match.pairs.size()));
+    return a;
+  };
+  double rms_m, max_m, rms_r, max_r;
+  const Json res_m = residuals(out.marker_only, &rms_m, &max_m);
+  const Json res_r = residuals(ref.T, &rms_r, &max_r);
+  const double max_final = out.refined ? max_r : max_m;
+  if (max_final > accept)
+    throw InputError(both, fmt("registration rejected: a matched marker's centres disagree by %.3f mm after the fit "
+                               "(allowed %.3f mm: 2 depth steps or 10%% of the marker radius)",
+                               max_final, accept));
+  for (const auto& c : (out.refined ? ref.centres : std::vector<Eigen::Vector3d>{})) out.markers_palm.push_back(c);
+  if (!out.refined)
+    for (const auto& [b, p] : match.pairs) out.markers_palm.push_back(0.5 * (out.marker_only * cb[b] + cp[p]));
+
+  // --- 6. merge: palm frame, side labels, marker samples out ---
+  progress("register: merging");
+  t = Clock::now();
+  std::vector<Eigen::Vector3d> all_b2 = cb, all_p2 = cp;
+  for (const auto& c : cp) all_b2.push_back(out.back_to_palm.inverse() * c);
+  for (const auto& c : cb) all_p2.push_back(out.back_to_palm * c);
+  const std::vector<char> keep_b = skin_mask(back, all_b2, reach), keep_p = skin_mask(palm, all_p2, reach);
+  out.merged.reset(new MergedCloud);
+  size_t n_palm = 0, n_back = 0;
+  auto add = [&](const PreparedScan& s, const std::vector<char>& keep, const Eigen::Isometry3d& T, std::uint32_t label,
+                 size_t* count) {
+    for (size_t k = 0; k < s.points.size(); ++k) {
+      if (!keep[k]) continue;
+      const Eigen::Vector3d p = T * s.points[k];
+      const Eigen::Vector3d n = T.linear() * s.normals[k];
+      pcl::PointXYZLNormal q;
+      q.x = static_cast<float>(p.x());
+      q.y = static_cast<float>(p.y());
+      q.z = static_cast<float>(p.z());
+      q.normal_x = static_cast<float>(n.x());
+      q.normal_y = static_cast<float>(n.y());
+      q.normal_z = static_cast<float>(n.z());
+      q.curvature = 0;
+      q.label = label;
+      out.merged->push_back(q);
+      ++*count;
+    }
+  };
+  add(palm, keep_p, Eigen::Isometry3d::Identity(), kSidePalm, &n_palm);
+  add(back, keep_b, out.back_to_palm, kSideBack, &n_back);
+  timings["merge_ms"] = ms_since(t);
+
+  // --- report ---
+  auto side_json = [&](const PreparedScan& s, const std::vector<SphereFit>& m, const std::vector<int>& partner,
+                       Json j) {
+    j["returns"] = s.returns;
+    j["table"] = {{"plane", {s.table_plane(0), s.table_plane(1), s.table_plane(2), s.table_plane(3)}},
+                  {"tilt_deg", s.table_tilt_deg},
+                  {"rms_mm", s.table_rms_mm},
+                  {"points", s.table_points}};
+    j["below_table"] = s.below_table;
+    j["speckle"] = {{"islands", s.speckle_islands}, {"points", s.speckle_points}};
+    j["object_points"] = s.points.size();
+    Json a = Json::array();
+    for (size_t k = 0; k < m.size(); ++k)
+      a.push_back({{"centre", round_vec(m[k].centre)},
+                   {"radius_free_fit_mm", m[k].radius_free},
+                   {"rms_mm", m[k].rms_mm},
+                   {"samples", m[k].inliers.size()},
+                   {"spread_deg", m[k].spread_deg},
+                   {"matched_with", partner[k] >= 0 ? Json(partner[k]) : Json(nullptr)}});
+    j["markers"] = a;
+    return j;
+  };
+  rep["status"] = out.warnings.empty() ? "ok" : "ok_with_warnings";
+  rep["warnings"] = out.warnings;
+  rep["back_to_palm"] = isometry_to_json(out.back_to_palm);
+  rep["method"] = out.refined ? "refined" : "markers";
+  rep["scans"] = {{"back", side_json(back, mb, partner_b, side_rep[1])},
+                  {"palm", side_json(palm, mp, partner_p, side_rep[0])}};
+  Json pairs = Json::array();
+  for (const auto& [b, p] : match.pairs) pairs.push_back({b, p});
+  rep["matching"] = {{"pairs_back_palm", pairs},
+                     {"tolerance_mm", o.match_tolerance_mm},
+                     {"hypotheses", match.hypotheses},
+                     {"runner_up_pairs", match.runner_up_pairs},
+                     {"runner_up_rms_mm", match.runner_up_rms_mm}};
+  rep["marker_only"] = {{"back_to_palm", isometry_to_json(out.marker_only)},
+                        {"marker_residuals_mm", res_m},
+                        {"rms_mm", rms_m},
+                        {"max_mm", max_m},
+                        {"sphere_rms_mm", ref.marker_rms_start}};
+  double d_deg, d_mm;
+  transform_difference(ref.T, out.marker_only, &d_deg, &d_mm);
+  rep["refined"] = {{"enabled", o.refine_enabled},
+                    {"accepted", out.refined},
+                    {"note", ref.note},
+                    {"back_to_palm", isometry_to_json(ref.T)},
+                    {"marker_residuals_mm", res_r},
+                    {"rms_mm", rms_r},
+                    {"max_mm", max_r},
+                    {"sphere_rms_mm", ref.marker_rms_end},
+                    {"icp",
+                     {{"iterations", ref.iterations},
+                      {"converged", ref.converged},
+                      {"surface_pairs", ref.surface_pairs},
+                      {"tried", ref.surface_tried},
+                      {"overlap_fraction", ref.overlap_fraction},
+                      {"inlier_rms_mm", ref.surface_rms_mm},
+                      {"gate_mm", o.refine.gate_mm},
+                      {"normal_deg", o.refine.normal_deg},
+                      {"trim", o.refine.trim}}},
+                    {"change_from_marker_only", {{"rotation_deg", d_deg}, {"translation_mm", d_mm}}}};
+  rep["accept_residual_mm"] = accept;
+  Json mk = Json::array();
+  for (const auto& c : out.markers_palm) mk.push_back(round_vec(c));
+  rep["markers_palm"] = mk;
+  rep["merged"] = {{"points", out.merged->size()},
+                   {"palm", n_palm},
+                   {"back", n_back},
+                   {"marker_samples_removed", (back.points.size() - n_back) + (palm.points.size() - n_palm)}};
+  rep["timings_ms"] = timings;
+  out.report = rep;
+  return out;
+}
+
+RegistrationError registration_error(const Eigen::Isometry3d& est, const Eigen::Isometry3d& truth,
+                                     const std::vector<Eigen::Vector3d>& skin) {
+  RegistrationError e;
+  double mm;
+  transform_difference(est, truth, &e.rotation_deg, &mm);
+  // A true back sample lands at est·truth⁻¹·x instead of at x.
+  const Eigen::Isometry3d E = est * truth.inverse();
+  for (const auto& x : skin) {
+    const double d = (E * x - x).norm();
+    e.mean_mm += d;
+    e.max_mm = std::max(e.max_mm, d);
+  }
+  if (!skin.empty()) e.mean_mm /= static_cast<double>(skin.size());
+  return e;
+}
+
+void save_merged(const std::string& path, const MergedCloud& cloud) {
+  write_via_temp(path, [&](const std::string& tmp) {
+    if (pcl::io::savePLYFileBinary(tmp, cloud) < 0) throw InputError(path, "cannot write point cloud");
+  });
+}
+
+}  // namespace handskin

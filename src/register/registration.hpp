@@ -1,0 +1,81 @@
+#pragma once
+/// Registration of the back scan into the palm scan's frame (thesis §4.1.1), automatic:
+///   prepare (table and speckle removed, normals) → marker spheres in each scan →
+///   matching by distance pattern → rigid fit of the centres → guarded refinement →
+///   checks against the marker radius and the scanner's resolution → merged cloud.
+/// Stages live in prepare/spheres/match/refine; this file runs them and reports.
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+
+#include <Eigen/Geometry>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/json_util.hpp"
+#include "register/match.hpp"
+#include "register/prepare.hpp"
+#include "register/refine.hpp"
+#include "register/spheres.hpp"
+#include "scan/cubist_io.hpp"
+
+namespace handskin {
+
+struct RegistrationOptions {
+  PrepareOptions prepare;
+  SphereOptions spheres;
+  RefineOptions refine;
+  long expected_markers = 9;       ///< a different count found is a warning, not an error
+  double match_tolerance_mm = 0.5; ///< marker distances must agree this well between the scans
+  /// A matched marker whose centres disagree by more than this after the fit stops the
+  /// registration; 0 = automatic: max(2 × the depth step, 10 % of the marker radius).
+  double accept_residual_mm = 0;
+  double marker_clearance_mm = 0.5;  ///< samples within radius + this of a marker are not skin
+  bool refine_enabled = true;
+  bool IsValid(std::string* error) const;
+};
+
+/// Approximate marker centres per scan for a replica whose bumps the detector misses
+/// (`handskin-markers/1`). A side given replaces detection on that side.
+struct MarkerHints {
+  std::string file;
+  std::optional<std::vector<Eigen::Vector3d>> back, palm;
+};
+MarkerHints load_marker_hints(const std::string& file);
+
+/// Merged cloud point: x y z, normal, label = side (0 palm, 1 back); palm frame.
+using MergedCloud = pcl::PointCloud<pcl::PointXYZLNormal>;
+constexpr std::uint32_t kSidePalm = 0, kSideBack = 1;
+
+struct Registration {
+  Eigen::Isometry3d back_to_palm = Eigen::Isometry3d::Identity();  ///< p_palm = T · p_back
+  Eigen::Isometry3d marker_only = Eigen::Isometry3d::Identity();   ///< the rigid fit of the centres
+  bool refined = false;                                             ///< the refinement was kept
+  std::vector<Eigen::Vector3d> markers_palm;  ///< matched marker centres, palm frame
+  std::vector<std::string> warnings;
+  MergedCloud::Ptr merged;
+  Json report;                                ///< registration.json
+};
+
+using RegisterProgress = std::function<void(const std::string&)>;
+
+/// Register `back` into `palm`'s frame. `back_file` / `palm_file` name the scans in errors.
+/// Throws InputError when the result cannot be trusted (too few or unmatched markers, an
+/// ambiguous pattern, residuals beyond the marker radius and scanner resolution).
+Registration register_scans(const RangeScan& back, const RangeScan& palm, const std::string& back_file,
+                            const std::string& palm_file, const RegistrationOptions& options,
+                            const MarkerHints* hints, const RegisterProgress& progress);
+
+/// How far an estimated back_to_palm is from the true one, over points of the true skin
+/// (palm frame): rotation angle, and mean / max displacement of the points.
+struct RegistrationError {
+  double rotation_deg = 0, mean_mm = 0, max_mm = 0;
+};
+RegistrationError registration_error(const Eigen::Isometry3d& estimate, const Eigen::Isometry3d& truth,
+                                     const std::vector<Eigen::Vector3d>& skin_palm);
+
+/// Binary PLY, atomically (x y z nx ny nz label curvature; label 0 = palm, 1 = back).
+void save_merged(const std::string& path, const MergedCloud& cloud);
+
+}  // namespace handskin

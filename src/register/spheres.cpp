@@ -1,0 +1,315 @@
+#include "register/spheres.hpp"
+
+#include <ceres/ceres.h>
+#include <pcl/ModelCoefficients.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+#include <pcl/sample_consensus/method_types.h>
+#include <pcl/sample_consensus/model_types.h>
+#include <pcl/segmentation/sac_segmentation.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <unordered_map>
+
+#include "core/errors.hpp"
+
+namespace handskin {
+
+bool SphereOptions::IsValid(std::string* error) const {
+  auto bad = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (!(radius_mm > 0 && radius_mm <= 20)) return bad("radius_mm must be in (0, 20]");
+  if (!(radius_tolerance > 0 && radius_tolerance < 0.5)) return bad("radius_tolerance must be in (0, 0.5)");
+  if (!(inlier_mm > 0 && inlier_mm < radius_mm)) return bad("inlier_mm must be in (0, radius_mm)");
+  if (!(max_rms_mm > 0)) return bad("max_rms_mm must be > 0");
+  if (min_points < 4) return bad("min_points must be >= 4");
+  if (!(min_spread_deg >= 0 && min_spread_deg < 90)) return bad("min_spread_deg must be in [0, 90)");
+  if (min_votes < 1) return bad("min_votes must be >= 1");
+  if (!(min_vote_concentration >= 0 && min_vote_concentration <= 1)) return bad("min_vote_concentration must be in [0, 1]");
+  if (!(hint_search_mm > 0 && hint_search_mm <= 50)) return bad("hint_search_mm must be in (0, 50]");
+  return true;
+}
+
+double depth_weight(const Eigen::Vector3d& p, const Eigen::Vector3d& centre, double radius) {
+  return 1.0 / std::max(0.3, std::abs(p.z() - centre.z()) / radius);
+}
+
+namespace {
+
+struct FixedRadius {
+  FixedRadius(const Eigen::Vector3d& p, double r, double w) : p_(p), r_(r), w_(w) {}
+  template <typename T>
+  bool operator()(const T* c, T* res) const {
+    const T dx = T(p_.x()) - c[0], dy = T(p_.y()) - c[1], dz = T(p_.z()) - c[2];
+    res[0] = T(w_) * (ceres::sqrt(dx * dx + dy * dy + dz * dz) - T(r_));
+    return true;
+  }
+  Eigen::Vector3d p_;
+  double r_, w_;
+};
+
+struct FreeRadius {
+  FreeRadius(const Eigen::Vector3d& p, double w) : p_(p), w_(w) {}
+  template <typename T>
+  bool operator()(const T* c, const T* r, T* res) const {
+    const T dx = T(p_.x()) - c[0], dy = T(p_.y()) - c[1], dz = T(p_.z()) - c[2];
+    res[0] = T(w_) * (ceres::sqrt(dx * dx + dy * dy + dz * dz) - r[0]);
+    return true;
+  }
+  Eigen::Vector3d p_;
+  double w_;
+};
+
+ceres::Solver::Options small_solver() {
+  ceres::Solver::Options o;
+  o.linear_solver_type = ceres::DENSE_QR;
+  o.max_num_iterations = 50;
+  o.logging_type = ceres::SILENT;
+  o.num_threads = 1;
+  return o;
+}
+
+// Fixed-radius centre of the samples `idx`, each weighted by its depth weight (the
+// geometric residual of a sample with Z noise scales with |n_z|).
+Eigen::Vector3d fit_centre(const PreparedScan& s, const std::vector<int>& idx, const Eigen::Vector3d& start, double r) {
+  double c[3] = {start.x(), start.y(), start.z()};
+  ceres::Problem problem;
+  for (int k : idx)
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<FixedRadius, 1, 3>(
+                                 new FixedRadius(s.points[k], r, depth_weight(s.points[k], start, r))),
+                             nullptr, c);
+  ceres::Solver::Summary summary;
+  ceres::Solve(small_solver(), &problem, &summary);
+  return {c[0], c[1], c[2]};
+}
+
+double fit_free_radius(const PreparedScan& s, const std::vector<int>& idx, const Eigen::Vector3d& start, double r) {
+  double c[3] = {start.x(), start.y(), start.z()};
+  double radius = r;
+  ceres::Problem problem;
+  for (int k : idx)
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<FreeRadius, 1, 3, 1>(
+                                 new FreeRadius(s.points[k], depth_weight(s.points[k], start, r))),
+                             nullptr, c, &radius);
+  problem.SetParameterLowerBound(&radius, 0, 0.1 * r);
+  problem.SetParameterUpperBound(&radius, 0, 10.0 * r);
+  ceres::Solver::Summary summary;
+  ceres::Solve(small_solver(), &problem, &summary);
+  return radius;
+}
+
+std::string fmt(const char* f, double a, double b = 0) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, f, a, b);
+  return buf;
+}
+
+}  // namespace
+
+std::optional<SphereFit> fit_sphere_near(const PreparedScan& s, const Eigen::Vector3d& guess, double search,
+                                         const SphereOptions& o, std::string* why) {
+  const double r = o.radius_mm;
+  const double reach = r + search + 2 * o.inlier_mm;
+  // Samples near the guess: a window of the scan grid around its footprint.
+  std::vector<int> near;
+  const int i0 = static_cast<int>(std::floor((guess.x() - reach - s.x_origin) / s.x_step));
+  const int i1 = static_cast<int>(std::ceil((guess.x() + reach - s.x_origin) / s.x_step));
+  const int j0 = static_cast<int>(std::floor((guess.y() - reach - s.y_origin) / s.y_step));
+  const int j1 = static_cast<int>(std::ceil((guess.y() + reach - s.y_origin) / s.y_step));
+  for (int i = std::max(0, i0); i <= std::min(s.rows - 1, i1); ++i)
+    for (int j = std::max(0, j0); j <= std::min(s.cols - 1, j1); ++j) {
+      const int k = s.point_of_pixel[static_cast<size_t>(i) * s.cols + j];
+      if (k >= 0 && (s.points[k] - guess).norm() < reach) near.push_back(k);
+    }
+  if (static_cast<long>(near.size()) < o.min_points) {
+    *why = "only " + std::to_string(near.size()) + " samples within " + fmt("%.1f", reach) + " mm";
+    return std::nullopt;
+  }
+
+  // PCL RANSAC sphere (radius bounded near the marker's) picks the cap out of whatever else
+  // lies near: the flank the marker sits on, a neighbouring finger. Coordinates relative to
+  // the guess keep PCL's float arithmetic precise.
+  pcl::PointCloud<pcl::PointXYZ>::Ptr local(new pcl::PointCloud<pcl::PointXYZ>);
+  for (int k : near) {
+    const Eigen::Vector3d d = s.points[k] - guess;
+    local->push_back(pcl::PointXYZ(static_cast<float>(d.x()), static_cast<float>(d.y()), static_cast<float>(d.z())));
+  }
+  pcl::SACSegmentation<pcl::PointXYZ> seg;
+  seg.setModelType(pcl::SACMODEL_SPHERE);
+  seg.setMethodType(pcl::SAC_RANSAC);
+  seg.setRadiusLimits(r * (1 - 2 * o.radius_tolerance), r * (1 + 2 * o.radius_tolerance));
+  seg.setDistanceThreshold(o.inlier_mm);
+  seg.setMaxIterations(400);
+  seg.setOptimizeCoefficients(false);
+  seg.setInputCloud(local);
+  pcl::PointIndices ransac_in;
+  pcl::ModelCoefficients coeff;
+  seg.segment(ransac_in, coeff);
+  std::vector<Eigen::Vector3d> starts = {guess};
+  if (coeff.values.size() == 4) starts.push_back(guess + Eigen::Vector3d(coeff.values[0], coeff.values[1], coeff.values[2]));
+
+  // Fixed-radius refinement from the guess and from the RANSAC sphere; the sample set is
+  // re-selected by distance and by normal (a flank sample at the right distance but facing
+  // elsewhere is not on the cap). The start that ends with more samples wins.
+  Eigen::Vector3d c = guess;
+  std::vector<int> in;
+  for (const Eigen::Vector3d& start : starts) {
+    Eigen::Vector3d cs = start;
+    std::vector<int> ins;
+    for (int round = 0; round < 4; ++round) {
+      ins.clear();
+      for (int k : near) {
+        const Eigen::Vector3d d = s.points[k] - cs;
+        const double dist = d.norm();
+        if (std::abs(dist - r) > o.inlier_mm) continue;
+        if (s.has_normal(k) && s.normals[k].dot(d / dist) < std::cos(40.0 * M_PI / 180.0)) continue;
+        ins.push_back(k);
+      }
+      if (static_cast<long>(ins.size()) < o.min_points) break;
+      cs = fit_centre(s, ins, cs, r);
+    }
+    if (ins.size() > in.size()) {
+      in = ins;
+      c = cs;
+    }
+  }
+  if (static_cast<long>(in.size()) < o.min_points) {
+    *why = "only " + std::to_string(in.size()) + " samples on a sphere of radius " + fmt("%.2f", r) + " mm (need " +
+           std::to_string(o.min_points) + ")";
+    return std::nullopt;
+  }
+  SphereFit f;
+  f.centre = c;
+  f.inliers = in;
+  double ss = 0;
+  Eigen::Vector3d mean_dir = Eigen::Vector3d::Zero();
+  for (int k : in) {
+    const Eigen::Vector3d d = s.points[k] - c;
+    ss += (d.norm() - r) * (d.norm() - r);
+    mean_dir += d.normalized();
+  }
+  f.rms_mm = std::sqrt(ss / static_cast<double>(in.size()));
+  mean_dir.normalize();
+  for (int k : in)
+    f.spread_deg = std::max(f.spread_deg, std::acos(std::clamp((s.points[k] - c).normalized().dot(mean_dir), -1.0, 1.0)) *
+                                              180.0 / M_PI);
+  f.radius_free = fit_free_radius(s, in, c, r);
+  if (std::abs(f.radius_free - r) > o.radius_tolerance * r) {
+    *why = fmt("a free fit gives radius %.2f mm, not %.2f mm", f.radius_free, r);
+    return std::nullopt;
+  }
+  if (f.rms_mm > o.max_rms_mm) {
+    *why = fmt("fit residual %.3f mm exceeds %.3f mm", f.rms_mm, o.max_rms_mm);
+    return std::nullopt;
+  }
+  if (f.spread_deg < o.min_spread_deg) {
+    *why = fmt("the samples span only %.0f deg of the sphere (need %.0f)", f.spread_deg, o.min_spread_deg);
+    return std::nullopt;
+  }
+  if ((c - guess).norm() > search + o.inlier_mm) {
+    *why = fmt("the fitted centre is %.2f mm from the starting position (allowed %.2f)", (c - guess).norm(), search);
+    return std::nullopt;
+  }
+  return f;
+}
+
+std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions& o,
+                                      std::vector<SphereCandidateReport>* report) {
+  std::string err;
+  if (!o.IsValid(&err)) throw InputError("marker options", err);
+  const double r = o.radius_mm;
+  // Hough voting with the radius known: a sample on a sphere of radius r votes at its centre
+  // p − r·n, so a marker's votes gather in one small cluster; samples of other curvature
+  // spread theirs over a surface (a plane's over a plane r below it). A peak is a candidate
+  // when its votes are many and concentrated: most of those in a 3.5 mm cube lie in the
+  // central 1.5 mm one.
+  const double cell = r / 6.0;
+  struct Cell {
+    long votes = 0;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  };
+  auto key = [](long a, long b, long c) {
+    return ((a + (1L << 20)) << 42) | ((b + (1L << 20)) << 21) | (c + (1L << 20));
+  };
+  std::unordered_map<long, Cell> grid;
+  grid.reserve(s.points.size());
+  for (size_t k = 0; k < s.points.size(); ++k) {
+    if (!s.has_normal(k)) continue;
+    const Eigen::Vector3d v = s.points[k] - r * s.normals[k];
+    Cell& g = grid[key(std::lround(std::floor(v.x() / cell)), std::lround(std::floor(v.y() / cell)),
+                       std::lround(std::floor(v.z() / cell)))];
+    ++g.votes;
+    g.sum += v;
+  }
+  auto votes_in = [&](long a, long b, long c, long half, Eigen::Vector3d* sum) {
+    long total = 0;
+    for (long da = -half; da <= half; ++da)
+      for (long db = -half; db <= half; ++db)
+        for (long dc = -half; dc <= half; ++dc) {
+          const auto it = grid.find(key(a + da, b + db, c + dc));
+          if (it == grid.end()) continue;
+          total += it->second.votes;
+          if (sum) *sum += it->second.sum;
+        }
+    return total;
+  };
+  struct Peak {
+    long votes;
+    long k;
+    Eigen::Vector3d centre;
+  };
+  std::vector<Peak> peaks;
+  for (const auto& [k, g] : grid) {
+    const long a = (k >> 42) - (1L << 20), b = ((k >> 21) & ((1L << 21) - 1)) - (1L << 20),
+               c = (k & ((1L << 21) - 1)) - (1L << 20);
+    bool is_max = true;
+    for (long da = -1; da <= 1 && is_max; ++da)
+      for (long db = -1; db <= 1 && is_max; ++db)
+        for (long dc = -1; dc <= 1; ++dc) {
+          const auto it = grid.find(key(a + da, b + db, c + dc));
+          if (it != grid.end() && (it->second.votes > g.votes || (it->second.votes == g.votes && it->first < k))) {
+            is_max = false;
+            break;
+          }
+        }
+    if (!is_max) continue;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    const long central = votes_in(a, b, c, 1, &sum);
+    if (central < o.min_votes) continue;
+    const long wide = votes_in(a, b, c, 3, nullptr);
+    if (static_cast<double>(central) < o.min_vote_concentration * static_cast<double>(wide)) continue;
+    peaks.push_back({central, k, sum / static_cast<double>(central)});
+  }
+  std::sort(peaks.begin(), peaks.end(), [](const Peak& x, const Peak& y) {
+    return x.votes != y.votes ? x.votes > y.votes : x.k < y.k;
+  });
+
+  std::vector<SphereFit> found;
+  const size_t max_candidates = 100;
+  for (size_t p = 0; p < peaks.size() && p < max_candidates; ++p) {
+    const Peak& pk = peaks[p];
+    bool near_found = false;
+    for (const auto& f : found)
+      if ((f.centre - pk.centre).norm() < 1.5 * r) near_found = true;
+    if (near_found) continue;
+    std::string why;
+    auto fit = fit_sphere_near(s, pk.centre, cell * 2, o, &why);
+    if (fit) {
+      for (const auto& f : found)
+        if ((f.centre - fit->centre).norm() < 1.5 * r) {
+          fit.reset();
+          why = "the same sphere as a stronger candidate";
+          break;
+        }
+    }
+    if (report) report->push_back({pk.centre, pk.votes, fit ? "" : why});
+    if (fit) found.push_back(std::move(*fit));
+  }
+  return found;
+}
+
+}  // namespace handskin
