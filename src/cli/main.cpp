@@ -112,11 +112,17 @@ void synth_scan(const SynthScanArgs& a, const Progress& progress) {
   for (size_t k = 0; k < pair.markers_hand.size(); ++k) {
     mp.push_back(to_json(pair.T_palm_hand * pair.markers_hand[k]));
     mb.push_back(to_json(pair.T_back_hand * pair.markers_hand[k]));
-    returns.push_back({{"back", pair.back.returns_per_object[k + 1]}, {"palm", pair.palm.returns_per_object[k + 1]}});
+    auto count = [&](const ScanSimulation& sim) {
+      return k + 1 < sim.returns_per_object.size() ? sim.returns_per_object[k + 1] : size_t{0};
+    };
+    returns.push_back({{"back", static_cast<int>(k) == a.replica.omit_marker_in_back ? size_t{0} : count(pair.back)},
+                       {"palm", count(pair.palm)}});
   }
   truth["markers_palm"] = mp;
   truth["markers_back"] = mb;
   truth["marker_returns"] = returns;
+  if (a.replica.omit_marker_in_back >= 0) truth["marker_omitted_in_back"] = a.replica.omit_marker_in_back;
+  if (pair.extra_bump_hand) truth["extra_bump_back"] = to_json(pair.T_back_hand * *pair.extra_bump_hand);
   truth["skin"] = "truth_skin.ply";
   truth["scanner"] = {{"laser_tilt_deg", a.scanner.laser_tilt_deg},
                       {"max_incidence_deg", a.scanner.max_incidence_deg},
@@ -328,6 +334,9 @@ int main(int argc, char** argv) {
   ssc->add_option("--seed", ss.seed, "Random seed (markers, placements, noise)")->capture_default_str();
   ssc->add_option("--marker-radius", ss.replica.marker_radius_mm, "Marker radius, mm")->capture_default_str();
   ssc->add_option("--markers", ss.replica.marker_count, "Number of markers")->capture_default_str();
+  ssc->add_option("--omit-back-marker", ss.replica.omit_marker_in_back,
+                  "Hard case: leave this marker (0-based) off the back scan")->capture_default_str();
+  ssc->add_flag("--extra-bump", ss.replica.extra_bump, "Hard case: a marker-sized blob on the back of the hand");
   ssc->add_option("--max-yaw", ss.replica.max_yaw_deg, "Random yaw on the table, ± deg")->capture_default_str();
   ssc->add_option("--noise", ss.scanner.noise_sigma_mm, "Depth noise sigma before quantisation, mm")->capture_default_str();
   ssc->add_option("--laser-tilt", ss.scanner.laser_tilt_deg, "Laser sheet tilt from vertical, deg")->capture_default_str();

@@ -156,6 +156,13 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
     throw InputError(both, "the marker patterns do not match: no 3 of the back scan's " + std::to_string(cb.size()) +
                                " markers have the distances of 3 of the palm scan's " + std::to_string(cp.size()) +
                                fmt(" within %.2f mm (scans of two different objects?)", o.match_tolerance_mm));
+  // Most markers seen on both sides must take part: a match of a small subset is what a
+  // mirror image or another object's pattern can give by chance.
+  const size_t seen_both = std::min(cb.size(), cp.size());
+  if (match.pairs.size() + 2 < seen_both)
+    throw InputError(both, "only " + std::to_string(match.pairs.size()) + " of " + std::to_string(seen_both) +
+                               " markers agree in their distance pattern (scans of two different objects, or a "
+                               "mirrored scan?)");
   if (match.runner_up_pairs == match.pairs.size())
     throw InputError(both, "ambiguous marker pattern: two different matchings each pair " +
                                std::to_string(match.pairs.size()) +
@@ -184,11 +191,11 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
     MarkerSamples m;
     for (int k : mb[b].inliers) {
       m.back.push_back(back.points[k]);
-      m.back_weight.push_back(depth_weight(back.points[k], mb[b].centre, r));
+      m.back_weight.push_back(depth_weight(back.points[k], mb[b].centre, r, o.spheres.weight_floor));
     }
     for (int k : mp[p].inliers) {
       m.palm.push_back(palm.points[k]);
-      m.palm_weight.push_back(depth_weight(palm.points[k], mp[p].centre, r));
+      m.palm_weight.push_back(depth_weight(palm.points[k], mp[p].centre, r, o.spheres.weight_floor));
     }
     samples.push_back(std::move(m));
   }

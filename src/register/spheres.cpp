@@ -34,8 +34,8 @@ bool SphereOptions::IsValid(std::string* error) const {
   return true;
 }
 
-double depth_weight(const Eigen::Vector3d& p, const Eigen::Vector3d& centre, double radius) {
-  return 1.0 / std::max(0.3, std::abs(p.z() - centre.z()) / radius);
+double depth_weight(const Eigen::Vector3d& p, const Eigen::Vector3d& centre, double radius, double floor) {
+  return 1.0 / std::max(floor, std::abs(p.z() - centre.z()) / radius);
 }
 
 namespace {
@@ -75,25 +75,27 @@ ceres::Solver::Options small_solver() {
 
 // Fixed-radius centre of the samples `idx`, each weighted by its depth weight (the
 // geometric residual of a sample with Z noise scales with |n_z|).
-Eigen::Vector3d fit_centre(const PreparedScan& s, const std::vector<int>& idx, const Eigen::Vector3d& start, double r) {
+Eigen::Vector3d fit_centre(const PreparedScan& s, const std::vector<int>& idx, const Eigen::Vector3d& start, double r,
+                           double floor) {
   double c[3] = {start.x(), start.y(), start.z()};
   ceres::Problem problem;
   for (int k : idx)
     problem.AddResidualBlock(new ceres::AutoDiffCostFunction<FixedRadius, 1, 3>(
-                                 new FixedRadius(s.points[k], r, depth_weight(s.points[k], start, r))),
+                                 new FixedRadius(s.points[k], r, depth_weight(s.points[k], start, r, floor))),
                              nullptr, c);
   ceres::Solver::Summary summary;
   ceres::Solve(small_solver(), &problem, &summary);
   return {c[0], c[1], c[2]};
 }
 
-double fit_free_radius(const PreparedScan& s, const std::vector<int>& idx, const Eigen::Vector3d& start, double r) {
+double fit_free_radius(const PreparedScan& s, const std::vector<int>& idx, const Eigen::Vector3d& start, double r,
+                       double floor) {
   double c[3] = {start.x(), start.y(), start.z()};
   double radius = r;
   ceres::Problem problem;
   for (int k : idx)
     problem.AddResidualBlock(new ceres::AutoDiffCostFunction<FreeRadius, 1, 3, 1>(
-                                 new FreeRadius(s.points[k], depth_weight(s.points[k], start, r))),
+                                 new FreeRadius(s.points[k], depth_weight(s.points[k], start, r, floor))),
                              nullptr, c, &radius);
   problem.SetParameterLowerBound(&radius, 0, 0.1 * r);
   problem.SetParameterUpperBound(&radius, 0, 10.0 * r);
@@ -160,17 +162,20 @@ std::optional<SphereFit> fit_sphere_near(const PreparedScan& s, const Eigen::Vec
   for (const Eigen::Vector3d& start : starts) {
     Eigen::Vector3d cs = start;
     std::vector<int> ins;
-    for (int round = 0; round < 4; ++round) {
+    // Coarse to fine: the first rounds accept samples as far off as the start may be.
+    const double gates[] = {std::max(o.inlier_mm, search), std::max(o.inlier_mm, search / 2),
+                            std::max(o.inlier_mm, search / 4), o.inlier_mm, o.inlier_mm};
+    for (const double gate : gates) {
       ins.clear();
       for (int k : near) {
         const Eigen::Vector3d d = s.points[k] - cs;
         const double dist = d.norm();
-        if (std::abs(dist - r) > o.inlier_mm) continue;
-        if (s.has_normal(k) && s.normals[k].dot(d / dist) < std::cos(40.0 * M_PI / 180.0)) continue;
+        if (std::abs(dist - r) > gate) continue;
+        if (s.has_normal(k) && s.normals[k].dot(d / dist) < std::cos(o.normal_gate_deg * M_PI / 180.0)) continue;
         ins.push_back(k);
       }
       if (static_cast<long>(ins.size()) < o.min_points) break;
-      cs = fit_centre(s, ins, cs, r);
+      cs = fit_centre(s, ins, cs, r, o.weight_floor);
     }
     if (ins.size() > in.size()) {
       in = ins;
@@ -197,7 +202,7 @@ std::optional<SphereFit> fit_sphere_near(const PreparedScan& s, const Eigen::Vec
   for (int k : in)
     f.spread_deg = std::max(f.spread_deg, std::acos(std::clamp((s.points[k] - c).normalized().dot(mean_dir), -1.0, 1.0)) *
                                               180.0 / M_PI);
-  f.radius_free = fit_free_radius(s, in, c, r);
+  f.radius_free = fit_free_radius(s, in, c, r, o.weight_floor);
   if (std::abs(f.radius_free - r) > o.radius_tolerance * r) {
     *why = fmt("a free fit gives radius %.2f mm, not %.2f mm", f.radius_free, r);
     return std::nullopt;

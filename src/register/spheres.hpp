@@ -15,6 +15,8 @@ struct SphereOptions {
   double radius_mm = 3.0;          ///< the markers' radius (known)
   double radius_tolerance = 0.1;   ///< a free-radius fit must land within ± this fraction of it
   double inlier_mm = 0.25;         ///< |distance − r| for a point to belong to the sphere
+  double normal_gate_deg = 40.0;   ///< ... and its normal within this of the sphere's
+  double weight_floor = 0.3;       ///< depth weights are 1 / max(this, |n_z|)
   double max_rms_mm = 0.2;         ///< fit residual above which a bump is not a marker
   long min_points = 10;            ///< fewest samples on a marker cap
   double min_spread_deg = 20.0;    ///< a cap must span this much of the sphere (a flat patch does not)
@@ -51,7 +53,7 @@ std::optional<SphereFit> fit_sphere_near(const PreparedScan& scan, const Eigen::
 
 /// Least-squares weight of a sample on a sphere: the scanner's noise is along Z, so a
 /// sample's error normal to the sphere is σ·|n_z|; its residual is divided by that
-/// (floored at 0.3, the steepest return). Shared by the marker fit and the joint refinement.
-double depth_weight(const Eigen::Vector3d& p, const Eigen::Vector3d& centre, double radius);
+/// (floored, 0.3 by default: about the steepest return). Shared by the marker fit and the joint refinement.
+double depth_weight(const Eigen::Vector3d& p, const Eigen::Vector3d& centre, double radius, double floor = 0.3);
 
 }  // namespace handskin

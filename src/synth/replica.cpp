@@ -104,6 +104,8 @@ bool ReplicaOptions::IsValid(std::string* error) const {
   if (!(marker_radius_mm >= 0.5 && marker_radius_mm <= 10)) return bad("marker_radius_mm must be in [0.5, 10]");
   if (!(min_signature_gap_mm >= 0 && min_signature_gap_mm <= 20)) return bad("min_signature_gap_mm must be in [0, 20]");
   if (min_marker_returns < 1) return bad("min_marker_returns must be >= 1");
+  if (omit_marker_in_back < -1 || omit_marker_in_back >= marker_count)
+    return bad("omit_marker_in_back must be -1 or a marker index below marker_count");
   if (!(max_yaw_deg >= 0 && max_yaw_deg <= 45)) return bad("max_yaw_deg must be in [0, 45]");
   return true;
 }
@@ -217,17 +219,27 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
   if (markers.empty())
     throw InputError("--mesh", "cannot place the markers on this hand's flanks and wrist end with an irregular pattern");
 
-  // Replica triangles in the hand frame: object 0 = hand, 1.. = markers.
-  std::vector<std::vector<Eigen::Vector3d>> sphere_v(markers.size());
-  std::vector<std::array<int, 3>> sphere_f;
-  for (size_t k = 0; k < markers.size(); ++k) icosphere(markers[k], r, 4, &sphere_v[k], &sphere_f);
+  // The optional plaster blob: on the back of the middle metacarpal, seen only from above.
+  std::vector<Eigen::Vector3d> spheres = markers;  // the markers, then the blob if any
+  if (ro.extra_bump) {
+    const Eigen::Vector3d q = 0.5 * (J("wrist") + J("middle-finger-phalanx-proximal"));
+    const auto hit = caster.cast({q.x(), q.y() + 6.0, 200.0}, -Eigen::Vector3d::UnitZ());
+    if (!hit) throw InputError("--mesh", "cannot place the extra bump on the back of the hand");
+    spheres.push_back(hit->first);
+  }
 
-  auto build_scene = [&](const Eigen::Isometry3d& T) {
+  // Replica triangles in the hand frame: object 0 = hand, 1.. = markers, then the blob.
+  std::vector<std::vector<Eigen::Vector3d>> sphere_v(spheres.size());
+  std::vector<std::array<int, 3>> sphere_f;
+  for (size_t k = 0; k < spheres.size(); ++k) icosphere(spheres[k], r, 4, &sphere_v[k], &sphere_f);
+
+  auto build_scene = [&](const Eigen::Isometry3d& T, ScanSide side) {
     Scene s;
     std::vector<Eigen::Vector3d> v;
     for (const auto& p : hv) v.push_back(T * p);
     s.add(v, hf, 0);
-    for (size_t k = 0; k < markers.size(); ++k) {
+    for (size_t k = 0; k < spheres.size(); ++k) {
+      if (side == ScanSide::Back && static_cast<int>(k) == ro.omit_marker_in_back) continue;
       v.clear();
       for (const auto& p : sphere_v[k]) v.push_back(T * p);
       s.add(v, sphere_f, static_cast<int>(k) + 1);
@@ -275,18 +287,20 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
 
   ScanPair out;
   out.markers_hand = markers;
+  if (ro.extra_bump) out.extra_bump_hand = spheres.back();
   for (int attempt = 1; attempt <= 20; ++attempt) {
     out.placement_attempts = attempt;
     out.T_back_hand = place_on_table(R_back);
     out.T_palm_hand = place_on_table(R_palm);
     const std::uint64_t noise_seed_back = rng.next(), noise_seed_palm = rng.next();
     if (verbose) std::fprintf(stderr, "[synth scan] placement %d: scanning back side...\n", attempt);
-    out.back = simulate_scan(build_scene(out.T_back_hand), so, ScanSide::Back, noise_seed_back);
+    out.back = simulate_scan(build_scene(out.T_back_hand, ScanSide::Back), so, ScanSide::Back, noise_seed_back);
     if (verbose) std::fprintf(stderr, "[synth scan] placement %d: scanning palm side...\n", attempt);
-    out.palm = simulate_scan(build_scene(out.T_palm_hand), so, ScanSide::Palm, noise_seed_palm);
+    out.palm = simulate_scan(build_scene(out.T_palm_hand, ScanSide::Palm), so, ScanSide::Palm, noise_seed_palm);
     bool visible = true;
     for (size_t k = 0; k < markers.size(); ++k)
-      if (out.back.returns_per_object[k + 1] < static_cast<size_t>(ro.min_marker_returns) ||
+      if ((static_cast<int>(k) != ro.omit_marker_in_back &&
+           out.back.returns_per_object[k + 1] < static_cast<size_t>(ro.min_marker_returns)) ||
           out.palm.returns_per_object[k + 1] < static_cast<size_t>(ro.min_marker_returns))
         visible = false;
     if (visible) {

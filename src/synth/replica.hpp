@@ -2,6 +2,7 @@
 /// The plaster replica (hand + nine spherical markers), its two placements on the table and
 /// the synthetic scan pair with its ground truth.
 #include <Eigen/Geometry>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -17,6 +18,9 @@ struct ReplicaOptions {
   double min_signature_gap_mm = 2.5;  ///< markers must differ this much in their distance pattern
   int min_marker_returns = 12;     ///< samples each marker must return in each scan
   double max_yaw_deg = 15.0;       ///< random yaw on the table, ±
+  // Hard cases for the registration tests:
+  int omit_marker_in_back = -1;    ///< this marker is missing from the back scan (broken off), -1 none
+  bool extra_bump = false;         ///< a marker-sized plaster blob on the back of the hand (back scan only)
   bool IsValid(std::string* error) const;
 };
 
@@ -33,6 +37,7 @@ struct ScanPair {
   Eigen::Isometry3d T_back_hand, T_palm_hand;     ///< scanner frame from hand frame
   Eigen::Isometry3d back_to_palm;                 ///< p_palm = back_to_palm · p_back
   std::vector<Eigen::Vector3d> markers_hand;      ///< marker centres, hand frame
+  std::optional<Eigen::Vector3d> extra_bump_hand; ///< the blob's centre, hand frame (if any)
   Rig rig_palm;                                   ///< joints in the palm scan's frame
   TriMesh skin_palm;                              ///< the true skin (no markers), palm frame
   int placement_attempts = 0;
