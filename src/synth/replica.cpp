@@ -179,8 +179,15 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
   const auto J = [&](const char* n) { return rig_hand.joints[joint_index(n).value()]; };
 
   // --- markers: on the ulnar flank, the radial flank and the wrist end, irregularly spaced ---
-  const Eigen::Vector3d l0 = J("pinky-finger-metacarpal"), l1 = J("pinky-finger-phalanx-proximal");
-  const Eigen::Vector3d i0 = J("index-finger-metacarpal"), i1 = J("index-finger-phalanx-proximal");
+  // The flanks run out along the little finger and the thumb: rotation precision grows with
+  // the markers' spread (docs/registration.md), and those are the replica's widest and
+  // longest flanks that both scans see.
+  const Eigen::Vector3d l0 = J("pinky-finger-metacarpal"), l1 = J("pinky-finger-phalanx-proximal"),
+                        l2 = J("pinky-finger-phalanx-intermediate");
+  const Eigen::Vector3d t0 = J("thumb-metacarpal"), t1 = J("thumb-phalanx-proximal"), t2 = J("thumb-phalanx-distal");
+  auto along = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double u) {
+    return u < 1 ? Eigen::Vector3d(a + u * (b - a)) : Eigen::Vector3d(b + (u - 1) * (c - b));
+  };
   const double width = (J("index-finger-phalanx-proximal") - J("pinky-finger-phalanx-proximal")).norm();
   std::vector<Eigen::Vector3d> markers;
   const double r = ro.marker_radius_mm;
@@ -196,15 +203,15 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
       if (!hit || std::abs(hit->second.z()) > 0.45) ok = false;
       else c.push_back(hit->first);
     };
-    for (int k = 0; k < n_ulnar && ok; ++k) {
-      const double u = (k + 0.5) / n_ulnar + rng.uniform(-0.12, 0.12);
-      const Eigen::Vector3d q = l0 + u * (l1 - l0);
-      place({q.x(), q.y() - 200.0, rng.uniform(-4.0, 2.0)}, Eigen::Vector3d::UnitY());
+    for (int k = 0; k < n_ulnar && ok; ++k) {  // little-finger metacarpal to proximal phalanx
+      const double u = 0.3 + 1.3 * (k + 0.5) / n_ulnar + rng.uniform(-0.1, 0.1);
+      const Eigen::Vector3d q = along(l0, l1, l2, u);
+      place({q.x(), q.y() - 200.0, q.z() + rng.uniform(-3.0, 1.5)}, Eigen::Vector3d::UnitY());
     }
-    for (int k = 0; k < n_radial && ok; ++k) {
-      const double u = 0.55 + 0.45 * (k + 0.5) / n_radial + rng.uniform(-0.06, 0.06);
-      const Eigen::Vector3d q = i0 + u * (i1 - i0);
-      place({q.x(), q.y() + 200.0, rng.uniform(-4.0, 2.0)}, -Eigen::Vector3d::UnitY());
+    for (int k = 0; k < n_radial && ok; ++k) {  // thumb metacarpal to proximal phalanx
+      const double u = 0.5 + 1.2 * (k + 0.5) / n_radial + rng.uniform(-0.08, 0.08);
+      const Eigen::Vector3d q = along(t0, t1, t2, u);
+      place({q.x(), q.y() + 200.0, q.z() + rng.uniform(-3.0, 1.5)}, -Eigen::Vector3d::UnitY());
     }
     for (int k = 0; k < n_wrist && ok; ++k) {
       const double v = -0.55 + 1.1 * (k + 0.5) / n_wrist + rng.uniform(-0.08, 0.08);
