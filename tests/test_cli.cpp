@@ -44,6 +44,48 @@ TEST(Cli, RunOnTheFixtureWritesItsOutputs) {
   EXPECT_EQ(load_cloud(dir + "/back.ply")->size(), back.count_valid());
   EXPECT_EQ(load_cloud(dir + "/palm.ply")->size(), palm.count_valid());
   EXPECT_EQ(report["pipeline"]["slicing"]["planes"], 50);
+  // Registration stage: its figures in the report, its outputs on disk.
+  const Json& reg = report["stages"][1];
+  EXPECT_EQ(reg["name"], "registration");
+  EXPECT_EQ(reg["markers_matched"], 9);
+  EXPECT_EQ(reg["status"], "ok");
+  EXPECT_GT(reg["seconds"].get<double>(), 0.0);
+  const Json rj = load_json_object(dir + "/registration.json");
+  EXPECT_EQ(rj["format"], "handskin-registration/1");
+  EXPECT_EQ(load_cloud(dir + "/merged.ply")->size(), rj["merged"]["points"].get<size_t>());
+  EXPECT_GT(fs::file_size(dir + "/merged.png"), 1000u);
+}
+
+TEST(Cli, RegisterReportsAgainstTruthAndRefusesBadMarkerFiles) {
+  const std::string dir = test::temp_dir("reg");
+  std::string out;
+  ASSERT_EQ(test::run(kBin + " -q register --back " + kFix + "back --palm " + kFix + "palm --truth " + kFix +
+                          "truth.json --out " + dir + "/r",
+                      &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("against truth"), std::string::npos) << out;
+  const Json rj = load_json_object(dir + "/r/registration.json");
+  EXPECT_LT(rj["against_truth"]["chosen"]["rotation_deg"].get<double>(), 0.02);
+  EXPECT_LT(rj["against_truth"]["chosen"]["skin_max_mm"].get<double>(), 0.1);
+  EXPECT_EQ(rj["method"], "refined");
+  // Marker files: wrong format, too few positions, a non-number.
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {R"({"format": "markers/0", "back": []})", "format"},
+      {R"({"format": "handskin-markers/1", "back": [[1, 2, 3], [4, 5, 6]]})", "fewer than 3"},
+      {R"({"format": "handskin-markers/1", "palm": [[1, 2, 3], [4, "x", 6], [7, 8, 9]]})", "palm[1]"},
+      {R"({"format": "handskin-markers/1", "plam": [[1, 2, 3]]})", "plam"}};
+  for (const auto& [text, key] : bad) {
+    test::write_text(dir + "/m.json", text);
+    EXPECT_EQ(test::run(kBin + " -q register --back " + kFix + "back --palm " + kFix + "palm --markers " + dir +
+                            "/m.json --out " + dir + "/bad",
+                        &out),
+              1);
+    EXPECT_EQ(out.rfind("error: " + dir + "/m.json", 0), 0u) << out;
+    EXPECT_NE(out.find(key), std::string::npos) << out;
+    EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+    EXPECT_FALSE(fs::exists(dir + "/bad"));
+  }
 }
 
 TEST(Cli, BadInputIsOneLineAndLeavesNoOutput) {

@@ -259,6 +259,7 @@ void register_command(const RegisterArgs& a, const Progress& progress) {
   ensure_directory(a.out);
   save_json((fs::path(a.out) / "registration.json").string(), reg.report);
   save_merged((fs::path(a.out) / "merged.ply").string(), *reg.merged);
+  write_file_atomic((fs::path(a.out) / "merged.png").string(), merged_preview_png(reg));
   const Json& r = reg.report;
   std::printf("%s: %s, %zu of %zu/%zu markers matched, marker rms %.4f mm (refined %.4f mm), %zu merged points\n",
               r["status"].get<std::string>().c_str(), r["method"].get<std::string>().c_str(),
@@ -299,7 +300,7 @@ int main(int argc, char** argv) {
   auto* regc = app.add_subcommand("register", "Register the back scan into the palm scan's frame and merge them");
   regc->add_option("--back", rg.back, "Back scan stem (<stem>.png + <stem>.json)")->required();
   regc->add_option("--palm", rg.palm, "Palm scan stem")->required();
-  regc->add_option("--out", rg.out, "Output folder: registration.json, merged.ply")->capture_default_str();
+  regc->add_option("--out", rg.out, "Output folder: registration.json, merged.ply, merged.png")->capture_default_str();
   regc->add_option("--markers", rg.markers, "Manual marker positions (handskin-markers/1), replacing detection");
   regc->add_option("--pipeline", rg.pipeline, "Pipeline parameters (markers, registration sections)");
   regc->add_option("--truth", rg.truth, "truth.json of a synthetic pair: add the errors against it to the report");

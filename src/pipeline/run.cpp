@@ -7,6 +7,7 @@
 #include "core/errors.hpp"
 #include "core/rig.hpp"
 #include "register/registration.hpp"
+#include "render/preview.hpp"
 #include "scan/cloud.hpp"
 #include "scan/cubist_io.hpp"
 
@@ -31,6 +32,23 @@ Json scan_figures(const RangeScan& scan, const std::string& stem) {
           {"no_return", scan.values.size() - scan.count_valid()}};
 }
 }  // namespace
+
+std::string merged_preview_png(const Registration& reg, int width) {
+  std::vector<Eigen::Vector3d> p, n;
+  std::vector<Eigen::Vector3f> c;
+  p.reserve(reg.merged->size());
+  for (const auto& q : *reg.merged) {
+    p.push_back(q.getVector3fMap().cast<double>());
+    n.push_back(q.getNormalVector3fMap().cast<double>());
+    c.push_back(q.label == kSideBack ? Eigen::Vector3f(0.87f, 0.72f, 0.62f) : Eigen::Vector3f(0.55f, 0.65f, 0.85f));
+  }
+  RenderOptions ro;
+  ro.width = width;
+  ro.height = width / 2;
+  ro.view = principal_view(p);
+  ro.points = reg.markers_palm;
+  return render_points_png(p, n, c, ro);
+}
 
 RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   const StageTimer total;
@@ -103,11 +121,13 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   const std::string merged_ply = (fs::path(in.out_dir) / "merged.ply").string();
   save_json(reg_json, reg.report);
   save_merged(merged_ply, *reg.merged);
+  const std::string merged_png = (fs::path(in.out_dir) / "merged.png").string();
+  write_file_atomic(merged_png, merged_preview_png(reg));
   stages.push_back({{"name", "write"}, {"seconds", t_write.seconds()}});
 
   report["stages"] = stages;
   report["outputs"] = {{"back_cloud", back_ply}, {"palm_cloud", palm_ply}, {"registration", reg_json},
-                       {"merged_cloud", merged_ply}};
+                       {"merged_cloud", merged_ply}, {"merged_preview", merged_png}};
   report["total_seconds"] = total.seconds();
   RunResult r;
   r.report_path = (fs::path(in.out_dir) / "report.json").string();

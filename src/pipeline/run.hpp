@@ -7,6 +7,7 @@
 
 #include "core/json_util.hpp"
 #include "pipeline/options.hpp"
+#include "register/registration.hpp"
 
 namespace handskin {
 
@@ -26,6 +27,10 @@ struct RunResult {
   Json report;   ///< what report.json holds
   std::string report_path;
 };
+
+/// A side view of the merged cloud (palm samples blue-grey, back samples skin-toned, the
+/// markers as red dots): how the two halves meet, at a glance. PNG bytes.
+std::string merged_preview_png(const Registration& reg, int width = 1000);
 
 /// Run every stage; outputs are written atomically into `out_dir` (created if needed), the
 /// report last. Bad input throws InputError before any output is written.

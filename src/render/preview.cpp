@@ -1,5 +1,6 @@
 #include "render/preview.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -24,27 +25,76 @@ Eigen::Matrix3d named_view(const std::string& name) {
   throw InputError("--view", "unknown view '" + name + "' (use back, palm or side)");
 }
 
-std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const RenderOptions& o) {
-  HS_CHECK(o.width > 0 && o.height > 0, "empty picture");
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e18), hi = -lo;
-  for (const TriMesh* m : meshes)
-    for (auto v : m->vertices()) {
-      const auto& p = m->point(v);
-      const Eigen::Vector3d q = o.view * Eigen::Vector3d(p[0], p[1], p[2]);
+namespace {
+
+// An orthographic picture fitted to a set of view-space points, with a depth buffer.
+class Canvas {
+ public:
+  Canvas(const RenderOptions& o, const std::vector<Eigen::Vector3d>& view_points) : o_(o) {
+    HS_CHECK(o.width > 0 && o.height > 0, "empty picture");
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e18), hi = -lo;
+    for (const auto& q : view_points) {
       lo = lo.cwiseMin(q);
       hi = hi.cwiseMax(q);
     }
-  HS_CHECK(hi.x() >= lo.x(), "nothing to render");
-  const double scale = 0.92 * std::min(o.width / std::max(hi.x() - lo.x(), 1e-9), o.height / std::max(hi.y() - lo.y(), 1e-9));
-  const Eigen::Vector2d centre = 0.5 * (lo + hi).head<2>();
-  auto to_px = [&](const Eigen::Vector3d& q) {
-    return Eigen::Vector3d(o.width / 2.0 + (q.x() - centre.x()) * scale, o.height / 2.0 - (q.y() - centre.y()) * scale, q.z());
-  };
-  std::vector<float> depth(static_cast<size_t>(o.width) * o.height, -std::numeric_limits<float>::infinity());
-  std::vector<std::uint8_t> rgb(static_cast<size_t>(o.width) * o.height * 3);
-  for (size_t k = 0; k < rgb.size(); k += 3) rgb[k] = 246, rgb[k + 1] = 246, rgb[k + 2] = 248;
-  const Eigen::Vector3d light = Eigen::Vector3d(-0.4, 0.5, 1.0).normalized();
+    HS_CHECK(hi.x() >= lo.x(), "nothing to render");
+    scale_ = 0.92 * std::min(o.width / std::max(hi.x() - lo.x(), 1e-9), o.height / std::max(hi.y() - lo.y(), 1e-9));
+    centre_ = 0.5 * (lo + hi).head<2>();
+    depth_.assign(static_cast<size_t>(o.width) * o.height, -std::numeric_limits<float>::infinity());
+    rgb_.resize(static_cast<size_t>(o.width) * o.height * 3);
+    for (size_t k = 0; k < rgb_.size(); k += 3) rgb_[k] = 246, rgb_[k + 1] = 246, rgb_[k + 2] = 248;
+  }
+  /// View-space point -> pixel coordinates (x right, y down) and depth.
+  Eigen::Vector3d to_px(const Eigen::Vector3d& q) const {
+    return {o_.width / 2.0 + (q.x() - centre_.x()) * scale_, o_.height / 2.0 - (q.y() - centre_.y()) * scale_, q.z()};
+  }
+  double scale() const { return scale_; }
+  /// Shade a pixel if it is nearer than what is there.
+  void plot(int x, int y, double z, Eigen::Vector3d n, const Eigen::Vector3f& colour) {
+    if (x < 0 || y < 0 || x >= o_.width || y >= o_.height) return;
+    const size_t idx = static_cast<size_t>(y) * o_.width + x;
+    if (z <= depth_[idx]) return;
+    depth_[idx] = static_cast<float>(z);
+    if (n.z() < 0) n = -n;
+    const double shade = 0.22 + 0.63 * std::max(0.0, n.dot(light_)) + 0.3 * std::max(0.0, n.dot(fill_));
+    for (int c = 0; c < 3; ++c)
+      rgb_[idx * 3 + c] = static_cast<std::uint8_t>(std::clamp(255.0 * colour[c] * shade, 0.0, 255.0));
+  }
+  /// Red dots (joints, markers) drawn over everything.
+  void dots(const std::vector<Eigen::Vector3d>& points) {
+    for (const auto& p : points) {
+      const Eigen::Vector3d q = to_px(o_.view * p);
+      for (int dy = -3; dy <= 3; ++dy)
+        for (int dx = -3; dx <= 3; ++dx) {
+          const int x = static_cast<int>(q.x()) + dx, y = static_cast<int>(q.y()) + dy;
+          if (x < 0 || y < 0 || x >= o_.width || y >= o_.height || dx * dx + dy * dy > 9) continue;
+          const size_t idx = static_cast<size_t>(y) * o_.width + x;
+          rgb_[idx * 3] = 200, rgb_[idx * 3 + 1] = 30, rgb_[idx * 3 + 2] = 40;
+        }
+    }
+  }
+  std::string png() const { return encode_rgb8_png(o_.width, o_.height, rgb_); }
 
+ private:
+  const RenderOptions& o_;
+  double scale_ = 1;
+  Eigen::Vector2d centre_;
+  std::vector<float> depth_;
+  std::vector<std::uint8_t> rgb_;
+  const Eigen::Vector3d light_ = Eigen::Vector3d(-0.4, 0.5, 1.0).normalized();  // key, from upper left
+  const Eigen::Vector3d fill_ = Eigen::Vector3d(0.3, -0.7, 0.65).normalized();   // fill, from below
+};
+
+}  // namespace
+
+std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const RenderOptions& o) {
+  std::vector<Eigen::Vector3d> vp;
+  for (const TriMesh* m : meshes)
+    for (auto v : m->vertices()) {
+      const auto& p = m->point(v);
+      vp.push_back(o.view * Eigen::Vector3d(p[0], p[1], p[2]));
+    }
+  Canvas canvas(o, vp);
   for (const TriMesh* m : meshes) {
     TriMesh mesh = *m;
     mesh.request_vertex_normals();
@@ -56,7 +106,7 @@ std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const Ren
       for (auto v : mesh.fv_range(f)) {
         const auto& p = mesh.point(v);
         const auto& n = mesh.normal(v);
-        P[k] = to_px(o.view * Eigen::Vector3d(p[0], p[1], p[2]));
+        P[k] = canvas.to_px(o.view * Eigen::Vector3d(p[0], p[1], p[2]));
         N[k] = o.view * Eigen::Vector3d(n[0], n[1], n[2]);
         ++k;
       }
@@ -74,28 +124,51 @@ std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const Ren
           const double w2 = 1.0 - w0 - w1;
           if (w0 < 0 || w1 < 0 || w2 < 0) continue;
           const double z = w0 * P[0].z() + w1 * P[1].z() + w2 * P[2].z();
-          const size_t idx = static_cast<size_t>(y) * o.width + x;
-          if (z <= depth[idx]) continue;
-          depth[idx] = static_cast<float>(z);
-          Eigen::Vector3d n = (w0 * N[0] + w1 * N[1] + w2 * N[2]).normalized();
-          if (n.z() < 0) n = -n;
-          const double shade = 0.25 + 0.75 * std::max(0.0, n.dot(light));
-          for (int c = 0; c < 3; ++c)
-            rgb[idx * 3 + c] = static_cast<std::uint8_t>(std::clamp(255.0 * o.colour[c] * shade, 0.0, 255.0));
+          canvas.plot(x, y, z, (w0 * N[0] + w1 * N[1] + w2 * N[2]).normalized(), o.colour);
         }
     }
   }
-  for (const auto& p : o.points) {
-    const Eigen::Vector3d q = to_px(o.view * p);
-    for (int dy = -3; dy <= 3; ++dy)
-      for (int dx = -3; dx <= 3; ++dx) {
-        const int x = static_cast<int>(q.x()) + dx, y = static_cast<int>(q.y()) + dy;
-        if (x < 0 || y < 0 || x >= o.width || y >= o.height || dx * dx + dy * dy > 9) continue;
-        const size_t idx = static_cast<size_t>(y) * o.width + x;
-        rgb[idx * 3] = 200, rgb[idx * 3 + 1] = 30, rgb[idx * 3 + 2] = 40;
-      }
+  canvas.dots(o.points);
+  return canvas.png();
+}
+
+std::string render_points_png(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& normals,
+                              const std::vector<Eigen::Vector3f>& colours, const RenderOptions& o) {
+  HS_CHECK(points.size() == normals.size() && points.size() == colours.size(), "point attributes differ in length");
+  std::vector<Eigen::Vector3d> vp;
+  vp.reserve(points.size());
+  for (const auto& p : points) vp.push_back(o.view * p);
+  Canvas canvas(o, vp);
+  // Splats about 0.5 mm across (at least 1.5 px), so a scan's sampling fills the surface.
+  const double rad = std::max(1.5, 0.5 * canvas.scale());
+  const int reach = static_cast<int>(std::ceil(rad));
+  for (size_t k = 0; k < points.size(); ++k) {
+    const Eigen::Vector3d q = canvas.to_px(vp[k]);
+    // Samples without a normal face the viewer.
+    const Eigen::Vector3d n = normals[k].squaredNorm() > 0.5 ? Eigen::Vector3d(o.view * normals[k]) : Eigen::Vector3d::UnitZ();
+    for (int dy = -reach; dy <= reach; ++dy)
+      for (int dx = -reach; dx <= reach; ++dx)
+        if (dx * dx + dy * dy <= rad * rad)
+          canvas.plot(static_cast<int>(q.x()) + dx, static_cast<int>(q.y()) + dy, q.z(), n, colours[k]);
   }
-  return encode_rgb8_png(o.width, o.height, rgb);
+  canvas.dots(o.points);
+  return canvas.png();
+}
+
+Eigen::Matrix3d principal_view(const std::vector<Eigen::Vector3d>& points) {
+  HS_CHECK(!points.empty(), "no points");
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : points) mean += p;
+  mean /= static_cast<double>(points.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& p : points) cov += (p - mean) * (p - mean).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+  // Longest extent to the right, shortest (the hand's thickness) up: a side view.
+  Eigen::Matrix3d R;
+  R.row(0) = es.eigenvectors().col(2).transpose();
+  R.row(1) = es.eigenvectors().col(0).transpose();
+  R.row(2) = R.row(0).cross(R.row(1));
+  return R;
 }
 
 std::string render_scan_png(const RangeScan& scan) {

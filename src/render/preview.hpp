@@ -22,6 +22,14 @@ struct RenderOptions {
 /// Shaded orthographic render of one or more meshes (fit to the picture). Returns PNG bytes.
 std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const RenderOptions& options);
 
+/// Shaded splats of a point cloud with normals, one colour per point (fit to the picture).
+std::string render_points_png(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& normals,
+                              const std::vector<Eigen::Vector3f>& colours, const RenderOptions& options);
+
+/// A side view of any elongated flat object from its principal axes: the longest extent
+/// runs right, the shortest up (for clouds without a rig, e.g. a merged scan pair).
+Eigen::Matrix3d principal_view(const std::vector<Eigen::Vector3d>& points);
+
 /// Height image of a scan: colour ramp over the measured heights, black for no return.
 std::string render_scan_png(const RangeScan& scan);
 
