@@ -216,6 +216,7 @@ RefineResult refine_registration(const PreparedScan& back, const PreparedScan& p
     }
     const bool use_surface = static_cast<long>(pairs.size()) >= o.min_surface_pairs;
     out.surface_pairs = use_surface ? pairs.size() : 0;
+    out.gated_pairs = pairs.size();
 
     // --- one joint solve: transform + marker centres ---
     ceres::Problem problem;

@@ -48,6 +48,7 @@ struct RefineResult {
   int iterations = 0;
   bool converged = false;
   size_t surface_pairs = 0;        ///< gated, trimmed ICP pairs in the last round
+  size_t gated_pairs = 0;          ///< pairs that passed the gates (used only if >= min_surface_pairs)
   size_t surface_tried = 0;        ///< back samples tried for a pair
   double overlap_fraction = 0;     ///< surface_pairs / surface_tried
   double surface_rms_mm = 0;       ///< point-to-plane RMS of those pairs

@@ -330,6 +330,8 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
                      {{"iterations", ref.iterations},
                       {"converged", ref.converged},
                       {"surface_pairs", ref.surface_pairs},
+                      {"gated_pairs", ref.gated_pairs},
+                      {"min_surface_pairs", o.refine.min_surface_pairs},
                       {"tried", ref.surface_tried},
                       {"overlap_fraction", ref.overlap_fraction},
                       {"inlier_rms_mm", ref.surface_rms_mm},
