@@ -15,6 +15,8 @@
 #include "test_util.hpp"
 
 using namespace handskin;
+using test::add_box;
+using test::add_sphere;
 
 namespace {
 constexpr double kDeg = M_PI / 180.0;
@@ -30,20 +32,7 @@ std::string input_error_of(F&& f) {
   return "(no error)";
 }
 
-void add_sphere(Scene* s, const Eigen::Vector3d& c, double r, int object) {
-  std::vector<Eigen::Vector3d> v;
-  std::vector<std::array<int, 3>> f;
-  icosphere(c, r, 5, &v, &f);
-  s->add(v, f, object);
-}
 
-void add_box(Scene* s, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, int object) {
-  std::vector<Eigen::Vector3d> v;
-  for (int k = 0; k < 8; ++k) v.emplace_back(k & 1 ? hi.x() : lo.x(), k & 2 ? hi.y() : lo.y(), k & 4 ? hi.z() : lo.z());
-  const std::vector<std::array<int, 3>> f = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
-                                             {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
-  s->add(v, f, object);
-}
 
 std::vector<Eigen::Vector3d> vertices_of(const TriMesh& m) {
   std::vector<Eigen::Vector3d> v;
@@ -126,7 +115,9 @@ TEST(Prepare, TableRemovedAtAnyHeightAndTilt) {
       for (int j = 0; j < sim.scan.meta.points; ++j) {
         const size_t px = static_cast<size_t>(i) * sim.scan.meta.points + j;
         const int k = p.point_of_pixel[px];
-        if (k >= 0) EXPECT_GE(sim.pixel_object[px], 0) << "a table sample was kept at " << i << "," << j;
+        if (k >= 0) {
+          EXPECT_GE(sim.pixel_object[px], 0) << "a table sample was kept at " << i << "," << j;
+        }
         const Eigen::Vector3d q = sim.scan.position(i, j);
         if (sim.pixel_object[px] >= 0 && q.z() - so.table_z(q.x()) > 1.3) {
           ++object_high;

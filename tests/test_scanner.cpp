@@ -6,19 +6,14 @@
 #include "core/errors.hpp"
 #include "synth/replica.hpp"
 #include "synth/scanner.hpp"
+#include "test_util.hpp"
 
 using namespace handskin;
+using test::add_box;
 
 namespace {
 constexpr double kDeg = M_PI / 180.0;
 
-void add_box(Scene* s, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, int object) {
-  std::vector<Eigen::Vector3d> v;
-  for (int k = 0; k < 8; ++k) v.emplace_back(k & 1 ? hi.x() : lo.x(), k & 2 ? hi.y() : lo.y(), k & 4 ? hi.z() : lo.z());
-  const std::vector<std::array<int, 3>> f = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
-                                             {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
-  s->add(v, f, object);
-}
 
 ScannerOptions exact_options() {
   ScannerOptions o;

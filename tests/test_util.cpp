@@ -1,5 +1,7 @@
 #include "test_util.hpp"
 
+#include "synth/replica.hpp"
+
 #include <zlib.h>
 
 #include <array>
@@ -80,6 +82,21 @@ double winding_number(const TriMesh& mesh, const Eigen::Vector3d& p) {
 
 void write_text(const std::string& path, const std::string& text) {
   std::ofstream(path, std::ios::binary) << text;
+}
+
+void add_box(Scene* s, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, int object) {
+  std::vector<Eigen::Vector3d> v;
+  for (int k = 0; k < 8; ++k) v.emplace_back(k & 1 ? hi.x() : lo.x(), k & 2 ? hi.y() : lo.y(), k & 4 ? hi.z() : lo.z());
+  const std::vector<std::array<int, 3>> f = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+                                             {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+  s->add(v, f, object);
+}
+
+void add_sphere(Scene* s, const Eigen::Vector3d& centre, double radius, int object) {
+  std::vector<Eigen::Vector3d> v;
+  std::vector<std::array<int, 3>> f;
+  icosphere(centre, radius, 5, &v, &f);
+  s->add(v, f, object);
 }
 
 }  // namespace handskin::test

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "mesh/trimesh.hpp"
+#include "synth/scanner.hpp"
 
 namespace handskin::test {
 
@@ -17,5 +18,8 @@ int run(const std::string& cmd, std::string* output);
 /// Generalised winding number of point p w.r.t. a closed triangle mesh (≈1 inside, ≈0 outside).
 double winding_number(const TriMesh& mesh, const Eigen::Vector3d& p);
 void write_text(const std::string& path, const std::string& text);
+/// Scene objects with exact geometry for the scanner and registration tests.
+void add_box(Scene* s, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, int object);
+void add_sphere(Scene* s, const Eigen::Vector3d& centre, double radius, int object);
 
 }  // namespace handskin::test

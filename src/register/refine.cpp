@@ -11,6 +11,7 @@
 #include <cstdio>
 
 #include "core/errors.hpp"
+#include "register/sphere_residual.hpp"
 
 namespace handskin {
 
@@ -46,18 +47,6 @@ struct BackOnSphere {
     T q[3];
     ceres::AngleAxisRotatePoint(pose, p, q);
     const T dx = q[0] + pose[3] - c[0], dy = q[1] + pose[4] - c[1], dz = q[2] + pose[5] - c[2];
-    res[0] = T(w_) * (ceres::sqrt(dx * dx + dy * dy + dz * dz) - T(r_));
-    return true;
-  }
-  Eigen::Vector3d p_;
-  double r_, w_;
-};
-
-struct PalmOnSphere {
-  PalmOnSphere(const Eigen::Vector3d& p, double r, double w) : p_(p), r_(r), w_(w) {}
-  template <typename T>
-  bool operator()(const T* c, T* res) const {
-    const T dx = T(p_.x()) - c[0], dy = T(p_.y()) - c[1], dz = T(p_.z()) - c[2];
     res[0] = T(w_) * (ceres::sqrt(dx * dx + dy * dy + dz * dz) - T(r_));
     return true;
   }
@@ -122,13 +111,9 @@ double marker_sphere_rms(const std::vector<MarkerSamples>& markers, const Eigen:
     double c[3] = {start.x(), start.y(), start.z()};
     ceres::Problem problem;
     for (size_t k = 0; k < m.palm.size(); ++k)
-      problem.AddResidualBlock(
-          new ceres::AutoDiffCostFunction<PalmOnSphere, 1, 3>(new PalmOnSphere(m.palm[k], r, m.palm_weight[k])),
-          nullptr, c);
+      problem.AddResidualBlock(SphereResidual::Create(m.palm[k], r, m.palm_weight[k]), nullptr, c);
     for (size_t k = 0; k < m.back.size(); ++k)
-      problem.AddResidualBlock(
-          new ceres::AutoDiffCostFunction<PalmOnSphere, 1, 3>(new PalmOnSphere(T * m.back[k], r, m.back_weight[k])),
-          nullptr, c);
+      problem.AddResidualBlock(SphereResidual::Create(T * m.back[k], r, m.back_weight[k]), nullptr, c);
     ceres::Solver::Options o;
     o.linear_solver_type = ceres::DENSE_QR;
     o.logging_type = ceres::SILENT;
@@ -228,9 +213,8 @@ RefineResult refine_registration(const PreparedScan& back, const PreparedScan& p
                                      new BackOnSphere(markers[m].back[k], r, markers[m].back_weight[k])),
                                  nullptr, pose, c[m].data());
       for (size_t k = 0; k < markers[m].palm.size(); ++k)
-        problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PalmOnSphere, 1, 3>(
-                                     new PalmOnSphere(markers[m].palm[k], r, markers[m].palm_weight[k])),
-                                 nullptr, c[m].data());
+        problem.AddResidualBlock(SphereResidual::Create(markers[m].palm[k], r, markers[m].palm_weight[k]), nullptr,
+                                 c[m].data());
     }
     if (use_surface)
       for (const auto& pr : pairs)

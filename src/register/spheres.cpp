@@ -14,6 +14,7 @@
 #include <unordered_map>
 
 #include "core/errors.hpp"
+#include "register/sphere_residual.hpp"
 
 namespace handskin {
 
@@ -39,18 +40,6 @@ double depth_weight(const Eigen::Vector3d& p, const Eigen::Vector3d& centre, dou
 }
 
 namespace {
-
-struct FixedRadius {
-  FixedRadius(const Eigen::Vector3d& p, double r, double w) : p_(p), r_(r), w_(w) {}
-  template <typename T>
-  bool operator()(const T* c, T* res) const {
-    const T dx = T(p_.x()) - c[0], dy = T(p_.y()) - c[1], dz = T(p_.z()) - c[2];
-    res[0] = T(w_) * (ceres::sqrt(dx * dx + dy * dy + dz * dz) - T(r_));
-    return true;
-  }
-  Eigen::Vector3d p_;
-  double r_, w_;
-};
 
 struct FreeRadius {
   FreeRadius(const Eigen::Vector3d& p, double w) : p_(p), w_(w) {}
@@ -80,8 +69,7 @@ Eigen::Vector3d fit_centre(const PreparedScan& s, const std::vector<int>& idx, c
   double c[3] = {start.x(), start.y(), start.z()};
   ceres::Problem problem;
   for (int k : idx)
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<FixedRadius, 1, 3>(
-                                 new FixedRadius(s.points[k], r, depth_weight(s.points[k], start, r, floor))),
+    problem.AddResidualBlock(SphereResidual::Create(s.points[k], r, depth_weight(s.points[k], start, r, floor)),
                              nullptr, c);
   ceres::Solver::Summary summary;
   ceres::Solve(small_solver(), &problem, &summary);
