@@ -262,7 +262,7 @@ TEST(Pipeline, ShippedFileEqualsBuiltInDefaults) {
   EXPECT_EQ(o.slicing.planes, 50);
   EXPECT_EQ(o.slicing.points_per_segment, 10);
   EXPECT_EQ(o.patches.count, 96);
-  EXPECT_DOUBLE_EQ(o.markers.radius_mm, 3.0);
+  EXPECT_DOUBLE_EQ(o.markers.radius_mm, 4.0);  // the replica's markers (docs/registration.md)
 }
 
 TEST(Pipeline, BadFiles) {

@@ -178,7 +178,9 @@ TEST(Spheres, FindsMarkerSpheresOnlyAndLocatesThem) {
   const ScanSimulation sim = simulate_scan(scene, so, ScanSide::Back, 6);
   const PreparedScan p = prepare_scan(sim.scan, PrepareOptions{}, "scan");
   std::vector<SphereCandidateReport> cands;
-  const auto found = detect_spheres(p, SphereOptions{}, &cands);
+  SphereOptions three;  // the detector works for whatever radius it is told
+  three.radius_mm = 3.0;
+  const auto found = detect_spheres(p, three, &cands);
   ASSERT_EQ(found.size(), markers.size());
   for (const auto& c : markers) {
     double best = 1e9;
@@ -198,10 +200,12 @@ TEST(Spheres, ManualPositionFitsOrSaysWhy) {
   add_sphere(&scene, {100, 100, 25}, 3.0, 1);
   const PreparedScan p = prepare_scan(simulate_scan(scene, so, ScanSide::Back, 7).scan, PrepareOptions{}, "scan");
   std::string why;
-  const auto f = fit_sphere_near(p, {101.5, 99.0, 26.0}, 3.0, SphereOptions{}, &why);
+  SphereOptions three;
+  three.radius_mm = 3.0;
+  const auto f = fit_sphere_near(p, {101.5, 99.0, 26.0}, 3.0, three, &why);
   ASSERT_TRUE(f) << why;
   EXPECT_LT((f->centre - Eigen::Vector3d(100, 100, 25)).norm(), 0.06);
-  EXPECT_FALSE(fit_sphere_near(p, {150, 120, 25}, 3.0, SphereOptions{}, &why));  // flat top: no sphere
+  EXPECT_FALSE(fit_sphere_near(p, {150, 120, 25}, 3.0, three, &why));  // flat top: no sphere
   EXPECT_FALSE(why.empty());
 }
 
@@ -281,6 +285,7 @@ namespace {
 // noise and the second moved by a small known yaw and shift: the skin overlaps almost
 // everywhere, so the gated ICP terms take part.
 struct SameSide {
+  double radius = 0;
   PreparedScan a, b;
   Eigen::Isometry3d b_to_a;
   std::vector<MarkerSamples> markers;
@@ -290,8 +295,7 @@ SameSide same_side_pair() {
   const Json truth = load_json_object(kFixture + "truth.json");
   std::vector<Eigen::Vector3d> marker_c;
   for (const auto& m : truth["markers_palm"]) marker_c.push_back(to_vec3(m, "m", "truth"));
-  const auto skin = vertices_of(default_hand().mesh);
-  (void)skin;
+  const double R = get_positive(truth, "marker_radius_mm", "truth");
   TriMesh mesh = load_mesh(kFixture + "truth_skin.ply");
   Eigen::Isometry3d move = Eigen::Isometry3d::Identity();
   move.rotate(Eigen::AngleAxisd(2.0 * kDeg, Eigen::Vector3d::UnitZ()));
@@ -309,15 +313,18 @@ SameSide same_side_pair() {
       f.push_back(tri);
     }
     s.add(v, f, 0);
-    for (size_t k = 0; k < marker_c.size(); ++k) add_sphere(&s, T * marker_c[k], 3.0, static_cast<int>(k) + 1);
+    for (size_t k = 0; k < marker_c.size(); ++k) add_sphere(&s, T * marker_c[k], R, static_cast<int>(k) + 1);
     return s;
   };
   SameSide out;
+  out.radius = R;
+  SphereOptions so_r;
+  so_r.radius_mm = R;
   out.a = prepare_scan(simulate_scan(scene_for(Eigen::Isometry3d::Identity()), so, ScanSide::Palm, 21).scan,
                        PrepareOptions{}, "a");
   out.b = prepare_scan(simulate_scan(scene_for(move), so, ScanSide::Palm, 22).scan, PrepareOptions{}, "b");
   out.b_to_a = move.inverse();
-  const auto fa = detect_spheres(out.a, SphereOptions{}), fb = detect_spheres(out.b, SphereOptions{});
+  const auto fa = detect_spheres(out.a, so_r), fb = detect_spheres(out.b, so_r);
   std::vector<Eigen::Vector3d> ca, cb;
   for (const auto& f : fa) ca.push_back(f.centre);
   for (const auto& f : fb) cb.push_back(f.centre);
@@ -326,19 +333,19 @@ SameSide same_side_pair() {
     MarkerSamples s;
     for (int k : fb[ib].inliers) {
       s.back.push_back(out.b.points[k]);
-      s.back_weight.push_back(depth_weight(out.b.points[k], fb[ib].centre, 3.0));
+      s.back_weight.push_back(depth_weight(out.b.points[k], fb[ib].centre, R));
     }
     for (int k : fa[ia].inliers) {
       s.palm.push_back(out.a.points[k]);
-      s.palm_weight.push_back(depth_weight(out.a.points[k], fa[ia].centre, 3.0));
+      s.palm_weight.push_back(depth_weight(out.a.points[k], fa[ia].centre, R));
     }
     out.markers.push_back(s);
   }
-  auto mask = [](const PreparedScan& s, const std::vector<Eigen::Vector3d>& c) {
+  auto mask = [R](const PreparedScan& s, const std::vector<Eigen::Vector3d>& c) {
     std::vector<char> m(s.points.size(), 1);
     for (size_t k = 0; k < s.points.size(); ++k)
       for (const auto& x : c)
-        if ((s.points[k] - x).norm() < 3.5) m[k] = 0;
+        if ((s.points[k] - x).norm() < R + 0.5) m[k] = 0;
     return m;
   };
   out.skin_a = mask(out.a, ca);
@@ -353,7 +360,7 @@ TEST(Refine, GatedIcpPullsAPerturbedFitIn) {
   Eigen::Isometry3d T0 = s.b_to_a;
   T0.prerotate(Eigen::AngleAxisd(0.15 * kDeg, Eigen::Vector3d(1, 1, 0).normalized()));
   T0.pretranslate(Eigen::Vector3d(0.15, -0.1, 0.1));
-  const RefineResult r = refine_registration(s.b, s.a, s.skin_b, s.skin_a, s.markers, T0, 3.0, RefineOptions{});
+  const RefineResult r = refine_registration(s.b, s.a, s.skin_b, s.skin_a, s.markers, T0, s.radius, RefineOptions{});
   EXPECT_TRUE(r.accepted) << r.note;
   EXPECT_GT(r.overlap_fraction, 0.5);
   EXPECT_GT(r.iterations, 1);
@@ -365,7 +372,7 @@ TEST(Refine, GatedIcpPullsAPerturbedFitIn) {
   // The guard: a refinement that moves further than allowed is refused.
   RefineOptions strict;
   strict.max_departure_deg = 1e-6;
-  const RefineResult g = refine_registration(s.b, s.a, s.skin_b, s.skin_a, s.markers, T0, 3.0, strict);
+  const RefineResult g = refine_registration(s.b, s.a, s.skin_b, s.skin_a, s.markers, T0, s.radius, strict);
   EXPECT_FALSE(g.accepted);
   EXPECT_NE(g.note.find("strayed"), std::string::npos) << g.note;
 }
@@ -447,7 +454,7 @@ TEST(Register, RefusesWhatItCannotTrust) {
   const RangeScan back = load_scan(kFixture + "back"), palm = load_scan(kFixture + "palm");
   // Markers of another radius than the replica's: none found.
   RegistrationOptions wrong_radius;
-  wrong_radius.spheres.radius_mm = 5.0;
+  wrong_radius.spheres.radius_mm = 6.0;
   std::string err = input_error_of([&] { register_scans(back, palm, "b.png", "p.png", wrong_radius, nullptr, kQuiet); });
   EXPECT_NE(err.find("b.png"), std::string::npos) << err;
   EXPECT_NE(err.find("need at least 3"), std::string::npos) << err;
@@ -464,13 +471,10 @@ TEST(Register, RefusesWhatItCannotTrust) {
   EXPECT_LT(rotation_difference_deg(same.back_to_palm, Eigen::Isometry3d::Identity()), 1e-6);
 }
 
-// Acceptance: 20 pairs, two hands, random seeds and placements. The skin displacement
-// bounds are the issue's (mean <= 0.05 mm, max <= 0.1 mm) for every pair. Rotation: the
-// issue asks <= 0.02 deg per pair. Nine 3 mm markers at this scanner's noise carry about
-// that much information (docs/registration.md: without noise and with fine quantisation the
-// same pairs register to 0.0015 deg); a few pairs of 20 land between 0.02 and 0.03 deg. So
-// the test holds each pair to 0.035 deg, the mean to 0.015 deg and at least 16 of 20 pairs
-// to 0.02 deg. The table printed here is the one in docs/registration.md.
+// Acceptance: 20 pairs, two hands, random seeds and placements, the issue's bounds for every
+// pair: rotation <= 0.02 deg, skin displacement mean <= 0.05 mm, max <= 0.1 mm. (With 3 mm
+// markers rotation reaches 0.03 deg on some pairs: docs/registration.md.) The table printed
+// here is the one in docs/registration.md.
 TEST(Register, AcceptanceTwentyPairsTwoHands) {
   double worst_rot = 0, worst_mean = 0, worst_max = 0, sum_rot = 0, sum_rot_m = 0;
   int n = 0, refined_better = 0, rot_within = 0;
@@ -481,7 +485,7 @@ TEST(Register, AcceptanceTwentyPairsTwoHands) {
       std::printf("%d %3d | %.4f (%.4f) | %.4f (%.4f) | %.4f (%.4f)\n", hand == &default_hand() ? 1 : 2,
                   static_cast<int>(seed), o.chosen.rotation_deg, o.marker_only.rotation_deg, o.chosen.mean_mm,
                   o.marker_only.mean_mm, o.chosen.max_mm, o.marker_only.max_mm);
-      EXPECT_LE(o.chosen.rotation_deg, 0.035) << "seed " << seed;
+      EXPECT_LE(o.chosen.rotation_deg, 0.02) << "seed " << seed;
       EXPECT_LE(o.chosen.mean_mm, 0.05) << "seed " << seed;
       EXPECT_LE(o.chosen.max_mm, 0.1) << "seed " << seed;
       EXPECT_TRUE(o.reg.warnings.empty()) << o.reg.warnings.front();
@@ -498,16 +502,14 @@ TEST(Register, AcceptanceTwentyPairsTwoHands) {
   std::printf("worst: rotation %.4f deg, skin mean %.4f mm, skin max %.4f mm; mean rotation %.4f deg "
               "(marker-only %.4f); rotation <= 0.02 deg in %d of %d; refined <= marker-only (skin mean) in %d of %d\n",
               worst_rot, worst_mean, worst_max, sum_rot / n, sum_rot_m / n, rot_within, n, refined_better, n);
-  EXPECT_LE(sum_rot / n, 0.015);
-  EXPECT_GE(rot_within, 16);
-  // Over the set the refinement beats the marker-only fit.
-  EXPECT_LT(sum_rot, sum_rot_m);
+  EXPECT_LE(sum_rot / n, 0.012);
+  // Over the set the refinement is no worse than the marker-only fit.
+  EXPECT_LE(sum_rot, sum_rot_m);
 }
 
 // One marker missing, one extra bump, noise doubled, longer laser shadows (markers half
-// in shadow), and the first three at once: skin
-// displacement within twice the issue's bounds, rotation within 0.05 deg (2.5 x the issue's
-// 0.02, the per-pair figure above being 0.035), the missing / extra marker reported.
+// in shadow), and the first three at once: within twice the issue's bounds, the missing /
+// extra marker reported.
 TEST(Register, HardCasesWithinTwiceTheBounds) {
   struct Case {
     const char* name;
@@ -550,7 +552,7 @@ TEST(Register, HardCasesWithinTwiceTheBounds) {
         std::printf("%-24s hand %d seed %d: rot %.4f deg, mean %.4f mm, max %.4f mm, %zu warnings\n", c.name,
                     hand == &default_hand() ? 1 : 2, static_cast<int>(seed), o.chosen.rotation_deg, o.chosen.mean_mm,
                     o.chosen.max_mm, o.reg.warnings.size());
-        EXPECT_LE(o.chosen.rotation_deg, 0.05) << c.name << " seed " << seed;
+        EXPECT_LE(o.chosen.rotation_deg, 0.04) << c.name << " seed " << seed;
         EXPECT_LE(o.chosen.mean_mm, 0.1) << c.name;
         EXPECT_LE(o.chosen.max_mm, 0.2) << c.name;
         // Missing / extra markers are reported (count warning + unmatched marker warning).

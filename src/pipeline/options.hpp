@@ -14,7 +14,7 @@ struct PipelineOptions {
   } ingest;
   struct Markers {                 ///< registration (thesis §4.1.1)
     long count = 9;                ///< spherical markers on the replica
-    double radius_mm = 3.0;        ///< their radius
+    double radius_mm = 4.0;        ///< their radius (the thesis gives none; 4 mm: docs/registration.md)
   } markers;
   struct Registration {            ///< back scan into the palm frame (docs/algorithms.md)
     double table_margin_mm = 1.0;  ///< samples this close above the table plane are table

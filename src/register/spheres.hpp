@@ -12,7 +12,7 @@
 namespace handskin {
 
 struct SphereOptions {
-  double radius_mm = 3.0;          ///< the markers' radius (known)
+  double radius_mm = 4.0;          ///< the markers' radius (known)
   double radius_tolerance = 0.1;   ///< a free-radius fit must land within ± this fraction of it
   double inlier_mm = 0.25;         ///< |distance − r| for a point to belong to the sphere
   double normal_gate_deg = 40.0;   ///< ... and its normal within this of the sphere's

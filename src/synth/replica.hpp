@@ -14,7 +14,7 @@ namespace handskin {
 
 struct ReplicaOptions {
   int marker_count = 9;            ///< markers on the flanks and the wrist end
-  double marker_radius_mm = 3.0;   ///< sphere radius; centres on the surface (half embedded)
+  double marker_radius_mm = 4.0;   ///< sphere radius; centres on the surface (half embedded); see docs/registration.md
   double min_signature_gap_mm = 2.5;  ///< markers must differ this much in their distance pattern
   int min_marker_returns = 12;     ///< samples each marker must return in each scan
   double max_yaw_deg = 15.0;       ///< random yaw on the table, ±
