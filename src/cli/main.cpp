@@ -15,6 +15,9 @@
 #include "mesh/trimesh.hpp"
 #include "pipeline/options.hpp"
 #include "pipeline/run.hpp"
+#include "posture/calibrate.hpp"
+#include "posture/mocap.hpp"
+#include "posture/solver.hpp"
 #include "render/preview.hpp"
 #include "scan/cloud.hpp"
 #include "scan/cubist_io.hpp"
@@ -273,6 +276,160 @@ void register_command(const RegisterArgs& a, const Progress& progress) {
                 r["against_truth"]["chosen"]["skin_max_mm"].get<double>());
 }
 
+// ---------------- solve ----------------
+struct SolveArgs {
+  std::string model, rig, inputs, out;
+  std::vector<std::string> sets, torques, targets;
+  bool json = false, linear = false;
+};
+
+void solve_command(const SolveArgs& a, const Progress& progress) {
+  const PostureModel model = load_model(a.model);
+  const PostureSolver solver(model);
+  auto run = [&](const PostureInputs& in) { return a.linear ? solver.solve_linear(in) : solver.solve(in); };
+  if (!a.inputs.empty() || !a.out.empty()) {
+    if (a.inputs.empty() || a.out.empty()) throw InputError("solve", "batch mode needs both --inputs and --out");
+    if (!a.sets.empty() || !a.torques.empty() || !a.targets.empty() || !a.rig.empty())
+      throw InputError("solve", "--set/--torque/--target/--rig do not combine with --inputs (each row's cells are its inputs)");
+    const AngleTable in = read_angle_table(a.inputs);
+    AngleTable out;
+    for (int d = 0; d < kDofCount; ++d) out.columns.push_back(d);
+    long clamped_rows = 0, clamped_cells = 0;
+    PostureInputs pi;
+    for (size_t r = 0; r < in.rows.size(); ++r) {
+      pi.pins.clear();
+      for (size_t c = 0; c < in.columns.size(); ++c)
+        if (std::isfinite(in.rows[r][c])) pi.pins.emplace_back(in.columns[c], in.rows[r][c]);
+      const PostureSolution s = run(pi);
+      if (s.clamped_inputs) ++clamped_rows, clamped_cells += s.clamped_inputs;
+      out.rows.emplace_back(s.angles.begin(), s.angles.end());
+    }
+    write_angle_table(a.out, out);
+    if (clamped_rows)
+      progress("solve", "warning: " + std::to_string(clamped_cells) + " input value(s) in " + std::to_string(clamped_rows) +
+                            " row(s) lay outside the model's limits and were clamped onto them");
+    std::printf("%zu postures solved -> %s\n", out.rows.size(), a.out.c_str());
+    return;
+  }
+  PostureInputs in;
+  for (const auto& t : a.sets) {
+    int d;
+    double v;
+    parse_assignment(t, "--set", &d, &v);
+    in.pins.emplace_back(d, v);
+  }
+  for (const auto& t : a.torques) {
+    int d;
+    double v;
+    parse_assignment(t, "--torque", &d, &v);
+    in.torques.emplace_back(d, v);
+  }
+  for (const auto& t : a.targets) {
+    int d;
+    double v, w;
+    parse_assignment(t, "--target", &d, &v, &w);
+    in.targets.push_back({d, v, w});
+  }
+  std::optional<Rig> rig;
+  if (!a.rig.empty()) rig = load_rig(a.rig);
+  const PostureSolution s = run(in);
+  if (s.clamped_inputs)
+    progress("solve", "warning: " + std::to_string(s.clamped_inputs) + " input(s) outside the limits were clamped onto them");
+  std::vector<char> pinned(kDofCount, 0), limited(kDofCount, 0);
+  for (const auto& [d, v] : in.pins) pinned[d] = 1;
+  for (int d : s.at_limit) limited[d] = 1;
+  std::array<Eigen::Vector3d, kJointCount> joint_pos;
+  if (rig) joint_pos = Skeleton(*rig, a.rig).positions(s.angles);
+  if (a.json) {
+    Json j;
+    j["format"] = "handskin-posture-solution/1";
+    j["model"] = model.name;
+    Json angles = Json::object();
+    for (int d = 0; d < kDofCount; ++d) angles[dofs()[d].name] = s.angles[d];
+    j["angles"] = angles;
+    Json p = Json::array(), l = Json::array();
+    for (int d = 0; d < kDofCount; ++d) {
+      if (pinned[d]) p.push_back(dofs()[d].name);
+      if (limited[d]) l.push_back(dofs()[d].name);
+    }
+    j["pinned"] = p;
+    j["at_limit"] = l;
+    j["iterations"] = s.iterations;
+    j["energy"] = s.energy;
+    j["converged"] = s.converged;
+    j["clamped_inputs"] = s.clamped_inputs;
+    if (rig) {
+      Json jp = Json::object();
+      for (int k = 0; k < kJointCount; ++k) jp[joints()[k].name] = to_json(joint_pos[k]);
+      j["joints"] = jp;
+    }
+    std::printf("%s\n", j.dump(2).c_str());
+    return;
+  }
+  std::printf("model %s: %d %s, energy %.4f%s\n", model.name.c_str(), s.iterations,
+              solver.has_grids() && !a.linear ? "Gauss-Newton steps" : "active-set rounds", s.energy,
+              s.converged ? "" : " (not converged)");
+  std::printf("%-18s %9s %9s  %s\n", "DOF", "angle", "relaxed", "");
+  for (int d = 0; d < kDofCount; ++d)
+    std::printf("%-18s %9.3f %9.3f  %s\n", dofs()[d].name.c_str(), s.angles[d], model.dof[d].relaxed,
+                pinned[d] ? "pinned" : limited[d] ? "at limit" : "");
+  if (rig) {
+    std::printf("\n%-36s %10s %10s %10s\n", "joint (rig frame, mm)", "x", "y", "z");
+    for (int k = 0; k < kJointCount; ++k)
+      std::printf("%-36s %10.3f %10.3f %10.3f\n", joints()[k].name, joint_pos[k].x(), joint_pos[k].y(), joint_pos[k].z());
+  }
+}
+
+// ---------------- calibrate ----------------
+struct CalibrateArgs {
+  std::string angles, out, report;
+  std::vector<std::string> pairs;
+  CalibrationOptions options;
+};
+
+void calibrate_command(CalibrateArgs a, const Progress& progress) {
+  for (const auto& p : a.pairs) {
+    const size_t colon = p.find(':');
+    if (colon == std::string::npos) throw InputError("--pair", "'" + p + "' is not of the form dofA:dofB");
+    a.options.pairs.emplace_back(require_dof(p.substr(0, colon), "--pair"), require_dof(p.substr(colon + 1), "--pair"));
+  }
+  const AngleTable table = read_angle_table(a.angles);
+  progress("calibrate", std::to_string(table.rows.size()) + " rows, " + std::to_string(table.columns.size()) + " DOFs");
+  Json rep;
+  const PostureModel m = calibrate(table, a.options, a.angles, &rep);
+  PostureSolver check(m);  // refuses a model that would not solve
+  (void)check;
+  save_model(a.out, m);
+  if (!a.report.empty()) save_json(a.report, rep);
+  for (const auto& n : m.notes) progress("calibrate", "note: " + n);
+  std::printf("%zu pair(s)%s -> %s\n", m.pairs.size(), m.grids.empty() ? "" : " with grids", a.out.c_str());
+  for (const auto& p : rep["pairs"])
+    std::printf("  %-16s ~ %-16s r %+.3f  slope %s  spread %.2f deg  weight %.3f\n", p["a"].get<std::string>().c_str(),
+                p["b"].get<std::string>().c_str(), p["r"].get<double>(),
+                p["slope"].is_null() ? "vertical" : std::to_string(p["slope"].get<double>()).substr(0, 6).c_str(),
+                p["spread_rms_deg"].get<double>(), p["weight"].get<double>());
+}
+
+// ---------------- mocap ----------------
+struct MocapArgs {
+  std::string in, out;
+  int every = 1;
+};
+
+void mocap_command(const MocapArgs& a, const Progress& progress) {
+  if (a.every < 1) throw InputError("--every", "must be >= 1");
+  const MarkerTrack track = read_marker_file(a.in);
+  progress("mocap", std::to_string(track.frames.size()) + " frames, " + std::to_string(track.names.size()) + " markers");
+  MocapAngles ang = angles_from_markers(track, a.in);
+  AngleTable out;
+  out.columns = ang.table.columns;
+  for (size_t r = 0; r < ang.table.rows.size(); r += a.every) out.rows.push_back(ang.table.rows[r]);
+  write_angle_table(a.out, out);
+  for (const auto& n : ang.notes) progress("mocap", n);
+  std::printf("%zu rows of %zu angles -> %s (%zu frames had missing markers)\n", out.rows.size(), out.columns.size(),
+              a.out.c_str(), ang.frames_with_gaps);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -305,6 +462,40 @@ int main(int argc, char** argv) {
   regc->add_option("--pipeline", rg.pipeline, "Pipeline parameters (markers, registration sections)");
   regc->add_option("--truth", rg.truth, "truth.json of a synthetic pair: add the errors against it to the report");
   regc->add_flag("--no-refine", rg.no_refine, "Keep the marker-only fit (no joint sphere/ICP refinement)");
+
+  // solve
+  SolveArgs sv;
+  auto* solvec = app.add_subcommand("solve", "Posture from a few inputs: springs + constraint potentials (thesis ch. 3)");
+  solvec->add_option("--model", sv.model, "Posture model (hand-posture/1 file, or builtin:anatomical / builtin:thesis)")
+      ->required();
+  solvec->add_option("--set", sv.sets, "Pin a DOF: name=degrees (repeatable), e.g. index.mcp.flex=40 or L2.flex=60");
+  solvec->add_option("--torque", sv.torques, "Instructed input on a DOF: name=value (repeatable)");
+  solvec->add_option("--target", sv.targets, "Soft target: name=degrees[@weight] (repeatable)");
+  solvec->add_option("--rig", sv.rig, "hand-rig/1: also print joint positions of the posture");
+  solvec->add_flag("--json", sv.json, "Print JSON (handskin-posture-solution/1)");
+  solvec->add_flag("--linear", sv.linear, "Ignore the model's non-linear grids");
+  solvec->add_option("--inputs", sv.inputs, "Batch: CSV of partial postures (given cells are pinned)");
+  solvec->add_option("--out", sv.out, "Batch: CSV of full postures, rows in input order");
+
+  // calibrate
+  CalibrateArgs ca2;
+  auto* calc = app.add_subcommand("calibrate", "Posture model from a joint-angle CSV (thesis §3.2.2-3.2.3)");
+  calc->add_option("--angles", ca2.angles, "Joint-angle CSV (header: DOF names; empty cell = not measured)")->required();
+  calc->add_option("--out", ca2.out, "Model to write (hand-posture/1)")->required();
+  calc->add_option("--pair", ca2.pairs, "A pair to fit, dofA:dofB (repeatable; default: chosen by correlation)");
+  calc->add_option("--min-correlation", ca2.options.min_correlation, "|r| for automatic pairs")->capture_default_str();
+  calc->add_option("--max-pairs", ca2.options.max_pairs, "Most automatic pairs")->capture_default_str();
+  calc->add_option("--weights", ca2.options.weights, "thesis (eq. 3.18) or inverse (1/spread)")->capture_default_str();
+  calc->add_flag("--grids", ca2.options.grids, "Also build non-linear grid potentials (thesis §3.2.3)");
+  calc->add_option("--grid-weight", ca2.options.grid_weight, "Weight of the grid potentials")->capture_default_str();
+  calc->add_option("--report", ca2.report, "Write the calibration figures as JSON");
+
+  // mocap
+  MocapArgs mc;
+  auto* mocc = app.add_subcommand("mocap", "Joint angles from motion capture (Qualisys .tsv, OpenSim .trc) to CSV");
+  mocc->add_option("--in", mc.in, "Marker file (.tsv or .trc)")->required();
+  mocc->add_option("--out", mc.out, "Joint-angle CSV to write")->required();
+  mocc->add_option("--every", mc.every, "Keep every n-th frame")->capture_default_str();
 
   // synth
   auto* synth = app.add_subcommand("synth", "Make synthetic data: a default hand, or a scan pair of a hand");
@@ -378,6 +569,12 @@ int main(int argc, char** argv) {
       const RunResult r = run_pipeline(run_in, [&](const std::string& m) { progress("run", m); });
       progress("run", "done in " + std::to_string(r.report["total_seconds"].get<double>()).substr(0, 5) + " s");
       std::printf("outputs in %s (report: %s)\n", run_in.out_dir.c_str(), r.report_path.c_str());
+    } else if (solvec->parsed()) {
+      solve_command(sv, progress);
+    } else if (calc->parsed()) {
+      calibrate_command(ca2, progress);
+    } else if (mocc->parsed()) {
+      mocap_command(mc, progress);
     } else if (regc->parsed()) {
       register_command(rg, progress);
     } else if (shc->parsed()) {

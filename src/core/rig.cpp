@@ -104,4 +104,22 @@ std::string rig_to_json_text(const Rig& rig) {
 
 void save_rig(const std::string& file, const Rig& rig) { write_file_atomic(file, rig_to_json_text(rig)); }
 
+Eigen::Isometry3d hand_frame_from_rig(const Rig& rig) {
+  const auto J = [&](const char* n) { return rig.joints[joint_index(n).value()]; };
+  const Eigen::Vector3d o = J("wrist");
+  const Eigen::Vector3d x = (J("middle-finger-phalanx-proximal") - o).normalized();
+  Eigen::Vector3d z = rig.palm_normal ? *rig.palm_normal
+                                      : x.cross(J("index-finger-phalanx-proximal") - J("pinky-finger-phalanx-proximal"));
+  z = (z - z.dot(x) * x).normalized();
+  const Eigen::Vector3d y = z.cross(x);
+  Eigen::Matrix3d R;  // rows: hand axes in rig coordinates
+  R.row(0) = x;
+  R.row(1) = y;
+  R.row(2) = z;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  T.translation() = -R * o;
+  return T;
+}
+
 }  // namespace handskin

@@ -2,6 +2,7 @@
 /// The `hand-rig/1` file: the 25 joint positions of the skeleton inside the scan, in the
 /// model (palm-scan) frame, millimetres (formats/hand-rig.md).
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <array>
 #include <optional>
 #include <string>
@@ -23,5 +24,9 @@ Rig parse_rig(const std::string& text, const std::string& file);
 Rig load_rig(const std::string& file);
 std::string rig_to_json_text(const Rig& rig);
 void save_rig(const std::string& file, const Rig& rig);
+
+/// Hand frame from a rig: origin at the wrist, X toward the middle MCP, Z out of the back
+/// (palm_normal when given), Y = Z × X (toward the thumb of a right hand). Returns T_hand_rig.
+Eigen::Isometry3d hand_frame_from_rig(const Rig& rig);
 
 }  // namespace handskin

@@ -144,24 +144,6 @@ void icosphere(const Eigen::Vector3d& centre, double radius, int levels, std::ve
   *faces = f;
 }
 
-Eigen::Isometry3d hand_frame_from_rig(const Rig& rig) {
-  const auto J = [&](const char* n) { return rig.joints[joint_index(n).value()]; };
-  const Eigen::Vector3d o = J("wrist");
-  const Eigen::Vector3d x = (J("middle-finger-phalanx-proximal") - o).normalized();
-  Eigen::Vector3d z = rig.palm_normal ? *rig.palm_normal
-                                      : x.cross(J("index-finger-phalanx-proximal") - J("pinky-finger-phalanx-proximal"));
-  z = (z - z.dot(x) * x).normalized();
-  const Eigen::Vector3d y = z.cross(x);
-  Eigen::Matrix3d R;  // rows: hand axes in rig coordinates
-  R.row(0) = x;
-  R.row(1) = y;
-  R.row(2) = z;
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = R;
-  T.translation() = -R * o;
-  return T;
-}
-
 ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const ReplicaOptions& ro,
                               const ScannerOptions& so, std::uint64_t seed, bool verbose) {
   std::string err;

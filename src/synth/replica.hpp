@@ -28,9 +28,6 @@ struct ReplicaOptions {
 void icosphere(const Eigen::Vector3d& centre, double radius, int levels, std::vector<Eigen::Vector3d>* vertices,
                std::vector<std::array<int, 3>>* faces);
 
-/// Hand frame from a rig: origin at the wrist, X toward the middle MCP, Z out of the back
-/// (palm_normal when given), Y = Z × X (toward the thumb of a right hand). Returns T_hand_rig.
-Eigen::Isometry3d hand_frame_from_rig(const Rig& rig);
 
 struct ScanPair {
   ScanSimulation back, palm;

@@ -1,0 +1,98 @@
+#include "posture/angle_table.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <set>
+#include <sstream>
+
+#include "core/atomic_file.hpp"
+#include "core/dof.hpp"
+#include "core/errors.hpp"
+
+namespace handskin {
+
+namespace {
+std::vector<std::string> split_cells(const std::string& line) {
+  std::vector<std::string> cells;
+  std::string cur;
+  for (char c : line) {
+    if (c == ',') {
+      cells.push_back(cur);
+      cur.clear();
+    } else if (c != '\r') {
+      cur += c;
+    }
+  }
+  cells.push_back(cur);
+  for (auto& c : cells) {  // trim spaces
+    const size_t a = c.find_first_not_of(" \t"), b = c.find_last_not_of(" \t");
+    c = a == std::string::npos ? "" : c.substr(a, b - a + 1);
+  }
+  return cells;
+}
+}  // namespace
+
+AngleTable parse_angle_table(const std::string& text, const std::string& file) {
+  AngleTable t;
+  std::istringstream in(text);
+  std::string line;
+  long lineno = 0;
+  bool header = false;
+  while (std::getline(in, line)) {
+    ++lineno;
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;  // blank lines
+    const std::vector<std::string> cells = split_cells(line);
+    const std::string where = file + ":" + std::to_string(lineno);
+    if (!header) {
+      std::set<int> seen;
+      for (const auto& c : cells) {
+        const auto d = dof_index(c);
+        if (!d) throw InputError(where, "header names unknown DOF '" + c + "'");
+        if (!seen.insert(*d).second) throw InputError(where, "header names DOF '" + c + "' twice");
+        t.columns.push_back(*d);
+      }
+      header = true;
+      continue;
+    }
+    if (cells.size() != t.columns.size())
+      throw InputError(where, std::to_string(cells.size()) + " cells, but the header has " +
+                                  std::to_string(t.columns.size()));
+    std::vector<double> row(cells.size(), std::numeric_limits<double>::quiet_NaN());
+    for (size_t k = 0; k < cells.size(); ++k) {
+      if (cells[k].empty()) continue;
+      char* end = nullptr;
+      const double v = std::strtod(cells[k].c_str(), &end);
+      if (*end != '\0' || !std::isfinite(v))
+        throw InputError(where, "column '" + dofs()[t.columns[k]].name + "': '" + cells[k] + "' is not a finite number");
+      row[k] = v;
+    }
+    t.rows.push_back(std::move(row));
+    t.lines.push_back(lineno);
+  }
+  if (!header) throw InputError(file, "empty: no header line");
+  return t;
+}
+
+AngleTable read_angle_table(const std::string& file) { return parse_angle_table(read_file(file), file); }
+
+void write_angle_table(const std::string& file, const AngleTable& t) {
+  std::string out;
+  for (size_t k = 0; k < t.columns.size(); ++k) out += (k ? "," : "") + dofs()[t.columns[k]].name;
+  out += '\n';
+  char buf[64];
+  for (const auto& row : t.rows) {
+    for (size_t k = 0; k < row.size(); ++k) {
+      if (k) out += ',';
+      if (std::isfinite(row[k])) {
+        std::snprintf(buf, sizeof buf, "%.6g", row[k]);
+        out += buf;
+      }
+    }
+    out += '\n';
+  }
+  write_file_atomic(file, out);
+}
+
+}  // namespace handskin

@@ -1,0 +1,22 @@
+#pragma once
+/// Joint-angle tables (CSV, formats/hand-rig.md): a header of DOF names or aliases, one
+/// posture a row, degrees, an empty cell = not given.
+#include <string>
+#include <vector>
+
+namespace handskin {
+
+struct AngleTable {
+  std::vector<int> columns;               ///< DOF index per column
+  std::vector<std::vector<double>> rows;  ///< NaN = empty cell
+  std::vector<long> lines;                ///< file line of each row (for messages)
+};
+
+/// Throws InputError naming the file and line: unknown or repeated DOF in the header, a row
+/// with another number of cells than the header, a cell that is not a finite number.
+AngleTable read_angle_table(const std::string& file);
+AngleTable parse_angle_table(const std::string& text, const std::string& file);
+/// Atomic write; NaN cells are written empty.
+void write_angle_table(const std::string& file, const AngleTable& table);
+
+}  // namespace handskin

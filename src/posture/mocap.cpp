@@ -1,0 +1,259 @@
+#include "posture/mocap.hpp"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <map>
+#include <sstream>
+
+#include "core/atomic_file.hpp"
+#include "core/dof.hpp"
+#include "core/errors.hpp"
+
+namespace handskin {
+
+namespace {
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+const Eigen::Vector3d kMissing(kNaN, kNaN, kNaN);
+
+std::vector<std::string> split_tabs(const std::string& line) {
+  std::vector<std::string> out;
+  std::string cur;
+  for (char c : line) {
+    if (c == '\t') {
+      out.push_back(cur);
+      cur.clear();
+    } else if (c != '\r' && c != '\n') {
+      cur += c;
+    }
+  }
+  out.push_back(cur);
+  return out;
+}
+
+bool parse_number(const std::string& s, double* v) {
+  if (s.empty()) return false;
+  char* end = nullptr;
+  *v = std::strtod(s.c_str(), &end);
+  return *end == '\0';
+}
+
+// Cells [first, first + 3·markers) of a data row as marker positions.
+// Qualisys writes an unseen marker as 0 0 0 (`zero_is_missing`); TRC leaves the cells empty.
+std::vector<Eigen::Vector3d> read_positions(const std::vector<std::string>& cells, size_t first, size_t markers,
+                                            double scale, bool zero_is_missing, const std::string& where) {
+  std::vector<Eigen::Vector3d> p(markers, kMissing);
+  for (size_t m = 0; m < markers; ++m) {
+    double xyz[3] = {0, 0, 0};
+    bool ok = true;
+    for (int k = 0; k < 3; ++k) {
+      const size_t c = first + 3 * m + k;
+      if (c >= cells.size() || cells[c].empty()) {
+        ok = false;
+        continue;
+      }
+      if (!parse_number(cells[c], &xyz[k])) throw InputError(where, "'" + cells[c] + "' is not a number");
+      if (!std::isfinite(xyz[k])) ok = false;
+    }
+    if (ok && !(zero_is_missing && xyz[0] == 0 && xyz[1] == 0 && xyz[2] == 0)) p[m] = Eigen::Vector3d(xyz[0], xyz[1], xyz[2]) * scale;
+  }
+  return p;
+}
+}  // namespace
+
+MarkerTrack read_qualisys_tsv(const std::string& file) {
+  std::istringstream in(read_file(file));
+  MarkerTrack t;
+  std::string line;
+  long lineno = 0;
+  size_t first = 0;  // column of the first coordinate
+  long declared_frames = -1;
+  bool data = false;
+  while (std::getline(in, line)) {
+    ++lineno;
+    const auto cells = split_tabs(line);
+    const std::string where = file + ":" + std::to_string(lineno);
+    if (!data) {
+      if (cells[0] == "MARKER_NAMES") {
+        t.names.assign(cells.begin() + 1, cells.end());
+        while (!t.names.empty() && t.names.back().empty()) t.names.pop_back();
+      } else if (cells[0] == "FREQUENCY" && cells.size() > 1) {
+        if (!parse_number(cells[1], &t.rate_hz) || !(t.rate_hz > 0)) throw InputError(where, "FREQUENCY is not a positive number");
+      } else if (cells[0] == "NO_OF_FRAMES" && cells.size() > 1) {
+        double v;
+        if (!parse_number(cells[1], &v) || v < 0) throw InputError(where, "NO_OF_FRAMES is not a count");
+        declared_frames = static_cast<long>(v);
+      } else if (cells[0] == "Frame") {  // column header of exports with frame and time columns
+        first = 2;
+        data = true;
+      } else {
+        double v;
+        if (parse_number(cells[0], &v)) {  // exports without the column header: data starts here
+          if (t.names.empty()) throw InputError(where, "data before a MARKER_NAMES line");
+          data = true;
+          first = 0;
+        } else {
+          continue;  // other header keys
+        }
+      }
+      if (!data) continue;
+      if (cells[0] == "Frame") continue;
+    }
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    if (t.names.empty()) throw InputError(file, "no MARKER_NAMES line before the data");
+    t.frames.push_back(read_positions(cells, first, t.names.size(), 1.0, true, where));
+  }
+  if (t.names.empty()) throw InputError(file, "not a Qualisys TSV export (no MARKER_NAMES line)");
+  if (t.frames.empty()) throw InputError(file, "no data rows");
+  if (declared_frames >= 0 && declared_frames != static_cast<long>(t.frames.size()))
+    throw InputError(file, "NO_OF_FRAMES says " + std::to_string(declared_frames) + " but the file holds " +
+                               std::to_string(t.frames.size()) + " rows (truncated?)");
+  return t;
+}
+
+MarkerTrack read_trc(const std::string& file) {
+  std::istringstream in(read_file(file));
+  MarkerTrack t;
+  std::string line;
+  long lineno = 0;
+  std::vector<std::string> keys;
+  double scale = 1.0;
+  int stage = 0;  // 0: PathFileType, 1: keys, 2: values, 3: names, 4: X1 Y1 Z1, 5: data
+  while (std::getline(in, line)) {
+    ++lineno;
+    const auto cells = split_tabs(line);
+    const std::string where = file + ":" + std::to_string(lineno);
+    if (stage == 0) {
+      if (cells[0] != "PathFileType") throw InputError(where, "not a TRC file (first line must start with PathFileType)");
+      stage = 1;
+    } else if (stage == 1) {
+      keys = cells;
+      stage = 2;
+    } else if (stage == 2) {
+      for (size_t k = 0; k < keys.size() && k < cells.size(); ++k) {
+        if (keys[k] == "DataRate" && !parse_number(cells[k], &t.rate_hz)) throw InputError(where, "DataRate is not a number");
+        if (keys[k] == "Units") {
+          if (cells[k] == "m") scale = 1000.0;
+          else if (cells[k] == "cm") scale = 10.0;
+          else if (cells[k] != "mm") throw InputError(where, "Units '" + cells[k] + "' (use mm, cm or m)");
+        }
+      }
+      stage = 3;
+    } else if (stage == 3) {
+      if (cells.size() < 3 || cells[0] != "Frame#") throw InputError(where, "expected the 'Frame#  Time  markers...' line");
+      for (size_t k = 2; k < cells.size(); ++k)
+        if (!cells[k].empty()) t.names.push_back(cells[k]);
+      stage = 4;
+    } else if (stage == 4) {
+      stage = 5;  // X1 Y1 Z1 ... line
+    } else {
+      if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+      t.frames.push_back(read_positions(cells, 2, t.names.size(), scale, false, where));
+    }
+  }
+  if (stage < 5 || t.names.empty()) throw InputError(file, "incomplete TRC header");
+  if (t.frames.empty()) throw InputError(file, "no data rows");
+  return t;
+}
+
+MarkerTrack read_marker_file(const std::string& file) {
+  const size_t dot = file.rfind('.');
+  std::string ext = dot == std::string::npos ? "" : file.substr(dot);
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (ext == ".tsv") return read_qualisys_tsv(file);
+  if (ext == ".trc") return read_trc(file);
+  throw InputError(file, "unknown marker-file extension (use .tsv for Qualisys or .trc for OpenSim)");
+}
+
+MocapAngles angles_from_markers(const MarkerTrack& track, const std::string& file) {
+  std::map<std::string, int> idx;
+  for (size_t k = 0; k < track.names.size(); ++k) idx[track.names[k]] = static_cast<int>(k);
+  for (const char* need : {"hand_top", "hand_left", "hand_right"})
+    if (!idx.count(need))
+      throw InputError(file, std::string("no marker '") + need +
+                                 "': the back-of-hand markers hand_top, hand_left, hand_right are needed for a hand frame");
+  MocapAngles out;
+  auto has = [&](const std::string& n) { return idx.count(n) > 0; };
+  const char* digits[] = {"thumb", "index", "middle", "ring", "little"};
+  std::vector<std::string> cols;
+  for (const char* d : digits) {
+    const std::string s = d;
+    if (!has(s + "_middle") || !has(s + "_tip")) {
+      out.notes.push_back(s + ": markers " + s + "_middle / " + s + "_tip not both present; its angles are left out");
+      continue;
+    }
+    if (s == "thumb") {
+      cols.push_back("thumb.cmc.abd");
+      cols.push_back("thumb.mcp.flex");
+    } else {
+      cols.push_back(s + ".mcp.flex");
+      cols.push_back(s + ".pip.flex");
+      if (s != "middle" && has("middle_middle")) cols.push_back(s + ".mcp.abd");
+      if (s == "middle") cols.push_back("middle.mcp.abd");
+    }
+  }
+  for (const auto& c : cols) out.table.columns.push_back(dof_index(c).value());
+  out.notes.push_back(
+      "hand frame: u = hand_top - midpoint(hand_left, hand_right) (along the hand), v = toward hand_left (thumb "
+      "side), n = u x v (back of the hand, right hand)");
+  out.notes.push_back(
+      "<f>.mcp.flex: elevation of hand_top -> <f>_middle below the back-of-hand plane; <f>.pip.flex: the further "
+      "bend of <f>_middle -> <f>_tip (PIP and DIP together); <f>.mcp.abd: lateral angle of hand_top -> <f>_middle "
+      "from the middle finger's, away from it positive; thumb.mcp.flex: bend between hand_left -> thumb_middle and "
+      "thumb_middle -> thumb_tip (MCP and IP together); thumb.cmc.abd: lateral angle of hand_left -> thumb_middle "
+      "from the hand axis. Angles carry marker-placement offsets: calibrate uses them relative to their median");
+  constexpr double kDeg = 180.0 / M_PI;
+  for (const auto& fr : track.frames) {
+    std::vector<double> row(cols.size(), kNaN);
+    auto P = [&](const std::string& n) { return fr[idx.at(n)]; };
+    const Eigen::Vector3d top = P("hand_top"), left = P("hand_left"), right = P("hand_right");
+    bool gap = false;
+    if (top.allFinite() && left.allFinite() && right.allFinite()) {
+      const Eigen::Vector3d u = (top - 0.5 * (left + right)).normalized();
+      Eigen::Vector3d v = left - right;
+      v = (v - v.dot(u) * u).normalized();
+      const Eigen::Vector3d n = u.cross(v);
+      auto elevation = [&](const Eigen::Vector3d& d) { return std::atan2(-d.dot(n), d.dot(u)) * kDeg; };
+      auto lateral = [&](const Eigen::Vector3d& d) { return std::atan2(d.dot(v), d.dot(u)) * kDeg; };
+      const bool mid_ok = has("middle_middle") && P("middle_middle").allFinite();
+      const double lat_mid = mid_ok ? lateral(P("middle_middle") - top) : kNaN;
+      for (size_t c = 0; c < cols.size(); ++c) {
+        const std::string& name = cols[c];
+        const std::string f = name.substr(0, name.find('.'));
+        const Eigen::Vector3d mid = P(f + "_middle"), tip = P(f + "_tip");
+        if (!mid.allFinite() || !tip.allFinite()) {
+          gap = true;
+          continue;
+        }
+        if (f == "thumb") {
+          const Eigen::Vector3d p = mid - left, q = tip - mid;
+          row[c] = name == "thumb.mcp.flex" ? std::acos(std::clamp(p.normalized().dot(q.normalized()), -1.0, 1.0)) * kDeg
+                                            : lateral(p);
+          continue;
+        }
+        const Eigen::Vector3d p = mid - top, q = tip - mid;
+        if (name.find(".mcp.flex") != std::string::npos) {
+          row[c] = elevation(p);
+        } else if (name.find(".pip.flex") != std::string::npos) {
+          row[c] = elevation(q) - elevation(p);
+        } else if (f == "middle") {
+          row[c] = lateral(p);
+        } else if (std::isfinite(lat_mid)) {
+          row[c] = f == "index" ? lateral(p) - lat_mid : lat_mid - lateral(p);
+        } else {
+          gap = true;
+        }
+      }
+    } else {
+      gap = true;
+    }
+    out.frames_with_gaps += gap;
+    out.table.rows.push_back(std::move(row));
+    out.table.lines.push_back(static_cast<long>(out.table.rows.size()));
+  }
+  return out;
+}
+
+}  // namespace handskin
