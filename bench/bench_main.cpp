@@ -1,9 +1,12 @@
 // Benchmarks: `build/bench/handskin_bench`. Figures, not pass/fail.
 #include <benchmark/benchmark.h>
 
+#include "posture/calibrate.hpp"
+#include "posture/solver.hpp"
 #include "register/registration.hpp"
 
 #include "core/atomic_file.hpp"
+#include "core/random.hpp"
 #include "scan/cloud.hpp"
 #include "scan/cubist_io.hpp"
 #include "synth/hand_mesher.hpp"
@@ -68,5 +71,73 @@ static void BM_RegisterFixturePairMarkerOnly(benchmark::State& st) {
   }
 }
 BENCHMARK(BM_RegisterFixturePairMarkerOnly)->Unit(benchmark::kMillisecond)->Iterations(10);
+
+// ---- posture solver ----
+namespace {
+int dof(const char* n) { return dof_index(n).value(); }
+
+// A calibrated model with grids: the ring/little MCP pair along a measured curve.
+PostureModel curved_model() {
+  AngleTable t;
+  t.columns = {dof("ring.mcp.flex"), dof("little.mcp.flex"), dof("middle.mcp.flex")};
+  Rng rng(9);
+  for (int r = 0; r < 600; ++r) {
+    const double u = rng.uniform(0, M_PI / 2);
+    const double ring = 60 - 60 * std::cos(u) + rng.normal() * 0.5;
+    t.rows.push_back({ring, 60 * std::sin(u) + rng.normal() * 0.5, 0.8 * ring + rng.normal()});
+    t.lines.push_back(r);
+  }
+  CalibrationOptions o;
+  o.grids = true;
+  return calibrate(t, o, "bench", nullptr);
+}
+}  // namespace
+
+// One posture from one pinned input, linear model, the factorisation cached (same pin set).
+static void BM_PostureLinearSolve(benchmark::State& st) {
+  const PostureSolver s(builtin_model("anatomical"));
+  PostureInputs in;
+  in.pins = {{dof("little.mcp.flex"), 40.0}};
+  double v = 0;
+  for (auto _ : st) {
+    in.pins[0].second = 20.0 + std::fmod(v += 0.37, 50.0);
+    benchmark::DoNotOptimize(s.solve_linear(in).angles[dof("ring.mcp.flex")]);
+  }
+}
+BENCHMARK(BM_PostureLinearSolve)->Unit(benchmark::kMicrosecond);
+
+// One posture with non-linear grid potentials (Gauss–Newton to convergence).
+static void BM_PostureNonlinearSolve(benchmark::State& st) {
+  const PostureSolver s(curved_model());
+  PostureInputs in;
+  in.pins = {{dof("ring.mcp.flex"), 30.0}};
+  double v = 0, iters = 0;
+  for (auto _ : st) {
+    in.pins[0].second = 5.0 + std::fmod(v += 0.37, 50.0);
+    const PostureSolution sol = s.solve_nonlinear(in);
+    iters += sol.iterations;
+    benchmark::DoNotOptimize(sol.angles[dof("little.mcp.flex")]);
+  }
+  st.counters["gn_steps"] = iters / static_cast<double>(st.iterations());
+}
+BENCHMARK(BM_PostureNonlinearSolve)->Unit(benchmark::kMicrosecond);
+
+// Batch: rows pinning one to three of six DOFs (the sets a glove or slider rig gives),
+// values varying every row; postures per second on one core.
+static void BM_PostureBatch(benchmark::State& st) {
+  const PostureSolver s(builtin_model("anatomical"));
+  const int pool[] = {dof("index.mcp.flex"), dof("middle.mcp.flex"), dof("ring.mcp.flex"),
+                      dof("little.mcp.flex"), dof("thumb.mcp.flex"), dof("index.pip.flex")};
+  Rng rng(4);
+  std::vector<PostureInputs> rows(4096);
+  for (auto& r : rows) {
+    const int n = 1 + static_cast<int>(rng.uniform(0, 3));
+    for (int k = 0; k < n; ++k) r.pins.emplace_back(pool[(static_cast<int>(rng.uniform(0, 6)) + k) % 6], rng.uniform(0, 80));
+  }
+  size_t i = 0;
+  for (auto _ : st) benchmark::DoNotOptimize(s.solve_linear(rows[i++ % rows.size()]).angles[0]);
+  st.SetItemsProcessed(static_cast<int64_t>(st.iterations()));
+}
+BENCHMARK(BM_PostureBatch)->Unit(benchmark::kMicrosecond);
 
 BENCHMARK_MAIN();

@@ -4,6 +4,8 @@
 #include <filesystem>
 
 #include "core/json_util.hpp"
+#include "posture/angle_table.hpp"
+#include "core/dof.hpp"
 #include "scan/cloud.hpp"
 #include "scan/cubist_io.hpp"
 #include "test_util.hpp"
@@ -131,4 +133,67 @@ TEST(Cli, SynthScanRunsOnAnotherHand) {
   ASSERT_EQ(test::run(kBin + " -q run --back " + dir + "/scan/back --palm " + dir + "/scan/palm --rig " + dir + "/scan/rig.json --out " + dir + "/out", &out), 0) << out;
   ASSERT_EQ(test::run(kBin + " -q render --mesh " + dir + "/hand/hand.ply --rig " + dir + "/hand/hand_rig.json --out " + dir + "/r.png", &out), 0) << out;
   EXPECT_GT(fs::file_size(dir + "/r.png"), 1000u);
+}
+
+TEST(Cli, SolveSingleAndBatch) {
+  const std::string dir = test::temp_dir("solve");
+  std::string out;
+  ASSERT_EQ(test::run(kBin + " -q solve --model builtin:anatomical --set L2.flex=60 --torque I3.flex=5 --target "
+                             "thumb.ip.flex=30@2 --rig " + kFix + "rig.json --json",
+                      &out),
+            0)
+      << out;
+  const Json j = parse_json_object(out, "stdout");
+  EXPECT_EQ(j["angles"]["little.mcp.flex"].get<double>(), 60.0);
+  EXPECT_GT(j["angles"]["ring.mcp.flex"].get<double>(), 30.0);
+  EXPECT_EQ(j["joints"].size(), 25u);
+  EXPECT_EQ(j["pinned"], Json::array({"little.mcp.flex"}));
+  // Batch: every row's given cells pinned, rows in order, out-of-limit cells clamped and
+  // counted in one warning.
+  test::write_text(dir + "/in.csv", "L2.flex,index.mcp.flex\n10,\n,45\n200,30\n");
+  ASSERT_EQ(test::run(kBin + " solve --model builtin:thesis --inputs " + dir + "/in.csv --out " + dir + "/out.csv", &out), 0)
+      << out;
+  EXPECT_NE(out.find("1 input value(s) in 1 row(s)"), std::string::npos) << out;
+  const AngleTable t = read_angle_table(dir + "/out.csv");
+  ASSERT_EQ(t.rows.size(), 3u);
+  ASSERT_EQ(t.columns.size(), 35u);
+  const int l2 = dof_index("little.mcp.flex").value(), i2 = dof_index("index.mcp.flex").value();
+  EXPECT_EQ(t.rows[0][l2], 10.0);
+  EXPECT_EQ(t.rows[1][i2], 45.0);
+  EXPECT_EQ(t.rows[2][l2], 90.0);  // clamped onto the limit
+  // Malformed rows and unknown names: one line naming the line or the name; no output.
+  test::write_text(dir + "/bad.csv", "L2.flex,index.mcp.flex\n10,\n1,2,3\n");
+  EXPECT_EQ(test::run(kBin + " -q solve --model builtin:thesis --inputs " + dir + "/bad.csv --out " + dir + "/o2.csv", &out), 1);
+  EXPECT_NE(out.find("bad.csv:3"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir + "/o2.csv"));
+  EXPECT_EQ(test::run(kBin + " -q solve --model builtin:thesis --set pinky.mcp.flex=3", &out), 1);
+  EXPECT_NE(out.find("unknown DOF 'pinky.mcp.flex'"), std::string::npos) << out;
+  test::write_text(dir + "/m.json", R"({"format": "hand-posture/1", "dofs": {"ring.pip.flex": {"stiffness": 0}}})");
+  EXPECT_EQ(test::run(kBin + " -q solve --model " + dir + "/m.json --set L2.flex=3", &out), 1);
+  EXPECT_NE(out.find("stiffness"), std::string::npos) << out;
+}
+
+TEST(Cli, MocapCalibrateModel) {
+  const std::string dir = test::temp_dir("calib");
+  std::string out;
+  const std::string tsv = std::string(HANDSKIN_SOURCE_DIR) + "/../shared/data/mocap/qualisys-hand-recording.tsv";
+  ASSERT_EQ(test::run(kBin + " -q mocap --in " + tsv + " --out " + dir + "/a.csv --every 10", &out), 0) << out;
+  EXPECT_EQ(read_angle_table(dir + "/a.csv").rows.size(), 600u);
+  ASSERT_EQ(test::run(kBin + " -q calibrate --angles " + dir + "/a.csv --out " + dir + "/m.json --grids --report " + dir +
+                          "/r.json",
+                      &out),
+            0)
+      << out;
+  const Json r = load_json_object(dir + "/r.json");
+  EXPECT_GE(r["pairs"].size(), 3u);
+  ASSERT_EQ(test::run(kBin + " -q solve --model " + dir + "/m.json --set little.mcp.flex=40", &out), 0) << out;
+  EXPECT_NE(out.find("Gauss-Newton"), std::string::npos) << out;
+  // Too short a table.
+  test::write_text(dir + "/s.csv", "I2.flex,I3.flex\n1,2\n3,4\n");
+  EXPECT_EQ(test::run(kBin + " -q calibrate --angles " + dir + "/s.csv --out " + dir + "/s.json", &out), 1);
+  EXPECT_NE(out.find("at least"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir + "/s.json"));
+  // Built-in sets write out and read back.
+  ASSERT_EQ(test::run(kBin + " -q model --model builtin:thesis --out " + dir + "/t.json", &out), 0) << out;
+  ASSERT_EQ(test::run(kBin + " -q solve --model " + dir + "/t.json --set L2.flex=60", &out), 0) << out;
 }

@@ -278,7 +278,7 @@ void register_command(const RegisterArgs& a, const Progress& progress) {
 
 // ---------------- solve ----------------
 struct SolveArgs {
-  std::string model, rig, inputs, out;
+  std::string model, rig, inputs, out, picture, view = "side";
   std::vector<std::string> sets, torques, targets;
   bool json = false, linear = false;
 };
@@ -340,6 +340,23 @@ void solve_command(const SolveArgs& a, const Progress& progress) {
   for (int d : s.at_limit) limited[d] = 1;
   std::array<Eigen::Vector3d, kJointCount> joint_pos;
   if (rig) joint_pos = Skeleton(*rig, a.rig).positions(s.angles);
+  if (!a.picture.empty()) {
+    if (!rig) throw InputError("--picture", "needs --rig (the skeleton to draw)");
+    // The relaxed posture in grey, the solved one in red, seen in the hand frame.
+    Angles relaxed;
+    for (int d = 0; d < kDofCount; ++d) relaxed[d] = model.dof[d].relaxed;
+    const auto rest = Skeleton(*rig, a.rig).positions(relaxed);
+    std::vector<int> parents;
+    for (const auto& jn : joints()) parents.push_back(jn.parent);
+    RenderOptions ro;
+    ro.width = 900;
+    ro.height = 600;
+    ro.view = named_view(a.view) * hand_frame_from_rig(*rig).linear();
+    write_file_atomic(a.picture,
+                      render_skeletons_png({{{rest.begin(), rest.end()}, parents, {0.6f, 0.6f, 0.65f}},
+                                            {{joint_pos.begin(), joint_pos.end()}, parents, {0.8f, 0.15f, 0.15f}}},
+                                           ro));
+  }
   if (a.json) {
     Json j;
     j["format"] = "handskin-posture-solution/1";
@@ -473,6 +490,8 @@ int main(int argc, char** argv) {
   solvec->add_option("--target", sv.targets, "Soft target: name=degrees[@weight] (repeatable)");
   solvec->add_option("--rig", sv.rig, "hand-rig/1: also print joint positions of the posture");
   solvec->add_flag("--json", sv.json, "Print JSON (handskin-posture-solution/1)");
+  solvec->add_option("--picture", sv.picture, "With --rig: draw the relaxed (grey) and solved (red) skeleton to a PNG");
+  solvec->add_option("--view", sv.view, "Picture view: side, back or palm")->capture_default_str();
   solvec->add_flag("--linear", sv.linear, "Ignore the model's non-linear grids");
   solvec->add_option("--inputs", sv.inputs, "Batch: CSV of partial postures (given cells are pinned)");
   solvec->add_option("--out", sv.out, "Batch: CSV of full postures, rows in input order");
@@ -489,6 +508,12 @@ int main(int argc, char** argv) {
   calc->add_flag("--grids", ca2.options.grids, "Also build non-linear grid potentials (thesis §3.2.3)");
   calc->add_option("--grid-weight", ca2.options.grid_weight, "Weight of the grid potentials")->capture_default_str();
   calc->add_option("--report", ca2.report, "Write the calibration figures as JSON");
+
+  // model
+  std::string model_in, model_out;
+  auto* modc = app.add_subcommand("model", "Check a posture model and write it out in full (e.g. a built-in set, to edit)");
+  modc->add_option("--model", model_in, "hand-posture/1 file, or builtin:anatomical / builtin:thesis")->required();
+  modc->add_option("--out", model_out, "Where to write it (absolute-angle pairs, every DOF listed)")->required();
 
   // mocap
   MocapArgs mc;
@@ -573,6 +598,11 @@ int main(int argc, char** argv) {
       solve_command(sv, progress);
     } else if (calc->parsed()) {
       calibrate_command(ca2, progress);
+    } else if (modc->parsed()) {
+      const PostureModel m = load_model(model_in);
+      const PostureSolver check(m);  // refuses a model that cannot solve
+      save_model(model_out, m);
+      std::printf("%s: %zu pairs, %zu grids -> %s\n", m.name.c_str(), m.pairs.size(), m.grids.size(), model_out.c_str());
     } else if (mocc->parsed()) {
       mocap_command(mc, progress);
     } else if (regc->parsed()) {

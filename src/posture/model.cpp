@@ -84,9 +84,9 @@ PostureModel builtin_model(const std::string& name) {
       m.pairs.push_back(relative_line(m.dof, s + ".pip.flex", s + ".dip.flex", 2.0 / 3.0, 2.0, "DIP-PIP coupling"));
       m.pairs.push_back(relative_line(m.dof, s + ".mcp.flex", s + ".pip.flex", 1.0, 0.3, "PIP follows MCP"));
     }
-    m.pairs.push_back(relative_line(m.dof, "index.mcp.flex", "middle.mcp.flex", 1.0, 0.3, "neighbour MCP coupling"));
-    m.pairs.push_back(relative_line(m.dof, "middle.mcp.flex", "ring.mcp.flex", 1.0, 0.6, "neighbour MCP coupling"));
-    m.pairs.push_back(relative_line(m.dof, "ring.mcp.flex", "little.mcp.flex", 1.0, 0.6, "neighbour MCP coupling"));
+    m.pairs.push_back(relative_line(m.dof, "index.mcp.flex", "middle.mcp.flex", 1.0, 0.5, "neighbour MCP coupling"));
+    m.pairs.push_back(relative_line(m.dof, "middle.mcp.flex", "ring.mcp.flex", 1.0, 1.0, "neighbour MCP coupling"));
+    m.pairs.push_back(relative_line(m.dof, "ring.mcp.flex", "little.mcp.flex", 1.0, 1.5, "neighbour MCP coupling"));
     m.pairs.push_back(relative_line(m.dof, "thumb.mcp.flex", "thumb.ip.flex", 0.5, 0.5, "thumb IP follows MCP"));
   } else if (name == "thesis") {
     m.name = "thesis";

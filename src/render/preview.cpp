@@ -73,6 +73,20 @@ class Canvas {
         }
     }
   }
+  /// A flat-coloured disc of radius r pixels (no shading), depth-tested.
+  void disc(double cx, double cy, double z, double r, const Eigen::Vector3f& colour) {
+    const int reach = static_cast<int>(std::ceil(r));
+    for (int dy = -reach; dy <= reach; ++dy)
+      for (int dx = -reach; dx <= reach; ++dx) {
+        if (dx * dx + dy * dy > r * r) continue;
+        const int x = static_cast<int>(cx) + dx, y = static_cast<int>(cy) + dy;
+        if (x < 0 || y < 0 || x >= o_.width || y >= o_.height) continue;
+        const size_t idx = static_cast<size_t>(y) * o_.width + x;
+        if (z <= depth_[idx]) continue;
+        depth_[idx] = static_cast<float>(z);
+        for (int c = 0; c < 3; ++c) rgb_[idx * 3 + c] = static_cast<std::uint8_t>(std::clamp(255.0 * colour[c], 0.0, 255.0));
+      }
+  }
   std::string png() const { return encode_rgb8_png(o_.width, o_.height, rgb_); }
 
  private:
@@ -152,6 +166,29 @@ std::string render_points_png(const std::vector<Eigen::Vector3d>& points, const 
           canvas.plot(static_cast<int>(q.x()) + dx, static_cast<int>(q.y()) + dy, q.z(), n, colours[k]);
   }
   canvas.dots(o.points);
+  return canvas.png();
+}
+
+std::string render_skeletons_png(const std::vector<SkeletonDrawing>& skeletons, const RenderOptions& o) {
+  std::vector<Eigen::Vector3d> vp;
+  for (const auto& sk : skeletons)
+    for (const auto& p : sk.joints) vp.push_back(o.view * p);
+  HS_CHECK(!vp.empty(), "no joints to draw");
+  Canvas canvas(o, vp);
+  for (const auto& sk : skeletons) {
+    HS_CHECK(sk.joints.size() == sk.parents.size(), "joints and parents differ in length");
+    for (size_t j = 0; j < sk.joints.size(); ++j) {
+      const Eigen::Vector3d a = canvas.to_px(o.view * sk.joints[j]);
+      canvas.disc(a.x(), a.y(), a.z() + 0.01, 4.0, sk.colour);
+      if (sk.parents[j] < 0) continue;
+      const Eigen::Vector3d b = canvas.to_px(o.view * sk.joints[sk.parents[j]]);
+      const int steps = static_cast<int>(std::ceil((a - b).head<2>().norm())) + 1;
+      for (int k = 0; k <= steps; ++k) {
+        const Eigen::Vector3d q = b + (a - b) * (static_cast<double>(k) / steps);
+        canvas.disc(q.x(), q.y(), q.z(), 1.6, sk.colour);
+      }
+    }
+  }
   return canvas.png();
 }
 

@@ -26,6 +26,15 @@ std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const Ren
 std::string render_points_png(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& normals,
                               const std::vector<Eigen::Vector3f>& colours, const RenderOptions& options);
 
+/// Skeletons as bones (lines from each joint to its parent) and joints (dots), one colour
+/// each, fit to the picture together (e.g. the rest posture and a solved one).
+struct SkeletonDrawing {
+  std::vector<Eigen::Vector3d> joints;
+  std::vector<int> parents;  ///< −1 for the root
+  Eigen::Vector3f colour;
+};
+std::string render_skeletons_png(const std::vector<SkeletonDrawing>& skeletons, const RenderOptions& options);
+
 /// A side view of any elongated flat object from its principal axes: the longest extent
 /// runs right, the shortest up (for clouds without a rig, e.g. a merged scan pair).
 Eigen::Matrix3d principal_view(const std::vector<Eigen::Vector3d>& points);

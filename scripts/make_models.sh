@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Regenerate models/: the two built-in parameter sets written out, and the model calibrated
+# from the shared Qualisys recording (../shared/data/mocap, BSD licence: see its LICENSE).
+# Usage: scripts/make_models.sh [handskin-binary] [output-folder]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BIN=$(realpath "${1:-./build/handskin}")
+OUT=${2:-models}
+mkdir -p "$OUT"
+OUT=$(realpath "$OUT")
+MOCAP=$(realpath ../shared/data/mocap/qualisys-hand-recording.tsv)
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+"$BIN" --quiet model --model builtin:anatomical --out "$OUT/anatomical.json" >/dev/null
+"$BIN" --quiet model --model builtin:thesis --out "$OUT/thesis-table-3.2.json" >/dev/null
+# Relative names inside the work folder, so the model's description and notes do not carry
+# a temporary path.
+cd "$work"
+"$BIN" --quiet mocap --in "$MOCAP" --out qualisys-hand-recording-angles.csv >/dev/null
+"$BIN" --quiet calibrate --angles qualisys-hand-recording-angles.csv --out "$OUT/qualisys-calibrated.json" --grids >/dev/null
+echo "$OUT"
