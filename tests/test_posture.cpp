@@ -13,6 +13,7 @@
 #include "test_util.hpp"
 
 using namespace handskin;
+using test::input_error_of;
 
 namespace {
 const std::string kFixture = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
@@ -28,15 +29,6 @@ Angles zeros() {
   return a;
 }
 
-template <class F>
-std::string input_error_of(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
 
 // A table with planted lines: b = 0.8 a + 5 (noise 1°), c = −0.5 a + 40 (noise 3°), e unrelated.
 AngleTable planted(int rows, std::uint64_t seed) {

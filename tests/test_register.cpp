@@ -15,6 +15,7 @@
 #include "test_util.hpp"
 
 using namespace handskin;
+using test::input_error_of;
 using test::add_box;
 using test::add_sphere;
 
@@ -22,15 +23,6 @@ namespace {
 constexpr double kDeg = M_PI / 180.0;
 const std::string kFixture = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
 
-template <class F>
-std::string input_error_of(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
 
 
 

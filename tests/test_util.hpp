@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include "core/errors.hpp"
 #include "mesh/trimesh.hpp"
 #include "synth/scanner.hpp"
 
@@ -19,6 +20,17 @@ int run(const std::string& cmd, std::string* output);
 double winding_number(const TriMesh& mesh, const Eigen::Vector3d& p);
 void write_text(const std::string& path, const std::string& text);
 /// Scene objects with exact geometry for the scanner and registration tests.
+/// The message of the InputError `f` throws, or "(no error)".
+template <class F>
+std::string input_error_of(F&& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
 void add_box(Scene* s, const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, int object);
 void add_sphere(Scene* s, const Eigen::Vector3d& centre, double radius, int object);
 

@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Fails when a committed folder differs from what its generator script produces now.
+# Usage: scripts/check_regenerated.sh <make-script> <folder> [handskin-binary]
+#   e.g. scripts/check_regenerated.sh scripts/make_fixtures.sh fixtures/default build/handskin
+set -euo pipefail
+cd "$(dirname "$0")/.."
+MAKE=$1
+DIR=$2
+BIN=${3:-./build/handskin}
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+bash "$MAKE" "$BIN" "$tmp/out" >/dev/null
+if diff -r "$DIR" "$tmp/out"; then
+  echo "$DIR is up to date"
+else
+  echo "$DIR differs from a fresh regeneration: run $MAKE and review"
+  exit 1
+fi
