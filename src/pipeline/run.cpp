@@ -89,7 +89,8 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   const StageTimer t_reg;
   const Registration reg =
       register_scans(back, palm, in.back_stem + ".png", in.palm_stem + ".png", registration_options(in.options),
-                     in.markers_path.empty() ? nullptr : &hints, progress);
+                     in.markers_path.empty() ? nullptr : &hints,
+                     [&](const std::string& m) { progress("registration: " + m); });
   for (const auto& w : reg.warnings) progress("warning: " + w);
   const Json& rr = reg.report;
   stages.push_back({{"name", "registration"},

@@ -122,14 +122,14 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
   Json timings;
 
   // --- 1. table, speckle, normals ---
-  progress("register: removing the table and speckle");
+  progress("removing the table and speckle");
   auto t = Clock::now();
   const PreparedScan back = prepare_scan(back_scan, o.prepare, back_file);
   const PreparedScan palm = prepare_scan(palm_scan, o.prepare, palm_file);
   timings["prepare_ms"] = ms_since(t);
 
   // --- 2. markers in each scan ---
-  progress("register: finding the marker spheres");
+  progress("finding the marker spheres");
   t = Clock::now();
   Json side_rep[2];
   const std::string hints_file = hints ? hints->file : "";
@@ -144,7 +144,7 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
                              " marker spheres found, " + std::to_string(o.expected_markers) + " expected");
 
   // --- 3. matching by distance pattern, 4. rigid fit ---
-  progress("register: matching the markers");
+  progress("matching the markers");
   t = Clock::now();
   std::vector<Eigen::Vector3d> cb, cp;
   for (const auto& f : mb) cb.push_back(f.centre);
@@ -207,7 +207,7 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
   for (const auto& c : cb) all_p.push_back(out.marker_only * c);
   const std::vector<char> skin_b = skin_mask(back, all_b, reach), skin_p = skin_mask(palm, all_p, reach);
 
-  progress("register: refining (markers as anchors, gated ICP)");
+  progress("refining (markers as anchors, gated ICP)");
   t = Clock::now();
   RefineOptions ro = o.refine;
   if (!o.refine_enabled) ro.max_iterations = 0;
@@ -245,7 +245,7 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
     for (const auto& [b, p] : match.pairs) out.markers_palm.push_back(0.5 * (out.marker_only * cb[b] + cp[p]));
 
   // --- 6. merge: palm frame, side labels, marker samples out ---
-  progress("register: merging");
+  progress("merging");
   t = Clock::now();
   std::vector<Eigen::Vector3d> all_b2 = cb, all_p2 = cp;
   for (const auto& c : cp) all_b2.push_back(out.back_to_palm.inverse() * c);
