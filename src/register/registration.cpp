@@ -240,9 +240,13 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
     throw InputError(both, fmt("registration rejected: a matched marker's centres disagree by %.3f mm after the fit "
                                "(allowed %.3f mm: 2 depth steps or 10%% of the marker radius)",
                                max_final, accept));
-  for (const auto& c : (out.refined ? ref.centres : std::vector<Eigen::Vector3d>{})) out.markers_palm.push_back(c);
-  if (!out.refined)
+  // Marker centres in the palm frame: the joint fit's when refined, else the midpoint of
+  // each pair's two centres.
+  if (out.refined) {
+    out.markers_palm = ref.centres;
+  } else {
     for (const auto& [b, p] : match.pairs) out.markers_palm.push_back(0.5 * (out.marker_only * cb[b] + cp[p]));
+  }
 
   // --- 6. merge: palm frame, side labels, marker samples out ---
   progress("merging");

@@ -1,46 +1,43 @@
 #include "synth/mesh_distance.hpp"
 
-#include <CGAL/AABB_traits.h>
-#include <CGAL/AABB_tree.h>
-#include <CGAL/AABB_triangle_primitive.h>
-#include <CGAL/Simple_cartesian.h>
-
 #include <cmath>
 #include <vector>
 
+#include "synth/triangle_tree.hpp"
+
 namespace handskin {
 
-namespace {
-using K = CGAL::Simple_cartesian<double>;
-using Triangle = K::Triangle_3;
-using TriIter = std::vector<Triangle>::const_iterator;
-using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, CGAL::AABB_triangle_primitive<K, TriIter>>>;
-}  // namespace
-
 struct MeshDistance::Impl {
-  std::vector<Triangle> tris;
-  Tree tree;
+  explicit Impl(const std::vector<Eigen::Vector3d>& v, const std::vector<std::array<int, 3>>& f) : tt(v, f) {}
+  cgal::TriangleTree tt;
 };
 
-MeshDistance::MeshDistance(const TriMesh& mesh) : impl_(std::make_unique<Impl>()) {
+namespace {
+std::vector<Eigen::Vector3d> vertices_of(const TriMesh& mesh) {
+  std::vector<Eigen::Vector3d> v;
+  for (auto vh : mesh.vertices()) v.emplace_back(mesh.point(vh)[0], mesh.point(vh)[1], mesh.point(vh)[2]);
+  return v;
+}
+std::vector<std::array<int, 3>> faces_of(const TriMesh& mesh) {
+  std::vector<std::array<int, 3>> f;
   for (auto fh : mesh.faces()) {
-    K::Point_3 p[3];
+    std::array<int, 3> t{};
     int k = 0;
-    for (auto vh : mesh.fv_range(fh)) {
-      const auto& q = mesh.point(vh);
-      p[k++] = K::Point_3(q[0], q[1], q[2]);
-    }
-    impl_->tris.emplace_back(p[0], p[1], p[2]);
+    for (auto vh : mesh.fv_range(fh)) t[k++] = vh.idx();
+    f.push_back(t);
   }
-  impl_->tree.insert(impl_->tris.begin(), impl_->tris.end());
-  impl_->tree.build();
-  impl_->tree.accelerate_distance_queries();
+  return f;
+}
+}  // namespace
+
+MeshDistance::MeshDistance(const TriMesh& mesh) : impl_(std::make_unique<Impl>(vertices_of(mesh), faces_of(mesh))) {
+  impl_->tt.tree.accelerate_distance_queries();
 }
 
 MeshDistance::~MeshDistance() = default;
 
 double MeshDistance::distance(const Eigen::Vector3d& p) const {
-  return std::sqrt(impl_->tree.squared_distance(K::Point_3(p.x(), p.y(), p.z())));
+  return std::sqrt(impl_->tt.tree.squared_distance(cgal::point(p)));
 }
 
 }  // namespace handskin

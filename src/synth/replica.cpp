@@ -1,24 +1,18 @@
 #include "synth/replica.hpp"
 
-#include <CGAL/AABB_traits.h>
-#include <CGAL/AABB_tree.h>
-#include <CGAL/AABB_triangle_primitive.h>
-#include <CGAL/Simple_cartesian.h>
 
 #include <algorithm>
 #include <cstdio>
 #include <map>
 
 #include "core/errors.hpp"
+#include "synth/triangle_tree.hpp"
 #include "core/random.hpp"
 
 namespace handskin {
 
 namespace {
-using K = CGAL::Simple_cartesian<double>;
-using Triangle = K::Triangle_3;
-using TriIter = std::vector<Triangle>::const_iterator;
-using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, CGAL::AABB_triangle_primitive<K, TriIter>>>;
+using cgal::K;
 constexpr double kDeg = M_PI / 180.0;
 
 std::vector<Eigen::Vector3d> mesh_points(const TriMesh& mesh, const Eigen::Isometry3d& T) {
@@ -45,23 +39,15 @@ std::vector<std::array<int, 3>> mesh_faces(const TriMesh& mesh) {
 
 // First surface hit of a ray on the hand (hand frame); nullopt if it misses.
 struct RayCaster {
-  std::vector<Triangle> tris;
-  Tree tree;
-  explicit RayCaster(const std::vector<Eigen::Vector3d>& v, const std::vector<std::array<int, 3>>& f) {
-    for (const auto& t : f)
-      tris.emplace_back(K::Point_3(v[t[0]].x(), v[t[0]].y(), v[t[0]].z()),
-                        K::Point_3(v[t[1]].x(), v[t[1]].y(), v[t[1]].z()),
-                        K::Point_3(v[t[2]].x(), v[t[2]].y(), v[t[2]].z()));
-    tree.insert(tris.begin(), tris.end());
-    tree.build();
-  }
+  cgal::TriangleTree tt;
+  RayCaster(const std::vector<Eigen::Vector3d>& v, const std::vector<std::array<int, 3>>& f) : tt(v, f) {}
   std::optional<std::pair<Eigen::Vector3d, Eigen::Vector3d>> cast(const Eigen::Vector3d& o,
                                                                    const Eigen::Vector3d& d) const {
-    const auto hit = tree.first_intersection(K::Ray_3(K::Point_3(o.x(), o.y(), o.z()), K::Vector_3(d.x(), d.y(), d.z())));
+    const auto hit = tt.tree.first_intersection(K::Ray_3(K::Point_3(o.x(), o.y(), o.z()), K::Vector_3(d.x(), d.y(), d.z())));
     if (!hit) return std::nullopt;
     const K::Point_3* p = boost::get<K::Point_3>(&hit->first);
     if (!p) return std::nullopt;
-    const Triangle& t = *hit->second;
+    const cgal::Triangle& t = *hit->second;
     const K::Vector_3 n = CGAL::cross_product(t[1] - t[0], t[2] - t[0]);
     return std::make_pair(Eigen::Vector3d(p->x(), p->y(), p->z()), Eigen::Vector3d(n.x(), n.y(), n.z()).normalized());
   }

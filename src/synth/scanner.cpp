@@ -1,23 +1,16 @@
 #include "synth/scanner.hpp"
 
-#include <CGAL/AABB_traits.h>
-#include <CGAL/AABB_tree.h>
-#include <CGAL/AABB_triangle_primitive.h>
-#include <CGAL/Simple_cartesian.h>
 
 #include <cmath>
 
 #include "core/errors.hpp"
+#include "synth/triangle_tree.hpp"
 #include "core/random.hpp"
 
 namespace handskin {
 
 namespace {
-using K = CGAL::Simple_cartesian<double>;
-using Triangle = K::Triangle_3;
-using TriIter = std::vector<Triangle>::const_iterator;
-using Primitive = CGAL::AABB_triangle_primitive<K, TriIter>;
-using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, Primitive>>;
+using cgal::K;
 constexpr double kDeg = M_PI / 180.0;
 }  // namespace
 
@@ -59,12 +52,9 @@ ScanSimulation simulate_scan(const Scene& scene, const ScannerOptions& o, ScanSi
   if (!o.IsValid(&err)) throw InputError("scanner options", err);
   HS_CHECK(scene.faces.size() == scene.face_object.size(), "scene face tags disagree with faces");
 
-  std::vector<Triangle> tris;
-  tris.reserve(scene.faces.size());
-  auto P = [&](int i) { const auto& v = scene.vertices[i]; return K::Point_3(v.x(), v.y(), v.z()); };
-  for (const auto& f : scene.faces) tris.emplace_back(P(f[0]), P(f[1]), P(f[2]));
-  Tree tree(tris.begin(), tris.end());
-  tree.build();
+  const cgal::TriangleTree tt(scene.vertices, scene.faces);
+  const cgal::Tree& tree = tt.tree;
+  const std::vector<cgal::Triangle>& tris = tt.triangles;
 
   ScanSimulation sim;
   ScanMeta& m = sim.scan.meta;
@@ -102,7 +92,7 @@ ScanSimulation simulate_scan(const Scene& scene, const ScannerOptions& o, ScanSi
       const K::Point_3* hp = hit ? boost::get<K::Point_3>(&hit->first) : nullptr;
       if (hp && hp->z() > o.table_z(x)) {
         p = {hp->x(), hp->y(), hp->z()};
-        const Triangle& t = *hit->second;
+        const cgal::Triangle& t = *hit->second;
         const K::Vector_3 nk = CGAL::cross_product(t[1] - t[0], t[2] - t[0]);
         nrm = Eigen::Vector3d(nk.x(), nk.y(), nk.z()).normalized();
         if (nrm.z() < 0) nrm = -nrm;  // seen from above: the side facing the camera
