@@ -4,6 +4,7 @@
 #include "posture/calibrate.hpp"
 #include "posture/solver.hpp"
 #include "register/registration.hpp"
+#include "skin/baseline.hpp"
 
 #include "core/atomic_file.hpp"
 #include "core/random.hpp"
@@ -139,5 +140,21 @@ static void BM_PostureBatch(benchmark::State& st) {
   st.SetItemsProcessed(static_cast<int64_t>(st.iterations()));
 }
 BENCHMARK(BM_PostureBatch)->Unit(benchmark::kMicrosecond);
+
+// The skin stage's baseline: CGAL Poisson on the fixture's merged cloud (≤ 40 000 points).
+static void BM_SkinPoissonBaseline(benchmark::State& st) {
+  const RangeScan back = load_scan(kFix + "back"), palm = load_scan(kFix + "palm");
+  const Registration reg =
+      register_scans(back, palm, "back", "palm", RegistrationOptions{}, nullptr, [](const std::string&) {});
+  std::vector<Eigen::Vector3d> pts, nrm;
+  for (const auto& p : *reg.merged) {
+    pts.push_back(p.getVector3fMap().cast<double>());
+    nrm.push_back(p.getNormalVector3fMap().cast<double>());
+  }
+  size_t faces = 0;
+  for (auto _ : st) faces = poisson_baseline(pts, nrm).mesh.n_faces();
+  st.counters["triangles"] = static_cast<double>(faces);
+}
+BENCHMARK(BM_SkinPoissonBaseline)->Unit(benchmark::kSecond)->Iterations(1);
 
 BENCHMARK_MAIN();

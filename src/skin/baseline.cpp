@@ -1,0 +1,56 @@
+#include "skin/baseline.hpp"
+
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Surface_mesh.h>
+#include <CGAL/compute_average_spacing.h>
+#include <CGAL/poisson_surface_reconstruction.h>
+#include <CGAL/property_map.h>
+
+#include <chrono>
+#include <utility>
+
+#include "core/errors.hpp"
+
+namespace handskin {
+
+namespace {
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+using Pwn = std::pair<K::Point_3, K::Vector_3>;
+}  // namespace
+
+BaselineResult poisson_baseline(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& normals,
+                                size_t max_points) {
+  HS_CHECK(points.size() == normals.size(), "points and normals differ in length");
+  const auto t0 = std::chrono::steady_clock::now();
+  BaselineResult r;
+  std::vector<Pwn> pwn;
+  const size_t step = std::max<size_t>(1, (points.size() + max_points - 1) / std::max<size_t>(max_points, 1));
+  for (size_t i = 0; i < points.size(); i += step) {
+    if (normals[i].squaredNorm() < 0.5) continue;  // samples without a normal cannot orient the field
+    pwn.emplace_back(K::Point_3(points[i].x(), points[i].y(), points[i].z()),
+                     K::Vector_3(normals[i].x(), normals[i].y(), normals[i].z()));
+  }
+  if (pwn.size() < 100) throw InputError("merged cloud", "too few oriented points for the Poisson baseline");
+  r.points_used = pwn.size();
+  r.average_spacing_mm = CGAL::compute_average_spacing<CGAL::Sequential_tag>(
+      pwn, 6, CGAL::parameters::point_map(CGAL::First_of_pair_property_map<Pwn>()));
+  CGAL::Surface_mesh<K::Point_3> sm;
+  const bool ok = CGAL::poisson_surface_reconstruction_delaunay(
+      pwn.begin(), pwn.end(), CGAL::First_of_pair_property_map<Pwn>(), CGAL::Second_of_pair_property_map<Pwn>(), sm,
+      r.average_spacing_mm);
+  HS_CHECK(ok && sm.number_of_faces() > 0, "CGAL Poisson reconstruction failed");
+  std::vector<TriMesh::VertexHandle> vh(sm.number_of_vertices());
+  for (auto v : sm.vertices()) {
+    const auto& p = sm.point(v);
+    vh[v.idx()] = r.mesh.add_vertex(TriMesh::Point(p.x(), p.y(), p.z()));
+  }
+  for (auto f : sm.faces()) {
+    std::vector<TriMesh::VertexHandle> fv;
+    for (auto v : CGAL::vertices_around_face(sm.halfedge(f), sm)) fv.push_back(vh[v.idx()]);
+    r.mesh.add_face(fv);
+  }
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+}  // namespace handskin

@@ -1,0 +1,24 @@
+#pragma once
+/// What a user would otherwise do with the merged cloud: CGAL's Poisson surface
+/// reconstruction (issue 5's baseline), to compare the strip skin against in accuracy,
+/// triangle count and time.
+#include <Eigen/Core>
+#include <vector>
+
+#include "mesh/trimesh.hpp"
+
+namespace handskin {
+
+struct BaselineResult {
+  TriMesh mesh;
+  double seconds = 0;
+  size_t points_used = 0;
+  double average_spacing_mm = 0;
+};
+
+/// Poisson reconstruction (CGAL, Delaunay refinement meshing of the implicit function) of
+/// oriented points; every k-th point is used so that at most `max_points` go in.
+BaselineResult poisson_baseline(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& normals,
+                                size_t max_points = 40000);
+
+}  // namespace handskin
