@@ -308,6 +308,7 @@ TEST(Calibrate, TooShortRaggedOrBadTablesAreErrors) {
             std::string::npos);
   EXPECT_NE(input_error_of([&] { parse_angle_table("index.mcp.flex,I2.flex\n", "d.csv"); }).find("twice"), std::string::npos);
   EXPECT_NE(input_error_of([&] { parse_angle_table("knuckle\n", "k.csv"); }).find("knuckle"), std::string::npos);
+  EXPECT_NE(input_error_of([&] { parse_angle_table("I2.flex\n1e300\n", "h.csv"); }).find("plausible"), std::string::npos);
   const AngleTable t = parse_angle_table("I2.flex,I3.flex\n1,\n,2\n", "ok.csv");
   ASSERT_EQ(t.rows.size(), 2u);
   EXPECT_TRUE(std::isnan(t.rows[0][1]));

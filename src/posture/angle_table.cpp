@@ -66,6 +66,9 @@ AngleTable parse_angle_table(const std::string& text, const std::string& file) {
       const double v = std::strtod(cells[k].c_str(), &end);
       if (*end != '\0' || !std::isfinite(v))
         throw InputError(where, "column '" + dofs()[t.columns[k]].name + "': '" + cells[k] + "' is not a finite number");
+      if (std::abs(v) > 1e5)
+        throw InputError(where, "column '" + dofs()[t.columns[k]].name + "': " + cells[k] +
+                                    " is not a plausible angle (degrees) or offset (mm)");
       row[k] = v;
     }
     t.rows.push_back(std::move(row));

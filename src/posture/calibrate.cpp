@@ -220,6 +220,9 @@ PostureModel calibrate(const AngleTable& t, const CalibrationOptions& o, const s
     }
     rep["grids"] = m.grids.size();
   }
+  for (const auto& l : m.pairs)
+    HS_CHECK(std::isfinite(l.alpha) && std::isfinite(l.beta) && std::isfinite(l.gamma) && std::isfinite(l.weight),
+             "calibration produced a non-finite line");
   if (report) *report = rep;
   return m;
 }

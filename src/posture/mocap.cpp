@@ -63,8 +63,10 @@ std::vector<Eigen::Vector3d> read_positions(const std::vector<std::string>& cell
 }
 }  // namespace
 
-MarkerTrack read_qualisys_tsv(const std::string& file) {
-  std::istringstream in(read_file(file));
+MarkerTrack read_qualisys_tsv(const std::string& file) { return parse_qualisys_tsv(read_file(file), file); }
+
+MarkerTrack parse_qualisys_tsv(const std::string& text, const std::string& file) {
+  std::istringstream in(text);
   MarkerTrack t;
   std::string line;
   long lineno = 0;
@@ -83,7 +85,8 @@ MarkerTrack read_qualisys_tsv(const std::string& file) {
         if (!parse_number(cells[1], &t.rate_hz) || !(t.rate_hz > 0)) throw InputError(where, "FREQUENCY is not a positive number");
       } else if (cells[0] == "NO_OF_FRAMES" && cells.size() > 1) {
         double v;
-        if (!parse_number(cells[1], &v) || v < 0) throw InputError(where, "NO_OF_FRAMES is not a count");
+        if (!parse_number(cells[1], &v) || !(v >= 0 && v <= 1e9) || v != std::floor(v))
+          throw InputError(where, "NO_OF_FRAMES is not a count");
         declared_frames = static_cast<long>(v);
       } else if (cells[0] == "Frame") {  // column header of exports with frame and time columns
         first = 2;
@@ -113,8 +116,10 @@ MarkerTrack read_qualisys_tsv(const std::string& file) {
   return t;
 }
 
-MarkerTrack read_trc(const std::string& file) {
-  std::istringstream in(read_file(file));
+MarkerTrack read_trc(const std::string& file) { return parse_trc(read_file(file), file); }
+
+MarkerTrack parse_trc(const std::string& text, const std::string& file) {
+  std::istringstream in(text);
   MarkerTrack t;
   std::string line;
   long lineno = 0;

@@ -20,6 +20,9 @@ struct MarkerTrack {
 MarkerTrack read_qualisys_tsv(const std::string& file);
 /// OpenSim TRC (marker trajectories), units mm, cm or m (converted to mm); empty cells = not seen.
 MarkerTrack read_trc(const std::string& file);
+/// The same from the files' text (`file` names it in errors).
+MarkerTrack parse_qualisys_tsv(const std::string& text, const std::string& file);
+MarkerTrack parse_trc(const std::string& text, const std::string& file);
 /// By extension: .tsv or .trc.
 MarkerTrack read_marker_file(const std::string& file);
 

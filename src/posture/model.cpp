@@ -215,6 +215,9 @@ PostureModel parse_model(const Json& j, const std::string& file) {
         g.samples.push_back({s[i][0].get<double>(), s[i][1].get<double>()});
       }
       if (g.a == g.b || g.weight < 0) throw InputError(where, "a grid needs two different DOFs and weight >= 0");
+      // Tables are built by a nearest-sample search per node on load: bound the work.
+      if (static_cast<double>(g.cells) * g.cells * static_cast<double>(g.samples.size()) > 2e7)
+        throw InputError(where, "grid too large: cells² × samples must stay below 2e7 (e.g. 100 cells, 2000 samples)");
       m.grids.push_back(std::move(g));
     }
   }
