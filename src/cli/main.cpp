@@ -384,7 +384,7 @@ void solve_command(const SolveArgs& a, const Progress& progress) {
     return;
   }
   std::printf("model %s: %d %s, energy %.4f%s\n", model.name.c_str(), s.iterations,
-              solver.has_grids() && !a.linear ? "Gauss-Newton steps" : "active-set rounds", s.energy,
+              solver.has_grids() && !a.linear ? "Gauss-Newton step(s)" : "active-set round(s)", s.energy,
               s.converged ? "" : " (not converged)");
   std::printf("%-18s %9s %9s  %s\n", "DOF", "angle", "relaxed", "");
   for (int d = 0; d < kDofCount; ++d)
