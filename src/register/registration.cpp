@@ -39,6 +39,7 @@ MarkerHints load_marker_hints(const std::string& file) {
     for (size_t k = 0; k < j[side].size(); ++k)
       v.push_back(to_vec3(j[side][k], std::string(side) + "[" + std::to_string(k) + "]", file));
     if (v.size() < 3) throw InputError(file, std::string("key '") + side + "' lists fewer than 3 markers");
+    if (v.size() > 30) throw InputError(file, std::string("key '") + side + "' lists more than 30 markers");
     (std::string(side) == "back" ? h.back : h.palm) = v;
   }
   if (!h.back && !h.palm) throw InputError(file, "neither 'back' nor 'palm' is given");
@@ -105,6 +106,13 @@ std::vector<SphereFit> find_markers(const PreparedScan& s, const RegistrationOpt
     throw InputError(scan_file, "found " + std::to_string(found.size()) + " marker sphere(s) of radius " +
                                     fmt("%.2f", o.spheres.radius_mm) +
                                     " mm, need at least 3 (give approximate positions with --markers)");
+  // Matching tries every triangle pair, so its cost grows with the sixth power of the count:
+  // keep the strongest candidates when a bumpy object yields many sphere-like bumps.
+  const size_t keep = static_cast<size_t>(o.expected_markers) + 6;
+  if (!hints && found.size() > keep) {
+    (*side_report)["candidates_dropped"] = found.size() - keep;
+    found.resize(keep);
+  }
   return found;
 }
 
