@@ -551,3 +551,23 @@ TEST(Register, HardCasesWithinTwiceTheBounds) {
         EXPECT_GE(o.reg.warnings.size(), c.warnings) << c.name;
       }
 }
+
+TEST(Register, ABumpyObjectIsBoundedNotStuck) {
+  // Twenty marker-sized bumps: matching keeps the strongest 15 per scan (its cost grows with
+  // the sixth power of the count) and still registers the scan onto itself.
+  ScannerOptions so;
+  Scene scene;
+  add_box(&scene, {40, 30, 0}, {210, 170, 25}, 0);
+  Rng rng(8);
+  for (int k = 0; k < 20; ++k) {
+    const Eigen::Vector3d c(rng.uniform(50, 200), rng.uniform(40, 160), 25.0);
+    add_sphere(&scene, c, 4.0, k + 1);
+  }
+  const ScanSimulation sim = simulate_scan(scene, so, ScanSide::Back, 3);
+  RangeScan palm = sim.scan;
+  palm.meta.side = ScanSide::Palm;
+  const Registration reg = register_scans(sim.scan, palm, "b", "p", RegistrationOptions{}, nullptr, kQuiet);
+  EXPECT_LT(rotation_difference_deg(reg.back_to_palm, Eigen::Isometry3d::Identity()), 1e-6);
+  EXPECT_GT(reg.report["scans"]["back"]["candidates_dropped"].get<size_t>(), 0u);
+  EXPECT_EQ(reg.report["scans"]["back"]["markers"].size(), 15u);
+}
