@@ -38,9 +38,7 @@ int main(int argc, char** argv) {
     double rot = 0, rot_worst = 0, rot_m = 0, mean = 0, max_worst = 0;
     for (int seed = 101; seed < 101 + pairs; ++seed) {
       const ScanPair pair = synthesize_scan_pair(mesh, rig, ro, so, seed, false);
-      std::vector<Eigen::Vector3d> skin;
-      for (auto vh : pair.skin_palm.vertices())
-        skin.emplace_back(pair.skin_palm.point(vh)[0], pair.skin_palm.point(vh)[1], pair.skin_palm.point(vh)[2]);
+      const std::vector<Eigen::Vector3d> skin = mesh_vertices(pair.skin_palm);
       const Registration reg = register_scans(pair.back.scan, pair.palm.scan, "back", "palm", rgo,
                                               nullptr, [](const std::string&) {});
       const RegistrationError e = registration_error(reg.back_to_palm, pair.back_to_palm, skin);

@@ -26,11 +26,6 @@ const std::string kFixture = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/defau
 
 
 
-std::vector<Eigen::Vector3d> vertices_of(const TriMesh& m) {
-  std::vector<Eigen::Vector3d> v;
-  for (auto vh : m.vertices()) v.emplace_back(m.point(vh)[0], m.point(vh)[1], m.point(vh)[2]);
-  return v;
-}
 
 const RegisterProgress kQuiet = [](const std::string&) {};
 
@@ -78,7 +73,7 @@ Outcome register_pair(const Hand& hand, std::uint64_t seed, const ReplicaOptions
   const ScanPair pair = synthesize_scan_pair(hand.mesh, hand.rig, ro, so, seed, false);
   Outcome out;
   out.reg = register_scans(pair.back.scan, pair.palm.scan, "back", "palm", opts, nullptr, kQuiet);
-  const auto skin = vertices_of(pair.skin_palm);
+  const auto skin = mesh_vertices(pair.skin_palm);
   out.chosen = registration_error(out.reg.back_to_palm, pair.back_to_palm, skin);
   out.marker_only = registration_error(out.reg.marker_only, pair.back_to_palm, skin);
   return out;
@@ -296,15 +291,8 @@ SameSide same_side_pair() {
   auto scene_for = [&](const Eigen::Isometry3d& T) {
     Scene s;
     std::vector<Eigen::Vector3d> v;
-    for (const auto& p : vertices_of(mesh)) v.push_back(T * p);
-    std::vector<std::array<int, 3>> f;
-    for (auto fh : mesh.faces()) {
-      std::array<int, 3> tri{};
-      int k = 0;
-      for (auto vh : mesh.fv_range(fh)) tri[k++] = vh.idx();
-      f.push_back(tri);
-    }
-    s.add(v, f, 0);
+    for (const auto& p : mesh_vertices(mesh)) v.push_back(T * p);
+    s.add(v, mesh_faces(mesh), 0);
     for (size_t k = 0; k < marker_c.size(); ++k) add_sphere(&s, T * marker_c[k], R, static_cast<int>(k) + 1);
     return s;
   };
@@ -393,7 +381,7 @@ TEST(Register, FixtureAgainstTruth) {
   const Registration reg = register_scans(back, palm, "back", "palm", RegistrationOptions{}, nullptr, kQuiet);
   const Json truth = load_json_object(kFixture + "truth.json");
   const Eigen::Isometry3d T = isometry_from_json(truth["back_to_palm"], "back_to_palm", "truth");
-  const RegistrationError e = registration_error(reg.back_to_palm, T, vertices_of(default_hand().mesh));
+  const RegistrationError e = registration_error(reg.back_to_palm, T, mesh_vertices(default_hand().mesh));
   EXPECT_LT(e.rotation_deg, 0.02);
   EXPECT_LT(e.mean_mm, 0.05);
   EXPECT_LT(e.max_mm, 0.1);

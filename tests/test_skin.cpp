@@ -114,8 +114,7 @@ TEST(SkinBaseline, CgalPoissonOnTheFixtureIsClosedAndItsErrorIsMeasured) {
   const TriMesh truth = load_mesh(kFixture + "truth_skin.ply");
   const MeshDistance to_baseline(b.mesh);
   size_t within = 0;
-  for (auto vh : truth.vertices())
-    within += to_baseline.distance({truth.point(vh)[0], truth.point(vh)[1], truth.point(vh)[2]}) <= 1.0;
+  for (const Eigen::Vector3d& p : mesh_vertices(truth)) within += to_baseline.distance(p) <= 1.0;
   const double share = static_cast<double>(within) / static_cast<double>(truth.n_vertices());
   EXPECT_GT(share, 0.9);  // measured 0.974
 }

@@ -242,8 +242,7 @@ void register_command(const RegisterArgs& a, const Progress& progress) {
     if (get_string(truth, "format", a.truth) != "handskin-truth/1")
       throw InputError(a.truth, "key 'format' must be \"handskin-truth/1\"");
     T_true = isometry_from_json(require(truth, "back_to_palm", a.truth), "back_to_palm", a.truth);
-    const TriMesh m = load_mesh((fs::path(a.truth).parent_path() / get_string(truth, "skin", a.truth)).string());
-    for (auto vh : m.vertices()) skin.emplace_back(m.point(vh)[0], m.point(vh)[1], m.point(vh)[2]);
+    skin = mesh_vertices(load_mesh((fs::path(a.truth).parent_path() / get_string(truth, "skin", a.truth)).string()));
   }
   Registration reg = register_scans(back, palm, a.back + ".png", a.palm + ".png", ro,
                                     a.markers.empty() ? nullptr : &hints,

@@ -34,6 +34,28 @@ void save_mesh(const std::string& path, const TriMesh& mesh) {
   });
 }
 
+std::vector<Eigen::Vector3d> mesh_vertices(const TriMesh& mesh) {
+  std::vector<Eigen::Vector3d> v;
+  v.reserve(mesh.n_vertices());
+  for (auto vh : mesh.vertices()) {
+    const auto& p = mesh.point(vh);
+    v.emplace_back(p[0], p[1], p[2]);
+  }
+  return v;
+}
+
+std::vector<std::array<int, 3>> mesh_faces(const TriMesh& mesh) {
+  std::vector<std::array<int, 3>> f;
+  f.reserve(mesh.n_faces());
+  for (auto fh : mesh.faces()) {
+    std::array<int, 3> t{};
+    int k = 0;
+    for (auto vh : mesh.fv_range(fh)) t[k++] = vh.idx();
+    f.push_back(t);
+  }
+  return f;
+}
+
 MeshHealth mesh_health(const TriMesh& mesh) {
   MeshHealth h;
   h.vertices = mesh.n_vertices();

@@ -2,6 +2,10 @@
 /// The triangle mesh passed between stages (OpenMesh), its file I/O and its health checks.
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 
+#include <Eigen/Core>
+#include <array>
+#include <vector>
+
 #include <string>
 
 namespace handskin {
@@ -29,5 +33,10 @@ struct MeshHealth {
   bool manifold() const { return nonmanifold_vertices == 0; }
 };
 MeshHealth mesh_health(const TriMesh& mesh);
+
+/// The mesh as plain arrays (vertex positions, mm; faces as vertex-index triples), for code
+/// that works on triangle soups: CGAL trees, the scanner's scene, distances.
+std::vector<Eigen::Vector3d> mesh_vertices(const TriMesh& mesh);
+std::vector<std::array<int, 3>> mesh_faces(const TriMesh& mesh);
 
 }  // namespace handskin

@@ -12,25 +12,8 @@ struct MeshDistance::Impl {
   cgal::TriangleTree tt;
 };
 
-namespace {
-std::vector<Eigen::Vector3d> vertices_of(const TriMesh& mesh) {
-  std::vector<Eigen::Vector3d> v;
-  for (auto vh : mesh.vertices()) v.emplace_back(mesh.point(vh)[0], mesh.point(vh)[1], mesh.point(vh)[2]);
-  return v;
-}
-std::vector<std::array<int, 3>> faces_of(const TriMesh& mesh) {
-  std::vector<std::array<int, 3>> f;
-  for (auto fh : mesh.faces()) {
-    std::array<int, 3> t{};
-    int k = 0;
-    for (auto vh : mesh.fv_range(fh)) t[k++] = vh.idx();
-    f.push_back(t);
-  }
-  return f;
-}
-}  // namespace
 
-MeshDistance::MeshDistance(const TriMesh& mesh) : impl_(std::make_unique<Impl>(vertices_of(mesh), faces_of(mesh))) {
+MeshDistance::MeshDistance(const TriMesh& mesh) : impl_(std::make_unique<Impl>(mesh_vertices(mesh), mesh_faces(mesh))) {
   impl_->tt.tree.accelerate_distance_queries();
 }
 

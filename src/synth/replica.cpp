@@ -15,27 +15,6 @@ namespace {
 using cgal::K;
 constexpr double kDeg = M_PI / 180.0;
 
-std::vector<Eigen::Vector3d> mesh_points(const TriMesh& mesh, const Eigen::Isometry3d& T) {
-  std::vector<Eigen::Vector3d> v;
-  v.reserve(mesh.n_vertices());
-  for (auto vh : mesh.vertices()) {
-    const auto& p = mesh.point(vh);
-    v.push_back(T * Eigen::Vector3d(p[0], p[1], p[2]));
-  }
-  return v;
-}
-
-std::vector<std::array<int, 3>> mesh_faces(const TriMesh& mesh) {
-  std::vector<std::array<int, 3>> f;
-  f.reserve(mesh.n_faces());
-  for (auto fh : mesh.faces()) {
-    std::array<int, 3> t{};
-    int k = 0;
-    for (auto vh : mesh.fv_range(fh)) t[k++] = vh.idx();
-    f.push_back(t);
-  }
-  return f;
-}
 
 // First surface hit of a ray on the hand (hand frame); nullopt if it misses.
 struct RayCaster {
@@ -139,7 +118,8 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
 
   // Work in the hand frame.
   const Eigen::Isometry3d T_hand_rig = hand_frame_from_rig(rig_in);
-  const std::vector<Eigen::Vector3d> hv = mesh_points(hand_in, T_hand_rig);
+  std::vector<Eigen::Vector3d> hv = mesh_vertices(hand_in);
+  for (auto& p : hv) p = T_hand_rig * p;
   const std::vector<std::array<int, 3>> hf = mesh_faces(hand_in);
   RayCaster caster(hv, hf);
   Rig rig_hand = rig_in;
