@@ -216,21 +216,13 @@ struct RegisterArgs {
   bool no_refine = false;
 };
 
-RangeScan load_side(const std::string& stem, ScanSide side, const char* flag) {
-  RangeScan s = load_scan(stem);
-  if (s.meta.side != side)
-    throw InputError(stem + ".json", std::string("key 'side' is \"") + side_name(s.meta.side) +
-                                         "\" but this scan was given as " + flag);
-  return s;
-}
-
 void register_command(const RegisterArgs& a, const Progress& progress) {
   PipelineOptions po;
   if (!a.pipeline.empty()) po = load_pipeline(a.pipeline);
   RegistrationOptions ro = registration_options(po);
   if (a.no_refine) ro.refine_enabled = false;
-  const RangeScan back = load_side(a.back, ScanSide::Back, "--back");
-  const RangeScan palm = load_side(a.palm, ScanSide::Palm, "--palm");
+  const RangeScan back = load_scan_side(a.back, ScanSide::Back, "--back");
+  const RangeScan palm = load_scan_side(a.palm, ScanSide::Palm, "--palm");
   MarkerHints hints;
   if (!a.markers.empty()) hints = load_marker_hints(a.markers);
   // Truth (synthetic data): read before any work so a bad file fails early.

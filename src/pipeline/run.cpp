@@ -62,12 +62,8 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   // --- ingest: read and check every input before anything is written ---
   progress("ingest: reading scans and rig");
   const StageTimer t_ingest;
-  const RangeScan back = load_scan(in.back_stem);
-  if (back.meta.side != ScanSide::Back)
-    throw InputError(in.back_stem + ".json", "key 'side' is \"palm\" but this scan was given as --back");
-  const RangeScan palm = load_scan(in.palm_stem);
-  if (palm.meta.side != ScanSide::Palm)
-    throw InputError(in.palm_stem + ".json", "key 'side' is \"back\" but this scan was given as --palm");
+  const RangeScan back = load_scan_side(in.back_stem, ScanSide::Back, "--back");
+  const RangeScan palm = load_scan_side(in.palm_stem, ScanSide::Palm, "--palm");
   for (const auto* s : {&back, &palm})
     if (static_cast<long>(s->count_valid()) < in.options.ingest.min_returns)
       throw InputError((s == &back ? in.back_stem : in.palm_stem) + ".png",

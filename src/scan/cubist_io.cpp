@@ -87,4 +87,12 @@ void save_scan(const std::string& stem, const RangeScan& scan, int png_level) {
   write_file_atomic(stem + ".json", scan_meta_to_json_text(scan.meta));
 }
 
+RangeScan load_scan_side(const std::string& stem, ScanSide side, const std::string& option) {
+  RangeScan s = load_scan(stem);
+  if (s.meta.side != side)
+    throw InputError(stem + ".json", std::string("key 'side' is \"") + side_name(s.meta.side) +
+                                         "\" but this scan was given as " + option);
+  return s;
+}
+
 }  // namespace handskin

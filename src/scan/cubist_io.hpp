@@ -48,6 +48,9 @@ RangeScan decode_scan(const std::string& png_bytes, const std::string& png_name,
 
 /// Read `<stem>.png` + `<stem>.json`.
 RangeScan load_scan(const std::string& stem);
+/// load_scan, and the sidecar's `side` must be `side`; `option` (e.g. "--back") names where
+/// the scan was given in the error.
+RangeScan load_scan_side(const std::string& stem, ScanSide side, const std::string& option);
 /// Write `<stem>.png` + `<stem>.json`, each atomically.
 void save_scan(const std::string& stem, const RangeScan& scan, int png_level = 9);
 
