@@ -146,13 +146,9 @@ static void BM_SkinPoissonBaseline(benchmark::State& st) {
   const RangeScan back = load_scan(kFix + "back"), palm = load_scan(kFix + "palm");
   const Registration reg =
       register_scans(back, palm, "back", "palm", RegistrationOptions{}, nullptr, [](const std::string&) {});
-  std::vector<Eigen::Vector3d> pts, nrm;
-  for (const auto& p : *reg.merged) {
-    pts.push_back(p.getVector3fMap().cast<double>());
-    nrm.push_back(p.getNormalVector3fMap().cast<double>());
-  }
+  const MergedArrays m = merged_arrays(*reg.merged);
   size_t faces = 0;
-  for (auto _ : st) faces = poisson_baseline(pts, nrm).mesh.n_faces();
+  for (auto _ : st) faces = poisson_baseline(m.points, m.normals).mesh.n_faces();
   st.counters["triangles"] = static_cast<double>(faces);
 }
 BENCHMARK(BM_SkinPoissonBaseline)->Unit(benchmark::kSecond)->Iterations(1);

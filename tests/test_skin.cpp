@@ -15,6 +15,17 @@ using namespace handskin;
 namespace {
 const std::string kFixture = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
 
+// The fixture pair registered and merged, once per test binary.
+const MergedArrays& fixture_merged() {
+  static const MergedArrays m = [] {
+    const RangeScan back = load_scan(kFixture + "back"), palm = load_scan(kFixture + "palm");
+    const Registration reg =
+        register_scans(back, palm, "back", "palm", RegistrationOptions{}, nullptr, [](const std::string&) {});
+    return merged_arrays(*reg.merged);
+  }();
+  return m;
+}
+
 // Points on a cylinder of radius r about the X axis from x0 to x1, noisy, with the band of
 // angles [gap_from, gap_to) (deg, about +Y toward +Z) left unmeasured, like a flank.
 std::vector<Eigen::Vector3d> cylinder(double r, double x0, double x1, double gap_from, double gap_to, double noise,
@@ -74,12 +85,7 @@ TEST(Slices, TwoLinksInASlabSplitIntoDorsalAndPalmarArcs) {
 }
 
 TEST(Slices, FixtureEveryLinkSlicedNearTheTrueSkin) {
-  const RangeScan back = load_scan(kFixture + "back"), palm = load_scan(kFixture + "palm");
-  const Registration reg =
-      register_scans(back, palm, "back", "palm", RegistrationOptions{}, nullptr, [](const std::string&) {});
-  std::vector<Eigen::Vector3d> pts;
-  for (const auto& p : *reg.merged) pts.push_back(p.getVector3fMap().cast<double>());
-  const Slicing s = slice_cloud(pts, load_rig(kFixture + "rig.json"), SliceOptions{});
+  const Slicing s = slice_cloud(fixture_merged().points, load_rig(kFixture + "rig.json"), SliceOptions{});
   EXPECT_EQ(s.plane_x.size(), 50u);
   std::vector<int> per_bone(s.bones.size(), 0);
   for (const auto& sec : s.sections) ++per_bone[sec.bone];
@@ -97,15 +103,8 @@ TEST(Slices, FixtureEveryLinkSlicedNearTheTrueSkin) {
 TEST(SkinBaseline, CgalPoissonOnTheFixtureIsClosedAndItsErrorIsMeasured) {
   // The reconstruction a user would otherwise run on the merged cloud; its figures are what
   // the strip skin must beat (docs/skin.md).
-  const RangeScan back = load_scan(kFixture + "back"), palm = load_scan(kFixture + "palm");
-  const Registration reg =
-      register_scans(back, palm, "back", "palm", RegistrationOptions{}, nullptr, [](const std::string&) {});
-  std::vector<Eigen::Vector3d> pts, nrm;
-  for (const auto& p : *reg.merged) {
-    pts.push_back(p.getVector3fMap().cast<double>());
-    nrm.push_back(p.getNormalVector3fMap().cast<double>());
-  }
-  const BaselineResult b = poisson_baseline(pts, nrm);
+  const MergedArrays& m = fixture_merged();
+  const BaselineResult b = poisson_baseline(m.points, m.normals);
   const MeshHealth h = mesh_health(b.mesh);
   EXPECT_TRUE(h.closed());
   EXPECT_TRUE(h.manifold());

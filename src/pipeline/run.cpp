@@ -34,20 +34,17 @@ Json scan_figures(const RangeScan& scan, const std::string& stem) {
 }  // namespace
 
 std::string merged_preview_png(const Registration& reg, int width) {
-  std::vector<Eigen::Vector3d> p, n;
+  const MergedArrays m = merged_arrays(*reg.merged);
   std::vector<Eigen::Vector3f> c;
-  p.reserve(reg.merged->size());
-  for (const auto& q : *reg.merged) {
-    p.push_back(q.getVector3fMap().cast<double>());
-    n.push_back(q.getNormalVector3fMap().cast<double>());
-    c.push_back(q.label == kSideBack ? Eigen::Vector3f(0.87f, 0.72f, 0.62f) : Eigen::Vector3f(0.55f, 0.65f, 0.85f));
-  }
+  c.reserve(m.sides.size());
+  for (const std::uint32_t side : m.sides)
+    c.push_back(side == kSideBack ? Eigen::Vector3f(0.87f, 0.72f, 0.62f) : Eigen::Vector3f(0.55f, 0.65f, 0.85f));
   RenderOptions ro;
   ro.width = width;
   ro.height = width / 2;
-  ro.view = principal_view(p);
+  ro.view = principal_view(m.points);
   ro.points = reg.markers_palm;
-  return render_points_png(p, n, c, ro);
+  return render_points_png(m.points, m.normals, c, ro);
 }
 
 RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {

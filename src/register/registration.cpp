@@ -364,6 +364,19 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
   return out;
 }
 
+MergedArrays merged_arrays(const MergedCloud& cloud) {
+  MergedArrays a;
+  a.points.reserve(cloud.size());
+  a.normals.reserve(cloud.size());
+  a.sides.reserve(cloud.size());
+  for (const auto& q : cloud) {
+    a.points.push_back(q.getVector3fMap().cast<double>());
+    a.normals.push_back(q.getNormalVector3fMap().cast<double>());
+    a.sides.push_back(q.label);
+  }
+  return a;
+}
+
 RegistrationError registration_error(const Eigen::Isometry3d& est, const Eigen::Isometry3d& truth,
                                      const std::vector<Eigen::Vector3d>& skin) {
   RegistrationError e;

@@ -48,6 +48,13 @@ MarkerHints load_marker_hints(const std::string& file);
 using MergedCloud = pcl::PointCloud<pcl::PointXYZLNormal>;
 constexpr std::uint32_t kSidePalm = 0, kSideBack = 1;
 
+/// The merged cloud as plain arrays (double precision), for the stages that follow.
+struct MergedArrays {
+  std::vector<Eigen::Vector3d> points, normals;
+  std::vector<std::uint32_t> sides;
+};
+MergedArrays merged_arrays(const MergedCloud& cloud);
+
 struct Registration {
   Eigen::Isometry3d back_to_palm = Eigen::Isometry3d::Identity();  ///< p_palm = T · p_back
   Eigen::Isometry3d marker_only = Eigen::Isometry3d::Identity();   ///< the rigid fit of the centres
