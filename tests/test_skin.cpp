@@ -115,5 +115,5 @@ TEST(SkinBaseline, CgalPoissonOnTheFixtureIsClosedAndItsErrorIsMeasured) {
   size_t within = 0;
   for (const Eigen::Vector3d& p : mesh_vertices(truth)) within += to_baseline.distance(p) <= 1.0;
   const double share = static_cast<double>(within) / static_cast<double>(truth.n_vertices());
-  EXPECT_GT(share, 0.9);  // measured 0.974
+  EXPECT_GT(share, 0.9);  // measured 0.973
 }

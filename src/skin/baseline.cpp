@@ -4,6 +4,7 @@
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/compute_average_spacing.h>
 #include <CGAL/poisson_surface_reconstruction.h>
+#include <CGAL/Random.h>
 #include <CGAL/property_map.h>
 
 #include <chrono>
@@ -22,6 +23,9 @@ BaselineResult poisson_baseline(const std::vector<Eigen::Vector3d>& points, cons
                                 size_t max_points) {
   HS_CHECK(points.size() == normals.size(), "points and normals differ in length");
   const auto t0 = std::chrono::steady_clock::now();
+  // CGAL's surface mesher draws its initial points from the default random, which is seeded
+  // from the clock: fix it, as the hand mesher does, so a run repeats.
+  CGAL::get_default_random() = CGAL::Random(1);
   BaselineResult r;
   std::vector<Pwn> pwn;
   const size_t step = std::max<size_t>(1, (points.size() + max_points - 1) / std::max<size_t>(max_points, 1));
