@@ -161,66 +161,68 @@ PostureModel parse_model(const Json& j, const std::string& file) {
       throw InputError(where, "limits must be finite with low < high");
     if (p.relaxed < p.lo || p.relaxed > p.hi) throw InputError(where, "relaxed angle lies outside the limits");
   }
-  if (j.contains("pairs")) {
-    if (!j["pairs"].is_array()) throw InputError(file, "key 'pairs' must be an array");
-    for (size_t k = 0; k < j["pairs"].size(); ++k) {
-      const Json& e = j["pairs"][k];
-      const std::string where = file + ": pairs[" + std::to_string(k) + "]";
+  // An optional array of objects: each entry checked for its keys, then handed on with the
+  // name that errors use ("<file>: pairs[3]").
+  auto each_entry = [&](const char* key, std::initializer_list<const char*> keys, const auto& take) {
+    if (!j.contains(key)) return;
+    if (!j[key].is_array()) throw InputError(file, std::string("key '") + key + "' must be an array");
+    for (size_t k = 0; k < j[key].size(); ++k) {
+      const Json& e = j[key][k];
+      const std::string entry = std::string(key) + "[" + std::to_string(k) + "]";
+      const std::string where = file + ": " + entry;
       if (!e.is_object()) throw InputError(where, "must be an object");
-      reject_unknown_keys(e, {"a", "b", "alpha", "beta", "gamma", "weight", "source"}, file, "pairs[" + std::to_string(k) + "]");
-      PairLine l;
-      l.a = require_dof(get_string(e, "a", where), where);
-      l.b = require_dof(get_string(e, "b", where), where);
-      l.alpha = get_finite(e, "alpha", where);
-      l.beta = get_finite(e, "beta", where);
-      l.gamma = get_finite(e, "gamma", where);
-      l.weight = get_finite(e, "weight", where);
-      if (e.contains("source")) l.source = get_string(e, "source", where);
-      if (l.a == l.b) throw InputError(where, "a pair needs two different DOFs");
-      if (l.alpha == 0 && l.beta == 0) throw InputError(where, "alpha and beta are both zero");
-      if (l.weight < 0) throw InputError(where, "weight must be >= 0");
-      if (relative) l.gamma -= l.alpha * m.dof[l.a].relaxed + l.beta * m.dof[l.b].relaxed;
-      m.pairs.push_back(l);
+      reject_unknown_keys(e, keys, file, entry);
+      take(e, where);
     }
-  }
-  if (j.contains("grids")) {
-    if (!j["grids"].is_array()) throw InputError(file, "key 'grids' must be an array");
-    for (size_t k = 0; k < j["grids"].size(); ++k) {
-      const Json& e = j["grids"][k];
-      const std::string where = file + ": grids[" + std::to_string(k) + "]";
-      if (!e.is_object()) throw InputError(where, "must be an object");
-      reject_unknown_keys(e, {"a", "b", "weight", "range_a", "range_b", "cells", "samples"}, file, "grids[" + std::to_string(k) + "]");
-      PairGrid g;
-      g.a = require_dof(get_string(e, "a", where), where);
-      g.b = require_dof(get_string(e, "b", where), where);
-      g.weight = get_finite(e, "weight", where);
-      g.cells = static_cast<int>(get_int(e, "cells", where, 4));
-      if (g.cells > 1000) throw InputError(where, "cells must be <= 1000");
-      auto range = [&](const char* key, double* lo, double* hi) {
-        const Json& r = require(e, key, where);
-        if (!r.is_array() || r.size() != 2 || !r[0].is_number() || !r[1].is_number() ||
-            !(r[0].get<double>() < r[1].get<double>()))
-          throw InputError(where, std::string("key '") + key + "' must be [low, high] with low < high");
-        *lo = r[0].get<double>();
-        *hi = r[1].get<double>();
-      };
-      range("range_a", &g.lo_a, &g.hi_a);
-      range("range_b", &g.lo_b, &g.hi_b);
-      const Json& s = require(e, "samples", where);
-      if (!s.is_array() || s.empty()) throw InputError(where, "key 'samples' must be a non-empty array of [a, b]");
-      for (size_t i = 0; i < s.size(); ++i) {
-        if (!s[i].is_array() || s[i].size() != 2 || !s[i][0].is_number() || !s[i][1].is_number() ||
-            !std::isfinite(s[i][0].get<double>()) || !std::isfinite(s[i][1].get<double>()))
-          throw InputError(where, "samples[" + std::to_string(i) + "] must be [a, b], finite");
-        g.samples.push_back({s[i][0].get<double>(), s[i][1].get<double>()});
-      }
-      if (g.a == g.b || g.weight < 0) throw InputError(where, "a grid needs two different DOFs and weight >= 0");
-      // Tables are built by a nearest-sample search per node on load: bound the work.
-      if (static_cast<double>(g.cells) * g.cells * static_cast<double>(g.samples.size()) > 2e7)
-        throw InputError(where, "grid too large: cells² × samples must stay below 2e7 (e.g. 100 cells, 2000 samples)");
-      m.grids.push_back(std::move(g));
+  };
+  each_entry("pairs", {"a", "b", "alpha", "beta", "gamma", "weight", "source"},
+             [&](const Json& e, const std::string& where) {
+    PairLine l;
+    l.a = require_dof(get_string(e, "a", where), where);
+    l.b = require_dof(get_string(e, "b", where), where);
+    l.alpha = get_finite(e, "alpha", where);
+    l.beta = get_finite(e, "beta", where);
+    l.gamma = get_finite(e, "gamma", where);
+    l.weight = get_finite(e, "weight", where);
+    if (e.contains("source")) l.source = get_string(e, "source", where);
+    if (l.a == l.b) throw InputError(where, "a pair needs two different DOFs");
+    if (l.alpha == 0 && l.beta == 0) throw InputError(where, "alpha and beta are both zero");
+    if (l.weight < 0) throw InputError(where, "weight must be >= 0");
+    if (relative) l.gamma -= l.alpha * m.dof[l.a].relaxed + l.beta * m.dof[l.b].relaxed;
+    m.pairs.push_back(l);
+  });
+  each_entry("grids", {"a", "b", "weight", "range_a", "range_b", "cells", "samples"},
+             [&](const Json& e, const std::string& where) {
+    PairGrid g;
+    g.a = require_dof(get_string(e, "a", where), where);
+    g.b = require_dof(get_string(e, "b", where), where);
+    g.weight = get_finite(e, "weight", where);
+    g.cells = static_cast<int>(get_int(e, "cells", where, 4));
+    if (g.cells > 1000) throw InputError(where, "cells must be <= 1000");
+    auto range = [&](const char* key, double* lo, double* hi) {
+      const Json& r = require(e, key, where);
+      if (!r.is_array() || r.size() != 2 || !r[0].is_number() || !r[1].is_number() ||
+          !(r[0].get<double>() < r[1].get<double>()))
+        throw InputError(where, std::string("key '") + key + "' must be [low, high] with low < high");
+      *lo = r[0].get<double>();
+      *hi = r[1].get<double>();
+    };
+    range("range_a", &g.lo_a, &g.hi_a);
+    range("range_b", &g.lo_b, &g.hi_b);
+    const Json& s = require(e, "samples", where);
+    if (!s.is_array() || s.empty()) throw InputError(where, "key 'samples' must be a non-empty array of [a, b]");
+    for (size_t i = 0; i < s.size(); ++i) {
+      if (!s[i].is_array() || s[i].size() != 2 || !s[i][0].is_number() || !s[i][1].is_number() ||
+          !std::isfinite(s[i][0].get<double>()) || !std::isfinite(s[i][1].get<double>()))
+        throw InputError(where, "samples[" + std::to_string(i) + "] must be [a, b], finite");
+      g.samples.push_back({s[i][0].get<double>(), s[i][1].get<double>()});
     }
-  }
+    if (g.a == g.b || g.weight < 0) throw InputError(where, "a grid needs two different DOFs and weight >= 0");
+    // Tables are built by a nearest-sample search per node on load: bound the work.
+    if (static_cast<double>(g.cells) * g.cells * static_cast<double>(g.samples.size()) > 2e7)
+      throw InputError(where, "grid too large: cells² × samples must stay below 2e7 (e.g. 100 cells, 2000 samples)");
+    m.grids.push_back(std::move(g));
+  });
   if (j.contains("notes")) {
     if (!j["notes"].is_array()) throw InputError(file, "key 'notes' must be an array of strings");
     for (const auto& n : j["notes"])
