@@ -321,8 +321,14 @@ void solve_command(const SolveArgs& a, const Progress& progress) {
     parse_assignment(t, "--target", &d, &v, &w);
     in.targets.push_back({d, v, w});
   }
+  // The rig (and the skeleton built from it, once) are checked before any solving.
+  if (!a.picture.empty() && a.rig.empty()) throw InputError("--picture", "needs --rig (the skeleton to draw)");
   std::optional<Rig> rig;
-  if (!a.rig.empty()) rig = load_rig(a.rig);
+  std::optional<Skeleton> skeleton;
+  if (!a.rig.empty()) {
+    rig = load_rig(a.rig);
+    skeleton.emplace(*rig, a.rig);
+  }
   const PostureSolution s = run(in);
   if (s.clamped_inputs)
     progress("solve", "warning: " + std::to_string(s.clamped_inputs) + " input(s) outside the limits were clamped onto them");
@@ -330,13 +336,12 @@ void solve_command(const SolveArgs& a, const Progress& progress) {
   for (const auto& [d, v] : in.pins) pinned[d] = 1;
   for (int d : s.at_limit) limited[d] = 1;
   std::array<Eigen::Vector3d, kJointCount> joint_pos;
-  if (rig) joint_pos = Skeleton(*rig, a.rig).positions(s.angles);
+  if (skeleton) joint_pos = skeleton->positions(s.angles);
   if (!a.picture.empty()) {
-    if (!rig) throw InputError("--picture", "needs --rig (the skeleton to draw)");
     // The relaxed posture in grey, the solved one in red, seen in the hand frame.
     Angles relaxed;
     for (int d = 0; d < kDofCount; ++d) relaxed[d] = model.dof[d].relaxed;
-    const auto rest = Skeleton(*rig, a.rig).positions(relaxed);
+    const auto rest = skeleton->positions(relaxed);
     std::vector<int> parents;
     for (const auto& jn : joints()) parents.push_back(jn.parent);
     RenderOptions ro;
