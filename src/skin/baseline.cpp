@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "core/errors.hpp"
+#include "mesh/from_cgal.hpp"
 
 namespace handskin {
 
@@ -43,16 +44,7 @@ BaselineResult poisson_baseline(const std::vector<Eigen::Vector3d>& points, cons
       pwn.begin(), pwn.end(), CGAL::First_of_pair_property_map<Pwn>(), CGAL::Second_of_pair_property_map<Pwn>(), sm,
       r.average_spacing_mm);
   HS_CHECK(ok && sm.number_of_faces() > 0, "CGAL Poisson reconstruction failed");
-  std::vector<TriMesh::VertexHandle> vh(sm.number_of_vertices());
-  for (auto v : sm.vertices()) {
-    const auto& p = sm.point(v);
-    vh[v.idx()] = r.mesh.add_vertex(TriMesh::Point(p.x(), p.y(), p.z()));
-  }
-  for (auto f : sm.faces()) {
-    std::vector<TriMesh::VertexHandle> fv;
-    for (auto v : CGAL::vertices_around_face(sm.halfedge(f), sm)) fv.push_back(vh[v.idx()]);
-    r.mesh.add_face(fv);
-  }
+  r.mesh = to_trimesh(sm);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }

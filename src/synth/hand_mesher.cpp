@@ -13,6 +13,7 @@
 #include <chrono>
 
 #include "core/errors.hpp"
+#include "mesh/from_cgal.hpp"
 
 namespace handskin {
 
@@ -71,17 +72,7 @@ HandMeshResult mesh_hand(const HandModel& model, const HandMeshOptions& options)
 
   HandMeshResult r;
   r.self_intersects = CGAL::Polygon_mesh_processing::does_self_intersect(sm);
-  std::vector<TriMesh::VertexHandle> vh(sm.number_of_vertices());
-  for (auto v : sm.vertices()) {
-    const Point_3& p = sm.point(v);
-    vh[v.idx()] = r.mesh.add_vertex(TriMesh::Point(p.x(), p.y(), p.z()));
-  }
-  for (auto f : sm.faces()) {
-    std::vector<TriMesh::VertexHandle> tri;
-    for (auto v : CGAL::vertices_around_face(sm.halfedge(f), sm)) tri.push_back(vh[v.idx()]);
-    HS_CHECK(tri.size() == 3, "non-triangle face from the mesher");
-    r.mesh.add_face(tri);
-  }
+  r.mesh = to_trimesh(sm);
   r.health = mesh_health(r.mesh);
   HS_CHECK(r.health.closed() && r.health.manifold() && r.health.faces == sm.number_of_faces(),
            "meshed hand is not a closed manifold");
