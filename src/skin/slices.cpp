@@ -1,6 +1,6 @@
 #include "skin/slices.hpp"
 
-#include <Eigen/QR>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -8,6 +8,7 @@
 
 #include "core/dof.hpp"
 #include "core/errors.hpp"
+#include "skin/profile.hpp"
 
 namespace handskin {
 
@@ -35,70 +36,10 @@ bool SliceOptions::IsValid(std::string* error) const {
   return true;
 }
 
-namespace {
-
-constexpr double kTwoPi = 2 * M_PI;
-
-double wrap(double a) {  // to [0, 2π)
-  a = std::fmod(a, kTwoPi);
-  return a < 0 ? a + kTwoPi : a;
-}
-
-// A plane's measured profile of one link: radius against angle, sorted.
-struct Profile {
-  std::vector<double> phi, rho;  ///< sorted by phi in [0, 2π)
-  bool closed = false;
-  std::vector<std::pair<double, double>> arcs;  ///< covered arcs: start, length (counter-clockwise)
-  double largest_gap = 0;
-  bool has(double p) const {
-    if (closed) return true;
-    for (const auto& [a, l] : arcs)
-      if (wrap(p - a) <= l + 1e-12) return true;
-    return false;
-  }
-  /// Closed profiles: a second-order Fourier fit ρ(φ) = a0 + Σ ak cos kφ + bk sin kφ — an
-  /// off-centre ellipse — to bridge the gaps neither scan saw (the flanks).
-  Eigen::Matrix<double, 5, 1> fourier = Eigen::Matrix<double, 5, 1>::Zero();
-  bool has_fourier = false;
-  double fourier_at(double p) const {
-    return fourier(0) + fourier(1) * std::cos(p) + fourier(2) * std::sin(p) + fourier(3) * std::cos(2 * p) +
-           fourier(4) * std::sin(2 * p);
-  }
-  // The radius at angle p: the mean of the measured radii within ±window of p where the data
-  // are dense (a scan gives many points per angle and plane, so one neighbour pair would
-  // pick noise); else linear interpolation between the measured neighbours (eqs. 4.1–4.2);
-  // across a gap wider than `bridge` a closed profile takes its Fourier fit instead.
-  double at(double p, double window = 0.035, double bridge = 0.2) const {
-    const size_t n = phi.size();
-    p = wrap(p);
-    double sum = 0;
-    int count = 0;
-    auto add_range = [&](double a, double b) {  // [a, b] within [0, 2π)
-      for (auto it = std::lower_bound(phi.begin(), phi.end(), a); it != phi.end() && *it <= b; ++it)
-        sum += rho[static_cast<size_t>(it - phi.begin())], ++count;
-    };
-    if (p - window < 0) add_range(0, p + window), add_range(p - window + kTwoPi, kTwoPi);
-    else if (p + window >= kTwoPi) add_range(p - window, kTwoPi), add_range(0, p + window - kTwoPi);
-    else add_range(p - window, p + window);
-    if (count >= 3) return sum / count;
-    const auto it = std::upper_bound(phi.begin(), phi.end(), p);
-    size_t hi = static_cast<size_t>(it - phi.begin()) % n;
-    size_t lo = (hi + n - 1) % n;
-    double span = wrap(phi[hi] - phi[lo]);
-    if (span == 0) return rho[lo];
-    if (has_fourier && span > bridge) return fourier_at(p);
-    const double t = wrap(p - phi[lo]) / span;
-    return rho[lo] + t * (rho[hi] - rho[lo]);
-  }
-};
-
-double segment_distance2(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  const Eigen::Vector3d ab = b - a;
-  const double t = std::clamp((p - a).dot(ab) / std::max(ab.squaredNorm(), 1e-12), 0.0, 1.0);
-  return (a + t * ab - p).squaredNorm();
-}
-
-}  // namespace
+using profile::kTwoPi;
+using profile::Profile;
+using profile::segment_distance2;
+using profile::wrap;
 
 Slicing slice_cloud(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const SliceOptions& o) {
   return slice_cloud(points, bones_from_rig(rig), hand_frame_from_rig(rig), o);
@@ -175,17 +116,7 @@ Slicing slice_cloud(const std::vector<Eigen::Vector3d>& pts, const std::vector<B
         if (g >= closed_gap) gap_after.push_back(i);
       }
       P.closed = gap_after.empty();
-      if (P.closed && m >= 10) {
-        Eigen::MatrixXd M(m, 5);
-        Eigen::VectorXd r(m);
-        for (size_t i = 0; i < m; ++i) {
-          const double a = P.phi[i];
-          M.row(i) << 1, std::cos(a), std::sin(a), std::cos(2 * a), std::sin(2 * a);
-          r(i) = P.rho[i];
-        }
-        P.fourier = M.colPivHouseholderQr().solve(r);
-        P.has_fourier = P.fourier.allFinite();
-      }
+      if (P.closed) profile::fit_fourier(&P, 0.0);
       for (size_t g = 0; g < gap_after.size(); ++g) {
         const size_t first = (gap_after[g] + 1) % m;
         const size_t last = gap_after[(g + 1) % gap_after.size()];

@@ -1,7 +1,10 @@
 #include "synth/mesh_distance.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
+
+#include "core/random.hpp"
 
 #include "synth/triangle_tree.hpp"
 
@@ -21,6 +24,48 @@ MeshDistance::~MeshDistance() = default;
 
 double MeshDistance::distance(const Eigen::Vector3d& p) const {
   return std::sqrt(impl_->tt.tree.squared_distance(cgal::point(p)));
+}
+
+std::vector<Eigen::Vector3d> sample_surface(const TriMesh& mesh, double per_mm2, std::uint64_t seed) {
+  const auto V = mesh_vertices(mesh);
+  const auto F = mesh_faces(mesh);
+  Rng rng(seed);
+  std::vector<Eigen::Vector3d> out;
+  double carry = 0;
+  for (const auto& f : F) {
+    const Eigen::Vector3d &a = V[f[0]], &b = V[f[1]], &c = V[f[2]];
+    carry += 0.5 * (b - a).cross(c - a).norm() * per_mm2;
+    for (; carry >= 1.0; carry -= 1.0) {
+      double u = rng.uniform(), v = rng.uniform();
+      if (u + v > 1) u = 1 - u, v = 1 - v;
+      out.push_back(a + u * (b - a) + v * (c - a));
+    }
+  }
+  return out;
+}
+
+OneWayDistance one_way_distance(const std::vector<Eigen::Vector3d>& points, const MeshDistance& to,
+                                const std::vector<Eigen::Vector3d>& exclude, double exclude_radius) {
+  std::vector<double> d;
+  d.reserve(points.size());
+  for (const auto& p : points) {
+    if (std::any_of(exclude.begin(), exclude.end(),
+                    [&](const Eigen::Vector3d& e) { return (p - e).norm() < exclude_radius; }))
+      continue;
+    d.push_back(to.distance(p));
+  }
+  OneWayDistance r;
+  r.samples = d.size();
+  if (d.empty()) return r;
+  std::sort(d.begin(), d.end());
+  double sum = 0;
+  for (double x : d) sum += x;
+  r.mean = sum / static_cast<double>(d.size());
+  r.median = d[d.size() / 2];
+  r.p95 = d[std::min(d.size() - 1, d.size() * 95 / 100)];
+  r.max = d.back();
+  r.within_1mm = static_cast<double>(std::upper_bound(d.begin(), d.end(), 1.0) - d.begin()) / static_cast<double>(d.size());
+  return r;
 }
 
 }  // namespace handskin

@@ -1,0 +1,813 @@
+#include "skin/skin_mesh.hpp"
+
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/connected_components.h>
+#include <CGAL/Polygon_mesh_processing/corefinement.h>
+#include <CGAL/Polygon_mesh_processing/measure.h>
+#include <CGAL/Polygon_mesh_processing/orientation.h>
+#include <CGAL/Polygon_mesh_processing/self_intersections.h>
+#include <CGAL/Surface_mesh.h>
+#include <OpenMesh/Tools/Decimater/DecimaterT.hh>
+#include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
+#include <OpenMesh/Tools/Decimater/ModQuadricT.hh>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <optional>
+
+#include "core/atomic_file.hpp"
+#include "core/dof.hpp"
+#include "core/errors.hpp"
+#include "mesh/from_cgal.hpp"
+#include "skin/profile.hpp"
+
+namespace handskin {
+
+namespace {
+
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+using SM = CGAL::Surface_mesh<K::Point_3>;
+namespace PMP = CGAL::Polygon_mesh_processing;
+using profile::kTwoPi;
+using profile::Profile;
+using profile::segment_distance2;
+using profile::wrap;
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+constexpr double kDeg = M_PI / 180.0;
+
+/// A ring's plane: polar centre `o`, in-plane axes u, v, normal n (u × v = n, pointing along
+/// the tube toward its far end). Angles are sampled on an ellipse of half-axes a (along u)
+/// and b (along v), so a flat palm section gets its points spread along the contour.
+struct Station {
+  Eigen::Vector3d o, u, v, n;
+  double a = 1, b = 1;
+};
+
+struct TubeBuild {
+  int id = 0;
+  std::vector<Station> st;
+  std::vector<std::vector<Eigen::Vector2d>> slab;  ///< per station: in-plane points relative to o
+  std::vector<Eigen::Vector3d> beyond;            ///< points past the last station (fingertip dome)
+  size_t points = 0;
+  std::vector<std::vector<Eigen::Vector3d>> rings;
+  std::vector<int> ring_station;
+  std::vector<Eigen::Vector3d> ring_centre;
+  std::optional<Eigen::Vector3d> pole;
+  SkinTubeReport report;
+};
+
+// Which tube a link's points go to: the carpus and the four metacarpals make the palm; the
+// thumb's three links the thumb; the phalanges of a finger its tube.
+int tube_of_bone(const Bone& b) {
+  if (b.joint == 0) return static_cast<int>(SkinTube::Palm);
+  for (int f = 0; f < kFingerCount; ++f) {
+    const auto chain = finger_chain(static_cast<Finger>(f));
+    if (std::find(chain.begin(), chain.end(), b.joint) == chain.end()) continue;
+    if (f == 0) return static_cast<int>(SkinTube::Thumb);
+    return b.joint == chain.front() ? static_cast<int>(SkinTube::Palm) : 1 + f;
+  }
+  return static_cast<int>(SkinTube::Palm);
+}
+
+Station frame_at(const Eigen::Vector3d& o, const Eigen::Vector3d& n_in) {
+  Station s;
+  s.o = o;
+  s.n = n_in.normalized();
+  Eigen::Vector3d v = Eigen::Vector3d::UnitZ() - Eigen::Vector3d::UnitZ().dot(s.n) * s.n;  // back of the hand
+  if (v.norm() < 1e-6) v = Eigen::Vector3d::UnitY() - Eigen::Vector3d::UnitY().dot(s.n) * s.n;
+  s.v = v.normalized();
+  s.u = s.v.cross(s.n);
+  return s;
+}
+
+// A polyline with arc length, extended straight beyond both ends.
+struct Polyline {
+  std::vector<Eigen::Vector3d> p;
+  std::vector<double> s;
+  explicit Polyline(std::vector<Eigen::Vector3d> pts) : p(std::move(pts)) {
+    s.push_back(0);
+    for (size_t i = 1; i < p.size(); ++i) s.push_back(s.back() + (p[i] - p[i - 1]).norm());
+  }
+  double length() const { return s.back(); }
+  Eigen::Vector3d at(double t) const {
+    size_t i = 0;
+    while (i + 2 < p.size() && t > s[i + 1]) ++i;
+    const double L = std::max(s[i + 1] - s[i], 1e-9);
+    return p[i] + (t - s[i]) / L * (p[i + 1] - p[i]);
+  }
+  Eigen::Vector3d tangent(double t, double h) const { return (at(t + h) - at(t - h)).normalized(); }
+  // Arc length of the point of the (extended) polyline nearest to q.
+  double project(const Eigen::Vector3d& q) const {
+    double best = 1e300, bs = 0;
+    for (size_t i = 0; i + 1 < p.size(); ++i) {
+      const Eigen::Vector3d d = p[i + 1] - p[i];
+      const double L2 = std::max(d.squaredNorm(), 1e-12);
+      double t = (q - p[i]).dot(d) / L2;
+      const double lo = i == 0 ? -1e9 : 0, hi = i + 2 == p.size() ? 1e9 : 1;
+      t = std::clamp(t, lo, hi);
+      const double dist = (p[i] + t * d - q).squaredNorm();
+      if (dist < best) best = dist, bs = s[i] + t * std::sqrt(L2);
+    }
+    return bs;
+  }
+};
+
+// Real spherical harmonics to degree 2 of a unit direction (local x, y, z).
+Eigen::Matrix<double, 9, 1> sh9(const Eigen::Vector3d& d) {
+  Eigen::Matrix<double, 9, 1> r;
+  r << 1, d.x(), d.y(), d.z(), d.x() * d.y(), d.x() * d.z(), d.y() * d.z(), d.x() * d.x() - d.y() * d.y(),
+      3 * d.z() * d.z() - 1;
+  return r;
+}
+
+// Give each point of a tube to the station whose plane is nearest (within its slab); points
+// past the last plane go to `beyond` when the tube ends in a dome.
+void fill_slabs(TubeBuild* t, const std::vector<Eigen::Vector3d>& pts, double h, bool dome) {
+  const size_t K = t->st.size();
+  t->slab.assign(K, {});
+  std::vector<int> where(pts.size(), -1);  // station, K: beyond the last, -1: none
+#pragma omp parallel for schedule(static)
+  for (long i = 0; i < static_cast<long>(pts.size()); ++i) {
+    const Eigen::Vector3d& q = pts[i];
+    size_t best = 0;
+    double bd = 1e300, bsigned = 0;
+    for (size_t k = 0; k < K; ++k) {
+      const double d = t->st[k].n.dot(q - t->st[k].o);
+      if (std::abs(d) < bd) bd = std::abs(d), best = k, bsigned = d;
+    }
+    if (best + 1 == K && bsigned > 0.5 * h) where[i] = dome ? static_cast<int>(K) : -1;
+    else if ((best == 0 && bsigned < -0.5 * h) || bd > 0.75 * h) where[i] = -1;
+    else where[i] = static_cast<int>(best);
+  }
+  for (size_t i = 0; i < pts.size(); ++i) {
+    if (where[i] < 0) continue;
+    if (where[i] == static_cast<int>(K)) {
+      t->beyond.push_back(pts[i]);
+      continue;
+    }
+    const Station& s = t->st[where[i]];
+    const Eigen::Vector3d r = pts[i] - s.o;
+    t->slab[where[i]].emplace_back(r.dot(s.u), r.dot(s.v));
+  }
+}
+
+// Resample every station's ring: polar profile about the station's centre, a fixed number of
+// angles on the station's ellipse, smoothing over neighbouring stations, and rings without
+// enough samples filled from their measured neighbours (roots shrink into the palm).
+void resample_rings(TubeBuild* t, int M, const SkinOptions& o, bool shrink_root) {
+  const size_t K = t->st.size();
+  const double window = o.window_deg * kDeg, bridge = 0.2;
+  std::vector<std::optional<std::vector<double>>> rho(K);
+  std::vector<std::vector<double>> phi(K);
+  for (size_t k = 0; k < K; ++k) {
+    const Station& s = t->st[k];
+    for (int j = 0; j < M; ++j) {
+      const double psi = kTwoPi * j / M;
+      phi[k].push_back(wrap(std::atan2(s.b * std::sin(psi), s.a * std::cos(psi))));
+    }
+    const auto& g = t->slab[k];
+    if (static_cast<long>(g.size()) < std::max<long>(o.slicing.min_points, 10)) continue;
+    std::vector<std::pair<double, double>> pr;
+    for (const auto& p : g) pr.emplace_back(wrap(std::atan2(p.y(), p.x())), p.norm());
+    std::sort(pr.begin(), pr.end());
+    Profile P;
+    for (const auto& [a, r] : pr) P.phi.push_back(a), P.rho.push_back(r);
+    double unseen = 0;
+    for (size_t i = 0; i < P.phi.size(); ++i) {
+      const double gap = i + 1 < P.phi.size() ? P.phi[i + 1] - P.phi[i] : P.phi.front() + kTwoPi - P.phi.back();
+      if (gap > bridge) unseen += gap;
+    }
+    if (kTwoPi - unseen < o.min_coverage_deg * kDeg) continue;
+    P.closed = true;
+    profile::fit_fourier(&P, 0.002);
+    if (!P.has_fourier) continue;
+    std::vector<double> r;
+    std::vector<double> sorted_rho = P.rho;
+    std::nth_element(sorted_rho.begin(), sorted_rho.begin() + sorted_rho.size() / 2, sorted_rho.end());
+    const double floor = 0.3 * sorted_rho[sorted_rho.size() / 2];
+    for (int j = 0; j < M; ++j) r.push_back(std::max(P.at_bridged(phi[k][j], window, bridge), floor));
+    rho[k] = std::move(r);
+  }
+  // Wrinkles: per angle index, a quadratic least-squares fit over ± m neighbouring rings
+  // (Savitzky–Golay) predicts each radius; one that strays from it by more than wrinkle_mm
+  // is replaced by the fit. Radii the neighbours agree with are kept as measured (a plain
+  // average would shrink every profile curved along the tube). Rings without all their
+  // neighbours measured keep their own radii.
+  const int m = o.smoothing_rings;
+  std::vector<double> w;
+  for (int i = -m; i <= m; ++i)
+    w.push_back((3.0 * (3 * m * m + 3 * m - 1) - 15.0 * i * i) / ((2 * m + 1) * (4.0 * m * m + 4 * m - 3)));
+  std::vector<std::optional<std::vector<double>>> smooth(K);
+  for (size_t k = 0; k < K; ++k) {
+    if (!rho[k]) continue;
+    bool all = m > 0;
+    for (int d = -m; d <= m && all; ++d) {
+      const long kk = static_cast<long>(k) + d;
+      all = kk >= 0 && kk < static_cast<long>(K) && rho[kk].has_value();
+    }
+    if (!all) {
+      smooth[k] = rho[k];
+      continue;
+    }
+    std::vector<double> r = *rho[k];
+    for (int j = 0; j < M; ++j) {
+      double fit = 0;
+      for (int d = -m; d <= m; ++d) fit += w[d + m] * (*rho[k + d])[j];
+      if (std::abs(fit - r[j]) > o.wrinkle_mm) r[j] = std::max(fit, 0.3 * r[j]);
+    }
+    smooth[k] = std::move(r);
+  }
+  // Fill: between measured rings by linear interpolation, beyond them by copying the
+  // nearest (shrinking toward a digit's root so that it stays inside the palm).
+  std::vector<size_t> measured;
+  for (size_t k = 0; k < K; ++k)
+    if (smooth[k]) measured.push_back(k);
+  t->report.rings = static_cast<int>(K);
+  t->report.measured = static_cast<int>(measured.size());
+  t->report.filled = static_cast<int>(K - measured.size());
+  t->report.present = !measured.empty();
+  if (measured.empty()) return;
+  for (size_t k = 0; k < K; ++k) {
+    if (smooth[k]) continue;
+    std::vector<double> r(M);
+    const auto hi = std::lower_bound(measured.begin(), measured.end(), k);
+    if (hi == measured.begin()) {
+      const double f = shrink_root ? std::max(0.7, 1.0 - 0.05 * static_cast<double>(*hi - k)) : 1.0;
+      for (int j = 0; j < M; ++j) r[j] = f * (*smooth[*hi])[j];
+    } else if (hi == measured.end()) {
+      r = *smooth[measured.back()];
+    } else {
+      const size_t a = *(hi - 1), b = *hi;
+      const double u = static_cast<double>(k - a) / static_cast<double>(b - a);
+      for (int j = 0; j < M; ++j) r[j] = (1 - u) * (*smooth[a])[j] + u * (*smooth[b])[j];
+    }
+    smooth[k] = std::move(r);
+  }
+  t->rings.clear();
+  t->ring_station.clear();
+  t->ring_centre.clear();
+  for (size_t k = 0; k < K; ++k) {
+    const Station& s = t->st[k];
+    std::vector<Eigen::Vector3d> ring;
+    for (int j = 0; j < M; ++j)
+      ring.push_back(s.o + (*smooth[k])[j] * (std::cos(phi[k][j]) * s.u + std::sin(phi[k][j]) * s.v));
+    t->rings.push_back(std::move(ring));
+    t->ring_station.push_back(static_cast<int>(k));
+    t->ring_centre.push_back(s.o);
+  }
+}
+
+// A fingertip's dome: rings at decreasing polar angles about the last station's centre, and
+// the pole. Radii from the points around each direction; where the tip was not seen, from a
+// degree-2 spherical-harmonic fit of the radius to the tip's points.
+void add_dome(TubeBuild* t, int M, int rings, const SkinOptions& o) {
+  const Station& s = t->st.back();
+  std::vector<Eigen::Vector3d> dir_pts;  // local (u, v, n) directions and radii
+  std::vector<double> rad;
+  Eigen::Matrix<double, 9, 9> N = Eigen::Matrix<double, 9, 9>::Zero();
+  Eigen::Matrix<double, 9, 1> rhs = Eigen::Matrix<double, 9, 1>::Zero();
+  auto local = [&](const Eigen::Vector3d& q) {
+    const Eigen::Vector3d r = q - s.o;
+    return Eigen::Vector3d(r.dot(s.u), r.dot(s.v), r.dot(s.n));
+  };
+  // The last slab's points too: they pin the dome's rim.
+  for (const auto& p2 : t->slab.back()) {
+    const Eigen::Vector3d l(p2.x(), p2.y(), 0);
+    if (l.norm() > 1e-6) dir_pts.push_back(l.normalized()), rad.push_back(l.norm());
+  }
+  for (const auto& q : t->beyond) {
+    const Eigen::Vector3d l = local(q);
+    if (l.norm() > 1e-6) dir_pts.push_back(l.normalized()), rad.push_back(l.norm());
+  }
+  for (size_t i = 0; i < rad.size(); ++i) {
+    const auto y = sh9(dir_pts[i]);
+    N += y * y.transpose();
+    rhs += y * rad[i];
+  }
+  for (int k = 1; k < 9; ++k) N(k, k) += 1e-3 * static_cast<double>(rad.size()) + 1e-9;
+  N(0, 0) += 1e-9;
+  const Eigen::Matrix<double, 9, 1> c = N.ldlt().solve(rhs);
+  const double cos_win = std::cos(3.0 * o.window_deg * kDeg);
+  auto radius = [&](const Eigen::Vector3d& d) {
+    double sum = 0;
+    int n = 0;
+    for (size_t i = 0; i < rad.size(); ++i)
+      if (dir_pts[i].dot(d) >= cos_win) sum += rad[i], ++n;
+    if (n >= 3) return sum / n;
+    return std::max(c.dot(sh9(d)), 0.5);
+  };
+  const auto& last = t->rings.back();
+  for (int i = 1; i <= rings; ++i) {
+    const double theta = 0.5 * M_PI * (1.0 - static_cast<double>(i) / (rings + 1));
+    std::vector<Eigen::Vector3d> ring;
+    for (int j = 0; j < M; ++j) {
+      const Eigen::Vector3d r = last[j] - s.o;
+      const double phi = std::atan2(r.dot(s.v), r.dot(s.u));
+      const Eigen::Vector3d d(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
+      ring.push_back(s.o + radius(d) * (d.x() * s.u + d.y() * s.v + d.z() * s.n));
+    }
+    t->rings.push_back(std::move(ring));
+    t->ring_station.push_back(-1);
+    t->ring_centre.push_back(s.o + std::cos(theta) * radius(Eigen::Vector3d::UnitZ()) * s.n);
+  }
+  t->pole = s.o + radius(Eigen::Vector3d::UnitZ()) * s.n;
+}
+
+// Move each ring point out (or, where the ring is concave, in) by half the sagitta of its
+// chords, so that the polygon straddles the curve it samples instead of lying inside it: the
+// chords' largest distance from the curve halves (the minimax polygon of a circle).
+void straddle(std::vector<Eigen::Vector3d>* ring, const Eigen::Vector3d& centre) {
+  const std::vector<Eigen::Vector3d> p = *ring;
+  const size_t M = p.size();
+  for (size_t j = 0; j < M; ++j) {
+    const Eigen::Vector3d &a = p[(j + M - 1) % M], &b = p[j], &c = p[(j + 1) % M];
+    const Eigen::Vector3d ab = b - a, bc = c - b, ca = a - c;
+    const double area2 = ab.cross(bc).norm();
+    if (area2 < 1e-12) continue;
+    const double R = ab.norm() * bc.norm() * ca.norm() / (2 * area2);  // circumradius
+    const double chord = 0.5 * (ab.norm() + bc.norm());
+    Eigen::Vector3d out = (b - 0.5 * (a + c));  // toward the outside of a convex corner
+    const bool convex = out.dot(b - centre) > 0;
+    const Eigen::Vector3d radial = (b - centre).normalized();
+    const double sag = std::min(chord * chord / (8 * R), 0.25 * chord);
+    (*ring)[j] = b + (convex ? 0.5 : -0.5) * sag * radial;
+  }
+}
+
+// The tube's triangles (outward): strips between consecutive rings (each quad split along
+// its shorter diagonal), a flat fan over the first ring, a pole fan or a flat fan at the end.
+void tube_mesh(const TubeBuild& t, std::vector<Eigen::Vector3d>* V, std::vector<std::array<int, 3>>* F,
+               std::vector<int>* ring_of) {
+  const int M = static_cast<int>(t.rings.front().size());
+  V->clear(), F->clear(), ring_of->clear();
+  for (size_t k = 0; k < t.rings.size(); ++k) {
+    std::vector<Eigen::Vector3d> ring = t.rings[k];
+    straddle(&ring, t.ring_centre[k]);
+    for (const auto& p : ring) V->push_back(p), ring_of->push_back(t.ring_station[k]);
+  }
+  auto id = [&](size_t k, int j) { return static_cast<int>(k) * M + ((j % M) + M) % M; };
+  for (size_t k = 0; k + 1 < t.rings.size(); ++k)
+    for (int j = 0; j < M; ++j) {
+      const int a = id(k, j), b = id(k, j + 1), c = id(k + 1, j + 1), d = id(k + 1, j);
+      if (((*V)[a] - (*V)[c]).squaredNorm() <= ((*V)[b] - (*V)[d]).squaredNorm())
+        F->push_back({a, b, c}), F->push_back({a, c, d});
+      else
+        F->push_back({a, b, d}), F->push_back({b, c, d});
+    }
+  auto centroid = [&](size_t k) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const auto& p : t.rings[k]) c += p;
+    return Eigen::Vector3d(c / M);
+  };
+  const int root = static_cast<int>(V->size());
+  V->push_back(centroid(0)), ring_of->push_back(-1);
+  for (int j = 0; j < M; ++j) F->push_back({root, id(0, j + 1), id(0, j)});
+  const size_t L = t.rings.size() - 1;
+  const int end = static_cast<int>(V->size());
+  V->push_back(t.pole ? *t.pole : centroid(L)), ring_of->push_back(-1);
+  for (int j = 0; j < M; ++j) F->push_back({end, id(L, j), id(L, j + 1)});
+}
+
+void to_surface_mesh_into(const std::vector<Eigen::Vector3d>& V, const std::vector<std::array<int, 3>>& F, SM* sm) {
+  std::vector<SM::Vertex_index> vi;
+  for (const auto& p : V) vi.push_back(sm->add_vertex(K::Point_3(p.x(), p.y(), p.z())));
+  for (const auto& f : F) HS_CHECK(sm->add_face(vi[f[0]], vi[f[1]], vi[f[2]]) != SM::null_face(), "face rejected");
+}
+SM to_surface_mesh(const std::vector<Eigen::Vector3d>& V, const std::vector<std::array<int, 3>>& F) {
+  SM sm;
+  to_surface_mesh_into(V, F, &sm);
+  return sm;
+}
+
+}  // namespace
+
+const char* skin_tube_name(int tube) {
+  static const char* names[kSkinTubes] = {"palm", "thumb", "index", "middle", "ring", "little"};
+  return tube >= 0 && tube < kSkinTubes ? names[tube] : "?";
+}
+
+bool SkinOptions::IsValid(std::string* error) const {
+  if (!slicing.IsValid(error)) return false;
+  auto bad = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (smoothing_rings < 0 || smoothing_rings > 5) return bad("skin.smoothing_rings must be in [0, 5]");
+  if (!(wrinkle_mm >= 0 && wrinkle_mm <= 10)) return bad("skin.wrinkle_mm must be in [0, 10]");
+  if (max_triangles != 0 && (max_triangles < 1000 || max_triangles > 1000000))
+    return bad("skin.max_triangles must be 0 (no decimation) or in [1000, 1000000]");
+  if (!(decimation_tolerance_mm > 0 && decimation_tolerance_mm <= 1)) return bad("skin.decimation_tolerance_mm must be in (0, 1]");
+  if (!(thumb_overlap_mm >= 0 && thumb_overlap_mm <= 20)) return bad("skin.thumb_overlap_mm must be in [0, 20]");
+  if (cap_rings < 1 || cap_rings > 20) return bad("skin.cap_rings must be in [1, 20]");
+  if (!(window_deg > 0 && window_deg <= 20)) return bad("skin.window_deg must be in (0, 20]");
+  if (!(min_coverage_deg >= 90 && min_coverage_deg <= 360)) return bad("skin.min_coverage_deg must be in [90, 360]");
+  return true;
+}
+
+bool SkinResult::watertight() const {
+  return health.closed() && health.manifold() && health.components == 1 && health.volume_mm3 > 0 &&
+         !(self_intersection_checked && self_intersects);
+}
+
+SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const SkinOptions& o,
+                      const std::function<void(const std::string&)>& progress) {
+  std::string err;
+  if (!o.IsValid(&err)) throw InputError("skin options", err);
+  if (points.size() < 1000)
+    throw InputError("merged cloud", "only " + std::to_string(points.size()) + " points to build a skin from");
+  auto say = [&](const std::string& m) {
+    if (progress) progress(m);
+  };
+  const auto t0 = Clock::now();
+  SkinResult R;
+  R.bones = bones_from_rig(rig);
+  const Eigen::Isometry3d T = hand_frame_from_rig(rig);  // rig → hand frame (X along the hand, Z back)
+  const Eigen::Isometry3d Ti = T.inverse();
+  std::vector<Eigen::Vector3d> q(points.size());
+  for (size_t i = 0; i < points.size(); ++i) q[i] = T * points[i];
+  std::array<Eigen::Vector3d, kJointCount> J;
+  for (int j = 0; j < kJointCount; ++j) J[j] = T * rig.joints[j];
+  const size_t nb = R.bones.size();
+  std::vector<Eigen::Vector3d> A(nb), B(nb);
+  std::vector<int> bone_tube(nb);
+  for (size_t b = 0; b < nb; ++b) A[b] = T * R.bones[b].a, B[b] = T * R.bones[b].b, bone_tube[b] = tube_of_bone(R.bones[b]);
+
+  // --- the rig must sit in the cloud: every joint near some measured point ---
+  Eigen::Vector3d lo = q.front(), hi = q.front();
+  for (const auto& p : q) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  for (int j = 0; j < kJointCount; ++j)
+    if (((J[j].array() < lo.array() - 15).any() || (J[j].array() > hi.array() + 15).any()))
+      throw InputError("rig", std::string("joint '") + joints()[j].name +
+                                  "' lies outside the merged cloud (more than 15 mm beyond its bounding box); is the "
+                                  "rig in the palm frame of this scan?");
+
+  // --- each point to the tube of its nearest link (3D distance to the link segment) ---
+  std::vector<std::vector<Eigen::Vector3d>> tube_pts(kSkinTubes);
+  std::vector<Eigen::Vector3d> palm_pts;  // the palm's planes take every non-thumb point up to the webs
+  // Thumb and palm share the points within thumb_overlap_mm of their boundary, so that both
+  // tubes follow the thenar skin across it and the union leaves no groove there.
+  const double overlap = o.thumb_overlap_mm;
+  constexpr int kThumb = static_cast<int>(SkinTube::Thumb);
+  std::vector<std::uint8_t> label(q.size()), shared(q.size());
+#pragma omp parallel for schedule(static)
+  for (long i = 0; i < static_cast<long>(q.size()); ++i) {
+    const Eigen::Vector3d& p = q[i];
+    size_t best = 0;
+    double bd = 1e300, best_thumb = 1e300, best_other = 1e300;
+    for (size_t b = 0; b < nb; ++b) {
+      const double d = segment_distance2(p, A[b], B[b]);
+      if (d < bd) bd = d, best = b;
+      double& group = bone_tube[b] == kThumb ? best_thumb : best_other;
+      group = std::min(group, d);
+    }
+    label[i] = static_cast<std::uint8_t>(bone_tube[best]);
+    const double dt = std::sqrt(best_thumb), dn = std::sqrt(best_other);
+    shared[i] = label[i] == kThumb ? dn < dt + overlap : dt < dn + overlap;
+  }
+  for (size_t i = 0; i < q.size(); ++i) {
+    tube_pts[label[i]].push_back(q[i]);
+    if (label[i] != kThumb || shared[i]) palm_pts.push_back(q[i]);
+    if (label[i] != kThumb && shared[i]) tube_pts[kThumb].push_back(q[i]);
+  }
+  const double x0 = lo.x();
+  const Eigen::Vector3d tip_mid = J[finger_chain(Finger::Middle).back()];
+  const double h = std::max((tip_mid.x() - x0) / o.slicing.planes, 0.5);  // ring spacing, mm
+
+  // --- the finger webs: along the mid-line between neighbouring fingers, where the skin ends ---
+  const int pps = o.slicing.points_per_segment;
+  for (int f = 1; f + 1 < kFingerCount; ++f) {
+    const auto c1 = finger_chain(static_cast<Finger>(f)), c2 = finger_chain(static_cast<Finger>(f + 1));
+    const Eigen::Vector3d m0 = 0.5 * (J[c1[1]] + J[c2[1]]);
+    Eigen::Vector3d dir = (J[c1[2]] - J[c1[1]]).normalized() + (J[c2[2]] - J[c2[1]]).normalized();
+    dir.z() = 0;
+    dir.normalize();
+    const double len = 0.5 * ((J[c1[2]] - J[c1[1]]).norm() + (J[c2[2]] - J[c2[1]]).norm());
+    std::vector<Eigen::Vector2d> near;
+    for (const auto& p : q)
+      if ((p - m0).head<2>().norm() < len + 5) near.emplace_back((p - m0).head<2>());
+    double web = -1;
+    for (double s = 0; s <= len; s += 0.5) {
+      const Eigen::Vector2d c = s * dir.head<2>();
+      bool any = false;
+      for (const auto& p : near)
+        if ((p - c).squaredNorm() < 1.5 * 1.5) {
+          any = true;
+          break;
+        }
+      if (any) web = s;
+      else if (s - web > 2.0) break;
+    }
+    if (web < 0) {
+      R.warnings.push_back(std::string("no skin found between the ") + skin_tube_name(f + 1) + " and " +
+                           skin_tube_name(f + 2) + " finger roots; the web is put at the knuckles");
+      web = 0;
+    } else if (web >= len) {
+      R.warnings.push_back(std::string("the ") + skin_tube_name(f + 1) + " and " + skin_tube_name(f + 2) +
+                           " fingers touch along their whole proximal phalanx; the web is put at the middle joints");
+    }
+    R.webs.push_back(m0 + web * dir);
+  }
+  // The palm's end plane: vertical, through the webs' line, moved back to the most proximal web.
+  Eigen::Vector2d wc = Eigen::Vector2d::Zero();
+  for (const auto& w : R.webs) wc += w.head<2>();
+  wc /= static_cast<double>(R.webs.size());
+  Eigen::Matrix2d C = Eigen::Matrix2d::Zero();
+  for (const auto& w : R.webs) C += (w.head<2>() - wc) * (w.head<2>() - wc).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(C);
+  Eigen::Vector2d line = es.eigenvectors().col(1);
+  Eigen::Vector2d nend(line.y(), -line.x());
+  if (nend.x() < 0) nend = -nend;
+  double alpha_end = std::atan2(nend.y(), nend.x());
+  alpha_end = std::clamp(alpha_end, -35 * kDeg, 35 * kDeg);
+  nend = Eigen::Vector2d(std::cos(alpha_end), std::sin(alpha_end));
+  double back = 0;
+  for (const auto& w : R.webs) back = std::min(back, nend.dot(w.head<2>() - wc));
+  const Eigen::Vector2d end_point = wc + (back - 0.5) * nend;
+  const double x_end = end_point.x();  // where the end plane crosses the line y = wc.y
+  if (x_end - x0 < 5 * h) throw InputError("rig", "the finger webs lie at the wrist end of the cloud; the rig does not fit it");
+
+  std::vector<TubeBuild> tubes(kSkinTubes);
+  // --- palm: planes across the hand's axis from the wrist cut, fanned to the end plane ---
+  {
+    TubeBuild& t = tubes[0];
+    t.id = 0;
+    const int K = std::max(3, static_cast<int>(std::ceil((x_end - x0) / h)) + 1);
+    const double hp = (x_end - x0) / (K - 1);
+    const int fan = std::clamp(static_cast<int>(std::ceil(std::abs(alpha_end) / (2.5 * kDeg))), 1, K - 1);
+    for (int k = 0; k < K; ++k) {
+      const double ramp = std::clamp(static_cast<double>(k - (K - 1 - fan)) / fan, 0.0, 1.0);
+      const double a = alpha_end * ramp;
+      t.st.push_back(frame_at(Eigen::Vector3d(x0 + k * hp, wc.y(), 0), Eigen::Vector3d(std::cos(a), std::sin(a), 0)));
+    }
+    t.st.front().o.x() = x0 + 1e-3;  // the wrist cut: the first ring's slab is all on its distal side
+    fill_slabs(&t, palm_pts, hp, false);
+    // Polar centre and sampling ellipse per plane: the middle and half-extents of its points,
+    // smoothed along the hand.
+    std::vector<Eigen::Vector4d> box(K, Eigen::Vector4d::Zero());
+    std::vector<bool> ok(K, false);
+    for (int k = 0; k < K; ++k) {
+      if (t.slab[k].size() < 10) continue;
+      Eigen::Vector2d mn = t.slab[k].front(), mx = mn;
+      for (const auto& p : t.slab[k]) mn = mn.cwiseMin(p), mx = mx.cwiseMax(p);
+      box[k] << 0.5 * (mn + mx), 0.5 * (mx - mn);
+      ok[k] = true;
+    }
+    for (int pass = 0; pass < 2; ++pass) {
+      std::vector<Eigen::Vector4d> sm = box;
+      for (int k = 0; k < K; ++k) {
+        if (!ok[k]) continue;
+        Eigen::Vector4d s = 2 * box[k];
+        double w = 2;
+        for (int d : {-1, 1})
+          if (k + d >= 0 && k + d < K && ok[k + d]) s += box[k + d], w += 1;
+        sm[k] = s / w;
+      }
+      box = sm;
+    }
+    for (int k = 0; k < K; ++k) {
+      if (!ok[k]) continue;
+      Station& s = t.st[k];
+      const Eigen::Vector2d shift = box[k].head<2>();
+      for (auto& p : t.slab[k]) p -= shift;
+      s.o += shift.x() * s.u + shift.y() * s.v;
+      s.a = std::max(box[k](2), 1.0);
+      s.b = std::clamp(box[k](3), s.a / 4, s.a * 4);
+    }
+    t.points = palm_pts.size();
+    resample_rings(&t, 8 * pps, o, false);
+  }
+  // --- digits: planes perpendicular to their own links, from the root to the tip's dome ---
+  for (int f = 0; f < kFingerCount; ++f) {
+    TubeBuild& t = tubes[1 + f];
+    t.id = 1 + f;
+    const auto chain = finger_chain(static_cast<Finger>(f));
+    std::vector<Eigen::Vector3d> axis;
+    for (size_t k = f == 0 ? 0 : 1; k < chain.size(); ++k) axis.push_back(J[chain[k]]);
+    const Polyline pl(axis);
+    const auto& pts = tube_pts[1 + f];
+    t.points = pts.size();
+    t.report.name = skin_tube_name(1 + f);
+    if (pts.size() < 50) {
+      t.report.present = false;
+      continue;
+    }
+    // Where the tip ends (robust maximum of the arc length) and how wide it is there.
+    std::vector<double> s_of(pts.size());
+    for (size_t i = 0; i < pts.size(); ++i) s_of[i] = pl.project(pts[i]);
+    std::vector<double> ss = s_of;
+    std::sort(ss.begin(), ss.end());
+    const double s_max = ss[ss.size() - std::min<size_t>(5, ss.size())];
+    std::vector<double> rr;
+    for (size_t i = 0; i < pts.size(); ++i)
+      if (s_of[i] > s_max - 12 && s_of[i] < s_max - 6) {
+        const Eigen::Vector3d c = pl.at(s_of[i]);
+        rr.push_back((pts[i] - c).norm());
+      }
+    double r_tip = 6;
+    if (rr.size() >= 10) {
+      std::nth_element(rr.begin(), rr.begin() + rr.size() / 2, rr.end());
+      r_tip = rr[rr.size() / 2];
+    }
+    const double s_c = s_max - r_tip;
+    if (s_c < 2 * h) {
+      t.report.present = false;
+      continue;
+    }
+    const int K = std::max(3, static_cast<int>(std::ceil(s_c / h)) + 1);
+    const double hs = s_c / (K - 1);
+    for (int k = 0; k < K; ++k) t.st.push_back(frame_at(pl.at(k * hs), pl.tangent(k * hs, hs)));
+    fill_slabs(&t, pts, hs, true);
+    resample_rings(&t, 2 * pps, o, true);
+    if (!t.report.present) continue;
+    // Neighbouring fingers' tubes meet in the webs. Where a ring point lies nearer the
+    // neighbour's phalanges than its own (less a margin) it is pulled back along its ray,
+    // so that two tubes never touch — near-tangent contacts would make the stitching
+    // fragile — and the web between them is the palm's.
+    if (f >= 1) {
+      auto chain_distance = [&](int finger, const Eigen::Vector3d& p) {
+        const auto c = finger_chain(static_cast<Finger>(finger));
+        double best = 1e300;
+        for (size_t k = 1; k + 1 < c.size(); ++k) best = std::min(best, segment_distance2(p, J[c[k]], J[c[k + 1]]));
+        return std::sqrt(best);
+      };
+      const double margin = 0.5;
+      for (size_t k = 0; k < t.rings.size(); ++k)
+        for (auto& p : t.rings[k])
+          for (int g : {f - 1, f + 1}) {
+            if (g < 1 || g >= kFingerCount) continue;
+            auto clear = [&](const Eigen::Vector3d& x) { return chain_distance(g, x) - chain_distance(f, x) >= margin; };
+            if (clear(p)) continue;
+            const Eigen::Vector3d c = t.ring_centre[k];
+            double lo = 0.3, hi = 1.0;  // fraction of the radius: lo clear (checked), hi not
+            if (!clear(c + lo * (p - c))) continue;
+            for (int it = 0; it < 12; ++it) {
+              const double mid = 0.5 * (lo + hi);
+              (clear(c + mid * (p - c)) ? lo : hi) = mid;
+            }
+            p = c + lo * (p - c);
+          }
+    }
+    add_dome(&t, 2 * pps, o.cap_rings, o);
+  }
+  for (auto& t : tubes) {
+    t.report.name = skin_tube_name(t.id);
+    t.report.points = t.points;
+    if (!t.report.present && t.id != 0)
+      R.warnings.push_back(std::string("no ") + skin_tube_name(t.id) +
+                           (t.id == 1 ? "" : " finger") + " in the scan: the skin is built without it");
+    R.tubes.push_back(t.report);
+  }
+  if (!tubes[0].report.present) throw InputError("merged cloud", "no palm section could be measured");
+  R.seconds_rings = since(t0);
+  say("skin: rings resampled (" + std::to_string(static_cast<int>(R.seconds_rings * 1000)) + " ms)");
+
+  // --- tubes to CGAL meshes, stitched by corefinement union ---
+  const auto t1 = Clock::now();
+  std::map<std::array<double, 3>, std::pair<int, int>> origin;  // exact position → tube, ring
+  SM skin;
+  bool first = true;
+  for (const auto& t : tubes) {
+    if (!t.report.present) continue;
+    std::vector<Eigen::Vector3d> V;
+    std::vector<std::array<int, 3>> F;
+    std::vector<int> ring_of;
+    tube_mesh(t, &V, &F, &ring_of);
+    for (auto& p : V) p = Ti * p;
+    for (size_t i = 0; i < V.size(); ++i) origin[{V[i].x(), V[i].y(), V[i].z()}] = {t.id, ring_of[i]};
+    SM sm = to_surface_mesh(V, F);
+    if (PMP::does_self_intersect(sm))
+      throw InputError("merged cloud", std::string("the ") + skin_tube_name(t.id) +
+                                           " tube folds into itself; the rig may be badly placed for this scan");
+    if (first) {
+      skin = std::move(sm);
+      first = false;
+      continue;
+    }
+    SM out;
+    if (!PMP::corefine_and_compute_union(skin, sm, out))
+      throw InputError("merged cloud", std::string("the ") + skin_tube_name(t.id) +
+                                           " tube cannot be stitched to the rest into a closed manifold");
+    skin = std::move(out);
+  }
+  // The union's boundary also bounds any pocket the tubes enclose between them: inward-facing
+  // shells inside the skin. They are dropped; a second outward shell would be a digit that
+  // does not meet the palm, which is an error.
+  {
+    std::vector<SM> parts;
+    PMP::split_connected_components(skin, parts);
+    if (parts.size() > 1) {
+      SM outer;
+      int outward = 0, pockets = 0;
+      for (auto& part : parts) {
+        if (PMP::volume(part) > 0) {
+          ++outward;
+          outer = std::move(part);
+        } else {
+          ++pockets;
+        }
+      }
+      if (outward != 1)
+        throw InputError("merged cloud", "the skin's tubes do not join into one surface (" + std::to_string(outward) +
+                                             " separate pieces); the rig may not fit this scan");
+      R.pockets_removed = pockets;
+      skin = std::move(outer);
+    }
+  }
+  R.seconds_union = since(t1);
+  say("skin: tubes stitched (" + std::to_string(static_cast<int>(R.seconds_union * 1000)) + " ms)");
+
+  // --- decimation to the triangle budget (OpenMesh, quadric error): the strips are uniform,
+  // but the flat back and palm need fewer triangles than the fingers' flanks. Collapses
+  // keep one of the two vertices, so surviving vertices keep their positions and labels. ---
+  const auto t2 = Clock::now();
+  R.mesh = to_trimesh(skin);
+  R.triangles_before_decimation = R.mesh.n_faces();
+  if (o.max_triangles > 0 && R.mesh.n_faces() > static_cast<size_t>(o.max_triangles)) {
+    TriMesh& m = R.mesh;
+    m.request_vertex_status();
+    m.request_edge_status();
+    m.request_face_status();
+    m.request_face_normals();
+    m.update_face_normals();
+    OpenMesh::Decimater::DecimaterT<TriMesh> dec(m);
+    OpenMesh::Decimater::ModQuadricT<TriMesh>::Handle quadric;
+    OpenMesh::Decimater::ModNormalFlippingT<TriMesh>::Handle flipping;
+    dec.add(quadric);
+    dec.add(flipping);
+    dec.module(quadric).set_max_err(o.decimation_tolerance_mm * o.decimation_tolerance_mm, false);
+    dec.module(flipping).set_max_normal_deviation(20.0);
+    HS_CHECK(dec.initialize(), "decimater setup failed");
+    dec.decimate_to_faces(0, static_cast<size_t>(o.max_triangles));
+    m.garbage_collection();
+    m.release_face_normals();
+    if (m.n_faces() > static_cast<size_t>(o.max_triangles))
+      R.warnings.push_back("the skin keeps " + std::to_string(m.n_faces()) + " triangles (budget " +
+                           std::to_string(o.max_triangles) + "): fewer would move it more than " +
+                           std::to_string(o.decimation_tolerance_mm) + " mm");
+    // Back to CGAL for the self-intersection check.
+    skin.clear();
+    to_surface_mesh_into(mesh_vertices(m), mesh_faces(m), &skin);
+  }
+  R.seconds_decimation = since(t2);
+
+  // --- checks, labels, the OpenMesh result ---
+  const auto t3 = Clock::now();
+  if (o.check_self_intersections) {
+    R.self_intersects = PMP::does_self_intersect(skin);
+    R.self_intersection_checked = true;
+  }
+  R.health = mesh_health(R.mesh);
+  R.seconds_checks = since(t3);
+  const auto V = mesh_vertices(R.mesh);
+  for (const auto& p : V) {
+    int tube = -1, ring = -1;
+    if (auto it = origin.find({p.x(), p.y(), p.z()}); it != origin.end()) tube = it->second.first, ring = it->second.second;
+    const Eigen::Vector3d ph = T * p;
+    int best = 0;
+    double bd = 1e300;
+    for (size_t b = 0; b < nb; ++b) {
+      if (tube > 0 && bone_tube[b] != tube) continue;  // a digit's vertex binds to that digit's links
+      const double d = segment_distance2(ph, A[b], B[b]);
+      if (d < bd) bd = d, best = static_cast<int>(b);
+    }
+    R.vertex_bone.push_back(best);
+    R.vertex_tube.push_back(tube >= 0 ? tube : bone_tube[best]);
+    R.vertex_ring.push_back(ring);
+  }
+  return R;
+}
+
+void save_skin_ply(const std::string& path, const SkinResult& skin) {
+  const auto V = mesh_vertices(skin.mesh);
+  const auto F = mesh_faces(skin.mesh);
+  HS_CHECK(skin.vertex_bone.size() == V.size(), "skin labels do not match its vertices");
+  std::string out = "ply\nformat binary_little_endian 1.0\ncomment handskin skin, palm frame, mm\n";
+  out += "element vertex " + std::to_string(V.size()) +
+         "\nproperty float x\nproperty float y\nproperty float z\nproperty int bone\nproperty int tube\nproperty int "
+         "ring\n";
+  out += "element face " + std::to_string(F.size()) + "\nproperty list uchar int vertex_indices\nend_header\n";
+  auto put = [&](const void* p, size_t n) { out.append(static_cast<const char*>(p), n); };
+  for (size_t i = 0; i < V.size(); ++i) {
+    const float xyz[3] = {static_cast<float>(V[i].x()), static_cast<float>(V[i].y()), static_cast<float>(V[i].z())};
+    const int32_t lab[3] = {skin.vertex_bone[i], skin.vertex_tube[i], skin.vertex_ring[i]};
+    put(xyz, sizeof xyz);
+    put(lab, sizeof lab);
+  }
+  for (const auto& f : F) {
+    const unsigned char n = 3;
+    const int32_t idx[3] = {f[0], f[1], f[2]};
+    put(&n, 1);
+    put(idx, sizeof idx);
+  }
+  write_file_atomic(path, out);
+}
+
+}  // namespace handskin

@@ -1,0 +1,93 @@
+#pragma once
+/// Skin, step 5 (thesis §4.1.3, done so that the result is usable as it is): polygon strips
+/// between consecutive cross-section planes, closed into one watertight triangle mesh.
+///
+/// The hand is cut into six tubes of strips — the palm (planes across the hand's long axis,
+/// as the thesis cut it, fanned at the knuckles to follow the line of the finger webs) and
+/// each digit (planes perpendicular to its own links, so that the thumb is not cut
+/// obliquely). Every measured point goes to the tube of its nearest bone link. Each plane's
+/// ring is resampled in polar coordinates about the link with a fixed number of points, so
+/// consecutive rings pair up into strips. Fingertips get a dome of rings about a tip centre,
+/// the wrist cut and the tubes' inner ends flat caps. The tubes are then stitched into one
+/// surface by a CGAL corefinement union: finger roots into the palm, the thumb web.
+#include <Eigen/Core>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/rig.hpp"
+#include "mesh/trimesh.hpp"
+#include "skin/slices.hpp"
+
+namespace handskin {
+
+struct SkinOptions {
+  /// planes: cuts from the wrist to the middle fingertip (the spacing of every tube's rings);
+  /// points_per_segment: ring points per link and arc (a finger ring has 2 arcs — dorsal and
+  /// palmar — the palm 8: 4 metacarpals × 2); min_points: fewer points in a ring's slab and
+  /// the ring is not measured (it is filled from its neighbours). Its `smoothing` is the
+  /// thesis slicing's (slices.json); the skin's is `smoothing_rings`.
+  SliceOptions slicing;
+  /// Wrinkle filter: a radius that strays by more than wrinkle_mm from the quadratic fitted
+  /// over ± smoothing_rings neighbouring rings (Savitzky–Golay) is replaced by the fit; the
+  /// others are kept, so the skin does not shrink where it curves along a tube. 0: off.
+  int smoothing_rings = 2;
+  double wrinkle_mm = 0.15;
+  /// Points within this distance of the thumb/palm boundary (difference of their distances to
+  /// the nearest thumb and non-thumb link) measure both tubes.
+  double thumb_overlap_mm = 3.0;
+  int cap_rings = 4;              ///< rings of a fingertip's dome, plus its pole
+  double window_deg = 2.0;        ///< radius at an angle: mean of the samples within ± this
+  double min_coverage_deg = 150;  ///< a ring's samples must cover this much of the circle
+  /// Decimation (OpenMesh, quadric error) to at most this many triangles, moving the
+  /// surface by at most decimation_tolerance_mm; 0: keep every strip triangle.
+  int max_triangles = 9500;
+  double decimation_tolerance_mm = 0.1;
+  bool check_self_intersections = true;
+  bool IsValid(std::string* error) const;
+};
+
+/// The six tubes of strips.
+enum class SkinTube { Palm = 0, Thumb, Index, Middle, Ring, Little };
+constexpr int kSkinTubes = 6;
+const char* skin_tube_name(int tube);
+
+struct SkinTubeReport {
+  std::string name;
+  int rings = 0;            ///< plane rings (dome rings not counted)
+  int measured = 0;         ///< rings resampled from their own slab's points
+  int filled = 0;           ///< rings filled from measured neighbours (no or too few points)
+  size_t points = 0;        ///< measured points given to this tube
+  bool present = true;      ///< false: no ring measured (a digit missing from the scan)
+};
+
+struct SkinResult {
+  TriMesh mesh;                 ///< palm frame (the rig's), mm, outward-oriented
+  std::vector<int> vertex_bone; ///< per vertex: index into `bones` (nearest link, for binding)
+  std::vector<int> vertex_tube; ///< per vertex: SkinTube it came from
+  std::vector<int> vertex_ring; ///< per vertex: its ring (plane) in the tube; -1 on caps and seams
+  std::vector<Bone> bones;      ///< the 24 links (bones_from_rig)
+  std::vector<SkinTubeReport> tubes;
+  MeshHealth health;
+  bool self_intersects = false;
+  bool self_intersection_checked = false;
+  int pockets_removed = 0;            ///< inner shells the union enclosed between tubes, dropped
+  std::vector<Eigen::Vector3d> webs;  ///< the finger webs found (palm end plane goes through them)
+  std::vector<std::string> warnings;
+  size_t triangles_before_decimation = 0;
+  double seconds_rings = 0, seconds_union = 0, seconds_decimation = 0, seconds_checks = 0;
+  /// Closed, manifold, one component, positive volume, and (when checked) no self-intersection.
+  bool watertight() const;
+};
+
+/// Build the skin from the merged cloud `points` (rig frame, mm, markers removed) and the
+/// rig's joints. Throws InputError when the rig does not fit the cloud (joints outside it,
+/// the palm not found) or the surface cannot be closed; a missing digit is a warning.
+SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const SkinOptions& options,
+                      const std::function<void(const std::string&)>& progress = {});
+
+/// skin.ply: binary PLY with per-vertex int properties `bone`, `tube` and `ring`; written
+/// through a temporary file. The bone names are in the report (`skin.bones`).
+void save_skin_ply(const std::string& path, const SkinResult& skin);
+
+}  // namespace handskin
