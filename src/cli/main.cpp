@@ -15,6 +15,8 @@
 #include "mesh/trimesh.hpp"
 #include "pipeline/options.hpp"
 #include "pipeline/run.hpp"
+#include "pipeline/skin_stage.hpp"
+#include "register/registration.hpp"
 #include "posture/calibrate.hpp"
 #include "posture/mocap.hpp"
 #include "posture/solver.hpp"
@@ -211,6 +213,44 @@ void convert(const ConvertArgs& a, const Progress& progress) {
 }
 
 // ---------------- register ----------------
+// ---------------- skin ----------------
+struct SkinArgs {
+  std::string merged, rig, out = "skin", pipeline, truth;
+};
+
+void skin_command(const SkinArgs& a, const Progress& progress) {
+  PipelineOptions po;
+  if (!a.pipeline.empty()) po = load_pipeline(a.pipeline);
+  SkinStageInputs in;
+  in.rig = load_rig(a.rig);
+  if (in.rig.frame != "palm")
+    throw InputError(a.rig, "key 'frame' is \"" + in.rig.frame + "\"; the skin needs joints in the palm frame");
+  if (!a.truth.empty()) (void)load_json_object(a.truth);  // a bad file fails before any work
+  progress("skin", "reading " + a.merged);
+  const MergedArrays m = merged_arrays(*load_merged(a.merged));
+  in.points = m.points;
+  in.normals = m.normals;
+  in.out_dir = a.out;
+  in.truth_path = a.truth;
+  Json report = run_skin_stage(in, po, [&](const std::string& msg) { progress("skin", msg); });
+  report["format"] = "handskin-skin-report/1";
+  report["inputs"] = {{"merged", a.merged}, {"rig", a.rig}, {"pipeline", a.pipeline.empty() ? "(built-in defaults)" : a.pipeline}};
+  const std::string rp = (fs::path(a.out) / "skin_report.json").string();
+  save_json(rp, report);
+  const Json& mesh = report["mesh"];
+  const Json& d = report["cloud_to_skin_mm"];
+  std::printf("skin: %d vertices, %d triangles, watertight %s, cloud to skin mean %.3f p95 %.3f max %.2f mm, %.0f ms -> %s\n",
+              mesh["vertices"].get<int>(), mesh["triangles"].get<int>(), mesh["watertight"].get<bool>() ? "yes" : "no",
+              d["mean"].get<double>(), d["p95"].get<double>(), d["max"].get<double>(),
+              1000 * report["seconds"].get<double>(), rp.c_str());
+  if (report.contains("truth")) {
+    const Json& s = report["truth"]["skin_to_truth_mm"];
+    const Json& t = report["truth"]["truth_to_skin_mm"];
+    std::printf("against the truth: skin->truth mean %.3f p95 %.3f mm; truth->skin within 1 mm %.2f %%\n",
+                s["mean"].get<double>(), s["p95"].get<double>(), 100 * t["within_1mm"].get<double>());
+  }
+}
+
 struct RegisterArgs {
   std::string back, palm, out = "registration", markers, pipeline, truth;
   bool no_refine = false;
@@ -476,6 +516,18 @@ int main(int argc, char** argv) {
   regc->add_option("--truth", rg.truth, "truth.json of a synthetic pair: add the errors against it to the report");
   regc->add_flag("--no-refine", rg.no_refine, "Keep the marker-only fit (no joint sphere/ICP refinement)");
 
+  run->add_option("--truth", run_in.truth_path, "truth.json of a synthetic pair: add the skin's errors to the report");
+
+  // skin
+  SkinArgs sk;
+  auto* skinc = app.add_subcommand("skin", "Skin mesh from a merged cloud and a rig: strips between planes, closed (thesis §4.1.2-4.1.3)");
+  skinc->add_option("--merged", sk.merged, "Merged cloud (merged.ply from handskin register)")->required();
+  skinc->add_option("--rig", sk.rig, "hand-rig/1 file, joints in the palm frame")->required();
+  skinc->add_option("--out", sk.out, "Output folder: skin.ply, skin.obj, skin.png, slices.json, baseline.ply, skin_report.json")
+      ->capture_default_str();
+  skinc->add_option("--pipeline", sk.pipeline, "Pipeline parameters (slicing, skin sections)");
+  skinc->add_option("--truth", sk.truth, "truth.json of a synthetic pair: add the errors against its true skin");
+
   // solve
   SolveArgs sv;
   auto* solvec = app.add_subcommand("solve", "Posture from a few inputs: springs + constraint potentials (thesis ch. 3)");
@@ -590,6 +642,8 @@ int main(int argc, char** argv) {
       const RunResult r = run_pipeline(run_in, [&](const std::string& m) { progress("run", m); });
       progress("run", "done in " + std::to_string(r.report["total_seconds"].get<double>()).substr(0, 5) + " s");
       std::printf("outputs in %s (report: %s)\n", run_in.out_dir.c_str(), r.report_path.c_str());
+    } else if (skinc->parsed()) {
+      skin_command(sk, progress);
     } else if (solvec->parsed()) {
       solve_command(sv, progress);
     } else if (calc->parsed()) {

@@ -1,6 +1,7 @@
 #include "mesh/trimesh.hpp"
 
 #include <OpenMesh/Core/IO/MeshIO.hh>
+#include <OpenMesh/Core/System/omstream.hh>
 
 #include <cmath>
 #include <filesystem>
@@ -26,6 +27,7 @@ TriMesh load_mesh(const std::string& path) {
 }
 
 void save_mesh(const std::string& path, const TriMesh& mesh) {
+  omlog().disable();  // the OBJ writer logs "write file" to stderr on every call
   write_via_temp(path, [&](const std::string& tmp) {
     OpenMesh::IO::Options opt = OpenMesh::IO::Options::Binary;
     const std::string ext = std::filesystem::path(path).extension().string();

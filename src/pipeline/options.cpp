@@ -1,5 +1,9 @@
 #include "pipeline/options.hpp"
 
+#include <algorithm>
+
+#include "skin/skin_mesh.hpp"
+
 #include "core/errors.hpp"
 
 namespace handskin {
@@ -27,6 +31,7 @@ bool PipelineOptions::IsValid(std::string* error) const {
   if (slicing.planes < 3 || slicing.planes > 1000) return bad("slicing.planes must be in [3, 1000]");
   if (slicing.points_per_segment < 2 || slicing.points_per_segment > 200)
     return bad("slicing.points_per_segment must be in [2, 200]");
+  if (!skin_options(*this).IsValid(error)) return false;
   if (patches.count < 1) return bad("patches.count must be >= 1");
   if (patches.error_grid < 2 || patches.error_grid > 2000) return bad("patches.error_grid must be in [2, 2000]");
   return true;
@@ -35,7 +40,7 @@ bool PipelineOptions::IsValid(std::string* error) const {
 PipelineOptions parse_pipeline(const Json& j, const std::string& file) {
   if (get_string(j, "format", file) != "handskin-pipeline/1")
     throw InputError(file, "key 'format' must be \"handskin-pipeline/1\"");
-  reject_unknown_keys(j, {"format", "description", "ingest", "markers", "registration", "slicing", "patches"}, file, "");
+  reject_unknown_keys(j, {"format", "description", "ingest", "markers", "registration", "slicing", "skin", "patches"}, file, "");
   PipelineOptions o;
   auto section = [&](const char* name) -> const Json* {
     if (!j.contains(name)) return nullptr;
@@ -72,6 +77,21 @@ PipelineOptions parse_pipeline(const Json& j, const std::string& file) {
     o.slicing.planes = get_int_or(*s, "planes", o.slicing.planes, file + ": slicing", 3);
     o.slicing.points_per_segment = get_int_or(*s, "points_per_segment", o.slicing.points_per_segment, file + ": slicing", 2);
   }
+  if (const Json* s = section("skin")) {
+    reject_unknown_keys(*s, {"thumb_overlap_mm", "smoothing_rings", "wrinkle_mm", "cap_rings", "max_triangles",
+                             "decimation_tolerance_mm", "slices_json", "baseline"},
+                        file, "skin");
+    auto& k = o.skin;
+    const std::string f = file + ": skin";
+    k.thumb_overlap_mm = get_finite_or(*s, "thumb_overlap_mm", k.thumb_overlap_mm, f);
+    k.smoothing_rings = get_int_or(*s, "smoothing_rings", k.smoothing_rings, f, 0);
+    k.wrinkle_mm = get_finite_or(*s, "wrinkle_mm", k.wrinkle_mm, f);
+    k.cap_rings = get_int_or(*s, "cap_rings", k.cap_rings, f, 1);
+    k.max_triangles = get_int_or(*s, "max_triangles", k.max_triangles, f, 0);
+    k.decimation_tolerance_mm = get_finite_or(*s, "decimation_tolerance_mm", k.decimation_tolerance_mm, f);
+    k.slices_json = get_bool_or(*s, "slices_json", k.slices_json, f);
+    k.baseline = get_bool_or(*s, "baseline", k.baseline, f);
+  }
   if (const Json* s = section("patches")) {
     reject_unknown_keys(*s, {"count", "error_grid"}, file, "patches");
     o.patches.count = get_int_or(*s, "count", o.patches.count, file + ": patches", 1);
@@ -97,6 +117,19 @@ RegistrationOptions registration_options(const PipelineOptions& o) {
   return r;
 }
 
+SkinOptions skin_options(const PipelineOptions& o) {
+  SkinOptions s;
+  s.slicing.planes = static_cast<int>(o.slicing.planes);
+  s.slicing.points_per_segment = static_cast<int>(o.slicing.points_per_segment);
+  s.thumb_overlap_mm = o.skin.thumb_overlap_mm;
+  s.smoothing_rings = static_cast<int>(std::min(o.skin.smoothing_rings, 1000L));
+  s.wrinkle_mm = o.skin.wrinkle_mm;
+  s.cap_rings = static_cast<int>(std::min(o.skin.cap_rings, 1000L));
+  s.max_triangles = static_cast<int>(std::min(o.skin.max_triangles, 100000000L));
+  s.decimation_tolerance_mm = o.skin.decimation_tolerance_mm;
+  return s;
+}
+
 PipelineOptions load_pipeline(const std::string& file) { return parse_pipeline(load_json_object(file), file); }
 
 Json pipeline_to_json(const PipelineOptions& o) {
@@ -110,6 +143,11 @@ Json pipeline_to_json(const PipelineOptions& o) {
                        {"icp_gate_mm", r.icp_gate_mm},             {"icp_normal_deg", r.icp_normal_deg},
                        {"icp_trim", r.icp_trim},                   {"icp_max_iterations", r.icp_max_iterations}};
   j["slicing"] = {{"planes", o.slicing.planes}, {"points_per_segment", o.slicing.points_per_segment}};
+  const auto& k = o.skin;
+  j["skin"] = {{"thumb_overlap_mm", k.thumb_overlap_mm}, {"smoothing_rings", k.smoothing_rings},
+               {"wrinkle_mm", k.wrinkle_mm}, {"cap_rings", k.cap_rings}, {"max_triangles", k.max_triangles},
+               {"decimation_tolerance_mm", k.decimation_tolerance_mm}, {"slices_json", k.slices_json},
+               {"baseline", k.baseline}};
   j["patches"] = {{"count", o.patches.count}, {"error_grid", o.patches.error_grid}};
   return j;
 }

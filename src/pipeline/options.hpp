@@ -30,6 +30,16 @@ struct PipelineOptions {
     long planes = 50;              ///< cross-section planes along the hand
     long points_per_segment = 10;  ///< resampled points per plane and bone segment (eq. 4.1)
   } slicing;
+  struct Skin {                    ///< skin mesh from the strips (docs/skin.md)
+    double thumb_overlap_mm = 3.0; ///< thumb and palm share points this near their boundary
+    long smoothing_rings = 2;      ///< wrinkle filter: quadratic over ± this many rings
+    double wrinkle_mm = 0.15;      ///< ... replaces radii straying from it by more than this
+    long cap_rings = 4;            ///< rings of each fingertip's dome
+    long max_triangles = 9500;     ///< decimate to at most this many triangles (0: no decimation)
+    double decimation_tolerance_mm = 0.1;  ///< ... moving the surface by at most this
+    bool slices_json = true;       ///< write slices.json (the thesis's sections, for inspection)
+    bool baseline = true;          ///< also run CGAL Poisson on the cloud and report it beside
+  } skin;
   struct Patches {                 ///< Bézier skin (thesis §4.1.4, Table 4.1)
     long count = 96;               ///< bicubic patches, palm 48 + back 48
     long error_grid = 100;         ///< error measured against a grid of n x n surface cells
@@ -46,5 +56,8 @@ PipelineOptions load_pipeline(const std::string& file);
 Json pipeline_to_json(const PipelineOptions& o);
 /// The registration stage's options from the pipeline's `markers` and `registration` sections.
 RegistrationOptions registration_options(const PipelineOptions& o);
+/// The skin stage's options from the pipeline's `slicing` and `skin` sections.
+struct SkinOptions;
+SkinOptions skin_options(const PipelineOptions& o);
 
 }  // namespace handskin

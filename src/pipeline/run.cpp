@@ -10,6 +10,7 @@
 #include "render/preview.hpp"
 #include "scan/cloud.hpp"
 #include "scan/cubist_io.hpp"
+#include "pipeline/skin_stage.hpp"
 
 namespace handskin {
 
@@ -119,9 +120,23 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   write_file_atomic(merged_png, merged_preview_png(reg));
   stages.push_back({{"name", "write"}, {"seconds", t_write.seconds()}});
 
+  // --- skin: strips from the merged cloud, closed into one mesh (docs/skin.md) ---
+  SkinStageInputs si;
+  {
+    MergedArrays m = merged_arrays(*reg.merged);
+    si.points = std::move(m.points);
+    si.normals = std::move(m.normals);
+  }
+  si.rig = rig;
+  si.out_dir = in.out_dir;
+  si.truth_path = in.truth_path;
+  const Json skin = run_skin_stage(si, in.options, [&](const std::string& m) { progress("skin: " + m); });
+  stages.push_back(skin);
+
   report["stages"] = stages;
   report["outputs"] = {{"back_cloud", back_ply}, {"palm_cloud", palm_ply}, {"registration", reg_json},
                        {"merged_cloud", merged_ply}, {"merged_preview", merged_png}};
+  for (const auto& [k, v] : skin["outputs"].items()) report["outputs"][k] = v;
   report["total_seconds"] = total.seconds();
   RunResult r;
   r.report_path = (fs::path(in.out_dir) / "report.json").string();

@@ -18,6 +18,7 @@ struct RunInputs {
   std::string out_dir;
   std::string markers_path;   ///< optional handskin-markers/1 (manual marker positions)
   std::string pipeline_path;  ///< empty: built-in defaults (= pipelines/cubist.json)
+  std::string truth_path;     ///< optional truth.json (synthetic pairs): the skin's errors in the report
   PipelineOptions options;
 };
 

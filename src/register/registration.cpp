@@ -393,6 +393,25 @@ RegistrationError registration_error(const Eigen::Isometry3d& est, const Eigen::
   return e;
 }
 
+MergedCloud::Ptr load_merged(const std::string& path) {
+  if (!std::filesystem::is_regular_file(path)) throw InputError(path, "no such file");
+  MergedCloud::Ptr cloud(new MergedCloud);
+  // PCL's reader reports the camera element it skips on every file save_merged writes.
+  const auto verbosity = pcl::console::getVerbosityLevel();
+  pcl::console::setVerbosityLevel(pcl::console::L_ERROR);
+  const int status = pcl::io::loadPLYFile(path, *cloud);
+  pcl::console::setVerbosityLevel(verbosity);
+  if (status < 0) throw InputError(path, "not a readable PLY point cloud");
+  if (cloud->empty()) throw InputError(path, "the cloud holds no points");
+  for (size_t i = 0; i < cloud->size(); ++i) {
+    const auto& p = (*cloud)[i];
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) || !std::isfinite(p.normal_x) ||
+        !std::isfinite(p.normal_y) || !std::isfinite(p.normal_z))
+      throw InputError(path, "point " + std::to_string(i) + " is not finite (x y z nx ny nz)");
+  }
+  return cloud;
+}
+
 void save_merged(const std::string& path, const MergedCloud& cloud) {
   write_via_temp(path, [&](const std::string& tmp) {
     if (pcl::io::savePLYFileBinary(tmp, cloud) < 0) throw InputError(path, "cannot write point cloud");

@@ -84,5 +84,8 @@ RegistrationError registration_error(const Eigen::Isometry3d& estimate, const Ei
 
 /// Binary PLY, atomically (x y z nx ny nz label curvature; label 0 = palm, 1 = back).
 void save_merged(const std::string& path, const MergedCloud& cloud);
+/// Read a merged cloud written by save_merged. Throws InputError naming the file when it
+/// cannot be read, is empty, or holds non-finite points or normals.
+MergedCloud::Ptr load_merged(const std::string& path);
 
 }  // namespace handskin

@@ -667,7 +667,7 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   }
   if (!tubes[0].report.present) throw InputError("merged cloud", "no palm section could be measured");
   R.seconds_rings = since(t0);
-  say("skin: rings resampled (" + std::to_string(static_cast<int>(R.seconds_rings * 1000)) + " ms)");
+  say("rings resampled (" + std::to_string(static_cast<int>(R.seconds_rings * 1000)) + " ms)");
 
   // --- tubes to CGAL meshes, stitched by corefinement union ---
   const auto t1 = Clock::now();
@@ -722,7 +722,7 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
     }
   }
   R.seconds_union = since(t1);
-  say("skin: tubes stitched (" + std::to_string(static_cast<int>(R.seconds_union * 1000)) + " ms)");
+  say("tubes stitched (" + std::to_string(static_cast<int>(R.seconds_union * 1000)) + " ms)");
 
   // --- decimation to the triangle budget (OpenMesh, quadric error): the strips are uniform,
   // but the flat back and palm need fewer triangles than the fingers' flanks. Collapses

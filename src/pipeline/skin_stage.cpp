@@ -1,0 +1,158 @@
+#include "pipeline/skin_stage.hpp"
+
+#include <chrono>
+#include <filesystem>
+#include <optional>
+
+#include "core/atomic_file.hpp"
+#include "core/errors.hpp"
+#include "render/preview.hpp"
+#include "skin/baseline.hpp"
+#include "skin/skin_mesh.hpp"
+#include "skin/slices.hpp"
+#include "synth/mesh_distance.hpp"
+
+namespace handskin {
+
+namespace {
+namespace fs = std::filesystem;
+
+double since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+Json distance_json(const OneWayDistance& d) {
+  return {{"mean", d.mean}, {"median", d.median}, {"p95", d.p95}, {"max", d.max},
+          {"within_1mm", d.within_1mm}, {"samples", d.samples}};
+}
+
+// At most `limit` points, every k-th: distances from the whole cloud would cost more than
+// building the skin.
+std::vector<Eigen::Vector3d> thinned(const std::vector<Eigen::Vector3d>& p, size_t limit) {
+  const size_t step = std::max<size_t>(1, (p.size() + limit - 1) / limit);
+  std::vector<Eigen::Vector3d> out;
+  for (size_t i = 0; i < p.size(); i += step) out.push_back(p[i]);
+  return out;
+}
+
+Json health_json(const MeshHealth& h) {
+  return {{"vertices", h.vertices}, {"triangles", h.faces}, {"closed", h.closed()}, {"manifold", h.manifold()},
+          {"components", h.components}, {"outward", h.volume_mm3 > 0}, {"volume_mm3", h.volume_mm3},
+          {"area_mm2", h.area_mm2}};
+}
+}  // namespace
+
+Json run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
+                    const std::function<void(const std::string&)>& progress) {
+  const SkinOptions so = skin_options(options);
+  std::string err;
+  if (!so.IsValid(&err)) throw InputError("pipeline", err);
+  progress("building the strips (" + std::to_string(so.slicing.planes) + " planes, " +
+           std::to_string(so.slicing.points_per_segment) + " points per segment)");
+  const auto t0 = std::chrono::steady_clock::now();
+  const SkinResult skin = build_skin(in.points, in.rig, so, progress);
+  const double build_seconds = since(t0);
+  for (const auto& w : skin.warnings) progress("warning: " + w);
+  if (!skin.watertight())
+    throw InputError("merged cloud", std::string("the skin is not a closed, manifold, outward, self-intersection-free "
+                                                 "surface (") +
+                                         std::to_string(skin.health.boundary_edges) + " boundary edges, " +
+                                         std::to_string(skin.health.nonmanifold_vertices) + " non-manifold vertices, " +
+                                         std::to_string(skin.health.components) + " components" +
+                                         (skin.self_intersects ? ", self-intersecting" : "") + "); nothing written");
+
+  Json j;
+  j["name"] = "skin";
+  j["seconds"] = build_seconds;
+  j["mesh"] = health_json(skin.health);
+  j["mesh"]["self_intersections"] = skin.self_intersects;
+  j["mesh"]["watertight"] = skin.watertight();
+  j["triangles_before_decimation"] = skin.triangles_before_decimation;
+  j["pockets_removed"] = skin.pockets_removed;
+  j["timings_ms"] = {{"rings", 1000 * skin.seconds_rings}, {"stitch", 1000 * skin.seconds_union},
+                     {"decimate", 1000 * skin.seconds_decimation}, {"checks", 1000 * skin.seconds_checks}};
+  Json tubes = Json::array();
+  for (const auto& t : skin.tubes)
+    tubes.push_back({{"name", t.name}, {"present", t.present}, {"points", t.points}, {"rings", t.rings},
+                     {"measured", t.measured}, {"filled", t.filled}});
+  j["tubes"] = tubes;
+  Json webs = Json::array();
+  for (const auto& w : skin.webs) webs.push_back(to_json(w));
+  j["webs_hand_frame"] = webs;
+  Json bones = Json::array();
+  for (const auto& b : skin.bones) bones.push_back(b.name());
+  j["bones"] = bones;
+  j["warnings"] = skin.warnings;
+
+  progress("measuring the cloud against the skin");
+  const MeshDistance to_skin(skin.mesh);
+  const auto cloud = thinned(in.points, 20000);
+  j["cloud_to_skin_mm"] = distance_json(one_way_distance(cloud, to_skin));
+
+  // --- files (each written through a temporary and renamed) ---
+  ensure_directory(in.out_dir);
+  Json outputs;
+  const std::string ply = (fs::path(in.out_dir) / "skin.ply").string();
+  const std::string obj = (fs::path(in.out_dir) / "skin.obj").string();
+  const std::string png = (fs::path(in.out_dir) / "skin.png").string();
+  save_skin_ply(ply, skin);
+  save_mesh(obj, skin.mesh);
+  RenderOptions ro;
+  ro.width = 900;
+  ro.height = 500;
+  ro.view = hand_frame_from_rig(in.rig).linear();  // looking at the back, fingers to the right
+  write_file_atomic(png, render_mesh_png({&skin.mesh}, ro));
+  outputs["skin_ply"] = ply;
+  outputs["skin_obj"] = obj;
+  outputs["skin_png"] = png;
+  if (options.skin.slices_json) {
+    const std::string sj = (fs::path(in.out_dir) / "slices.json").string();
+    save_json(sj, slicing_to_json(slice_cloud(in.points, in.rig, so.slicing)));
+    outputs["slices_json"] = sj;
+  }
+
+  std::optional<TriMesh> baseline_mesh;
+  if (options.skin.baseline) {
+    progress("baseline: CGAL Poisson reconstruction of the same cloud (for comparison)");
+    const BaselineResult b = poisson_baseline(in.points, in.normals);
+    const std::string bp = (fs::path(in.out_dir) / "baseline.ply").string();
+    save_mesh(bp, b.mesh);
+    outputs["baseline_ply"] = bp;
+    const MeshDistance to_base(b.mesh);
+    j["baseline"] = {{"method", "CGAL poisson_surface_reconstruction_delaunay"},
+                     {"seconds", b.seconds},
+                     {"points_used", b.points_used},
+                     {"mesh", health_json(mesh_health(b.mesh))},
+                     {"cloud_to_baseline_mm", distance_json(one_way_distance(cloud, to_base))}};
+    baseline_mesh = b.mesh;
+  }
+
+  if (!in.truth_path.empty()) {
+    progress("comparing with the true skin of " + in.truth_path);
+    const Json truth = load_json_object(in.truth_path);
+    if (!truth.contains("skin") || !truth["skin"].is_string())
+      throw InputError(in.truth_path, "key 'skin' (file name of the true skin) is missing");
+    const std::string skin_path = (fs::path(in.truth_path).parent_path() / truth["skin"].get<std::string>()).string();
+    const TriMesh true_skin = load_mesh(skin_path);
+    std::vector<Eigen::Vector3d> markers;
+    if (truth.contains("markers_palm") && truth["markers_palm"].is_array())
+      for (const auto& m : truth["markers_palm"]) markers.push_back(to_vec3(m, "markers_palm", in.truth_path));
+    const double exclude = truth.value("marker_radius_mm", 4.0) + 3.0;
+    const MeshDistance to_truth(true_skin);
+    const auto ours = sample_surface(skin.mesh, 4.0), theirs = sample_surface(true_skin, 4.0);
+    j["truth"] = {{"file", skin_path},
+                  {"excluded_within_mm_of_markers", exclude},
+                  {"skin_to_truth_mm", distance_json(one_way_distance(ours, to_truth, markers, exclude))},
+                  {"truth_to_skin_mm", distance_json(one_way_distance(theirs, to_skin, markers, exclude))}};
+    if (baseline_mesh) {
+      const MeshDistance to_base(*baseline_mesh);
+      j["truth"]["baseline_to_truth_mm"] =
+          distance_json(one_way_distance(sample_surface(*baseline_mesh, 4.0), to_truth, markers, exclude));
+      j["truth"]["truth_to_baseline_mm"] = distance_json(one_way_distance(theirs, to_base, markers, exclude));
+    }
+  }
+  j["outputs"] = outputs;
+  return j;
+}
+
+}  // namespace handskin
