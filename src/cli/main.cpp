@@ -216,25 +216,30 @@ void convert(const ConvertArgs& a, const Progress& progress) {
 // ---------------- skin ----------------
 struct SkinArgs {
   std::string merged, rig, out = "skin", pipeline, truth;
+  bool auto_rig = false;
 };
 
 void skin_command(const SkinArgs& a, const Progress& progress) {
   PipelineOptions po;
   if (!a.pipeline.empty()) po = load_pipeline(a.pipeline);
   SkinStageInputs in;
-  in.rig = load_rig(a.rig);
-  if (in.rig.frame != "palm")
-    throw InputError(a.rig, "key 'frame' is \"" + in.rig.frame + "\"; the skin needs joints in the palm frame");
+  if (!a.rig.empty()) {
+    in.rig = load_rig(a.rig);
+    if (in.rig->frame != "palm")
+      throw InputError(a.rig, "key 'frame' is \"" + in.rig->frame + "\"; the skin needs joints in the palm frame");
+  }
+  in.auto_rig = a.auto_rig;
   if (!a.truth.empty()) (void)load_json_object(a.truth);  // a bad file fails before any work
   progress("skin", "reading " + a.merged);
   const MergedArrays m = merged_arrays(*load_merged(a.merged));
   in.points = m.points;
   in.normals = m.normals;
+  in.sides = m.sides;
   in.out_dir = a.out;
   in.truth_path = a.truth;
   Json report = run_skin_stage(in, po, [&](const std::string& msg) { progress("skin", msg); });
   report["format"] = "handskin-skin-report/1";
-  report["inputs"] = {{"merged", a.merged}, {"rig", a.rig}, {"pipeline", a.pipeline.empty() ? "(built-in defaults)" : a.pipeline}};
+  report["inputs"] = {{"merged", a.merged}, {"rig", a.rig.empty() ? "(placed automatically)" : a.rig}, {"pipeline", a.pipeline.empty() ? "(built-in defaults)" : a.pipeline}};
   const std::string rp = (fs::path(a.out) / "skin_report.json").string();
   save_json(rp, report);
   const Json& mesh = report["mesh"];
@@ -243,6 +248,12 @@ void skin_command(const SkinArgs& a, const Progress& progress) {
               mesh["vertices"].get<int>(), mesh["triangles"].get<int>(), mesh["watertight"].get<bool>() ? "yes" : "no",
               d["mean"].get<double>(), d["p95"].get<double>(), d["max"].get<double>(),
               1000 * report["seconds"].get<double>(), rp.c_str());
+  if (report["skeleton"].contains("automatic") && report["skeleton"]["automatic"].contains("against_given_rig")) {
+    const Json& e = report["skeleton"]["automatic"]["against_given_rig"];
+    std::printf("automatic skeleton: mean joint error %.2f mm (max %.2f, %s) against %s\n",
+                e["mean_joint_error_mm"].get<double>(), e["max_joint_error_mm"].get<double>(),
+                e["worst_joint"].get<std::string>().c_str(), a.rig.c_str());
+  }
   if (report.contains("truth")) {
     const Json& s = report["truth"]["skin_to_truth_mm"];
     const Json& t = report["truth"]["truth_to_skin_mm"];
@@ -498,7 +509,8 @@ int main(int argc, char** argv) {
   auto* run = app.add_subcommand("run", "Run the pipeline on a back/palm scan pair and a rig");
   run->add_option("--back", run_in.back_stem, "Back scan stem (<stem>.png + <stem>.json)")->required();
   run->add_option("--palm", run_in.palm_stem, "Palm scan stem")->required();
-  run->add_option("--rig", run_in.rig_path, "hand-rig/1 file, joints in the palm frame")->required();
+  run->add_option("--rig", run_in.rig_path, "hand-rig/1 file, joints in the palm frame (default: placed automatically)");
+  run->add_flag("--auto-rig", run_in.auto_rig, "Place the skeleton automatically even with --rig, and report its joint error");
   run->add_option("--out", run_in.out_dir, "Output folder (created if needed)")->required();
   run->add_option("--pipeline", run_in.pipeline_path, "Pipeline parameters (default: built-in = pipelines/cubist.json)");
 
@@ -522,7 +534,8 @@ int main(int argc, char** argv) {
   SkinArgs sk;
   auto* skinc = app.add_subcommand("skin", "Skin mesh from a merged cloud and a rig: strips between planes, closed (thesis §4.1.2-4.1.3)");
   skinc->add_option("--merged", sk.merged, "Merged cloud (merged.ply from handskin register)")->required();
-  skinc->add_option("--rig", sk.rig, "hand-rig/1 file, joints in the palm frame")->required();
+  skinc->add_option("--rig", sk.rig, "hand-rig/1 file, joints in the palm frame (default: placed automatically)");
+  skinc->add_flag("--auto-rig", sk.auto_rig, "Place the skeleton automatically even with --rig, and report its joint error");
   skinc->add_option("--out", sk.out, "Output folder: skin.ply, skin.obj, skin.png, slices.json, baseline.ply, skin_report.json")
       ->capture_default_str();
   skinc->add_option("--pipeline", sk.pipeline, "Pipeline parameters (slicing, skin sections)");

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <optional>
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
@@ -52,7 +53,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   const StageTimer total;
   Json report;
   report["format"] = "handskin-report/1";
-  report["inputs"] = {{"back", in.back_stem}, {"palm", in.palm_stem}, {"rig", in.rig_path},
+  report["inputs"] = {{"back", in.back_stem}, {"palm", in.palm_stem}, {"rig", in.rig_path.empty() ? "(placed automatically)" : in.rig_path},
                       {"pipeline", in.pipeline_path.empty() ? "(built-in defaults)" : in.pipeline_path}};
   report["pipeline"] = pipeline_to_json(in.options);
   Json stages = Json::array();
@@ -67,9 +68,13 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
       throw InputError((s == &back ? in.back_stem : in.palm_stem) + ".png",
                        "only " + std::to_string(s->count_valid()) + " measured samples (ingest.min_returns is " +
                            std::to_string(in.options.ingest.min_returns) + ")");
-  const Rig rig = load_rig(in.rig_path);
-  if (rig.frame != "palm")
-    throw InputError(in.rig_path, "key 'frame' is \"" + rig.frame + "\"; the pipeline needs joints in the palm frame");
+  std::optional<Rig> rig;
+  if (!in.rig_path.empty()) {
+    rig = load_rig(in.rig_path);
+    if (rig->frame != "palm")
+      throw InputError(in.rig_path, "key 'frame' is \"" + rig->frame + "\"; the pipeline needs joints in the palm frame");
+  }
+  if (!in.truth_path.empty()) (void)load_json_object(in.truth_path);  // a bad file fails before any work
   MarkerHints hints;
   if (!in.markers_path.empty()) hints = load_marker_hints(in.markers_path);
   const Cloud::Ptr back_cloud = dense_copy(*scan_to_organized_cloud(back));
@@ -126,8 +131,10 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
     MergedArrays m = merged_arrays(*reg.merged);
     si.points = std::move(m.points);
     si.normals = std::move(m.normals);
+    si.sides = std::move(m.sides);
   }
   si.rig = rig;
+  si.auto_rig = in.auto_rig;
   si.out_dir = in.out_dir;
   si.truth_path = in.truth_path;
   const Json skin = run_skin_stage(si, in.options, [&](const std::string& m) { progress("skin: " + m); });

@@ -14,7 +14,8 @@ namespace handskin {
 struct RunInputs {
   std::string back_stem;   ///< `<stem>.png` + `<stem>.json`, side "back"
   std::string palm_stem;   ///< side "palm"
-  std::string rig_path;    ///< hand-rig/1, palm frame
+  std::string rig_path;    ///< hand-rig/1, palm frame; empty: the skeleton is placed automatically
+  bool auto_rig = false;   ///< place the skeleton automatically even with a rig (and compare)
   std::string out_dir;
   std::string markers_path;   ///< optional handskin-markers/1 (manual marker positions)
   std::string pipeline_path;  ///< empty: built-in defaults (= pipelines/cubist.json)

@@ -7,6 +7,7 @@
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
 #include "render/preview.hpp"
+#include "skin/auto_rig.hpp"
 #include "skin/baseline.hpp"
 #include "skin/skin_mesh.hpp"
 #include "skin/slices.hpp"
@@ -47,10 +48,30 @@ Json run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
   const SkinOptions so = skin_options(options);
   std::string err;
   if (!so.IsValid(&err)) throw InputError("pipeline", err);
+  // --- the skeleton: given, or placed in the cloud (and compared with the given one) ---
+  Json skeleton;
+  Rig rig;
+  std::optional<AutoRig> placed;
+  if (in.auto_rig || !in.rig) {
+    progress("placing the skeleton in the cloud");
+    const auto ta = std::chrono::steady_clock::now();
+    placed = place_skeleton(in.points, in.sides);
+    skeleton["automatic"] = {{"seconds", since(ta)}, {"scale", placed->scale},
+                             {"palm_radius_mm", placed->palm_radius_mm}, {"notes", placed->notes}};
+    if (in.rig) {
+      const JointError e = joint_error(placed->rig, *in.rig);
+      skeleton["automatic"]["against_given_rig"] = {{"mean_joint_error_mm", e.mean_mm}, {"max_joint_error_mm", e.max_mm},
+                                                    {"worst_joint", e.worst_joint}};
+      progress("automatic skeleton: mean joint error " + std::to_string(e.mean_mm).substr(0, 4) + " mm against the given rig");
+    }
+  }
+  rig = in.auto_rig || !in.rig ? placed->rig : *in.rig;
+  skeleton["used"] = placed && (in.auto_rig || !in.rig) ? "automatic" : "given";
+
   progress("building the strips (" + std::to_string(so.slicing.planes) + " planes, " +
            std::to_string(so.slicing.points_per_segment) + " points per segment)");
   const auto t0 = std::chrono::steady_clock::now();
-  const SkinResult skin = build_skin(in.points, in.rig, so, progress);
+  const SkinResult skin = build_skin(in.points, rig, so, progress);
   const double build_seconds = since(t0);
   for (const auto& w : skin.warnings) progress("warning: " + w);
   if (!skin.watertight())
@@ -64,6 +85,7 @@ Json run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
   Json j;
   j["name"] = "skin";
   j["seconds"] = build_seconds;
+  j["skeleton"] = skeleton;
   j["mesh"] = health_json(skin.health);
   j["mesh"]["self_intersections"] = skin.self_intersects;
   j["mesh"]["watertight"] = skin.watertight();
@@ -100,14 +122,19 @@ Json run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
   RenderOptions ro;
   ro.width = 900;
   ro.height = 500;
-  ro.view = hand_frame_from_rig(in.rig).linear();  // looking at the back, fingers to the right
+  ro.view = hand_frame_from_rig(rig).linear();  // looking at the back, fingers to the right
   write_file_atomic(png, render_mesh_png({&skin.mesh}, ro));
   outputs["skin_ply"] = ply;
   outputs["skin_obj"] = obj;
   outputs["skin_png"] = png;
+  if (placed) {
+    const std::string rp = (fs::path(in.out_dir) / "rig_auto.json").string();
+    save_rig(rp, placed->rig);
+    outputs["rig_auto"] = rp;
+  }
   if (options.skin.slices_json) {
     const std::string sj = (fs::path(in.out_dir) / "slices.json").string();
-    save_json(sj, slicing_to_json(slice_cloud(in.points, in.rig, so.slicing)));
+    save_json(sj, slicing_to_json(slice_cloud(in.points, rig, so.slicing)));
     outputs["slices_json"] = sj;
   }
 

@@ -4,8 +4,11 @@
 #include <cmath>
 
 #include "core/errors.hpp"
+#include "core/hand_proportions.hpp"
 
 namespace handskin {
+
+using namespace proportions;
 
 namespace {
 
@@ -22,28 +25,6 @@ Eigen::Vector3d heading(double deg_in_plane, double deg_down = 0) {
   return {std::cos(deg_in_plane * kDeg) * std::cos(deg_down * kDeg),
           std::sin(deg_in_plane * kDeg) * std::cos(deg_down * kDeg), -std::sin(deg_down * kDeg)};
 }
-
-// Bone lengths (mm) of an adult hand, close to the mean lengths reported by
-// Buryanov & Kotiuk, "Proportions of hand segments", Int. J. Morphol. 28(3), 2010
-// (metacarpal, proximal, middle, distal; the thumb has no middle phalanx).
-struct FingerSpec {
-  double metacarpal, proximal, middle, distal;
-  Eigen::Vector2d cmc;   // metacarpal base in the hand plane
-  double angle_deg;      // metacarpal heading, + toward the thumb
-  double spread_steps;   // multiples of finger_spread added to the phalanges' heading
-  double width;          // proximal phalanx half-width
-};
-const FingerSpec kFingers[5] = {
-    {46.0, 31.5, 0.0, 24.0, {14.0, 19.0}, 0.0, 0.0, 11.0},   // thumb (heading from options)
-    {68.0, 40.0, 22.5, 16.0, {27.0, 12.0}, 10.0, 1.0, 9.6},  // index
-    {64.5, 44.5, 26.5, 17.5, {29.0, 1.5}, 1.0, 0.0, 9.9},    // middle
-    {58.0, 41.5, 25.5, 17.5, {27.5, -8.5}, -8.0, -1.0, 9.3}, // ring
-    {53.5, 33.0, 18.0, 16.0, {24.0, -17.5}, -17.0, -2.2, 8.3},  // little
-};
-// Skin beyond the fingertip joint (mm): the tip joint lies this far inside the skin.
-constexpr double kTipInset = 2.0;
-// Wrist joint to middle fingertip skin for the nominal lengths above (mm).
-constexpr double kNominalHandLength = 29.0 + 64.5 + 44.5 + 26.5 + 17.5 + kTipInset;
 
 }  // namespace
 
@@ -154,7 +135,7 @@ HandModel build_hand_model(const HandShapeOptions& o) {
   m.palm.push_back(capsule(P(-45, 0, -1), P(4, 0, -1), 26.0, 25.0, 18.0, 16.0, 0.0));
   m.palm.push_back(capsule(P(14, 10, -7), P(44, 30, -9), 13.0, 11.0, 10.0, 9.0, 0.0));
   m.palm.push_back(capsule(P(22, -21, -6), P(62, -28, -5), 10.0, 9.0, 11.0, 10.0, 0.0));
-  m.wrist_cut_x = -12.0 * s;
+  m.wrist_cut_x = -kWristCut * s;
 
   // Enclosing box: capsule extents plus margin.
   m.box_min = Eigen::Vector3d::Constant(1e9);

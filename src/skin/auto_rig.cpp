@@ -1,0 +1,287 @@
+#include "skin/auto_rig.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <queue>
+
+#include "core/dof.hpp"
+#include "core/errors.hpp"
+#include "core/hand_proportions.hpp"
+
+namespace handskin {
+
+namespace {
+
+using namespace proportions;
+
+// Principal axes of a point set (columns, by decreasing variance) and its mean.
+template <int D>
+void principal_axes(const std::vector<Eigen::Matrix<double, D, 1>>& p, Eigen::Matrix<double, D, D>* axes,
+                    Eigen::Matrix<double, D, 1>* mean) {
+  *mean = Eigen::Matrix<double, D, 1>::Zero();
+  for (const auto& x : p) *mean += x;
+  *mean /= static_cast<double>(p.size());
+  Eigen::Matrix<double, D, D> C = Eigen::Matrix<double, D, D>::Zero();
+  for (const auto& x : p) C += (x - *mean) * (x - *mean).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, D, D>> es(C);
+  *axes = es.eigenvectors().rowwise().reverse();
+}
+
+// The silhouette of the hand on its plane: a 1 mm grid of occupied cells. Written here rather
+// than with an image library: a few dozen lines (closing, a chamfer distance transform,
+// 4-connected labelling) on a grid of ~50 000 cells.
+struct Grid {
+  int nx = 0, ny = 0;
+  double u0 = 0, v0 = 0, cell = 1.0;
+  std::vector<std::uint8_t> on;
+  int idx(int i, int j) const { return j * nx + i; }
+  bool in(int i, int j) const { return i >= 0 && j >= 0 && i < nx && j < ny; }
+  int ci(double u) const { return static_cast<int>(std::floor((u - u0) / cell)); }
+  int cj(double v) const { return static_cast<int>(std::floor((v - v0) / cell)); }
+  void morph(bool dilate) {
+    std::vector<std::uint8_t> out = on;
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i) {
+        bool any = false, all = true;
+        for (int dj = -1; dj <= 1; ++dj)
+          for (int di = -1; di <= 1; ++di) {
+            const bool v = in(i + di, j + dj) && on[idx(i + di, j + dj)];
+            any = any || v;
+            all = all && v;
+          }
+        out[idx(i, j)] = dilate ? any : all;
+      }
+    on = out;
+  }
+  // Distance (in cells) to the nearest empty cell: two-pass 3-4 chamfer.
+  std::vector<double> distance() const {
+    std::vector<double> d(on.size());
+    for (size_t k = 0; k < on.size(); ++k) d[k] = on[k] ? 1e9 : 0;
+    auto relax = [&](int i, int j, int di, int dj, double w) {
+      if (in(i + di, j + dj)) d[idx(i, j)] = std::min(d[idx(i, j)], d[idx(i + di, j + dj)] + w);
+    };
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i) relax(i, j, -1, 0, 3), relax(i, j, 0, -1, 3), relax(i, j, -1, -1, 4), relax(i, j, 1, -1, 4);
+    for (int j = ny - 1; j >= 0; --j)
+      for (int i = nx - 1; i >= 0; --i) relax(i, j, 1, 0, 3), relax(i, j, 0, 1, 3), relax(i, j, 1, 1, 4), relax(i, j, -1, 1, 4);
+    for (double& x : d) x /= 3.0;
+    return d;
+  }
+};
+
+}  // namespace
+
+AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vector<std::uint32_t>& sides) {
+  if (pts.size() < 1000 || sides.size() != pts.size())
+    throw InputError("merged cloud", "too few points (or no side labels) to place a skeleton in");
+  AutoRig out;
+  // --- the hand's frame: long axis, thickness axis toward the back, the wrist's end ---
+  Eigen::Matrix3d axes;
+  Eigen::Vector3d c;
+  principal_axes<3>(pts, &axes, &c);
+  Eigen::Vector3d X = axes.col(0), Z = axes.col(2);
+  Eigen::Vector3d back = Eigen::Vector3d::Zero(), palm = Eigen::Vector3d::Zero();
+  size_t nb = 0, np = 0;
+  for (size_t i = 0; i < pts.size(); ++i) (sides[i] == 1 ? (++nb, back) : (++np, palm)) += pts[i];
+  if (nb == 0 || np == 0) throw InputError("merged cloud", "needs points of both scans (back and palm) to place a skeleton");
+  if ((back / nb - palm / np).dot(Z) < 0) Z = -Z;
+  double umin = 1e300, umax = -1e300;
+  for (const auto& p : pts) umin = std::min(umin, (p - c).dot(X)), umax = std::max(umax, (p - c).dot(X));
+  auto end_thickness = [&](bool low) {
+    double lo = 1e300, hi = -1e300;
+    for (const auto& p : pts) {
+      const double u = (p - c).dot(X);
+      if (low ? u < umin + 15 : u > umax - 15) lo = std::min(lo, (p - c).dot(Z)), hi = std::max(hi, (p - c).dot(Z));
+    }
+    return hi - lo;
+  };
+  if (end_thickness(false) > end_thickness(true)) X = -X;  // the wrist's cut end is the thicker
+  Eigen::Vector3d Y = Z.cross(X);
+  std::vector<Eigen::Vector3d> h(pts.size());  // hand coordinates (u, v, w)
+  for (size_t i = 0; i < pts.size(); ++i) h[i] = Eigen::Vector3d((pts[i] - c).dot(X), (pts[i] - c).dot(Y), (pts[i] - c).dot(Z));
+  auto to_cloud = [&](const Eigen::Vector3d& q) { return Eigen::Vector3d(c + q.x() * X + q.y() * Y + q.z() * Z); };
+
+  // --- silhouette, palm centre (largest inscribed circle), digits outside 1.3 × its radius ---
+  Grid g;
+  Eigen::Vector3d lo = h.front(), hi = h.front();
+  for (const auto& q : h) lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
+  g.u0 = lo.x() - 3, g.v0 = lo.y() - 3;
+  g.nx = static_cast<int>((hi.x() - lo.x()) / g.cell) + 7;
+  g.ny = static_cast<int>((hi.y() - lo.y()) / g.cell) + 7;
+  if (static_cast<long>(g.nx) * g.ny > 4000000) throw InputError("merged cloud", "spans more than 2 m; not a hand in mm");
+  g.on.assign(static_cast<size_t>(g.nx) * g.ny, 0);
+  std::vector<int> cell_of(h.size());
+  for (size_t i = 0; i < h.size(); ++i) {
+    cell_of[i] = g.idx(g.ci(h[i].x()), g.cj(h[i].y()));
+    g.on[cell_of[i]] = 1;
+  }
+  g.morph(true), g.morph(true), g.morph(false), g.morph(false);
+  const std::vector<double> dist = g.distance();
+  const int best = static_cast<int>(std::max_element(dist.begin(), dist.end()) - dist.begin());
+  const double R = dist[best] * g.cell;
+  const Eigen::Vector2d pc(g.u0 + (best % g.nx + 0.5) * g.cell, g.v0 + (best / g.nx + 0.5) * g.cell);
+  out.palm_radius_mm = R;
+  // Digits: what a morphological opening with a disc of 0.45 R removes (fingers are far
+  // narrower than the palm and the wrist stub, which survive it).
+  const double r0 = 0.45 * R / g.cell;
+  Grid core = g;
+  for (size_t k = 0; k < g.on.size(); ++k) core.on[k] = !(dist[k] >= r0);
+  const std::vector<double> to_core = core.distance();
+  std::vector<std::uint8_t> digit_cell(g.on.size(), 0);
+  for (size_t k = 0; k < g.on.size(); ++k) digit_cell[k] = g.on[k] && to_core[k] > r0;
+  std::vector<int> comp(g.on.size(), -1);
+  std::vector<std::vector<int>> comps;
+  for (int j = 0; j < g.ny; ++j)
+    for (int i = 0; i < g.nx; ++i) {
+      if (!digit_cell[g.idx(i, j)] || comp[g.idx(i, j)] >= 0) continue;
+      std::vector<int> cells;
+      std::queue<std::pair<int, int>> qu;
+      qu.push({i, j});
+      comp[g.idx(i, j)] = static_cast<int>(comps.size());
+      while (!qu.empty()) {
+        auto [a, b] = qu.front();
+        qu.pop();
+        cells.push_back(g.idx(a, b));
+        for (auto [da, db] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
+          const int x = a + da, y = b + db;
+          if (g.in(x, y) && digit_cell[g.idx(x, y)] && comp[g.idx(x, y)] < 0) {
+            comp[g.idx(x, y)] = static_cast<int>(comps.size());
+            qu.push({x, y});
+          }
+        }
+      }
+      comps.push_back(std::move(cells));
+    }
+  struct Digit {
+    std::vector<size_t> points;
+    double angle = 0;
+    Eigen::Vector3d o, d;  // axis (hand coordinates), outward
+    double tip = 0;        // skin tip along the axis from o
+  };
+  std::vector<Digit> digits;
+  for (size_t k = 0; k < comps.size(); ++k) {
+    if (comps[k].size() < 150) continue;  // specks the opening left
+    Digit dg;
+    Eigen::Vector2d m = Eigen::Vector2d::Zero();
+    for (int cidx : comps[k]) m += Eigen::Vector2d(g.u0 + (cidx % g.nx + 0.5) * g.cell, g.v0 + (cidx / g.nx + 0.5) * g.cell);
+    m /= static_cast<double>(comps[k].size());
+    dg.angle = std::atan2(m.y() - pc.y(), m.x() - pc.x());
+    digits.push_back(dg);
+    std::vector<std::uint8_t> mine(g.on.size(), 0);
+    for (int cidx : comps[k]) mine[cidx] = 1;
+    for (size_t i = 0; i < h.size(); ++i)
+      if (mine[cell_of[i]]) digits.back().points.push_back(i);
+  }
+  if (digits.size() != 5)
+    throw InputError("merged cloud", "automatic skeleton placement found " + std::to_string(digits.size()) +
+                                         " digits beyond the palm, not 5 (fingers touching or missing?); give a rig");
+  std::sort(digits.begin(), digits.end(), [](const Digit& a, const Digit& b) { return a.angle < b.angle; });
+  // Right hand, back up: little … index, then the thumb at the widest angular gap (+Y side).
+  const double gap_top = digits[4].angle - digits[3].angle, gap_bottom = digits[1].angle - digits[0].angle;
+  if (gap_bottom > gap_top)
+    throw InputError("merged cloud", "the thumb is on the little-finger side: a left hand? (only right hands are supported)");
+
+  // --- each digit's axis: a line through its section centres ---
+  for (Digit& dg : digits) {
+    std::vector<Eigen::Vector2d> p2;
+    for (size_t i : dg.points) p2.push_back(h[i].head<2>());
+    Eigen::Matrix2d ax;
+    Eigen::Vector2d m2;
+    principal_axes<2>(p2, &ax, &m2);
+    Eigen::Vector2d d2 = ax.col(0);
+    if (d2.dot(m2 - pc) < 0) d2 = -d2;
+    const Eigen::Vector2d n2(-d2.y(), d2.x());
+    double t0 = 1e300, t1 = -1e300;
+    for (const auto& q : p2) t0 = std::min(t0, (q - m2).dot(d2)), t1 = std::max(t1, (q - m2).dot(d2));
+    std::vector<Eigen::Vector3d> centres;
+    for (double t = t0 + 2; t < t1 - 6; t += 3) {
+      double a = 1e300, b = -1e300, zl = 1e300, zh = -1e300;
+      int n = 0;
+      for (size_t i : dg.points) {
+        const Eigen::Vector2d q = h[i].head<2>() - m2;
+        if (std::abs(q.dot(d2) - t) > 1.5) continue;
+        a = std::min(a, q.dot(n2)), b = std::max(b, q.dot(n2));
+        zl = std::min(zl, h[i].z()), zh = std::max(zh, h[i].z());
+        ++n;
+      }
+      if (n < 20) continue;
+      const Eigen::Vector2d q = m2 + t * d2 + 0.5 * (a + b) * n2;
+      centres.emplace_back(q.x(), q.y(), 0.5 * (zl + zh));
+    }
+    if (centres.size() < 4) throw InputError("merged cloud", "a digit is too short to find its axis; give a rig");
+    Eigen::Matrix3d a3;
+    principal_axes<3>(centres, &a3, &dg.o);
+    dg.d = a3.col(0);
+    if (dg.d.head<2>().dot(d2) < 0) dg.d = -dg.d;
+    dg.tip = -1e300;
+    for (size_t i : dg.points) dg.tip = std::max(dg.tip, (h[i] - dg.o).dot(dg.d));
+  }
+
+  // --- scale from the middle fingertip and the wrist cut; joints by the proportions ---
+  // The rig's hand frame (X from the wrist to the middle MCP) is only approximated by the
+  // principal axes, and the wrist, the scale and the MCPs depend on one another: three
+  // rounds of wrist → scale → digit joints → frame.
+  const Digit& middle = digits[2];
+  const Eigen::Vector3d middle_tip = middle.o + middle.tip * middle.d;
+  Eigen::Vector3d Xh = Eigen::Vector3d::UnitX(), W = Eigen::Vector3d::Zero();
+  double s = 1;
+  std::array<std::vector<Eigen::Vector3d>, 5> chains;  // hand coordinates, MCP ... tip
+  for (int round = 0; round < 3; ++round) {
+    const Eigen::Vector3d Yh = Eigen::Vector3d::UnitZ().cross(Xh);
+    double cut = 1e300;
+    for (const auto& q : h) cut = std::min(cut, q.dot(Xh));
+    s = ((middle_tip.dot(Xh)) - cut) / (kNominalHandLength + kWristCut);
+    double vl = 1e300, vh = -1e300, wl = 1e300, wh = -1e300;
+    for (const auto& q : h)
+      if (q.dot(Xh) < cut + 10) vl = std::min(vl, q.dot(Yh)), vh = std::max(vh, q.dot(Yh)), wl = std::min(wl, q.z()), wh = std::max(wh, q.z());
+    W = (cut + kWristCut * s) * Xh + 0.5 * (vl + vh) * Yh + 0.5 * (wl + wh) * Eigen::Vector3d::UnitZ();
+    // digits sorted little, ring, middle, index, thumb → fingers 4, 3, 2, 1, 0
+    for (int k = 0; k < 5; ++k) {
+      const int fi = 4 - k;
+      const Digit& dg = digits[k];
+      const FingerSpec& f = kFingers[fi];
+      std::vector<Eigen::Vector3d> js = {dg.o + (dg.tip - kTipInset * s) * dg.d};  // tip back to the MCP
+      const std::vector<double> lengths = fi == 0 ? std::vector<double>{f.distal, f.proximal}
+                                                  : std::vector<double>{f.distal, f.middle, f.proximal};
+      for (double L : lengths) js.push_back(js.back() - L * s * dg.d);
+      std::reverse(js.begin(), js.end());
+      chains[fi] = js;
+    }
+    Xh = chains[2].front() - W;
+    Xh.z() = 0;
+    Xh.normalize();
+  }
+  out.scale = s;
+  Rig& rig = out.rig;
+  rig.frame = "palm";
+  rig.joints[0] = to_cloud(W);
+  // The metacarpal bases at their nominal places in that frame.
+  const Eigen::Vector3d Yh = Eigen::Vector3d::UnitZ().cross(Xh);
+  for (int fi = 0; fi < 5; ++fi) {
+    const FingerSpec& f = kFingers[fi];
+    const auto chain = finger_chain(static_cast<Finger>(fi));
+    Eigen::Vector3d cmc = W + s * (f.cmc.x() * Xh + f.cmc.y() * Yh);
+    cmc.z() = fi == 0 ? W.z() - 6.0 * s : chains[fi].front().z();
+    rig.joints[chain[0]] = to_cloud(cmc);
+    for (size_t k2 = 0; k2 < chains[fi].size(); ++k2) rig.joints[chain[k2 + 1]] = to_cloud(chains[fi][k2]);
+  }
+  rig.palm_normal = Z;
+  out.palm_centre = to_cloud(Eigen::Vector3d(pc.x(), pc.y(), 0));
+  out.notes.push_back("joints along the measured digit axes with the proportions of Buryanov & Kotiuk (2010), scale " +
+                      std::to_string(s).substr(0, 5) + " from the middle fingertip and the wrist cut");
+  return out;
+}
+
+JointError joint_error(const Rig& a, const Rig& b) {
+  JointError e;
+  for (int j = 0; j < kJointCount; ++j) {
+    const double d = (a.joints[j] - b.joints[j]).norm();
+    e.mean_mm += d / kJointCount;
+    if (d > e.max_mm) e.max_mm = d, e.worst_joint = joints()[j].name;
+  }
+  return e;
+}
+
+}  // namespace handskin

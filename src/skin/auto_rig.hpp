@@ -1,0 +1,36 @@
+#pragma once
+/// Automatic skeleton placement (issue 5, step 1): the thesis placed the joints in the merged
+/// cloud by hand. Here the hand's frame, the five digits and their axes are found in the
+/// cloud, and the joints are put along the measured axes with anatomical proportions
+/// (core/hand_proportions.hpp) scaled to the measured hand.
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/rig.hpp"
+
+namespace handskin {
+
+struct AutoRig {
+  Rig rig;                  ///< palm frame (the cloud's), palm_normal set
+  double scale = 1;         ///< measured hand / nominal proportions
+  Eigen::Vector3d palm_centre = Eigen::Vector3d::Zero();
+  double palm_radius_mm = 0; ///< largest circle inscribed in the palm's silhouette
+  std::vector<std::string> notes;
+};
+
+/// Place the 25 joints in a merged cloud (palm frame, mm) of an open, flat right hand.
+/// `sides` labels each point 0 (palm scan) or 1 (back scan), which orients the back normal.
+/// Throws InputError when five digits and a wrist cannot be told apart (e.g. fingers
+/// touching, a digit missing) or the hand is a left hand.
+AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& points, const std::vector<std::uint32_t>& sides);
+
+struct JointError {
+  double mean_mm = 0, max_mm = 0;
+  std::string worst_joint;
+};
+/// Distances between the same joints of two rigs (same frame).
+JointError joint_error(const Rig& estimate, const Rig& reference);
+
+}  // namespace handskin
