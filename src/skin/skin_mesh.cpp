@@ -440,10 +440,18 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   std::vector<int> bone_tube(nb);
   for (size_t b = 0; b < nb; ++b) A[b] = T * R.bones[b].a, B[b] = T * R.bones[b].b, bone_tube[b] = tube_of_bone(R.bones[b]);
 
-  // --- the rig must sit in the cloud: every joint near some measured point ---
+  // --- the rig must sit in the cloud: the palm's joints (wrist, metacarpal bases and heads)
+  // inside its bounding box, give or take 15 mm. A digit's outer joints may lie outside it:
+  // that digit is then missing from the scan, which is a warning further on. ---
   Eigen::Vector3d lo = q.front(), hi = q.front();
   for (const auto& p : q) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-  for (int j = 0; j < kJointCount; ++j)
+  std::vector<int> palm_joints = {0};
+  for (int f = 0; f < kFingerCount; ++f) {
+    const auto c = finger_chain(static_cast<Finger>(f));
+    palm_joints.push_back(c[0]);
+    palm_joints.push_back(c[1]);
+  }
+  for (int j : palm_joints)
     if (((J[j].array() < lo.array() - 15).any() || (J[j].array() > hi.array() + 15).any()))
       throw InputError("rig", std::string("joint '") + joints()[j].name +
                                   "' lies outside the merged cloud (more than 15 mm beyond its bounding box); is the "
@@ -560,6 +568,18 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
       box[k] << 0.5 * (mn + mx), 0.5 * (mx - mn);
       ok[k] = true;
     }
+    // Planes without points (a hole in the scan) take their neighbours' centre and ellipse.
+    for (int k = 0; k < K; ++k) {
+      if (ok[k]) continue;
+      int a = k - 1, b = k + 1;
+      while (a >= 0 && !ok[a]) --a;
+      while (b < K && !ok[b]) ++b;
+      if (a < 0 && b >= K) break;
+      if (a < 0) box[k] = box[b];
+      else if (b >= K) box[k] = box[a];
+      else box[k] = box[a] + (box[b] - box[a]) * (static_cast<double>(k - a) / (b - a));
+    }
+    for (int k = 0; k < K; ++k) ok[k] = box[k](2) > 0;
     for (int pass = 0; pass < 2; ++pass) {
       std::vector<Eigen::Vector4d> sm = box;
       for (int k = 0; k < K; ++k) {
