@@ -4,7 +4,9 @@
 #include "posture/calibrate.hpp"
 #include "posture/solver.hpp"
 #include "register/registration.hpp"
+#include "skin/auto_rig.hpp"
 #include "skin/baseline.hpp"
+#include "skin/skin_mesh.hpp"
 
 #include "core/atomic_file.hpp"
 #include "core/random.hpp"
@@ -141,12 +143,42 @@ static void BM_PostureBatch(benchmark::State& st) {
 }
 BENCHMARK(BM_PostureBatch)->Unit(benchmark::kMicrosecond);
 
+// The fixture pair registered and merged (once).
+static const MergedArrays& fixture_merged() {
+  static const MergedArrays m = [] {
+    const RangeScan back = load_scan(kFix + "back"), palm = load_scan(kFix + "palm");
+    const Registration reg =
+        register_scans(back, palm, "back", "palm", RegistrationOptions{}, nullptr, [](const std::string&) {});
+    return merged_arrays(*reg.merged);
+  }();
+  return m;
+}
+
+// The skin stage (issue 5's goal: ≤ 200 ms): rings, stitching, decimation, checks.
+static void BM_SkinBuild(benchmark::State& st) {
+  const MergedArrays& m = fixture_merged();
+  const Rig rig = load_rig(kFix + "rig.json");
+  SkinResult s;
+  for (auto _ : st) s = build_skin(m.points, rig, SkinOptions{});
+  st.counters["points"] = static_cast<double>(m.points.size());
+  st.counters["triangles"] = static_cast<double>(s.health.faces);
+  st.counters["rings_ms"] = 1000 * s.seconds_rings;
+  st.counters["stitch_ms"] = 1000 * s.seconds_union;
+  st.counters["decimate_ms"] = 1000 * s.seconds_decimation;
+  st.counters["checks_ms"] = 1000 * s.seconds_checks;
+}
+BENCHMARK(BM_SkinBuild)->Unit(benchmark::kMillisecond)->Iterations(10);
+
+// Automatic skeleton placement in the fixture's merged cloud.
+static void BM_SkinAutoRig(benchmark::State& st) {
+  const MergedArrays& m = fixture_merged();
+  for (auto _ : st) benchmark::DoNotOptimize(place_skeleton(m.points, m.sides));
+}
+BENCHMARK(BM_SkinAutoRig)->Unit(benchmark::kMillisecond)->Iterations(10);
+
 // The skin stage's baseline: CGAL Poisson on the fixture's merged cloud (≤ 40 000 points).
 static void BM_SkinPoissonBaseline(benchmark::State& st) {
-  const RangeScan back = load_scan(kFix + "back"), palm = load_scan(kFix + "palm");
-  const Registration reg =
-      register_scans(back, palm, "back", "palm", RegistrationOptions{}, nullptr, [](const std::string&) {});
-  const MergedArrays m = merged_arrays(*reg.merged);
+  const MergedArrays& m = fixture_merged();
   size_t faces = 0;
   for (auto _ : st) faces = poisson_baseline(m.points, m.normals).mesh.n_faces();
   st.counters["triangles"] = static_cast<double>(faces);

@@ -6,6 +6,7 @@
 #include "core/json_util.hpp"
 #include "posture/angle_table.hpp"
 #include "core/dof.hpp"
+#include "core/rig.hpp"
 #include "scan/cloud.hpp"
 #include "scan/cubist_io.hpp"
 #include "test_util.hpp"
@@ -56,6 +57,57 @@ TEST(Cli, RunOnTheFixtureWritesItsOutputs) {
   EXPECT_EQ(rj["format"], "handskin-registration/1");
   EXPECT_EQ(load_cloud(dir + "/merged.ply")->size(), rj["merged"]["points"].get<size_t>());
   EXPECT_GT(fs::file_size(dir + "/merged.png"), 1000u);
+  // Skin stage: a watertight labelled mesh, the baseline beside it, the files on disk.
+  const Json& skin = report["stages"][3];
+  EXPECT_EQ(skin["name"], "skin");
+  EXPECT_EQ(skin["skeleton"]["used"], "given");
+  EXPECT_TRUE(skin["mesh"]["watertight"].get<bool>());
+  EXPECT_LE(skin["mesh"]["triangles"].get<int>(), 10000);
+  EXPECT_LT(skin["cloud_to_skin_mm"]["mean"].get<double>(), 0.15);
+  EXPECT_TRUE(skin["baseline"]["mesh"]["closed"].get<bool>());
+  for (const char* f : {"skin.ply", "skin.obj", "skin.png", "slices.json", "baseline.ply"})
+    EXPECT_TRUE(fs::exists(dir + "/" + f)) << f;
+  EXPECT_EQ(load_json_object(dir + "/slices.json")["format"], "handskin-slices/1");
+}
+
+TEST(Cli, SkinFromAMergedCloudWithAndWithoutARig) {
+  const std::string reg = test::temp_dir("skinreg") + "/reg";
+  std::string out;
+  ASSERT_EQ(test::run(kBin + " -q register --back " + kFix + "back --palm " + kFix + "palm --out " + reg, &out), 0) << out;
+  const std::string pipe = test::temp_dir("skinpipe") + "/p.json";
+  test::write_text(pipe, R"({"format": "handskin-pipeline/1", "skin": {"baseline": false, "slices_json": false}})");
+  // Given rig, automatic placement compared with it, and the truth's figures.
+  const std::string dir = test::temp_dir("skin") + "/out";
+  ASSERT_EQ(test::run(kBin + " -q skin --merged " + reg + "/merged.ply --rig " + kFix + "rig.json --auto-rig --truth " + kFix +
+                          "truth.json --pipeline " + pipe + " --out " + dir,
+                      &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("watertight yes"), std::string::npos) << out;
+  const Json r = load_json_object(dir + "/skin_report.json");
+  EXPECT_EQ(r["format"], "handskin-skin-report/1");
+  EXPECT_EQ(r["skeleton"]["used"], "automatic");
+  EXPECT_LE(r["skeleton"]["automatic"]["against_given_rig"]["mean_joint_error_mm"].get<double>(), 3.0);
+  EXPECT_LE(r["truth"]["skin_to_truth_mm"]["mean"].get<double>(), 0.15);
+  EXPECT_GE(r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.98);
+  EXPECT_TRUE(fs::exists(dir + "/rig_auto.json"));
+  EXPECT_FALSE(fs::exists(dir + "/baseline.ply"));
+  EXPECT_NO_THROW(load_rig(dir + "/rig_auto.json"));
+  // No rig at all: placed automatically.
+  const std::string dir2 = test::temp_dir("skin2") + "/out";
+  ASSERT_EQ(test::run(kBin + " -q skin --merged " + reg + "/merged.ply --pipeline " + pipe + " --out " + dir2, &out), 0) << out;
+  EXPECT_EQ(load_json_object(dir2 + "/skin_report.json")["skeleton"]["used"], "automatic");
+  // Bad inputs: one line naming the file or key, nothing written.
+  const std::string dir3 = test::temp_dir("skin3") + "/out";
+  const std::string junk = test::temp_dir("skinjunk") + "/merged.ply";
+  test::write_text(junk, "ply\nformat ascii 1.0\nelement vertex 2\nend_header\n1 2\n");
+  EXPECT_EQ(test::run(kBin + " -q skin --merged " + junk + " --out " + dir3, &out), 1);
+  EXPECT_EQ(out.rfind("error: " + junk, 0), 0u) << out;
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+  test::write_text(pipe, R"({"format": "handskin-pipeline/1", "skin": {"max_triangles": 12}})");
+  EXPECT_EQ(test::run(kBin + " -q skin --merged " + reg + "/merged.ply --pipeline " + pipe + " --out " + dir3, &out), 1);
+  EXPECT_NE(out.find("skin.max_triangles"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir3));
 }
 
 TEST(Cli, RegisterReportsAgainstTruthAndRefusesBadMarkerFiles) {

@@ -398,7 +398,7 @@ MergedCloud::Ptr load_merged(const std::string& path) {
   MergedCloud::Ptr cloud(new MergedCloud);
   // PCL's reader reports the camera element it skips on every file save_merged writes.
   const auto verbosity = pcl::console::getVerbosityLevel();
-  pcl::console::setVerbosityLevel(pcl::console::L_ERROR);
+  pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);  // errors too: ours names the file
   const int status = pcl::io::loadPLYFile(path, *cloud);
   pcl::console::setVerbosityLevel(verbosity);
   if (status < 0) throw InputError(path, "not a readable PLY point cloud");

@@ -137,12 +137,19 @@ void fill_slabs(TubeBuild* t, const std::vector<Eigen::Vector3d>& pts, double h,
 #pragma omp parallel for schedule(static)
   for (long i = 0; i < static_cast<long>(pts.size()); ++i) {
     const Eigen::Vector3d& q = pts[i];
-    size_t best = 0;
-    double bd = 1e300, bsigned = 0;
-    for (size_t k = 0; k < K; ++k) {
-      const double d = t->st[k].n.dot(q - t->st[k].o);
-      if (std::abs(d) < bd) bd = std::abs(d), best = k, bsigned = d;
+    // The planes are ordered along the tube and never cross within it, so the signed
+    // distance falls along the stations: bisect for its sign change.
+    auto dist = [&](size_t k) { return t->st[k].n.dot(q - t->st[k].o); };
+    size_t a = 0, b = K;  // first station with a negative distance lies in [a, b]
+    while (a < b) {
+      const size_t m = (a + b) / 2;
+      if (dist(m) >= 0) a = m + 1;
+      else b = m;
     }
+    size_t best = a;
+    double bsigned = a < K ? dist(a) : 1e300;
+    if (a > 0 && (a == K || std::abs(dist(a - 1)) < std::abs(bsigned))) best = a - 1, bsigned = dist(a - 1);
+    const double bd = std::abs(bsigned);
     if (best + 1 == K && bsigned > 0.5 * h) where[i] = dome ? static_cast<int>(K) : -1;
     else if ((best == 0 && bsigned < -0.5 * h) || bd > 0.75 * h) where[i] = -1;
     else where[i] = static_cast<int>(best);
@@ -692,8 +699,12 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   // --- tubes to CGAL meshes, stitched by corefinement union ---
   const auto t1 = Clock::now();
   std::map<std::array<double, 3>, std::pair<int, int>> origin;  // exact position → tube, ring
-  SM skin;
-  bool first = true;
+  // Each tube is checked on its own; then the digits, which do not touch one another (the
+  // fingers were kept apart above), go in as one mesh of five shells, so that the palm is
+  // stitched to all of them in a single corefinement. Should two digits touch after all
+  // (e.g. the thumb lying on the index), they are stitched one by one instead.
+  std::vector<SM> parts;
+  std::vector<int> part_tube;
   for (const auto& t : tubes) {
     if (!t.report.present) continue;
     std::vector<Eigen::Vector3d> V;
@@ -702,20 +713,34 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
     tube_mesh(t, &V, &F, &ring_of);
     for (auto& p : V) p = Ti * p;
     for (size_t i = 0; i < V.size(); ++i) origin[{V[i].x(), V[i].y(), V[i].z()}] = {t.id, ring_of[i]};
-    SM sm = to_surface_mesh(V, F);
-    if (PMP::does_self_intersect(sm))
+    parts.push_back(to_surface_mesh(V, F));
+    part_tube.push_back(t.id);
+    if (PMP::does_self_intersect(parts.back()))
       throw InputError("merged cloud", std::string("the ") + skin_tube_name(t.id) +
                                            " tube folds into itself; the rig may be badly placed for this scan");
-    if (first) {
-      skin = std::move(sm);
-      first = false;
-      continue;
-    }
+  }
+  auto unite = [&](SM& a, SM& b, const std::string& what) {
     SM out;
-    if (!PMP::corefine_and_compute_union(skin, sm, out))
-      throw InputError("merged cloud", std::string("the ") + skin_tube_name(t.id) +
-                                           " tube cannot be stitched to the rest into a closed manifold");
-    skin = std::move(out);
+    if (!PMP::corefine_and_compute_union(a, b, out))
+      throw InputError("merged cloud", "the " + what + " cannot be stitched to the palm into a closed manifold");
+    return out;
+  };
+  SM skin = std::move(parts.front());  // the palm
+  SM digits;
+  for (size_t k = 1; k < parts.size(); ++k) {
+    const auto V = parts[k].points();
+    std::vector<SM::Vertex_index> map(parts[k].number_of_vertices());
+    for (auto v : parts[k].vertices()) map[v.idx()] = digits.add_vertex(parts[k].point(v));
+    for (auto f : parts[k].faces()) {
+      std::vector<SM::Vertex_index> tri;
+      for (auto v : CGAL::vertices_around_face(parts[k].halfedge(f), parts[k])) tri.push_back(map[v.idx()]);
+      digits.add_face(tri[0], tri[1], tri[2]);
+    }
+  }
+  if (parts.size() > 1 && !PMP::does_self_intersect(digits)) {
+    skin = unite(skin, digits, "digits");
+  } else {
+    for (size_t k = 1; k < parts.size(); ++k) skin = unite(skin, parts[k], skin_tube_name(part_tube[k]) + std::string(" tube"));
   }
   // The union's boundary also bounds any pocket the tubes enclose between them: inward-facing
   // shells inside the skin. They are dropped; a second outward shell would be a digit that
@@ -763,7 +788,7 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
     dec.add(quadric);
     dec.add(flipping);
     dec.module(quadric).set_max_err(o.decimation_tolerance_mm * o.decimation_tolerance_mm, false);
-    dec.module(flipping).set_max_normal_deviation(20.0);
+    dec.module(flipping).set_max_normal_deviation(20.0);  // without it, collapses fold the skin
     HS_CHECK(dec.initialize(), "decimater setup failed");
     dec.decimate_to_faces(0, static_cast<size_t>(o.max_triangles));
     m.garbage_collection();
