@@ -7,4 +7,4 @@ bash scripts/build.sh
 OUT=${OUT:-out/default}
 ./build/handskin run --back fixtures/default/back --palm fixtures/default/palm \
   --rig fixtures/default/rig.json --out "$OUT" --pipeline pipelines/cubist.json
-echo "handskin: outputs are in $(realpath "$OUT") (report.json, registration.json, merged.ply, merged.png, back.ply, palm.ply)"
+echo "handskin: outputs are in $(realpath "$OUT") (report.json, skin.ply, skin.obj, skin.png, merged.ply, registration.json, ...)"
