@@ -43,8 +43,18 @@ struct Profile {
   // pick noise); else linear interpolation between the measured neighbours (eqs. 4.1–4.2);
   // across a gap wider than `bridge` a closed profile takes its Fourier fit instead.
   double at(double p, double window = 0.035, double bridge = 0.2) const {
-    const size_t n = phi.size();
     p = wrap(p);
+    double mean = 0;
+    if (window_mean(p, window, &mean)) return mean;
+    const auto [lo, hi] = neighbours(p);
+    const double span = wrap(phi[hi] - phi[lo]);
+    if (span == 0) return rho[lo];
+    if (has_fourier && span > bridge) return fourier_at(p);
+    return rho[lo] + wrap(p - phi[lo]) / span * (rho[hi] - rho[lo]);
+  }
+
+  /// The mean of the radii within ±window of angle p (in [0, 2π)), when at least 3 lie there.
+  bool window_mean(double p, double window, double* mean) const {
     double sum = 0;
     int count = 0;
     auto add_range = [&](double a, double b) {  // [a, b] within [0, 2π)
@@ -54,15 +64,15 @@ struct Profile {
     if (p - window < 0) add_range(0, p + window), add_range(p - window + kTwoPi, kTwoPi);
     else if (p + window >= kTwoPi) add_range(p - window, kTwoPi), add_range(0, p + window - kTwoPi);
     else add_range(p - window, p + window);
-    if (count >= 3) return sum / count;
-    const auto it = std::upper_bound(phi.begin(), phi.end(), p);
-    size_t hi = static_cast<size_t>(it - phi.begin()) % n;
-    size_t lo = (hi + n - 1) % n;
-    double span = wrap(phi[hi] - phi[lo]);
-    if (span == 0) return rho[lo];
-    if (has_fourier && span > bridge) return fourier_at(p);
-    const double t = wrap(p - phi[lo]) / span;
-    return rho[lo] + t * (rho[hi] - rho[lo]);
+    if (count < 3) return false;
+    *mean = sum / count;
+    return true;
+  }
+  /// The measured samples just below and above angle p (wrapping round).
+  std::pair<size_t, size_t> neighbours(double p) const {
+    const size_t n = phi.size();
+    const size_t hi = static_cast<size_t>(std::upper_bound(phi.begin(), phi.end(), p) - phi.begin()) % n;
+    return {(hi + n - 1) % n, hi};
   }
 
   /// The radius at angle p for a closed ring of the skin's strips: the window mean where the
@@ -73,18 +83,9 @@ struct Profile {
   double at_bridged(double p, double window, double bridge, double max_bulge = 0.35) const {
     const size_t n = phi.size();
     p = wrap(p);
-    double sum = 0;
-    int count = 0;
-    auto add_range = [&](double a, double b) {
-      for (auto it = std::lower_bound(phi.begin(), phi.end(), a); it != phi.end() && *it <= b; ++it)
-        sum += rho[static_cast<size_t>(it - phi.begin())], ++count;
-    };
-    if (p - window < 0) add_range(0, p + window), add_range(p - window + kTwoPi, kTwoPi);
-    else if (p + window >= kTwoPi) add_range(p - window, kTwoPi), add_range(0, p + window - kTwoPi);
-    else add_range(p - window, p + window);
-    if (count >= 3) return sum / count;
-    const auto it = std::upper_bound(phi.begin(), phi.end(), p);
-    const size_t hi = static_cast<size_t>(it - phi.begin()) % n, lo = (hi + n - 1) % n;
+    double mean = 0;
+    if (window_mean(p, window, &mean)) return mean;
+    const auto [lo, hi] = neighbours(p);
     const double span = wrap(phi[hi] - phi[lo]);
     if (span == 0) return rho[lo];
     if (span <= bridge) return rho[lo] + wrap(p - phi[lo]) / span * (rho[hi] - rho[lo]);

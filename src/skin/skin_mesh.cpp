@@ -728,7 +728,6 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   SM skin = std::move(parts.front());  // the palm
   SM digits;
   for (size_t k = 1; k < parts.size(); ++k) {
-    const auto V = parts[k].points();
     std::vector<SM::Vertex_index> map(parts[k].number_of_vertices());
     for (auto v : parts[k].vertices()) map[v.idx()] = digits.add_vertex(parts[k].point(v));
     for (auto f : parts[k].faces()) {
