@@ -97,6 +97,18 @@ TEST(Cli, SkinFromAMergedCloudWithAndWithoutARig) {
   const std::string dir2 = test::temp_dir("skin2") + "/out";
   ASSERT_EQ(test::run(kBin + " -q skin --merged " + reg + "/merged.ply --pipeline " + pipe + " --out " + dir2, &out), 0) << out;
   EXPECT_EQ(load_json_object(dir2 + "/skin_report.json")["skeleton"]["used"], "automatic");
+  // A rig with two fingers swapped still closes, but is reported.
+  Json swapped = load_json_object(kFix + "rig.json");
+  for (const char* j : {"metacarpal", "phalanx-proximal", "phalanx-intermediate", "phalanx-distal", "tip"})
+    std::swap(swapped["joints"][std::string("index-finger-") + j], swapped["joints"][std::string("ring-finger-") + j]);
+  const std::string bad_rig = test::temp_dir("skinrig") + "/rig.json";
+  test::write_text(bad_rig, swapped.dump());
+  ASSERT_EQ(test::run(kBin + " skin --merged " + reg + "/merged.ply --rig " + bad_rig + " --pipeline " + pipe + " --out " +
+                          test::temp_dir("skin4") + "/out",
+                      &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("warning: the given rig lies"), std::string::npos) << out;
   // Bad inputs: one line naming the file or key, nothing written.
   const std::string dir3 = test::temp_dir("skin3") + "/out";
   const std::string junk = test::temp_dir("skinjunk") + "/merged.ply";

@@ -795,7 +795,7 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
     if (m.n_faces() > static_cast<size_t>(o.max_triangles))
       R.warnings.push_back("the skin keeps " + std::to_string(m.n_faces()) + " triangles (budget " +
                            std::to_string(o.max_triangles) + "): fewer would move it more than " +
-                           std::to_string(o.decimation_tolerance_mm) + " mm");
+                           std::to_string(o.decimation_tolerance_mm).substr(0, 5) + " mm");
     // Back to CGAL for the self-intersection check.
     skin.clear();
     to_surface_mesh_into(mesh_vertices(m), mesh_faces(m), &skin);
