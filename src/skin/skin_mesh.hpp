@@ -9,7 +9,9 @@
 /// ring is resampled in polar coordinates about the link with a fixed number of points, so
 /// consecutive rings pair up into strips. Fingertips get a dome of rings about a tip centre,
 /// the wrist cut and the tubes' inner ends flat caps. The tubes are then stitched into one
-/// surface by a CGAL corefinement union: finger roots into the palm, the thumb web.
+/// surface by a CGAL corefinement union (finger roots into the palm, the thumb web),
+/// decimated to the triangle budget (OpenMesh) and checked: closed, manifold, outward, free
+/// of self-intersections. docs/skin.md has the details and the figures.
 #include <Eigen/Core>
 #include <functional>
 #include <string>
