@@ -231,10 +231,10 @@ void skin_command(const SkinArgs& a, const Progress& progress) {
   in.auto_rig = a.auto_rig;
   if (!a.truth.empty()) (void)load_json_object(a.truth);  // a bad file fails before any work
   progress("skin", "reading " + a.merged);
-  const MergedArrays m = merged_arrays(*load_merged(a.merged));
-  in.points = m.points;
-  in.normals = m.normals;
-  in.sides = m.sides;
+  MergedArrays m = merged_arrays(*load_merged(a.merged));
+  in.points = std::move(m.points);
+  in.normals = std::move(m.normals);
+  in.sides = std::move(m.sides);
   in.out_dir = a.out;
   in.truth_path = a.truth;
   Json report = run_skin_stage(in, po, [&](const std::string& msg) { progress("skin", msg); });
@@ -304,7 +304,7 @@ void register_command(const RegisterArgs& a, const Progress& progress) {
   ensure_directory(a.out);
   save_json((fs::path(a.out) / "registration.json").string(), reg.report);
   save_merged((fs::path(a.out) / "merged.ply").string(), *reg.merged);
-  write_file_atomic((fs::path(a.out) / "merged.png").string(), merged_preview_png(reg));
+  write_file_atomic((fs::path(a.out) / "merged.png").string(), merged_preview_png(merged_arrays(*reg.merged), reg.markers_palm));
   const Json& r = reg.report;
   std::printf("%s: %s, %zu of %zu/%zu markers matched, marker rms %.4f mm (refined %.4f mm), %zu merged points\n",
               r["status"].get<std::string>().c_str(), r["method"].get<std::string>().c_str(),

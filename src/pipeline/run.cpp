@@ -35,8 +35,7 @@ Json scan_figures(const RangeScan& scan, const std::string& stem) {
 }
 }  // namespace
 
-std::string merged_preview_png(const Registration& reg, int width) {
-  const MergedArrays m = merged_arrays(*reg.merged);
+std::string merged_preview_png(const MergedArrays& m, const std::vector<Eigen::Vector3d>& markers, int width) {
   std::vector<Eigen::Vector3f> c;
   c.reserve(m.sides.size());
   for (const std::uint32_t side : m.sides)
@@ -45,7 +44,7 @@ std::string merged_preview_png(const Registration& reg, int width) {
   ro.width = width;
   ro.height = width / 2;
   ro.view = principal_view(m.points);
-  ro.points = reg.markers_palm;
+  ro.points = markers;
   return render_points_png(m.points, m.normals, c, ro);
 }
 
@@ -122,17 +121,15 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   save_json(reg_json, reg.report);
   save_merged(merged_ply, *reg.merged);
   const std::string merged_png = (fs::path(in.out_dir) / "merged.png").string();
-  write_file_atomic(merged_png, merged_preview_png(reg));
+  MergedArrays merged = merged_arrays(*reg.merged);  // for the preview and the skin
+  write_file_atomic(merged_png, merged_preview_png(merged, reg.markers_palm));
   stages.push_back({{"name", "write"}, {"seconds", t_write.seconds()}});
 
   // --- skin: strips from the merged cloud, closed into one mesh (docs/skin.md) ---
   SkinStageInputs si;
-  {
-    MergedArrays m = merged_arrays(*reg.merged);
-    si.points = std::move(m.points);
-    si.normals = std::move(m.normals);
-    si.sides = std::move(m.sides);
-  }
+  si.points = std::move(merged.points);
+  si.normals = std::move(merged.normals);
+  si.sides = std::move(merged.sides);
   si.rig = rig;
   si.auto_rig = in.auto_rig;
   si.out_dir = in.out_dir;

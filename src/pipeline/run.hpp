@@ -32,7 +32,7 @@ struct RunResult {
 
 /// A side view of the merged cloud (palm samples blue-grey, back samples skin-toned, the
 /// markers as red dots): how the two halves meet, at a glance. PNG bytes.
-std::string merged_preview_png(const Registration& reg, int width = 1000);
+std::string merged_preview_png(const MergedArrays& merged, const std::vector<Eigen::Vector3d>& markers, int width = 1000);
 
 /// Run every stage; outputs are written atomically into `out_dir` (created if needed), the
 /// report last. Bad input throws InputError before any output is written.

@@ -49,9 +49,7 @@ Json health_json(const MeshHealth& h) {
 
 Json run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
                     const std::function<void(const std::string&)>& progress) {
-  const SkinOptions so = skin_options(options);
-  std::string err;
-  if (!so.IsValid(&err)) throw InputError("pipeline", err);
+  const SkinOptions so = skin_options(options);  // checked by build_skin (and when the pipeline was read)
   // --- the skeleton: given, or placed in the cloud (and compared with the given one) ---
   Json skeleton;
   Rig rig;
@@ -155,20 +153,20 @@ Json run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
     outputs["slices_json"] = sj;
   }
 
-  std::optional<TriMesh> baseline_mesh;
+  std::optional<BaselineResult> baseline;
+  std::optional<MeshDistance> to_base;
   if (options.skin.baseline) {
     progress("baseline: CGAL Poisson reconstruction of the same cloud (for comparison)");
-    const BaselineResult b = poisson_baseline(in.points, in.normals);
+    baseline = poisson_baseline(in.points, in.normals);
     const std::string bp = (fs::path(in.out_dir) / "baseline.ply").string();
-    save_mesh(bp, b.mesh);
+    save_mesh(bp, baseline->mesh);
     outputs["baseline_ply"] = bp;
-    const MeshDistance to_base(b.mesh);
+    to_base.emplace(baseline->mesh);
     j["baseline"] = {{"method", "CGAL poisson_surface_reconstruction_delaunay"},
-                     {"seconds", b.seconds},
-                     {"points_used", b.points_used},
-                     {"mesh", health_json(mesh_health(b.mesh))},
-                     {"cloud_to_baseline_mm", distance_json(one_way_distance(cloud, to_base))}};
-    baseline_mesh = b.mesh;
+                     {"seconds", baseline->seconds},
+                     {"points_used", baseline->points_used},
+                     {"mesh", health_json(mesh_health(baseline->mesh))},
+                     {"cloud_to_baseline_mm", distance_json(one_way_distance(cloud, *to_base))}};
   }
 
   if (!in.truth_path.empty()) {
@@ -188,11 +186,10 @@ Json run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
                   {"excluded_within_mm_of_markers", exclude},
                   {"skin_to_truth_mm", distance_json(one_way_distance(ours, to_truth, markers, exclude))},
                   {"truth_to_skin_mm", distance_json(one_way_distance(theirs, to_skin, markers, exclude))}};
-    if (baseline_mesh) {
-      const MeshDistance to_base(*baseline_mesh);
+    if (baseline) {
       j["truth"]["baseline_to_truth_mm"] =
-          distance_json(one_way_distance(sample_surface(*baseline_mesh, 4.0), to_truth, markers, exclude));
-      j["truth"]["truth_to_baseline_mm"] = distance_json(one_way_distance(theirs, to_base, markers, exclude));
+          distance_json(one_way_distance(sample_surface(baseline->mesh, 4.0), to_truth, markers, exclude));
+      j["truth"]["truth_to_baseline_mm"] = distance_json(one_way_distance(theirs, *to_base, markers, exclude));
     }
   }
   j["outputs"] = outputs;
