@@ -34,7 +34,7 @@ Json distance_json(const OneWayDistance& d) {
 // At most `limit` points, every k-th: distances from the whole cloud would cost more than
 // building the skin.
 std::vector<Eigen::Vector3d> thinned(const std::vector<Eigen::Vector3d>& p, size_t limit) {
-  const size_t step = std::max<size_t>(1, (p.size() + limit - 1) / limit);
+  const size_t step = thinning_step(p.size(), limit);
   std::vector<Eigen::Vector3d> out;
   for (size_t i = 0; i < p.size(); i += step) out.push_back(p[i]);
   return out;

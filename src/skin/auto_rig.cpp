@@ -1,6 +1,5 @@
 #include "skin/auto_rig.hpp"
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -9,25 +8,13 @@
 #include "core/dof.hpp"
 #include "core/errors.hpp"
 #include "core/hand_proportions.hpp"
+#include "skin/principal_axes.hpp"
 
 namespace handskin {
 
 namespace {
 
 using namespace proportions;
-
-// Principal axes of a point set (columns, by decreasing variance) and its mean.
-template <int D>
-void principal_axes(const std::vector<Eigen::Matrix<double, D, 1>>& p, Eigen::Matrix<double, D, D>* axes,
-                    Eigen::Matrix<double, D, 1>* mean) {
-  *mean = Eigen::Matrix<double, D, 1>::Zero();
-  for (const auto& x : p) *mean += x;
-  *mean /= static_cast<double>(p.size());
-  Eigen::Matrix<double, D, D> C = Eigen::Matrix<double, D, D>::Zero();
-  for (const auto& x : p) C += (x - *mean) * (x - *mean).transpose();
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, D, D>> es(C);
-  *axes = es.eigenvectors().rowwise().reverse();
-}
 
 // The silhouette of the hand on its plane: a 1 mm grid of occupied cells. Written here rather
 // than with an image library: a few dozen lines (closing, a chamfer distance transform,
@@ -268,7 +255,6 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     for (size_t k2 = 0; k2 < chains[fi].size(); ++k2) rig.joints[chain[k2 + 1]] = to_cloud(chains[fi][k2]);
   }
   rig.palm_normal = Z;
-  out.palm_centre = to_cloud(Eigen::Vector3d(pc.x(), pc.y(), 0));
   out.notes.push_back("joints along the measured digit axes with the proportions of Buryanov & Kotiuk (2010), scale " +
                       std::to_string(s).substr(0, 5) + " from the middle fingertip and the wrist cut");
   return out;

@@ -15,7 +15,6 @@ namespace handskin {
 struct AutoRig {
   Rig rig;                  ///< palm frame (the cloud's), palm_normal set
   double scale = 1;         ///< measured hand / nominal proportions
-  Eigen::Vector3d palm_centre = Eigen::Vector3d::Zero();
   double palm_radius_mm = 0; ///< largest circle inscribed in the palm's silhouette
   std::vector<std::string> notes;
 };

@@ -20,6 +20,10 @@ using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 using Pwn = std::pair<K::Point_3, K::Vector_3>;
 }  // namespace
 
+size_t thinning_step(size_t n, size_t max_points) {
+  return std::max<size_t>(1, (n + max_points - 1) / std::max<size_t>(max_points, 1));
+}
+
 BaselineResult poisson_baseline(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& normals,
                                 size_t max_points) {
   HS_CHECK(points.size() == normals.size(), "points and normals differ in length");
@@ -29,7 +33,7 @@ BaselineResult poisson_baseline(const std::vector<Eigen::Vector3d>& points, cons
   CGAL::get_default_random() = CGAL::Random(1);
   BaselineResult r;
   std::vector<Pwn> pwn;
-  const size_t step = std::max<size_t>(1, (points.size() + max_points - 1) / std::max<size_t>(max_points, 1));
+  const size_t step = thinning_step(points.size(), max_points);
   for (size_t i = 0; i < points.size(); i += step) {
     if (normals[i].squaredNorm() < 0.5) continue;  // samples without a normal cannot orient the field
     pwn.emplace_back(K::Point_3(points[i].x(), points[i].y(), points[i].z()),

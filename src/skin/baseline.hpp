@@ -16,6 +16,9 @@ struct BaselineResult {
   double average_spacing_mm = 0;
 };
 
+/// Every how many points to take so that at most `max_points` of `n` are used (≥ 1).
+size_t thinning_step(size_t n, size_t max_points);
+
 /// Poisson reconstruction (CGAL, Delaunay refinement meshing of the implicit function) of
 /// oriented points; every k-th point is used so that at most `max_points` go in.
 BaselineResult poisson_baseline(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& normals,

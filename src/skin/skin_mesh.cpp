@@ -10,7 +10,6 @@
 #include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
 #include <OpenMesh/Tools/Decimater/ModQuadricT.hh>
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -22,6 +21,7 @@
 #include "core/dof.hpp"
 #include "core/errors.hpp"
 #include "mesh/from_cgal.hpp"
+#include "skin/principal_axes.hpp"
 #include "skin/profile.hpp"
 
 namespace handskin {
@@ -53,7 +53,6 @@ struct TubeBuild {
   std::vector<Station> st;
   std::vector<std::vector<Eigen::Vector2d>> slab;  ///< per station: in-plane points relative to o
   std::vector<Eigen::Vector3d> beyond;            ///< points past the last station (fingertip dome)
-  size_t points = 0;
   std::vector<std::vector<Eigen::Vector3d>> rings;
   std::vector<int> ring_station;
   std::vector<Eigen::Vector3d> ring_centre;
@@ -93,7 +92,6 @@ struct Polyline {
     s.push_back(0);
     for (size_t i = 1; i < p.size(); ++i) s.push_back(s.back() + (p[i] - p[i - 1]).norm());
   }
-  double length() const { return s.back(); }
   Eigen::Vector3d at(double t) const {
     size_t i = 0;
     while (i + 2 < p.size() && t > s[i + 1]) ++i;
@@ -528,14 +526,12 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
     R.webs.push_back(m0 + web * dir);
   }
   // The palm's end plane: vertical, through the webs' line, moved back to the most proximal web.
-  Eigen::Vector2d wc = Eigen::Vector2d::Zero();
-  for (const auto& w : R.webs) wc += w.head<2>();
-  wc /= static_cast<double>(R.webs.size());
-  Eigen::Matrix2d C = Eigen::Matrix2d::Zero();
-  for (const auto& w : R.webs) C += (w.head<2>() - wc) * (w.head<2>() - wc).transpose();
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(C);
-  Eigen::Vector2d line = es.eigenvectors().col(1);
-  Eigen::Vector2d nend(line.y(), -line.x());
+  std::vector<Eigen::Vector2d> web_xy;
+  for (const auto& w : R.webs) web_xy.push_back(w.head<2>());
+  Eigen::Matrix2d web_axes;
+  Eigen::Vector2d wc;
+  principal_axes<2>(web_xy, &web_axes, &wc);
+  Eigen::Vector2d nend(web_axes(1, 0), -web_axes(0, 0));
   if (nend.x() < 0) nend = -nend;
   double alpha_end = std::atan2(nend.y(), nend.x());
   alpha_end = std::clamp(alpha_end, -35 * kDeg, 35 * kDeg);
@@ -605,7 +601,7 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
       s.a = std::max(box[k](2), 1.0);
       s.b = std::clamp(box[k](3), s.a / 4, s.a * 4);
     }
-    t.points = palm_pts.size();
+    t.report.points = palm_pts.size();
     resample_rings(&t, 8 * pps, o, false);
   }
   // --- digits: planes perpendicular to their own links, from the root to the tip's dome ---
@@ -617,7 +613,7 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
     for (size_t k = f == 0 ? 0 : 1; k < chain.size(); ++k) axis.push_back(J[chain[k]]);
     const Polyline pl(axis);
     const auto& pts = tube_pts[1 + f];
-    t.points = pts.size();
+    t.report.points = pts.size();
     t.report.name = skin_tube_name(1 + f);
     if (pts.size() < 50) {
       t.report.present = false;
@@ -683,7 +679,6 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   }
   for (auto& t : tubes) {
     t.report.name = skin_tube_name(t.id);
-    t.report.points = t.points;
     if (!t.report.present && t.id != 0)
       R.warnings.push_back(std::string("no ") + skin_tube_name(t.id) +
                            (t.id == 1 ? "" : " finger") + " in the scan: the skin is built without it");
