@@ -131,9 +131,8 @@ inline double segment_distance2(const Eigen::Vector3d& p, const Eigen::Vector3d&
   return (a + t * ab - p).squaredNorm();
 }
 
-/// Fit the profile's Fourier bridge (needs ≥ 10 samples). `ridge` > 0 pulls the harmonics
-/// toward zero (a circle), for sections whose samples leave wide stretches unseen.
-inline void fit_fourier(Profile* P, double ridge) {
+/// Fit the profile's Fourier bridge (needs ≥ 10 samples), by least squares.
+inline void fit_fourier(Profile* P) {
   const size_t m = P->phi.size();
   if (m < 10) return;
   Eigen::Matrix<double, 5, 5> N = Eigen::Matrix<double, 5, 5>::Zero();
@@ -145,7 +144,6 @@ inline void fit_fourier(Profile* P, double ridge) {
     N += row * row.transpose();
     r += row * P->rho[i];
   }
-  for (int k = 1; k < 5; ++k) N(k, k) += ridge * static_cast<double>(m);
   P->fourier = N.ldlt().solve(r);
   P->has_fourier = P->fourier.allFinite();
 }

@@ -188,9 +188,6 @@ void resample_rings(TubeBuild* t, int M, const SkinOptions& o, bool shrink_root)
       if (gap > bridge) unseen += gap;
     }
     if (kTwoPi - unseen < o.min_coverage_deg * kDeg) continue;
-    P.closed = true;
-    profile::fit_fourier(&P, 0.002);
-    if (!P.has_fourier) continue;
     std::vector<double> r;
     std::vector<double> sorted_rho = P.rho;
     std::nth_element(sorted_rho.begin(), sorted_rho.begin() + sorted_rho.size() / 2, sorted_rho.end());

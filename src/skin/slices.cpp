@@ -116,7 +116,7 @@ Slicing slice_cloud(const std::vector<Eigen::Vector3d>& pts, const std::vector<B
         if (g >= closed_gap) gap_after.push_back(i);
       }
       P.closed = gap_after.empty();
-      if (P.closed) profile::fit_fourier(&P, 0.0);
+      if (P.closed) profile::fit_fourier(&P);
       for (size_t g = 0; g < gap_after.size(); ++g) {
         const size_t first = (gap_after[g] + 1) % m;
         const size_t last = gap_after[(g + 1) % gap_after.size()];
