@@ -238,6 +238,16 @@ TEST(SkinMesh, RigFromAnotherScanIsAClearError) {
             std::string::npos);
 }
 
+TEST(SkinMesh, RigShiftedSidewaysFoldsATubeAndTheErrorNamesIt) {
+  // 8 mm toward the thumb: the index tube's rings, centred on the wrong axis, cross. The five
+  // digits are checked together first; the error must still name the tube that folds.
+  const MergedArrays& m = fixture_merged();
+  Rig rig = load_rig(kFixture + "rig.json");
+  for (auto& j : rig.joints) j.y() += 8;
+  const std::string e = input_error_of([&] { build_skin(m.points, rig, SkinOptions{}); });
+  EXPECT_NE(e.find("the index tube folds into itself"), std::string::npos) << e;
+}
+
 TEST(SkinMesh, PlyCarriesTheLabels) {
   const MergedArrays& m = fixture_merged();
   const SkinResult s = build_skin(m.points, load_rig(kFixture + "rig.json"), SkinOptions{});

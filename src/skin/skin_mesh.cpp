@@ -6,9 +6,9 @@
 #include <CGAL/Polygon_mesh_processing/measure.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Surface_mesh.h>
-#include <OpenMesh/Tools/Decimater/DecimaterT.hh>
-#include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
-#include <OpenMesh/Tools/Decimater/ModQuadricT.hh>
+#include <CGAL/Surface_mesh_simplification/Edge_collapse_visitor_base.h>
+#include <CGAL/Surface_mesh_simplification/Policies/Edge_collapse/GarlandHeckbert_plane_policies.h>
+#include <CGAL/Surface_mesh_simplification/edge_collapse.h>
 
 #include <algorithm>
 #include <array>
@@ -169,7 +169,9 @@ void resample_rings(TubeBuild* t, int M, const SkinOptions& o, bool shrink_root)
   const double window = o.window_deg * kDeg, bridge = 0.2;
   std::vector<std::optional<std::vector<double>>> rho(K);
   std::vector<std::vector<double>> phi(K);
-  for (size_t k = 0; k < K; ++k) {
+#pragma omp parallel for schedule(dynamic)
+  for (long kk = 0; kk < static_cast<long>(K); ++kk) {
+    const size_t k = static_cast<size_t>(kk);
     const Station& s = t->st[k];
     for (int j = 0; j < M; ++j) {
       const double psi = kTwoPi * j / M;
@@ -386,6 +388,71 @@ SM to_surface_mesh(const std::vector<Eigen::Vector3d>& V, const std::vector<std:
   return sm;
 }
 
+using Origin = SM::Property_map<SM::Vertex_index, std::pair<int, int>>;
+
+/// Edge-collapse filter: refuses a placement that turns any surviving triangle of the
+/// collapse's star by more than `max_deg` (CGAL's Bounded_normal_change_filter only refuses
+/// flips, i.e. 90°, which still lets the thin web and fingertip strips crease).
+struct NormalDeviationFilter {
+  double cos_max;
+  template <class Profile>
+  boost::optional<typename Profile::Point> operator()(const Profile& profile,
+                                                      boost::optional<typename Profile::Point> op) const {
+    if (!op) return op;
+    const auto& vpm = profile.vertex_point_map();
+    const auto& tris = profile.triangles();
+    // The first one or two triangles are the ones that vanish with the edge; in the rest, v1
+    // is the vertex that moves to the placement.
+    size_t first = (profile.left_face_exists() ? 1 : 0) + (profile.right_face_exists() ? 1 : 0);
+    for (size_t i = first; i < tris.size(); ++i) {
+      const K::Point_3 &p = get(vpm, tris[i].v0), &q = get(vpm, tris[i].v1), &r = get(vpm, tris[i].v2);
+      const K::Vector_3 n1 = CGAL::cross_product(p - q, r - q), n2 = CGAL::cross_product(p - *op, r - *op);
+      const double d = n1 * n2, l = std::sqrt((n1 * n1) * (n2 * n2));
+      if (!(l > 0) || d < cos_max * l) return boost::none;
+    }
+    return op;
+  }
+};
+
+/// Stops at the triangle budget (a closed triangle mesh has 3F/2 edges) or when the cheapest
+/// collapse would move the surface more than the tolerance (the quadric error is a squared
+/// distance).
+struct BudgetOrToleranceStop {
+  size_t max_edges;
+  double max_cost;
+  template <class FT, class Profile>
+  bool operator()(const FT& cost, const Profile&, std::size_t, std::size_t edges) const {
+    return edges <= max_edges || cost > max_cost;
+  }
+};
+
+/// Keeps each vertex's (tube, ring) through the collapses: the survivor takes the origin of
+/// whichever end of the edge its new position lies nearer.
+struct OriginVisitor : CGAL::Surface_mesh_simplification::Edge_collapse_visitor_base<SM> {
+  Origin* origin;
+  template <class Profile>
+  void OnCollapsed(const Profile& profile, SM::Vertex_index kept) {
+    const auto& p = get(profile.vertex_point_map(), kept);
+    const bool first = CGAL::squared_distance(p, profile.p0()) <= CGAL::squared_distance(p, profile.p1());
+    (*origin)[kept] = (*origin)[first ? profile.v0() : profile.v1()];
+  }
+};
+
+/// Quadric-error decimation of a closed mesh to `max_faces`, moving it by at most about
+/// `tolerance_mm`, with garbage collected afterwards (the property maps follow).
+void decimate(SM* sm, size_t max_faces, double tolerance_mm, Origin origin) {
+  namespace SMS = CGAL::Surface_mesh_simplification;
+  SMS::GarlandHeckbert_plane_policies<SM, K> quadrics(*sm);
+  OriginVisitor visitor;
+  visitor.origin = &origin;
+  SMS::edge_collapse(*sm, BudgetOrToleranceStop{max_faces * 3 / 2, tolerance_mm * tolerance_mm},
+                     CGAL::parameters::get_cost(quadrics.get_cost())
+                         .get_placement(quadrics.get_placement())
+                         .filter(NormalDeviationFilter{std::cos(20.0 * kDeg)})
+                         .visitor(visitor));
+  sm->collect_garbage();
+}
+
 }  // namespace
 
 const char* skin_tube_name(int tube) {
@@ -464,12 +531,35 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   const double overlap = o.thumb_overlap_mm;
   constexpr int kThumb = static_cast<int>(SkinTube::Thumb);
   std::vector<std::uint8_t> label(q.size()), shared(q.size());
+  // Candidate links per 4 mm cell. The distance to a segment changes by at most r, the cell's
+  // half-diagonal, across the cell; so a link more than 2r + overlap farther from the cell's
+  // centre than the nearest one can neither be a point's nearest nor matter to the shared
+  // band. Only the candidates are measured (about a quarter of the links); results are those
+  // of measuring every link, ties included (candidates keep the links' order).
+  constexpr double kCell = 4.0;
+  const double cell_r = 0.5 * std::sqrt(3.0) * kCell;
+  const Eigen::Array3i cells = ((hi - lo) / kCell).array().floor().cast<int>() + 1;
+  auto cell_of = [&](const Eigen::Vector3d& p) {
+    const Eigen::Array3i c = ((p - lo) / kCell).array().floor().cast<int>().min(cells - 1).max(0);
+    return (static_cast<size_t>(c.z()) * cells.y() + c.y()) * cells.x() + c.x();
+  };
+  std::vector<std::vector<std::uint8_t>> candidates(static_cast<size_t>(cells.prod()));
+#pragma omp parallel for schedule(static)
+  for (long c = 0; c < static_cast<long>(candidates.size()); ++c) {
+    const long x = c % cells.x(), y = (c / cells.x()) % cells.y(), z = c / (cells.x() * cells.y());
+    const Eigen::Vector3d centre = lo + kCell * Eigen::Vector3d(x + 0.5, y + 0.5, z + 0.5);
+    std::vector<double> d(nb);
+    double dmin = 1e300;
+    for (size_t b = 0; b < nb; ++b) dmin = std::min(dmin, d[b] = std::sqrt(segment_distance2(centre, A[b], B[b])));
+    for (size_t b = 0; b < nb; ++b)
+      if (d[b] <= dmin + 2 * cell_r + overlap) candidates[c].push_back(static_cast<std::uint8_t>(b));
+  }
 #pragma omp parallel for schedule(static)
   for (long i = 0; i < static_cast<long>(q.size()); ++i) {
     const Eigen::Vector3d& p = q[i];
     size_t best = 0;
     double bd = 1e300, best_thumb = 1e300, best_other = 1e300;
-    for (size_t b = 0; b < nb; ++b) {
+    for (const size_t b : candidates[cell_of(p)]) {
       const double d = segment_distance2(p, A[b], B[b]);
       if (d < bd) bd = d, best = b;
       double& group = bone_tube[b] == kThumb ? best_thumb : best_other;
@@ -618,7 +708,8 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
     }
     // Where the tip ends (robust maximum of the arc length) and how wide it is there.
     std::vector<double> s_of(pts.size());
-    for (size_t i = 0; i < pts.size(); ++i) s_of[i] = pl.project(pts[i]);
+#pragma omp parallel for schedule(static)
+    for (long i = 0; i < static_cast<long>(pts.size()); ++i) s_of[i] = pl.project(pts[i]);
     std::vector<double> ss = s_of;
     std::sort(ss.begin(), ss.end());
     const double s_max = ss[ss.size() - std::min<size_t>(5, ss.size())];
@@ -688,10 +779,13 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   // --- tubes to CGAL meshes, stitched by corefinement union ---
   const auto t1 = Clock::now();
   std::map<std::array<double, 3>, std::pair<int, int>> origin;  // exact position → tube, ring
-  // Each tube is checked on its own; then the digits, which do not touch one another (the
-  // fingers were kept apart above), go in as one mesh of five shells, so that the palm is
-  // stitched to all of them in a single corefinement. Should two digits touch after all
-  // (e.g. the thumb lying on the index), they are stitched one by one instead.
+  // The digits, which do not touch one another (the fingers were kept apart above), go in as
+  // one mesh of five shells, so that the palm is stitched to all of them in a single
+  // corefinement. Corefinement needs inputs free of self-intersections: the palm is checked,
+  // and the five digits at once, which covers each digit's own folds as well as digits
+  // touching. Only if that check fails is each digit checked on its own, to name the one that
+  // folds; if none does, two digits touch (e.g. the thumb lying on the index) and they are
+  // stitched one by one instead.
   std::vector<SM> parts;
   std::vector<int> part_tube;
   for (const auto& t : tubes) {
@@ -704,17 +798,19 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
     for (size_t i = 0; i < V.size(); ++i) origin[{V[i].x(), V[i].y(), V[i].z()}] = {t.id, ring_of[i]};
     parts.push_back(to_surface_mesh(V, F));
     part_tube.push_back(t.id);
-    if (PMP::does_self_intersect(parts.back()))
-      throw InputError("merged cloud", std::string("the ") + skin_tube_name(t.id) +
-                                           " tube folds into itself; the rig may be badly placed for this scan");
   }
+  auto check_folds = [&](size_t k) {
+    if (PMP::does_self_intersect(parts[k]))
+      throw InputError("merged cloud", std::string("the ") + skin_tube_name(part_tube[k]) +
+                                           " tube folds into itself; the rig may be badly placed for this scan");
+  };
   auto unite = [&](SM& a, SM& b, const std::string& what) {
     SM out;
     if (!PMP::corefine_and_compute_union(a, b, out))
       throw InputError("merged cloud", "the " + what + " cannot be stitched to the palm into a closed manifold");
     return out;
   };
-  SM skin = std::move(parts.front());  // the palm
+  check_folds(0);
   SM digits;
   for (size_t k = 1; k < parts.size(); ++k) {
     std::vector<SM::Vertex_index> map(parts[k].number_of_vertices());
@@ -725,9 +821,11 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
       digits.add_face(tri[0], tri[1], tri[2]);
     }
   }
+  SM skin = std::move(parts.front());  // the palm
   if (parts.size() > 1 && !PMP::does_self_intersect(digits)) {
     skin = unite(skin, digits, "digits");
   } else {
+    for (size_t k = 1; k < parts.size(); ++k) check_folds(k);
     for (size_t k = 1; k < parts.size(); ++k) skin = unite(skin, parts[k], skin_tube_name(part_tube[k]) + std::string(" tube"));
   }
   // The union's boundary also bounds any pocket the tubes enclose between them: inward-facing
@@ -757,38 +855,28 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   R.seconds_union = since(t1);
   say("tubes stitched (" + std::to_string(static_cast<int>(R.seconds_union * 1000)) + " ms)");
 
-  // --- decimation to the triangle budget (OpenMesh, quadric error): the strips are uniform,
-  // but the flat back and palm need fewer triangles than the fingers' flanks. Collapses
-  // keep one of the two vertices, so surviving vertices keep their positions and labels. ---
+  // --- decimation to the triangle budget (CGAL edge collapse, Garland–Heckbert plane
+  // quadrics): the strips are uniform, but the flat back and palm need fewer triangles than
+  // the fingers' flanks. A collapse is refused when its quadric error exceeds the tolerance or
+  // when it turns a neighbouring triangle by more than 20° (without that guard, collapses fold
+  // the skin). OpenMesh's decimater did the same job in ~75 ms here, most of it spent in the
+  // per-halfedge legality checks of its heap set-up; CGAL's takes ~13 ms. Each vertex's
+  // origin (tube, ring) follows it through the collapses. ---
   const auto t2 = Clock::now();
-  R.mesh = to_trimesh(skin);
-  R.triangles_before_decimation = R.mesh.n_faces();
-  if (o.max_triangles > 0 && R.mesh.n_faces() > static_cast<size_t>(o.max_triangles)) {
-    TriMesh& m = R.mesh;
-    m.request_vertex_status();
-    m.request_edge_status();
-    m.request_face_status();
-    m.request_face_normals();
-    m.update_face_normals();
-    OpenMesh::Decimater::DecimaterT<TriMesh> dec(m);
-    OpenMesh::Decimater::ModQuadricT<TriMesh>::Handle quadric;
-    OpenMesh::Decimater::ModNormalFlippingT<TriMesh>::Handle flipping;
-    dec.add(quadric);
-    dec.add(flipping);
-    dec.module(quadric).set_max_err(o.decimation_tolerance_mm * o.decimation_tolerance_mm, false);
-    dec.module(flipping).set_max_normal_deviation(20.0);  // without it, collapses fold the skin
-    HS_CHECK(dec.initialize(), "decimater setup failed");
-    dec.decimate_to_faces(0, static_cast<size_t>(o.max_triangles));
-    m.garbage_collection();
-    m.release_face_normals();
-    if (m.n_faces() > static_cast<size_t>(o.max_triangles))
-      R.warnings.push_back("the skin keeps " + std::to_string(m.n_faces()) + " triangles (budget " +
+  auto origin_of = skin.add_property_map<SM::Vertex_index, std::pair<int, int>>("v:origin", {-1, -1}).first;
+  for (auto v : skin.vertices()) {
+    const auto& p = skin.point(v);
+    if (auto it = origin.find({p.x(), p.y(), p.z()}); it != origin.end()) origin_of[v] = it->second;
+  }
+  R.triangles_before_decimation = skin.number_of_faces();
+  if (o.max_triangles > 0 && skin.number_of_faces() > static_cast<size_t>(o.max_triangles)) {
+    decimate(&skin, static_cast<size_t>(o.max_triangles), o.decimation_tolerance_mm, origin_of);
+    if (skin.number_of_faces() > static_cast<size_t>(o.max_triangles))
+      R.warnings.push_back("the skin keeps " + std::to_string(skin.number_of_faces()) + " triangles (budget " +
                            std::to_string(o.max_triangles) + "): fewer would move it more than " +
                            std::to_string(o.decimation_tolerance_mm).substr(0, 5) + " mm");
-    // Back to CGAL for the self-intersection check.
-    skin.clear();
-    to_surface_mesh_into(mesh_vertices(m), mesh_faces(m), &skin);
   }
+  R.mesh = to_trimesh(skin);  // vertices in the order of skin.vertices()
   R.seconds_decimation = since(t2);
 
   // --- checks, labels, the OpenMesh result ---
@@ -800,10 +888,10 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   R.health = mesh_health(R.mesh);
   R.seconds_checks = since(t3);
   const auto V = mesh_vertices(R.mesh);
-  for (const auto& p : V) {
-    int tube = -1, ring = -1;
-    if (auto it = origin.find({p.x(), p.y(), p.z()}); it != origin.end()) tube = it->second.first, ring = it->second.second;
-    const Eigen::Vector3d ph = T * p;
+  size_t vi = 0;
+  for (auto v : skin.vertices()) {
+    const auto [tube, ring] = origin_of[v];
+    const Eigen::Vector3d ph = T * V[vi++];
     int best = 0;
     double bd = 1e300;
     for (size_t b = 0; b < nb; ++b) {
