@@ -830,27 +830,29 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   }
   // The union's boundary also bounds any pocket the tubes enclose between them: inward-facing
   // shells inside the skin. They are dropped; a second outward shell would be a digit that
-  // does not meet the palm, which is an error.
-  {
-    std::vector<SM> parts;
-    PMP::split_connected_components(skin, parts);
-    if (parts.size() > 1) {
-      SM outer;
-      int outward = 0, pockets = 0;
-      for (auto& part : parts) {
-        if (PMP::volume(part) > 0) {
-          ++outward;
-          outer = std::move(part);
-        } else {
-          ++pockets;
-        }
+  // does not meet the palm, which is an error. Counting the components first spares the copy
+  // into pieces in the usual case of one.
+  auto component = skin.add_property_map<SM::Face_index, std::size_t>("f:component", 0).first;
+  const std::size_t components = PMP::connected_components(skin, component);
+  skin.remove_property_map(component);
+  if (components > 1) {
+    std::vector<SM> pieces;
+    PMP::split_connected_components(skin, pieces);
+    SM outer;
+    int outward = 0, pockets = 0;
+    for (auto& piece : pieces) {
+      if (PMP::volume(piece) > 0) {
+        ++outward;
+        outer = std::move(piece);
+      } else {
+        ++pockets;
       }
-      if (outward != 1)
-        throw InputError("merged cloud", "the skin's tubes do not join into one surface (" + std::to_string(outward) +
-                                             " separate pieces); the rig may not fit this scan");
-      R.pockets_removed = pockets;
-      skin = std::move(outer);
     }
+    if (outward != 1)
+      throw InputError("merged cloud", "the skin's tubes do not join into one surface (" + std::to_string(outward) +
+                                           " separate pieces); the rig may not fit this scan");
+    R.pockets_removed = pockets;
+    skin = std::move(outer);
   }
   R.seconds_union = since(t1);
   say("tubes stitched (" + std::to_string(static_cast<int>(R.seconds_union * 1000)) + " ms)");
