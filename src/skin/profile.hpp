@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -44,12 +45,27 @@ struct Profile {
   // across a gap wider than `bridge` a closed profile takes its Fourier fit instead.
   double at(double p, double window = 0.035, double bridge = 0.2) const {
     p = wrap(p);
-    double mean = 0;
-    if (window_mean(p, window, &mean)) return mean;
-    const auto [lo, hi] = neighbours(p);
+    double r = 0;
+    size_t lo = 0, hi = 0;
+    if (near_estimate(p, window, bridge, &r, &lo, &hi)) return r;
+    return has_fourier ? fourier_at(p) : linear(p, lo, hi);
+  }
+
+  /// What both estimators share: the window mean where the data are dense, else linear
+  /// interpolation between the measured neighbours of p (in [0, 2π)) when their gap is at most
+  /// `bridge`. Across a wider gap it returns false with the neighbours, for the caller to bridge.
+  bool near_estimate(double p, double window, double bridge, double* r, size_t* lo, size_t* hi) const {
+    if (window_mean(p, window, r)) return true;
+    std::tie(*lo, *hi) = neighbours(p);
+    const double span = wrap(phi[*hi] - phi[*lo]);
+    if (span > 0 && span > bridge) return false;
+    *r = linear(p, *lo, *hi);
+    return true;
+  }
+  /// Linear interpolation in angle between samples lo and hi (eqs. 4.1–4.2).
+  double linear(double p, size_t lo, size_t hi) const {
     const double span = wrap(phi[hi] - phi[lo]);
     if (span == 0) return rho[lo];
-    if (has_fourier && span > bridge) return fourier_at(p);
     return rho[lo] + wrap(p - phi[lo]) / span * (rho[hi] - rho[lo]);
   }
 
@@ -83,12 +99,9 @@ struct Profile {
   double at_bridged(double p, double window, double bridge, double max_bulge = 0.35) const {
     const size_t n = phi.size();
     p = wrap(p);
-    double mean = 0;
-    if (window_mean(p, window, &mean)) return mean;
-    const auto [lo, hi] = neighbours(p);
-    const double span = wrap(phi[hi] - phi[lo]);
-    if (span == 0) return rho[lo];
-    if (span <= bridge) return rho[lo] + wrap(p - phi[lo]) / span * (rho[hi] - rho[lo]);
+    double near = 0;
+    size_t lo = 0, hi = 0;
+    if (near_estimate(p, window, bridge, &near, &lo, &hi)) return near;
     auto xy = [&](size_t i) { return Eigen::Vector2d(rho[i] * std::cos(phi[i]), rho[i] * std::sin(phi[i])); };
     const Eigen::Vector2d A = xy(lo), B = xy(hi), d(std::cos(p), std::sin(p));
     // Chord: A + s (B - A) = t d.
