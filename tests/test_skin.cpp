@@ -248,6 +248,42 @@ TEST(SkinMesh, RigShiftedSidewaysFoldsATubeAndTheErrorNamesIt) {
   EXPECT_NE(e.find("the index tube folds into itself"), std::string::npos) << e;
 }
 
+TEST(SkinMesh, DecimationStopsAtTheBudgetOrTheTolerance) {
+  const MergedArrays& m = fixture_merged();
+  const Rig rig = load_rig(kFixture + "rig.json");
+  const MeshDistance to_truth(load_mesh(kFixture + "truth_skin.ply"));
+  // A budget the 0.1 mm tolerance cannot reach (it stops near 8000): decimation stops early,
+  // and says so.
+  SkinOptions tight;
+  tight.max_triangles = 6000;
+  tight.decimation_tolerance_mm = 0.1;
+  const SkinResult a = build_skin(m.points, rig, tight);
+  expect_watertight(a);
+  EXPECT_GT(a.health.faces, 6000u);
+  EXPECT_LT(a.health.faces, a.triangles_before_decimation);
+  ASSERT_FALSE(a.warnings.empty());
+  EXPECT_NE(a.warnings.back().find("budget 6000"), std::string::npos) << a.warnings.back();
+  // With a looser tolerance the budget is met exactly, still closed and free of folds, and the
+  // labels survive the collapses.
+  SkinOptions loose = tight;
+  loose.decimation_tolerance_mm = 0.5;
+  const SkinResult b = build_skin(m.points, rig, loose);
+  expect_watertight(b);
+  EXPECT_LE(b.health.faces, 6000u);
+  EXPECT_GE(b.health.faces, 5990u);
+  EXPECT_TRUE(b.warnings.empty()) << b.warnings.front();
+  size_t with_ring = 0;
+  for (int r : b.vertex_ring) with_ring += r >= 0;
+  EXPECT_GT(with_ring, b.vertex_ring.size() / 2);
+  const OneWayDistance d = one_way_distance(sample_surface(b.mesh, 1.0), to_truth, fixture_markers(), 7.0);
+  EXPECT_LE(d.mean, 0.2);
+  // No decimation: every strip triangle kept.
+  SkinOptions none;
+  none.max_triangles = 0;
+  const SkinResult c = build_skin(m.points, rig, none);
+  EXPECT_EQ(c.health.faces, c.triangles_before_decimation);
+}
+
 TEST(SkinMesh, PlyCarriesTheLabels) {
   const MergedArrays& m = fixture_merged();
   const SkinResult s = build_skin(m.points, load_rig(kFixture + "rig.json"), SkinOptions{});

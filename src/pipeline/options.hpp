@@ -35,8 +35,8 @@ struct PipelineOptions {
     long smoothing_rings = 2;      ///< wrinkle filter: quadratic over ± this many rings
     double wrinkle_mm = 0.15;      ///< ... replaces radii straying from it by more than this
     long cap_rings = 4;            ///< rings of each fingertip's dome
-    long max_triangles = 9500;     ///< decimate to at most this many triangles (0: no decimation)
-    double decimation_tolerance_mm = 0.1;  ///< ... moving the surface by at most this
+    long max_triangles = 8000;     ///< decimate to at most this many triangles (0: no decimation)
+    double decimation_tolerance_mm = 0.15; ///< ... moving the surface by at most this
     bool slices_json = true;       ///< write slices.json (the thesis's sections, for inspection)
     bool baseline = true;          ///< also run CGAL Poisson on the cloud and report it beside
   } skin;

@@ -43,8 +43,8 @@ struct SkinOptions {
   double min_coverage_deg = 150;  ///< a ring's samples must cover this much of the circle
   /// Decimation (OpenMesh, quadric error) to at most this many triangles, moving the
   /// surface by at most decimation_tolerance_mm; 0: keep every strip triangle.
-  int max_triangles = 9500;
-  double decimation_tolerance_mm = 0.1;
+  int max_triangles = 8000;
+  double decimation_tolerance_mm = 0.15;
   bool check_self_intersections = true;
   bool IsValid(std::string* error) const;
 };
