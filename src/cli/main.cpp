@@ -229,14 +229,13 @@ void skin_command(const SkinArgs& a, const Progress& progress) {
       throw InputError(a.rig, "key 'frame' is \"" + in.rig->frame + "\"; the skin needs joints in the palm frame");
   }
   in.auto_rig = a.auto_rig;
-  if (!a.truth.empty()) (void)load_json_object(a.truth);  // a bad file fails before any work
+  if (!a.truth.empty()) in.truth = load_truth_skin(a.truth);  // before any work, so a bad file fails early
   progress("skin", "reading " + a.merged);
   MergedArrays m = merged_arrays(*load_merged(a.merged));
   in.points = std::move(m.points);
   in.normals = std::move(m.normals);
   in.sides = std::move(m.sides);
   in.out_dir = a.out;
-  in.truth_path = a.truth;
   Json report = run_skin_stage(in, po, [&](const std::string& msg) { progress("skin", msg); });
   report["format"] = "handskin-skin-report/1";
   report["inputs"] = {{"merged", a.merged}, {"rig", a.rig.empty() ? "(placed automatically)" : a.rig}, {"pipeline", a.pipeline.empty() ? "(built-in defaults)" : a.pipeline}};
@@ -277,15 +276,12 @@ void register_command(const RegisterArgs& a, const Progress& progress) {
   MarkerHints hints;
   if (!a.markers.empty()) hints = load_marker_hints(a.markers);
   // Truth (synthetic data): read before any work so a bad file fails early.
-  Json truth;
   Eigen::Isometry3d T_true = Eigen::Isometry3d::Identity();
   std::vector<Eigen::Vector3d> skin;
   if (!a.truth.empty()) {
-    truth = load_json_object(a.truth);
-    if (get_string(truth, "format", a.truth) != "handskin-truth/1")
-      throw InputError(a.truth, "key 'format' must be \"handskin-truth/1\"");
-    T_true = isometry_from_json(require(truth, "back_to_palm", a.truth), "back_to_palm", a.truth);
-    skin = mesh_vertices(load_mesh((fs::path(a.truth).parent_path() / get_string(truth, "skin", a.truth)).string()));
+    const TruthSkin truth = load_truth_skin(a.truth);
+    T_true = isometry_from_json(require(truth.json, "back_to_palm", a.truth), "back_to_palm", a.truth);
+    skin = mesh_vertices(truth.skin);
   }
   Registration reg = register_scans(back, palm, a.back + ".png", a.palm + ".png", ro,
                                     a.markers.empty() ? nullptr : &hints,

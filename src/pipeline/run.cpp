@@ -73,7 +73,8 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
     if (rig->frame != "palm")
       throw InputError(in.rig_path, "key 'frame' is \"" + rig->frame + "\"; the pipeline needs joints in the palm frame");
   }
-  if (!in.truth_path.empty()) (void)load_json_object(in.truth_path);  // a bad file fails before any work
+  std::optional<TruthSkin> truth;  // read before any work, so a bad file fails early
+  if (!in.truth_path.empty()) truth = load_truth_skin(in.truth_path);
   MarkerHints hints;
   if (!in.markers_path.empty()) hints = load_marker_hints(in.markers_path);
   const Cloud::Ptr back_cloud = dense_copy(*scan_to_organized_cloud(back));
@@ -133,7 +134,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   si.rig = rig;
   si.auto_rig = in.auto_rig;
   si.out_dir = in.out_dir;
-  si.truth_path = in.truth_path;
+  si.truth = std::move(truth);
   const Json skin = run_skin_stage(si, in.options, [&](const std::string& m) { progress("skin: " + m); });
   stages.push_back(skin);
 

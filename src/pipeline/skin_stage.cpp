@@ -47,22 +47,36 @@ Json health_json(const MeshHealth& h) {
 }
 }  // namespace
 
+TruthSkin load_truth_skin(const std::string& path) {
+  TruthSkin t;
+  t.path = path;
+  t.json = load_json_object(path);
+  if (get_string(t.json, "format", path) != "handskin-truth/1")
+    throw InputError(path, "key 'format' must be \"handskin-truth/1\"");
+  t.skin_path = (fs::path(path).parent_path() / get_string(t.json, "skin", path)).string();
+  t.skin = load_mesh(t.skin_path);
+  if (t.json.contains("markers_palm") && t.json["markers_palm"].is_array())
+    for (const auto& m : t.json["markers_palm"]) t.markers.push_back(to_vec3(m, "markers_palm", path));
+  t.exclude_mm = t.json.value("marker_radius_mm", 4.0) + 3.0;
+  return t;
+}
+
 Json run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
                     const std::function<void(const std::string&)>& progress) {
   const SkinOptions so = skin_options(options);  // checked by build_skin (and when the pipeline was read)
   // --- the skeleton: given, or placed in the cloud (and compared with the given one) ---
+  const bool automatic = in.auto_rig || !in.rig;
   Json skeleton;
-  Rig rig;
   std::vector<std::string> warnings;
   std::optional<AutoRig> placed;
   // The automatic placement also checks a given rig: a rig from another scan or with
   // fingers swapped still gives a closed skin, but a wrongly bound one.
   const auto ta = std::chrono::steady_clock::now();
   try {
-    if (in.auto_rig || !in.rig) progress("placing the skeleton in the cloud");
+    if (automatic) progress("placing the skeleton in the cloud");
     placed = place_skeleton(in.points, in.sides);
   } catch (const InputError& e) {
-    if (in.auto_rig || !in.rig) throw;
+    if (automatic) throw;
     skeleton["automatic"] = {{"failed", e.what()}};
   }
   if (placed) {
@@ -79,8 +93,8 @@ Json run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
                            "); is it this scan's rig, with the fingers in order?");
     }
   }
-  rig = in.auto_rig || !in.rig ? placed->rig : *in.rig;
-  skeleton["used"] = in.auto_rig || !in.rig ? "automatic" : "given";
+  const Rig& rig = automatic ? placed->rig : *in.rig;
+  skeleton["used"] = automatic ? "automatic" : "given";
 
   progress("building the strips (" + std::to_string(so.slicing.planes) + " planes, " +
            std::to_string(so.slicing.points_per_segment) + " points per segment)");
@@ -142,7 +156,7 @@ Json run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
   outputs["skin_ply"] = ply;
   outputs["skin_obj"] = obj;
   outputs["skin_png"] = png;
-  if (placed && (in.auto_rig || !in.rig)) {
+  if (automatic) {
     const std::string rp = (fs::path(in.out_dir) / "rig_auto.json").string();
     save_rig(rp, placed->rig);
     outputs["rig_auto"] = rp;
@@ -169,27 +183,19 @@ Json run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
                      {"cloud_to_baseline_mm", distance_json(one_way_distance(cloud, *to_base))}};
   }
 
-  if (!in.truth_path.empty()) {
-    progress("comparing with the true skin of " + in.truth_path);
-    const Json truth = load_json_object(in.truth_path);
-    if (!truth.contains("skin") || !truth["skin"].is_string())
-      throw InputError(in.truth_path, "key 'skin' (file name of the true skin) is missing");
-    const std::string skin_path = (fs::path(in.truth_path).parent_path() / truth["skin"].get<std::string>()).string();
-    const TriMesh true_skin = load_mesh(skin_path);
-    std::vector<Eigen::Vector3d> markers;
-    if (truth.contains("markers_palm") && truth["markers_palm"].is_array())
-      for (const auto& m : truth["markers_palm"]) markers.push_back(to_vec3(m, "markers_palm", in.truth_path));
-    const double exclude = truth.value("marker_radius_mm", 4.0) + 3.0;
-    const MeshDistance to_truth(true_skin);
-    const auto ours = sample_surface(skin.mesh, 4.0), theirs = sample_surface(true_skin, 4.0);
-    j["truth"] = {{"file", skin_path},
-                  {"excluded_within_mm_of_markers", exclude},
-                  {"skin_to_truth_mm", distance_json(one_way_distance(ours, to_truth, markers, exclude))},
-                  {"truth_to_skin_mm", distance_json(one_way_distance(theirs, to_skin, markers, exclude))}};
+  if (in.truth) {
+    const TruthSkin& t = *in.truth;
+    progress("comparing with the true skin of " + t.path);
+    const MeshDistance to_truth(t.skin);
+    const auto ours = sample_surface(skin.mesh, 4.0), theirs = sample_surface(t.skin, 4.0);
+    j["truth"] = {{"file", t.skin_path},
+                  {"excluded_within_mm_of_markers", t.exclude_mm},
+                  {"skin_to_truth_mm", distance_json(one_way_distance(ours, to_truth, t.markers, t.exclude_mm))},
+                  {"truth_to_skin_mm", distance_json(one_way_distance(theirs, to_skin, t.markers, t.exclude_mm))}};
     if (baseline) {
       j["truth"]["baseline_to_truth_mm"] =
-          distance_json(one_way_distance(sample_surface(baseline->mesh, 4.0), to_truth, markers, exclude));
-      j["truth"]["truth_to_baseline_mm"] = distance_json(one_way_distance(theirs, *to_base, markers, exclude));
+          distance_json(one_way_distance(sample_surface(baseline->mesh, 4.0), to_truth, t.markers, t.exclude_mm));
+      j["truth"]["truth_to_baseline_mm"] = distance_json(one_way_distance(theirs, *to_base, t.markers, t.exclude_mm));
     }
   }
   j["outputs"] = outputs;

@@ -10,9 +10,23 @@
 
 #include "core/json_util.hpp"
 #include "core/rig.hpp"
+#include "mesh/trimesh.hpp"
 #include "pipeline/options.hpp"
 
 namespace handskin {
+
+/// The true skin of a synthetic pair (truth.json, `handskin-truth/1`, written by `synth scan`).
+struct TruthSkin {
+  std::string path;                     ///< the truth.json
+  Json json;                            ///< all of it (the registration command reads back_to_palm)
+  std::string skin_path;                ///< its "skin" mesh, relative to the truth.json
+  TriMesh skin;
+  std::vector<Eigen::Vector3d> markers;  ///< "markers_palm": marker centres, palm frame
+  double exclude_mm = 7;                 ///< samples this near a marker's centre are left out (radius + 3)
+};
+/// Read and check a truth.json and its skin mesh; throws InputError naming the file and key.
+/// Callers read it before any work, so a bad file fails early and nothing is half-written.
+TruthSkin load_truth_skin(const std::string& path);
 
 struct SkinStageInputs {
   std::vector<Eigen::Vector3d> points, normals;  ///< merged cloud, palm frame (markers removed)
@@ -20,7 +34,7 @@ struct SkinStageInputs {
   std::optional<Rig> rig;                         ///< joints in the palm frame; none: placed automatically
   bool auto_rig = false;                          ///< place the skeleton even when a rig is given (and compare)
   std::string out_dir;
-  std::string truth_path;  ///< optional truth.json of a synthetic pair: figures against its skin
+  std::optional<TruthSkin> truth;  ///< a synthetic pair's true skin: figures against it
 };
 
 /// Place the skeleton when asked (or when no rig is given: rig_auto.json), build the skin and
