@@ -212,7 +212,6 @@ void convert(const ConvertArgs& a, const Progress& progress) {
   std::printf("%s\n", a.out.c_str());
 }
 
-// ---------------- register ----------------
 // ---------------- skin ----------------
 struct SkinArgs {
   std::string merged, rig, out = "skin", pipeline, truth;
@@ -223,11 +222,7 @@ void skin_command(const SkinArgs& a, const Progress& progress) {
   PipelineOptions po;
   if (!a.pipeline.empty()) po = load_pipeline(a.pipeline);
   SkinStageInputs in;
-  if (!a.rig.empty()) {
-    in.rig = load_rig(a.rig);
-    if (in.rig->frame != "palm")
-      throw InputError(a.rig, "key 'frame' is \"" + in.rig->frame + "\"; the skin needs joints in the palm frame");
-  }
+  if (!a.rig.empty()) in.rig = load_palm_rig(a.rig);
   in.auto_rig = a.auto_rig;
   if (!a.truth.empty()) in.truth = load_truth_skin(a.truth);  // before any work, so a bad file fails early
   progress("skin", "reading " + a.merged);
@@ -261,6 +256,7 @@ void skin_command(const SkinArgs& a, const Progress& progress) {
   }
 }
 
+// ---------------- register ----------------
 struct RegisterArgs {
   std::string back, palm, out = "registration", markers, pipeline, truth;
   bool no_refine = false;

@@ -68,11 +68,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
                        "only " + std::to_string(s->count_valid()) + " measured samples (ingest.min_returns is " +
                            std::to_string(in.options.ingest.min_returns) + ")");
   std::optional<Rig> rig;
-  if (!in.rig_path.empty()) {
-    rig = load_rig(in.rig_path);
-    if (rig->frame != "palm")
-      throw InputError(in.rig_path, "key 'frame' is \"" + rig->frame + "\"; the pipeline needs joints in the palm frame");
-  }
+  if (!in.rig_path.empty()) rig = load_palm_rig(in.rig_path);
   std::optional<TruthSkin> truth;  // read before any work, so a bad file fails early
   if (!in.truth_path.empty()) truth = load_truth_skin(in.truth_path);
   MarkerHints hints;

@@ -47,6 +47,13 @@ Json health_json(const MeshHealth& h) {
 }
 }  // namespace
 
+Rig load_palm_rig(const std::string& path) {
+  Rig rig = load_rig(path);
+  if (rig.frame != "palm")
+    throw InputError(path, "key 'frame' is \"" + rig.frame + "\"; the skin needs joints in the palm frame");
+  return rig;
+}
+
 TruthSkin load_truth_skin(const std::string& path) {
   TruthSkin t;
   t.path = path;

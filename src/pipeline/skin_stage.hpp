@@ -28,6 +28,10 @@ struct TruthSkin {
 /// Callers read it before any work, so a bad file fails early and nothing is half-written.
 TruthSkin load_truth_skin(const std::string& path);
 
+/// A rig for the skin stage: a hand-rig/1 file whose joints are in the palm frame (the
+/// merged cloud's); another frame is an InputError naming the file.
+Rig load_palm_rig(const std::string& path);
+
 struct SkinStageInputs {
   std::vector<Eigen::Vector3d> points, normals;  ///< merged cloud, palm frame (markers removed)
   std::vector<std::uint32_t> sides;               ///< per point: 0 palm scan, 1 back scan
