@@ -10,9 +10,7 @@
 
 namespace handskin::proportions {
 
-// Bone lengths (mm) of an adult hand, close to the mean lengths reported by
-// Buryanov & Kotiuk, "Proportions of hand segments", Int. J. Morphol. 28(3), 2010
-// (metacarpal, proximal, middle, distal; the thumb has no middle phalanx).
+// Bone lengths (mm): metacarpal, proximal, middle, distal; the thumb has no middle phalanx.
 struct FingerSpec {
   double metacarpal, proximal, middle, distal;
   Eigen::Vector2d cmc;   // metacarpal base in the hand plane

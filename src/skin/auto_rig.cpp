@@ -90,7 +90,7 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
   for (size_t i = 0; i < pts.size(); ++i) h[i] = Eigen::Vector3d((pts[i] - c).dot(X), (pts[i] - c).dot(Y), (pts[i] - c).dot(Z));
   auto to_cloud = [&](const Eigen::Vector3d& q) { return Eigen::Vector3d(c + q.x() * X + q.y() * Y + q.z() * Z); };
 
-  // --- silhouette, palm centre (largest inscribed circle), digits outside 1.3 × its radius ---
+  // --- silhouette, palm centre (largest inscribed circle), digits beyond an opening of it ---
   Grid g;
   Eigen::Vector3d lo = h.front(), hi = h.front();
   for (const auto& q : h) lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
