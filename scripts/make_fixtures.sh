@@ -7,7 +7,7 @@ BIN=${1:-./build/handskin}
 OUT=${2:-fixtures/default}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-"$BIN" --quiet synth hand --out "$work/hand" --seed 1 --no-render >/dev/null
+"$BIN" --quiet synth hand --out "$work/hand" --posture flat --seed 1 --no-render >/dev/null
 "$BIN" --quiet synth scan --mesh "$work/hand/hand.ply" --rig "$work/hand/hand_rig.json" --out "$work/scan" \
   --seed 2000 --no-render >/dev/null
 mkdir -p "$OUT"

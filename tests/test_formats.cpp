@@ -262,7 +262,12 @@ TEST(Pipeline, ShippedFileEqualsBuiltInDefaults) {
   EXPECT_EQ(o.slicing.planes, 50);
   EXPECT_EQ(o.slicing.points_per_segment, 10);
   EXPECT_EQ(o.patches.count, 96);
-  EXPECT_DOUBLE_EQ(o.markers.radius_mm, 4.0);  // the replica's markers (docs/registration.md)
+  EXPECT_FALSE(o.markers.radius_mm.has_value());  // estimated from the scans (docs/registration.md)
+  Json j = pipeline_to_json(o);
+  j["markers"]["radius_mm"] = 3.0;
+  EXPECT_DOUBLE_EQ(parse_pipeline(j, "p.json").markers.radius_mm.value(), 3.0);
+  EXPECT_TRUE(registration_options(parse_pipeline(j, "p.json")).estimate_radius == false);
+  EXPECT_TRUE(registration_options(o).estimate_radius);
 }
 
 TEST(Pipeline, BadFiles) {

@@ -177,10 +177,18 @@ TEST(SkinMesh, AutomaticSkeletonWithin3mmOfTheTrueRig) {
   EXPECT_LE(e.mean_mm, 3.0) << "worst " << e.worst_joint << " " << e.max_mm;  // measured 1.8
   EXPECT_LE(e.max_mm, 8.0);
   EXPECT_NEAR(a.scale, 1.0, 0.05);  // the fixture hand is the nominal one
-  // Mirrored (a left hand): refused, not mislabelled.
+  EXPECT_EQ(a.side, HandSide::Right);
+  // Mirrored: a left hand, placed as one (its joints the mirrored rig's), not mislabelled.
   std::vector<Eigen::Vector3d> mirrored = m.points;
   for (auto& p : mirrored) p.y() = -p.y();
-  EXPECT_NE(input_error_of([&] { place_skeleton(mirrored, m.sides); }).find("left hand"), std::string::npos);
+  Rig mirrored_rig = load_rig(kFixture + "rig.json");
+  for (auto& j : mirrored_rig.joints) j.y() = -j.y();
+  mirrored_rig.palm_normal->y() = -mirrored_rig.palm_normal->y();
+  const AutoRig l = place_skeleton(mirrored, m.sides);
+  EXPECT_EQ(l.side, HandSide::Left);
+  EXPECT_EQ(rig_side(l.rig), HandSide::Left);
+  const JointError el = joint_error(l.rig, mirrored_rig);
+  EXPECT_NEAR(el.mean_mm, e.mean_mm, 0.05) << "worst " << el.worst_joint;
 }
 
 TEST(SkinMesh, MissingFingerIsAWarningAndTheRestStaysWatertight) {
@@ -239,11 +247,11 @@ TEST(SkinMesh, RigFromAnotherScanIsAClearError) {
 }
 
 TEST(SkinMesh, RigShiftedSidewaysFoldsATubeAndTheErrorNamesIt) {
-  // 8 mm toward the thumb: the index tube's rings, centred on the wrong axis, cross. The five
+  // 8 mm along the palm frame's −Y: the index tube's rings, centred on the wrong axis, cross. The five
   // digits are checked together first; the error must still name the tube that folds.
   const MergedArrays& m = fixture_merged();
   Rig rig = load_rig(kFixture + "rig.json");
-  for (auto& j : rig.joints) j.y() += 8;
+  for (auto& j : rig.joints) j.y() -= 8;
   const std::string e = input_error_of([&] { build_skin(m.points, rig, SkinOptions{}); });
   EXPECT_NE(e.find("the index tube folds into itself"), std::string::npos) << e;
 }

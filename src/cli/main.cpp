@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
@@ -50,11 +51,22 @@ void check_options(bool ok, const std::string& where, const std::string& err) {
 struct SynthHandArgs {
   std::string out = "hand";
   HandShapeOptions shape;
+  std::string posture = "relaxed", side = "right";
+  std::vector<std::string> sets;
+  std::optional<double> thumb_pronation, index_ring_ratio, forearm;
   HandMeshOptions mesh;
   bool render = true;
 };
 
-void synth_hand(const SynthHandArgs& a, const Progress& progress) {
+void synth_hand(const SynthHandArgs& args, const Progress& progress) {
+  SynthHandArgs a = args;
+  if (a.side != "right" && a.side != "left") throw InputError("--side", "'" + a.side + "': must be right or left");
+  a.shape.side = a.side == "left" ? HandSide::Left : HandSide::Right;
+  a.shape.posture = parse_posture(a.posture, a.sets);
+  a.shape.thumb_pronation_deg =
+      a.thumb_pronation ? *a.thumb_pronation : (a.posture == "relaxed" ? relaxed_thumb_pronation() : 0.0);
+  a.shape.index_ring_ratio = a.index_ring_ratio;
+  a.shape.forearm_mm = a.forearm;
   std::string err;
   check_options(a.shape.IsValid(&err), "hand options", err);
   check_options(a.mesh.IsValid(&err), "mesh options", err);
@@ -107,7 +119,7 @@ void synth_scan(const SynthScanArgs& a, const Progress& progress) {
   save_mesh((out / "truth_skin.ply").string(), pair.skin_palm);
   Json truth;
   truth["format"] = "handskin-truth/1";
-  truth["hand"] = "right";
+  truth["hand"] = hand_side_name(rig_side(rig));
   truth["seed"] = a.seed;
   truth["back_to_palm"] = isometry_to_json(pair.back_to_palm);
   truth["palm_from_hand"] = isometry_to_json(pair.T_palm_hand);
@@ -579,7 +591,8 @@ int main(int argc, char** argv) {
   auto* synth = app.add_subcommand("synth", "Make synthetic data: a default hand, or a scan pair of a hand");
   synth->require_subcommand(1);
   SynthHandArgs sh;
-  auto* shc = synth->add_subcommand("hand", "Build the default right hand (mesh + rig) in the open, flat posture");
+  auto* shc = synth->add_subcommand(
+      "hand", "Build a hand of the synthetic family (mesh + rig): right or left, any proportions, posed by the skeleton");
   shc->add_option("--out", sh.out, "Output folder: hand.ply, hand_rig.json, hand_back.png, hand_side.png")
       ->capture_default_str();
   shc->add_option("--hand-length", sh.shape.hand_length_mm, "Wrist joint to middle fingertip, mm [120, 260]")
@@ -588,8 +601,21 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   shc->add_option("--thickness", sh.shape.thickness_scale, "Thickness multiplier [0.7, 1.4]")->capture_default_str();
   shc->add_option("--width", sh.shape.width_scale, "Breadth multiplier [0.7, 1.4]")->capture_default_str();
-  shc->add_option("--thumb-abduction", sh.shape.thumb_abduction_deg, "Thumb metacarpal angle, deg [20, 70]")
+  shc->add_option("--thumb-abduction", sh.shape.thumb_abduction_deg,
+                  "Thumb metacarpal angle from the index's in the rest frame, deg [20, 70]")
       ->capture_default_str();
+  shc->add_option("--finger-thickness", sh.shape.finger_thickness_scale, "Finger girth multiplier [0.7, 1.4]")
+      ->capture_default_str();
+  shc->add_option("--finger-length", sh.shape.finger_length_scale, "Phalanx length multiplier against the palm [0.85, 1.15]")
+      ->capture_default_str();
+  shc->add_option("--index-ring-ratio", sh.index_ring_ratio, "Index : ring finger length [0.85, 1.05] (default 0.929)");
+  shc->add_option("--forearm", sh.forearm, "Forearm stub beyond the wrist joint, mm [0, 40] (default 12 x scale)");
+  shc->add_option("--side", sh.side, "right or left")->capture_default_str();
+  shc->add_option("--posture", sh.posture, "relaxed, flat, or a joint-angle CSV (first row; formats/hand-rig.md)")
+      ->capture_default_str();
+  shc->add_option("--set", sh.sets, "DOF=deg on top of the posture (repeatable), e.g. --set index.pip.flex=30");
+  shc->add_option("--thumb-pronation", sh.thumb_pronation,
+                  "Thumb sections turned about its axis, deg [0, 90] (default: 35 relaxed, 0 otherwise)");
   shc->add_option("--facet-size", sh.mesh.facet_size_mm, "Mesher facet size bound, mm (smaller: more triangles)")
       ->capture_default_str();
   shc->add_option("--facet-distance", sh.mesh.facet_distance_mm, "Mesher facet distance bound, mm")->capture_default_str();

@@ -122,4 +122,14 @@ Eigen::Isometry3d hand_frame_from_rig(const Rig& rig) {
   return T;
 }
 
+const char* hand_side_name(HandSide s) { return s == HandSide::Left ? "left" : "right"; }
+
+HandSide rig_side(const Rig& rig) {
+  const Eigen::Isometry3d T = hand_frame_from_rig(rig);
+  const auto J = [&](const char* n) { return Eigen::Vector3d(T * rig.joints[joint_index(n).value()]); };
+  // The thumb's MCP against the middle finger's: across the hand, toward the thumb.
+  const double y = J("thumb-phalanx-proximal").y() - J("middle-finger-phalanx-proximal").y();
+  return y >= 0 ? HandSide::Right : HandSide::Left;
+}
+
 }  // namespace handskin

@@ -25,8 +25,16 @@ Rig load_rig(const std::string& file);
 std::string rig_to_json_text(const Rig& rig);
 void save_rig(const std::string& file, const Rig& rig);
 
+enum class HandSide { Right, Left };
+const char* hand_side_name(HandSide s);
+
+/// Which hand a rig is: in its hand frame (below) a right hand's thumb lies on +Y, a left
+/// hand's on −Y. Needs palm_normal to tell a left hand from a right hand seen from its palm
+/// (without it the frame's Z is taken toward the back of a right hand).
+HandSide rig_side(const Rig& rig);
+
 /// Hand frame from a rig: origin at the wrist, X toward the middle MCP, Z out of the back
-/// (palm_normal when given), Y = Z × X (toward the thumb of a right hand). Returns T_hand_rig.
+/// (palm_normal when given), Y = Z × X (toward the thumb of a right hand, the little finger of a left one). Returns T_hand_rig.
 Eigen::Isometry3d hand_frame_from_rig(const Rig& rig);
 
 }  // namespace handskin

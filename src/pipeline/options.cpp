@@ -15,7 +15,8 @@ bool PipelineOptions::IsValid(std::string* error) const {
   };
   if (ingest.min_returns < 1) return bad("ingest.min_returns must be >= 1");
   if (markers.count < 3) return bad("markers.count must be >= 3");
-  if (!(markers.radius_mm > 0 && markers.radius_mm <= 20)) return bad("markers.radius_mm must be in (0, 20]");
+  if (markers.radius_mm && !(*markers.radius_mm >= 1 && *markers.radius_mm <= 20))
+    return bad("markers.radius_mm must be in [1, 20] (or absent: estimated from the scans)");
   if (!(registration.table_margin_mm >= 0 && registration.table_margin_mm <= 20))
     return bad("registration.table_margin_mm must be in [0, 20]");
   if (!(registration.match_tolerance_mm > 0 && registration.match_tolerance_mm <= 10))
@@ -54,7 +55,8 @@ PipelineOptions parse_pipeline(const Json& j, const std::string& file) {
   if (const Json* s = section("markers")) {
     reject_unknown_keys(*s, {"count", "radius_mm"}, file, "markers");
     o.markers.count = get_int_or(*s, "count", o.markers.count, file + ": markers", 3);
-    o.markers.radius_mm = get_finite_or(*s, "radius_mm", o.markers.radius_mm, file + ": markers");
+    if (s->contains("radius_mm") && !(*s)["radius_mm"].is_null())
+      o.markers.radius_mm = get_finite_or(*s, "radius_mm", 0.0, file + ": markers");
   }
   if (const Json* s = section("registration")) {
     reject_unknown_keys(*s,
@@ -105,7 +107,8 @@ PipelineOptions parse_pipeline(const Json& j, const std::string& file) {
 RegistrationOptions registration_options(const PipelineOptions& o) {
   RegistrationOptions r;
   r.expected_markers = o.markers.count;
-  r.spheres.radius_mm = o.markers.radius_mm;
+  r.estimate_radius = !o.markers.radius_mm;
+  if (o.markers.radius_mm) r.spheres.radius_mm = *o.markers.radius_mm;
   r.prepare.table_margin_mm = o.registration.table_margin_mm;
   r.match_tolerance_mm = o.registration.match_tolerance_mm;
   r.marker_clearance_mm = o.registration.marker_clearance_mm;
@@ -136,7 +139,8 @@ Json pipeline_to_json(const PipelineOptions& o) {
   Json j;
   j["format"] = "handskin-pipeline/1";
   j["ingest"] = {{"min_returns", o.ingest.min_returns}};
-  j["markers"] = {{"count", o.markers.count}, {"radius_mm", o.markers.radius_mm}};
+  j["markers"] = {{"count", o.markers.count},
+                  {"radius_mm", o.markers.radius_mm ? Json(*o.markers.radius_mm) : Json(nullptr)}};
   const auto& r = o.registration;
   j["registration"] = {{"table_margin_mm", r.table_margin_mm},     {"match_tolerance_mm", r.match_tolerance_mm},
                        {"marker_clearance_mm", r.marker_clearance_mm}, {"refine", r.refine},

@@ -1,6 +1,7 @@
 #pragma once
 /// Every stage's parameters, as held by `pipelines/*.json` (format "handskin-pipeline/1").
 /// The defaults here are the thesis's and equal `pipelines/cubist.json` (a test keeps them so).
+#include <optional>
 #include <string>
 
 #include "core/json_util.hpp"
@@ -14,7 +15,8 @@ struct PipelineOptions {
   } ingest;
   struct Markers {                 ///< registration (thesis §4.1.1)
     long count = 9;                ///< spherical markers on the replica
-    double radius_mm = 4.0;        ///< their radius (the thesis gives none; 4 mm: docs/registration.md)
+    /// Their radius; unset: estimated from the scans (the thesis gives none; docs/registration.md).
+    std::optional<double> radius_mm;
   } markers;
   struct Registration {            ///< back scan into the palm frame (docs/algorithms.md)
     double table_margin_mm = 1.0;  ///< samples this close above the table plane are table

@@ -10,11 +10,13 @@ namespace {
 constexpr double kRad = M_PI / 180.0;
 }
 
-double Skeleton::abduction_sign(Finger f) {
+double Skeleton::abduction_sign(Finger f, HandSide side) {
   // A positive rotation about the local Z (= X × Y) swings the link toward −X, the little-
   // finger side (X, the flexion axis, points toward the thumb). Away from the middle finger
   // is toward the thumb for thumb and index (and, by convention, the middle finger itself).
-  return (f == Finger::Ring || f == Finger::Little) ? 1.0 : -1.0;
+  // A left hand's flexion axes (back × link) point toward its little finger: mirrored.
+  const double s = (f == Finger::Ring || f == Finger::Little) ? 1.0 : -1.0;
+  return side == HandSide::Left ? -s : s;
 }
 
 Eigen::Matrix3d Skeleton::euler321(double z_deg, double y_deg, double x_deg) {
@@ -30,6 +32,7 @@ Skeleton::Skeleton(const Rig& rig, const std::string& file) {
   const Eigen::Isometry3d T_hand_rig = hand_frame_from_rig(rig);
   const Eigen::Matrix3d hand_axes = T_hand_rig.linear().transpose();  // columns: hand X, Y, Z in rig frame
   const Eigen::Vector3d back = hand_axes.col(2);
+  side_ = rig_side(rig);
 
   std::array<int, kJointCount> first_child;
   first_child.fill(-1);
@@ -82,7 +85,7 @@ std::array<Eigen::Isometry3d, kJointCount> Skeleton::frames(const Angles& a) con
   for (int j = 1; j < kJointCount; ++j) {
     Eigen::Isometry3d L = local_[j];
     if (flex_[j] >= 0) {
-      const double abd = abd_[j] >= 0 ? abduction_sign(*J[j].finger) * a[abd_[j]] : 0.0;
+      const double abd = abd_[j] >= 0 ? abduction_sign(*J[j].finger, side_) * a[abd_[j]] : 0.0;
       L.linear() = L.linear() * euler321(abd, 0.0, a[flex_[j]]);
     }
     W[j] = W[J[j].parent] * L;

@@ -31,8 +31,10 @@ class Skeleton {
   const Eigen::Isometry3d& rest_frame(int j) const { return rest_[j]; }
   /// Length of the link that starts at joint j (to its first child; 0 for tips).
   double link_length(int j) const { return length_[j]; }
-  /// +1 or −1: the sign that makes positive abduction point away from the middle finger.
-  static double abduction_sign(Finger f);
+  /// +1 or −1: the sign that makes positive abduction point away from the middle finger
+  /// (a left hand's local frames are mirrored against a right hand's: its signs flip).
+  static double abduction_sign(Finger f, HandSide side = HandSide::Right);
+  HandSide side() const { return side_; }
 
   /// Local rotation of a joint from its DOF angles: Rz(abd)·Ry(0)·Rx(flex) (3-2-1 Euler,
   /// eq. 3.4 with the twist fixed at zero); the wrist: Rz(rz)·Ry(ry)·Rx(rx).
@@ -43,6 +45,7 @@ class Skeleton {
   std::array<Eigen::Isometry3d, kJointCount> local_;     ///< rest frame relative to the parent's rest frame
   std::array<double, kJointCount> length_{};
   std::array<int, kJointCount> flex_{}, abd_{};          ///< DOF index per joint, -1 if none
+  HandSide side_ = HandSide::Right;
 };
 
 }  // namespace handskin

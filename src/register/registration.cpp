@@ -19,6 +19,9 @@ bool RegistrationOptions::IsValid(std::string* error) const {
     return false;
   };
   if (expected_markers < 3) return bad("expected_markers must be >= 3");
+  if (estimate_radius && radius_candidates_mm.empty()) return bad("radius_candidates_mm must not be empty");
+  for (double rc : radius_candidates_mm)
+    if (!(rc >= 1 && rc <= 20)) return bad("radius_candidates_mm must lie in [1, 20]");
   if (!(match_tolerance_mm > 0 && match_tolerance_mm <= 10)) return bad("match_tolerance_mm must be in (0, 10]");
   if (!(accept_residual_mm >= 0 && accept_residual_mm <= 10)) return bad("accept_residual_mm must be in [0, 10]");
   if (!(marker_clearance_mm >= 0 && marker_clearance_mm <= 10)) return bad("marker_clearance_mm must be in [0, 10]");
@@ -105,7 +108,9 @@ std::vector<SphereFit> find_markers(const PreparedScan& s, const RegistrationOpt
   if (found.size() < 3)
     throw InputError(scan_file, "found " + std::to_string(found.size()) + " marker sphere(s) of radius " +
                                     fmt("%.2f", o.spheres.radius_mm) +
-                                    " mm, need at least 3 (give approximate positions with --markers)");
+                                    (o.estimate_radius ? " mm (estimated from the scans)" : " mm (markers.radius_mm)") +
+                                    ", need at least 3 (set markers.radius_mm in the pipeline file, or give approximate "
+                                    "positions with --markers)");
   // Matching tries every triangle pair, so its cost grows with the sixth power of the count:
   // keep the strongest candidates when a bumpy object yields many sphere-like bumps.
   const size_t keep = static_cast<size_t>(o.expected_markers) + 6;
@@ -116,14 +121,85 @@ std::vector<SphereFit> find_markers(const PreparedScan& s, const RegistrationOpt
   return found;
 }
 
+// The markers' radius from the scans: every candidate radius is tried in both scans
+// (hints: at the hinted positions) and the bumps found are matched between the scans by
+// their distance pattern. Markers are the bumps that are spheres of one radius *and* sit in
+// the same pattern in both scans; a fingertip or a knuckle of about the candidate's size is
+// sphere-like too, but seen from the other side it fits elsewhere and matches nothing. The
+// candidate with the most matched markers wins (ties: the tighter cluster of free-radius
+// fits); the estimate is the median free-radius fit over its matched caps.
+RadiusEstimate estimate_marker_radius(const PreparedScan& back, const PreparedScan& palm, const RegistrationOptions& o,
+                                      const MarkerHints* hints) {
+  RadiusEstimate best;
+  double best_score = -1;
+  const size_t keep = static_cast<size_t>(o.expected_markers) + 6;  // as find_markers: matching cost grows fast
+  for (const double rc : o.radius_candidates_mm) {
+    SphereOptions so = o.spheres;
+    so.radius_mm = rc;
+    so.radius_tolerance = 0.15;  // candidates ≤ 0.5 mm apart below 5 mm: every radius between them is caught
+    so.inlier_mm = std::min(so.inlier_mm, 0.5 * rc);
+    std::vector<SphereFit> fits[2];
+    for (int side = 0; side < 2; ++side) {
+      const PreparedScan& s = side == 0 ? palm : back;
+      const std::optional<std::vector<Eigen::Vector3d>>* h = hints ? (side == 0 ? &hints->palm : &hints->back) : nullptr;
+      if (h && *h) {
+        for (const auto& g : **h) {
+          std::string why;
+          if (auto f = fit_sphere_near(s, g, so.hint_search_mm, so, &why)) fits[side].push_back(*f);
+        }
+      } else {
+        fits[side] = detect_spheres(s, so);
+        if (fits[side].size() > keep) fits[side].resize(keep);
+      }
+    }
+    Json row = {{"radius_mm", rc}, {"palm", fits[0].size()}, {"back", fits[1].size()}, {"matched", 0}};
+    if (fits[0].size() < 3 || fits[1].size() < 3) {
+      best.tried.push_back(row);
+      continue;
+    }
+    std::vector<Eigen::Vector3d> cb, cp;
+    for (const auto& f : fits[1]) cb.push_back(f.centre);
+    for (const auto& f : fits[0]) cp.push_back(f.centre);
+    const MarkerMatch m = match_markers(cb, cp, o.match_tolerance_mm);
+    row["matched"] = m.pairs.size();
+    best.tried.push_back(row);
+    if (m.pairs.size() < 3) continue;
+    std::vector<double> radii;
+    for (const auto& [b, p] : m.pairs) radii.push_back(fits[1][b].radius_free), radii.push_back(fits[0][p].radius_free);
+    // Median and median absolute deviation, then once more over the caps within 3 robust
+    // sigmas: a matched fingertip's cap, not quite a sphere, fits another radius.
+    double med = 0, mad = 0;
+    for (int pass = 0; pass < 2; ++pass) {
+      std::vector<double> r;
+      for (double x : radii)
+        if (pass == 0 || std::abs(x - med) <= std::max(3 * 1.4826 * mad, 0.01 * med)) r.push_back(x);
+      std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+      const double m = r[r.size() / 2];
+      std::vector<double> dev;
+      for (double x : r) dev.push_back(std::abs(x - m));
+      std::nth_element(dev.begin(), dev.begin() + dev.size() / 2, dev.end());
+      med = m, mad = dev[dev.size() / 2];
+    }
+    const double score = static_cast<double>(m.pairs.size()) - std::min(0.99, mad / med);
+    if (score > best_score) {
+      best_score = score;
+      best.radius_mm = med;
+      best.spread_mm = mad;
+      best.candidate_mm = rc;
+      best.caps = static_cast<int>(radii.size());
+    }
+  }
+  return best;
+}
+
 }  // namespace
 
 Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_scan, const std::string& back_file,
-                            const std::string& palm_file, const RegistrationOptions& o, const MarkerHints* hints,
+                            const std::string& palm_file, const RegistrationOptions& options, const MarkerHints* hints,
                             const RegisterProgress& progress) {
   std::string err;
-  if (!o.IsValid(&err)) throw InputError("registration options", err);
-  const double r = o.spheres.radius_mm;
+  if (!options.IsValid(&err)) throw InputError("registration options", err);
+  RegistrationOptions o = options;
   Registration out;
   Json rep;
   rep["format"] = "handskin-registration/1";
@@ -136,16 +212,48 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
   const PreparedScan palm = prepare_scan(palm_scan, o.prepare, palm_file);
   timings["prepare_ms"] = ms_since(t);
 
-  // --- 2. markers in each scan ---
-  progress("finding the marker spheres");
+  // --- 2. markers in each scan (their radius first, when the pipeline does not fix it) ---
   t = Clock::now();
+  Json radius_rep = {{"source", o.estimate_radius ? "estimated" : "given"}};
+  if (o.estimate_radius) {
+    progress("estimating the marker radius");
+    const RadiusEstimate est = estimate_marker_radius(back, palm, o, hints);
+    radius_rep["tried"] = est.tried;
+    if (est.caps == 0) {
+      std::string tried;
+      for (double rc : o.radius_candidates_mm) tried += (tried.empty() ? "" : ", ") + fmt("%.1f", rc);
+      throw InputError(back_file + " + " + palm_file,
+                       "no radius finds 3 marker spheres in both scans (tried " + tried +
+                           " mm); set markers.radius_mm in the pipeline file or give approximate positions with --markers");
+    }
+    o.spheres.radius_mm = est.radius_mm;
+    radius_rep["candidate_mm"] = est.candidate_mm;
+    radius_rep["caps"] = est.caps;
+    radius_rep["spread_mm"] = est.spread_mm;
+  }
+  const double r = o.spheres.radius_mm;
+  radius_rep["radius_mm"] = r;
+  out.marker_radius_mm = r;
+  progress("finding the marker spheres (radius " + fmt("%.2f", r) + " mm)");
   Json side_rep[2];
   const std::string hints_file = hints ? hints->file : "";
-  const std::vector<SphereFit> mb =
+  std::vector<SphereFit> mb =
       find_markers(back, o, hints ? hints->back : std::nullopt, hints_file, back_file, &side_rep[1]);
-  const std::vector<SphereFit> mp =
+  std::vector<SphereFit> mp =
       find_markers(palm, o, hints ? hints->palm : std::nullopt, hints_file, palm_file, &side_rep[0]);
   timings["markers_ms"] = ms_since(t);
+  // With the radius estimated, a bump whose own free fit strays from it (a fingertip of
+  // about the markers' size) is not a marker: the markers share one radius.
+  if (o.estimate_radius && !hints) {
+    const double tol = std::max(0.04 * r, 5 * 1.4826 * radius_rep.value("spread_mm", 0.0));
+    for (auto* side : {&mb, &mp}) {
+      std::vector<SphereFit> kept;
+      for (auto& f : *side)
+        if (std::abs(f.radius_free - r) <= tol) kept.push_back(std::move(f));
+      if (kept.size() >= 3) *side = std::move(kept);
+    }
+    radius_rep["free_fit_tolerance_mm"] = tol;
+  }
   for (const auto* side : {&mb, &mp})
     if (static_cast<long>(side->size()) != o.expected_markers)
       out.warnings.push_back(std::string(side == &mb ? "back" : "palm") + " scan: " + std::to_string(side->size()) +
@@ -311,6 +419,7 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
     return j;
   };
   rep["status"] = out.warnings.empty() ? "ok" : "ok_with_warnings";
+  rep["marker_radius"] = radius_rep;
   rep["warnings"] = out.warnings;
   rep["back_to_palm"] = isometry_to_json(out.back_to_palm);
   rep["method"] = out.refined ? "refined" : "markers";

@@ -33,7 +33,21 @@ struct RegistrationOptions {
   double accept_residual_mm = 0;
   double marker_clearance_mm = 0.5;  ///< samples within radius + this of a marker are not skin
   bool refine_enabled = true;
+  /// The markers' radius is not known: estimate it from the scans (spheres.radius_mm is
+  /// then ignored). Each candidate radius is tried in both scans; the one that finds the most
+  /// markers on both sides wins and the median of those caps' free-radius fits is used.
+  bool estimate_radius = false;
+  std::vector<double> radius_candidates_mm = {2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 6.0, 7.0, 8.0};
   bool IsValid(std::string* error) const;
+};
+
+/// The markers' radius as found in the scans.
+struct RadiusEstimate {
+  double radius_mm = 0;      ///< median free-radius fit over the caps found at the best candidate
+  double spread_mm = 0;      ///< median absolute deviation of those fits
+  double candidate_mm = 0;   ///< the candidate radius that found them
+  int caps = 0;              ///< caps (both scans) the estimate rests on
+  Json tried = Json::array();  ///< per candidate: markers found in each scan
 };
 
 /// Approximate marker centres per scan for a replica whose bumps the detector misses
@@ -59,6 +73,7 @@ struct Registration {
   Eigen::Isometry3d back_to_palm = Eigen::Isometry3d::Identity();  ///< p_palm = T · p_back
   Eigen::Isometry3d marker_only = Eigen::Isometry3d::Identity();   ///< the rigid fit of the centres
   bool refined = false;                                             ///< the refinement was kept
+  double marker_radius_mm = 0;                ///< used: given, or estimated from the scans
   std::vector<Eigen::Vector3d> markers_palm;  ///< matched marker centres, palm frame
   std::vector<std::string> warnings;
   MergedCloud::Ptr merged;

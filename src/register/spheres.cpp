@@ -151,9 +151,16 @@ std::optional<SphereFit> fit_sphere_near(const PreparedScan& s, const Eigen::Vec
     Eigen::Vector3d cs = start;
     std::vector<int> ins;
     // Coarse to fine: the first rounds accept samples as far off as the start may be.
+    // The last rounds repeat at the fine gate until the sample set settles, so that two
+    // starts near the same cap end on the same samples.
     const double gates[] = {std::max(o.inlier_mm, search), std::max(o.inlier_mm, search / 2),
-                            std::max(o.inlier_mm, search / 4), o.inlier_mm, o.inlier_mm};
-    for (const double gate : gates) {
+                            std::max(o.inlier_mm, search / 4), o.inlier_mm, o.inlier_mm, o.inlier_mm,
+                            o.inlier_mm, o.inlier_mm};
+    std::vector<int> previous;
+    for (size_t g = 0; g < std::size(gates); ++g) {
+      const double gate = gates[g];
+      if (g >= 5 && ins == previous) break;
+      previous = ins;
       ins.clear();
       for (int k : near) {
         const Eigen::Vector3d d = s.points[k] - cs;

@@ -85,9 +85,10 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     return hi - lo;
   };
   if (end_thickness(false) > end_thickness(true)) X = -X;  // the wrist's cut end is the thicker
-  Eigen::Vector3d Y = Z.cross(X);
+  Eigen::Vector3d Y = Z.cross(X);  // flipped below for a left hand
   std::vector<Eigen::Vector3d> h(pts.size());  // hand coordinates (u, v, w)
   for (size_t i = 0; i < pts.size(); ++i) h[i] = Eigen::Vector3d((pts[i] - c).dot(X), (pts[i] - c).dot(Y), (pts[i] - c).dot(Z));
+  // (A lambda of Y by reference: it maps back through the mirrored Y for a left hand.)
   auto to_cloud = [&](const Eigen::Vector3d& q) { return Eigen::Vector3d(c + q.x() * X + q.y() * Y + q.z() * Z); };
 
   // --- silhouette, palm centre (largest inscribed circle), digits beyond an opening of it ---
@@ -108,7 +109,7 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
   const std::vector<double> dist = g.distance();
   const int best = static_cast<int>(std::max_element(dist.begin(), dist.end()) - dist.begin());
   const double R = dist[best] * g.cell;
-  const Eigen::Vector2d pc(g.u0 + (best % g.nx + 0.5) * g.cell, g.v0 + (best / g.nx + 0.5) * g.cell);
+  Eigen::Vector2d pc(g.u0 + (best % g.nx + 0.5) * g.cell, g.v0 + (best / g.nx + 0.5) * g.cell);
   out.palm_radius_mm = R;
   // Digits: what a morphological opening with a disc of 0.45 R removes (fingers are far
   // narrower than the palm and the wrist stub, which survive it).
@@ -144,8 +145,18 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
   struct Digit {
     std::vector<size_t> points;
     double angle = 0;
-    Eigen::Vector3d o, d;  // axis (hand coordinates), outward
-    double tip = 0;        // skin tip along the axis from o
+    // Centre line (hand coordinates) from well inside the palm to the skin's tip, sampled
+    // every 0.25 mm, with its arc length: a curled or arched digit's axis is a curve.
+    std::vector<Eigen::Vector3d> curve;
+    std::vector<double> arc;
+    Eigen::Vector3d tip_skin = Eigen::Vector3d::Zero();
+    // The point at arc length `a` (clamped to the curve) and the unit tangent there.
+    Eigen::Vector3d at(double a) const {
+      const size_t i = std::clamp<size_t>(std::lower_bound(arc.begin(), arc.end(), a) - arc.begin(), 1, arc.size() - 1);
+      const double u = std::clamp((a - arc[i - 1]) / std::max(arc[i] - arc[i - 1], 1e-9), 0.0, 1.0);
+      return curve[i - 1] + u * (curve[i] - curve[i - 1]);
+    }
+    double length() const { return arc.back(); }
   };
   std::vector<Digit> digits;
   for (size_t k = 0; k < comps.size(); ++k) {
@@ -165,10 +176,19 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     throw InputError("merged cloud", "automatic skeleton placement found " + std::to_string(digits.size()) +
                                          " digits beyond the palm, not 5 (fingers touching or missing?); give a rig");
   std::sort(digits.begin(), digits.end(), [](const Digit& a, const Digit& b) { return a.angle < b.angle; });
-  // Right hand, back up: little … index, then the thumb at the widest angular gap (+Y side).
+  // Back up, a right hand's thumb lies on +Y (Y = Z × X), a left hand's on −Y: the thumb is
+  // the digit beyond the widest angular gap. A left hand is worked on in mirrored
+  // coordinates (Y flipped), where it is a right hand; the joints go back through the same Y.
   const double gap_top = digits[4].angle - digits[3].angle, gap_bottom = digits[1].angle - digits[0].angle;
-  if (gap_bottom > gap_top)
-    throw InputError("merged cloud", "the thumb is on the little-finger side: a left hand? (only right hands are supported)");
+  out.side = HandSide::Right;
+  if (gap_bottom > gap_top) {
+    out.side = HandSide::Left;
+    Y = -Y;
+    for (auto& q : h) q.y() = -q.y();
+    pc.y() = -pc.y();
+    for (Digit& dg : digits) dg.angle = -dg.angle;
+    std::sort(digits.begin(), digits.end(), [](const Digit& a, const Digit& b) { return a.angle < b.angle; });
+  }
 
   // --- each digit's axis: a line through its section centres ---
   for (Digit& dg : digits) {
@@ -182,7 +202,7 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     const Eigen::Vector2d n2(-d2.y(), d2.x());
     double t0 = 1e300, t1 = -1e300;
     for (const auto& q : p2) t0 = std::min(t0, (q - m2).dot(d2)), t1 = std::max(t1, (q - m2).dot(d2));
-    std::vector<Eigen::Vector3d> centres;
+    std::vector<Eigen::Vector3d> centres;  // (t, lateral offset, z)
     for (double t = t0 + 2; t < t1 - 6; t += 3) {
       double a = 1e300, b = -1e300, zl = 1e300, zh = -1e300;
       int n = 0;
@@ -194,16 +214,39 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
         ++n;
       }
       if (n < 20) continue;
-      const Eigen::Vector2d q = m2 + t * d2 + 0.5 * (a + b) * n2;
-      centres.emplace_back(q.x(), q.y(), 0.5 * (zl + zh));
+      centres.emplace_back(t, 0.5 * (a + b), 0.5 * (zl + zh));
     }
     if (centres.size() < 4) throw InputError("merged cloud", "a digit is too short to find its axis; give a rig");
-    Eigen::Matrix3d a3;
-    principal_axes<3>(centres, &a3, &dg.o);
-    dg.d = a3.col(0);
-    if (dg.d.head<2>().dot(d2) < 0) dg.d = -dg.d;
-    dg.tip = -1e300;
-    for (size_t i : dg.points) dg.tip = std::max(dg.tip, (h[i] - dg.o).dot(dg.d));
+    // Lateral offset and height as quadratics of t (least squares): a flexed digit arches
+    // out of the hand's plane; a straight one gets a line. Beyond the measured centres the
+    // curve goes on along its end tangents (straight into the palm, straight to the tip).
+    Eigen::MatrixXd A(centres.size(), 3);
+    Eigen::VectorXd bl(centres.size()), bz(centres.size());
+    const double tm = 0.5 * (centres.front().x() + centres.back().x());
+    for (size_t k = 0; k < centres.size(); ++k) {
+      const double u = centres[k].x() - tm;
+      A.row(k) << 1, u, centres.size() >= 6 ? u * u : 0.0;
+      bl(k) = centres[k].y(), bz(k) = centres[k].z();
+    }
+    const Eigen::Vector3d cl = A.colPivHouseholderQr().solve(bl), cz = A.colPivHouseholderQr().solve(bz);
+    const double ta = centres.front().x(), tb = centres.back().x();
+    auto point = [&](double t) {
+      const double u = std::clamp(t, ta, tb) - tm, e = t - std::clamp(t, ta, tb);
+      const double l = cl(0) + cl(1) * u + cl(2) * u * u + e * (cl(1) + 2 * cl(2) * u);
+      const double z = cz(0) + cz(1) * u + cz(2) * u * u + e * (cz(1) + 2 * cz(2) * u);
+      const Eigen::Vector2d q = m2 + t * d2 + l * n2;
+      return Eigen::Vector3d(q.x(), q.y(), z);
+    };
+    // The tip: the digit's farthest point along the curve's end direction.
+    const Eigen::Vector3d end = point(tb), end_dir = (point(tb + 1) - end).normalized();
+    double reach = -1e300;
+    for (size_t i : dg.points) reach = std::max(reach, (h[i] - end).dot(end_dir));
+    dg.tip_skin = end + reach * end_dir;
+    for (double t = ta - 80; t < tb; t += 0.25) dg.curve.push_back(point(t));
+    dg.curve.push_back(end);
+    dg.curve.push_back(dg.tip_skin);
+    dg.arc.assign(1, 0.0);
+    for (size_t k = 1; k < dg.curve.size(); ++k) dg.arc.push_back(dg.arc.back() + (dg.curve[k] - dg.curve[k - 1]).norm());
   }
 
   // --- scale from the middle fingertip and the wrist cut; joints by the proportions ---
@@ -211,7 +254,6 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
   // principal axes, and the wrist, the scale and the MCPs depend on one another: three
   // rounds of wrist → scale → digit joints → frame.
   const Digit& middle = digits[2];
-  const Eigen::Vector3d middle_tip = middle.o + middle.tip * middle.d;
   Eigen::Vector3d Xh = Eigen::Vector3d::UnitX(), W = Eigen::Vector3d::Zero();
   double s = 1;
   std::array<std::vector<Eigen::Vector3d>, 5> chains;  // hand coordinates, MCP ... tip
@@ -219,20 +261,36 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     const Eigen::Vector3d Yh = Eigen::Vector3d::UnitZ().cross(Xh);
     double cut = 1e300;
     for (const auto& q : h) cut = std::min(cut, q.dot(Xh));
-    s = ((middle_tip.dot(Xh)) - cut) / (kNominalHandLength + kWristCut);
+    // The hand's length along the middle finger's centre line (a curled finger is longer
+    // than its shadow): the cut to the middle MCP (where the last round put it), then along the curve.
+    const double a_mcp_guess = middle.length() - (kTipInset + kFingers[2].distal + kFingers[2].middle + kFingers[2].proximal) * s;
+    const Eigen::Vector3d mcp_guess = middle.at(std::max(a_mcp_guess, 0.0));
+    s = ((mcp_guess.dot(Xh) - cut) + (middle.length() - std::max(a_mcp_guess, 0.0))) / (kNominalHandLength + kWristCut);
     double vl = 1e300, vh = -1e300, wl = 1e300, wh = -1e300;
     for (const auto& q : h)
       if (q.dot(Xh) < cut + 10) vl = std::min(vl, q.dot(Yh)), vh = std::max(vh, q.dot(Yh)), wl = std::min(wl, q.z()), wh = std::max(wh, q.z());
     W = (cut + kWristCut * s) * Xh + 0.5 * (vl + vh) * Yh + 0.5 * (wl + wh) * Eigen::Vector3d::UnitZ();
-    // digits sorted little, ring, middle, index, thumb → fingers 4, 3, 2, 1, 0
+    // digits sorted little, ring, middle, index, thumb → fingers 4, 3, 2, 1, 0; joints back
+    // from the tip along the centre line by the proportions' lengths.
     for (int k = 0; k < 5; ++k) {
       const int fi = 4 - k;
       const Digit& dg = digits[k];
       const FingerSpec& f = kFingers[fi];
-      std::vector<Eigen::Vector3d> js = {dg.o + (dg.tip - kTipInset * s) * dg.d};  // tip back to the MCP
       const std::vector<double> lengths = fi == 0 ? std::vector<double>{f.distal, f.proximal}
                                                   : std::vector<double>{f.distal, f.middle, f.proximal};
-      for (double L : lengths) js.push_back(js.back() - L * s * dg.d);
+      double a = dg.length() - kTipInset * s;
+      std::vector<Eigen::Vector3d> js = {dg.at(a)};
+      for (double L : lengths) {
+        // Chord, not arc: the joints are the corners of the bent chain.
+        const Eigen::Vector3d from = js.back();
+        double lo = 0, hi = a;
+        for (int it = 0; it < 40; ++it) {
+          const double mid = 0.5 * (lo + hi);
+          ((dg.at(mid) - from).norm() > L * s ? lo : hi) = mid;
+        }
+        a = 0.5 * (lo + hi);
+        js.push_back(dg.at(a));
+      }
       std::reverse(js.begin(), js.end());
       chains[fi] = js;
     }
@@ -255,7 +313,8 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     for (size_t k2 = 0; k2 < chains[fi].size(); ++k2) rig.joints[chain[k2 + 1]] = to_cloud(chains[fi][k2]);
   }
   rig.palm_normal = Z;
-  out.notes.push_back("joints along the measured digit axes with the proportions of Buryanov & Kotiuk (2010), scale " +
+  if (out.side == HandSide::Left) out.notes.push_back("a left hand (the thumb lies on the other side of the middle finger)");
+  out.notes.push_back("joints along the measured digit centre lines with the proportions of Buryanov & Kotiuk (2010), scale " +
                       std::to_string(s).substr(0, 5) + " from the middle fingertip and the wrist cut");
   return out;
 }

@@ -16,13 +16,14 @@ struct AutoRig {
   Rig rig;                  ///< palm frame (the cloud's), palm_normal set
   double scale = 1;         ///< measured hand / nominal proportions
   double palm_radius_mm = 0; ///< largest circle inscribed in the palm's silhouette
+  HandSide side = HandSide::Right;
   std::vector<std::string> notes;
 };
 
-/// Place the 25 joints in a merged cloud (palm frame, mm) of an open, flat right hand.
-/// `sides` labels each point 0 (palm scan) or 1 (back scan), which orients the back normal.
-/// Throws InputError when five digits and a wrist cannot be told apart (e.g. fingers
-/// touching, a digit missing) or the hand is a left hand.
+/// Place the 25 joints in a merged cloud (palm frame, mm) of an open hand, right or left,
+/// its digits straight or curled. `sides` labels each point 0 (palm scan) or 1 (back scan),
+/// which orients the back normal. Throws InputError when five digits and a wrist cannot be
+/// told apart (e.g. fingers touching, a digit missing).
 AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& points, const std::vector<std::uint32_t>& sides);
 
 struct JointError {

@@ -129,17 +129,54 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
   // --- markers: on the ulnar flank, the radial flank and the wrist end, irregularly spaced ---
   // The flanks run out along the little finger and the thumb: rotation precision grows with
   // the markers' spread (docs/registration.md), and those are the replica's widest and
-  // longest flanks that both scans see.
+  // longest flanks that both scans see. A right hand's thumb lies on the hand frame's +Y, a
+  // left hand's on −Y; a posed hand's thumb may hang palmar of the palm and its fingers arch,
+  // so each marker is checked to be seen from above and from below (nothing of the hand
+  // over or under it) before the scans are made.
+  const double ys = rig_side(rig_in) == HandSide::Left ? -1.0 : 1.0;  // +: toward the thumb
   const Eigen::Vector3d l0 = J("pinky-finger-metacarpal"), l1 = J("pinky-finger-phalanx-proximal"),
                         l2 = J("pinky-finger-phalanx-intermediate");
   const Eigen::Vector3d t0 = J("thumb-metacarpal"), t1 = J("thumb-phalanx-proximal"), t2 = J("thumb-phalanx-distal");
   auto along = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double u) {
     return u < 1 ? Eigen::Vector3d(a + u * (b - a)) : Eigen::Vector3d(b + (u - 1) * (c - b));
   };
-  const double width = (J("index-finger-phalanx-proximal") - J("pinky-finger-phalanx-proximal")).norm();
+  // The point at `frac` of the arc length between link units u0 and u1 (u in [0, 1]: the
+  // first link, [1, 2]: the second), as a link unit: markers spread evenly in millimetres.
+  auto to_u = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double u0, double u1,
+                 double frac) {
+    const double L1 = (b - a).norm(), L2 = (c - b).norm();
+    auto mm = [&](double u) { return u < 1 ? u * L1 : L1 + (u - 1) * L2; };
+    const double t = mm(u0) + frac * (mm(u1) - mm(u0));
+    return t < L1 ? t / L1 : 1 + (t - L1) / L2;
+  };
   std::vector<Eigen::Vector3d> markers;
   const double r = ro.marker_radius_mm;
-  for (int attempt = 0; attempt < 500 && markers.empty(); ++attempt) {
+  auto seen_from = [&](const Eigen::Vector3d& c, const Eigen::Vector3d& normal, double dir_z) {
+    // The sphere's outer half (the part off the flank) must not lie under (or over) the hand.
+    Eigen::Vector3d n(normal.x(), normal.y(), 0);
+    n.normalize();
+    const Eigen::Vector3d t = Eigen::Vector3d::UnitZ().cross(n);
+    for (const double side : {-0.5, 0.0, 0.5}) {
+      const Eigen::Vector3d o = c + 0.5 * r * n + side * r * t + Eigen::Vector3d(0, 0, dir_z * (r + 0.3));
+      if (caster.cast(o, Eigen::Vector3d(0, 0, dir_z))) return false;
+    }
+    return true;
+  };
+  // A narrower search after many failures: markers nearer the palm (the little finger's
+  // metacarpal, the thumb's base), where the flanks are broad and nothing overhangs.
+  // The wrist cut face: the hand's samples within 1 mm of its proximal end, their (y, z) box.
+  Eigen::Vector2d face_c, face_h;
+  {
+    double x0 = 1e300;
+    for (const auto& p : hv) x0 = std::min(x0, p.x());
+    Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
+    for (const auto& p : hv)
+      if (p.x() < x0 + 1.0) lo = lo.cwiseMin(p.tail<2>()), hi = hi.cwiseMax(p.tail<2>());
+    face_c = 0.5 * (lo + hi);
+    face_h = 0.5 * (hi - lo);
+  }
+  for (int attempt = 0; attempt < 800 && markers.empty(); ++attempt) {
+    const double reach = attempt < 400 ? 1.0 : 0.6;
     std::vector<Eigen::Vector3d> c;
     // Marker slots: 3 ulnar, 3 wrist end, the rest radial (for 9 markers: 3 radial).
     const int n_ulnar = (ro.marker_count + 2) / 3, n_wrist = (ro.marker_count + 1) / 3;
@@ -147,23 +184,36 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
     bool ok = true;
     auto place = [&](const Eigen::Vector3d& origin, const Eigen::Vector3d& dir) {
       const auto hit = caster.cast(origin, dir);
-      // Must land on a flank (normal roughly horizontal) so both scans see the sphere.
-      if (!hit || std::abs(hit->second.z()) > 0.45) ok = false;
+      // Must land on a flank (normal roughly horizontal) seen by both scans.
+      if (!hit || std::abs(hit->second.z()) > 0.45 || hit->second.dot(dir) > 0) ok = false;
+      else if (!seen_from(hit->first, hit->second, 1.0) || !seen_from(hit->first, hit->second, -1.0)) ok = false;
       else c.push_back(hit->first);
     };
+    // Each flank marker is shot at its link from the side, square to it and level (a raised
+    // thumb's link points out of the table's plane: a ray along the hand's Y would meet it
+    // where the surface faces up or down).
+    auto side_of = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b, double sign) {
+      Eigen::Vector3d n = Eigen::Vector3d::UnitZ().cross(b - a);
+      return Eigen::Vector3d(sign * n.normalized());
+    };
     for (int k = 0; k < n_ulnar && ok; ++k) {  // little-finger metacarpal to proximal phalanx
-      const double u = 0.3 + 1.3 * (k + 0.5) / n_ulnar + rng.uniform(-0.1, 0.1);
+      const double u = to_u(l0, l1, l2, 0.3, 0.3 + reach * 1.45, (k + 0.5) / n_ulnar + rng.uniform(-0.08, 0.08));
       const Eigen::Vector3d q = along(l0, l1, l2, u);
-      place({q.x(), q.y() - 200.0, q.z() + rng.uniform(-3.0, 1.5)}, Eigen::Vector3d::UnitY());
+      const Eigen::Vector3d n = u < 1 ? side_of(l0, l1, -ys) : side_of(l1, l2, -ys);
+      place(q + 200.0 * n + Eigen::Vector3d(0, 0, rng.uniform(-3.0, 1.5)), -n);
     }
     for (int k = 0; k < n_radial && ok; ++k) {  // thumb metacarpal to proximal phalanx
-      const double u = 0.5 + 1.2 * (k + 0.5) / n_radial + rng.uniform(-0.08, 0.08);
+      const double u =
+          to_u(t0, t1, t2, 0.5 * reach, 0.5 * reach + reach * 1.2, (k + 0.5) / n_radial + rng.uniform(-0.07, 0.07));
       const Eigen::Vector3d q = along(t0, t1, t2, u);
-      place({q.x(), q.y() + 200.0, q.z() + rng.uniform(-3.0, 1.5)}, -Eigen::Vector3d::UnitY());
+      const Eigen::Vector3d n = u < 1 ? side_of(t0, t1, ys) : side_of(t1, t2, ys);
+      place(q + 200.0 * n + Eigen::Vector3d(0, 0, rng.uniform(-3.0, 1.5)), -n);
     }
+    // The wrist end: round the cut face at ~60 % of its half-extents, irregularly.
     for (int k = 0; k < n_wrist && ok; ++k) {
-      const double v = -0.55 + 1.1 * (k + 0.5) / n_wrist + rng.uniform(-0.08, 0.08);
-      place({-200.0, v * 0.3 * width, rng.uniform(-6.0, 6.0)}, Eigen::Vector3d::UnitX());
+      const double th = M_PI / 2 + 2 * M_PI * k / n_wrist + rng.uniform(-0.2, 0.2), f = 0.6 + rng.uniform(-0.06, 0.06);
+      place({-200.0, face_c.x() + f * face_h.x() * std::cos(th), face_c.y() + f * face_h.y() * std::sin(th)},
+            Eigen::Vector3d::UnitX());
     }
     if (!ok) continue;
     for (size_t a = 0; a < c.size() && ok; ++a)
