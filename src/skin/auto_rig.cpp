@@ -5,6 +5,8 @@
 #include <cmath>
 #include <queue>
 
+#include <Eigen/Geometry>
+
 #include "core/dof.hpp"
 #include "core/errors.hpp"
 #include "core/hand_proportions.hpp"
@@ -15,6 +17,9 @@ namespace handskin {
 namespace {
 
 using namespace proportions;
+
+// A finger's bones lie this far (nominal mm) dorsal of the middle of its cross-sections.
+constexpr double kDorsalOffset = 1.0;
 
 // The silhouette of the hand on its plane: a 1 mm grid of occupied cells. Written here rather
 // than with an image library: a few dozen lines (closing, a chamfer distance transform,
@@ -158,6 +163,14 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     }
     double length() const { return arc.back(); }
   };
+  // The centre line's direction at the curve point nearest q.
+  auto tangent_near = [](const Digit& dg, const Eigen::Vector3d& q) {
+    size_t best = 1;
+    double bd = 1e300;
+    for (size_t k = 1; k < dg.curve.size(); ++k)
+      if (const double d = (dg.curve[k] - q).squaredNorm(); d < bd) bd = d, best = k;
+    return Eigen::Vector3d((dg.curve[best] - dg.curve[best - 1]).normalized());
+  };
   std::vector<Digit> digits;
   for (size_t k = 0; k < comps.size(); ++k) {
     if (comps[k].size() < 150) continue;  // specks the opening left
@@ -280,7 +293,8 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
                                                   : std::vector<double>{f.distal, f.middle, f.proximal};
       double a = dg.length() - kTipInset * s;
       std::vector<Eigen::Vector3d> js = {dg.at(a)};
-      for (double L : lengths) {
+      for (size_t li = 0; li < lengths.size(); ++li) {
+        const double L = lengths[li];
         // Chord, not arc: the joints are the corners of the bent chain.
         const Eigen::Vector3d from = js.back();
         double lo = 0, hi = a;
@@ -289,7 +303,36 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
           ((dg.at(mid) - from).norm() > L * s ? lo : hi) = mid;
         }
         a = 0.5 * (lo + hi);
-        js.push_back(dg.at(a));
+        Eigen::Vector3d j = dg.at(a);
+        if (fi != 0 && fi != 2 && li + 1 == lengths.size()) {
+          // A finger's MCP is its metacarpal's head: a spread finger turns there, so the
+          // phalanx's line, carried on into the palm, passes beside it. The joint is put
+          // the proximal phalanx's length from the PIP toward where the proportions put
+          // the metacarpal's head across the hand (its height from the centre line). Not the
+          // middle finger's: its MCP sets the frame's X (and its phalanges point along it).
+          // (The proportions' frame turned so that the middle finger's head lies on X, as the
+          // rig's hand frame has it.)
+          auto head_of = [](const FingerSpec& g) {
+            const double h = g.angle_deg * M_PI / 180.0;
+            return Eigen::Vector2d(g.cmc.x() + g.metacarpal * std::cos(h), g.cmc.y() + g.metacarpal * std::sin(h));
+          };
+          const Eigen::Vector2d mid = head_of(kFingers[2]);
+          const Eigen::Vector2d hd = Eigen::Rotation2Dd(-std::atan2(mid.y(), mid.x())) * head_of(f);
+          const Eigen::Vector3d head = W + s * hd.x() * Xh + s * hd.y() * Yh;
+          Eigen::Vector3d target = j;
+          target.head<2>() = head.head<2>();
+          const Eigen::Vector3d aim = target - from;
+          j = from + L * s * aim.normalized();
+        }
+        js.push_back(j);
+      }
+      // The bones lie dorsal of a digit's section middle (the palmar pad is the thicker
+      // side): the joints are lifted by kDorsalOffset, square to the centre line.
+      for (Eigen::Vector3d& j : js) {
+        Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+        const Eigen::Vector3d tl = tangent_near(dg, j);
+        up = (up - up.dot(tl) * tl).normalized();
+        j += kDorsalOffset * s * up;
       }
       std::reverse(js.begin(), js.end());
       chains[fi] = js;
