@@ -39,6 +39,9 @@ HANDS = {
     "H12": ["--hand-length", "195", "--width", "1.3", "--thickness", "1.1", "--spread", "3"],
 }
 PAIRS = [(1, "2.5"), (2, "3.0"), (3, "3.5"), (4, "4.0")]  # seed, marker radius (mm)
+# synth scan options per hand: the largest hand with the longest stub and a spread thumb
+# spans 255 x 191 mm, more than the default 250 x 200 mm field holds.
+SCAN = {"H04": ["--x-extent", "300", "--y-extent", "240"]}
 
 
 def sh(args):
@@ -71,7 +74,7 @@ def main():
             d = os.path.join(a.work, name)
             if not os.path.exists(os.path.join(d, "truth.json")):
                 rc, out = sh([a.bin, "-q", "synth", "scan", "--mesh", hand + "/hand.ply", "--rig", hand + "/hand_rig.json",
-                              "--out", d, "--seed", str(seed), "--marker-radius", radius, "--no-render"])
+                              "--out", d, "--seed", str(seed), "--marker-radius", radius, "--no-render"] + SCAN.get(h, []))
                 if rc:
                     rows.append([name, "-", "synth scan: " + out.strip().splitlines()[-1]])
                     fails += 1

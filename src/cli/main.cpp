@@ -641,6 +641,10 @@ int main(int argc, char** argv) {
   ssc->add_option("--table-height", ss.scanner.table_height_mm, "Table top above the Z origin, mm")->capture_default_str();
   ssc->add_option("--table-tilt", ss.scanner.table_tilt_deg, "Table tilt about Y, deg")->capture_default_str();
   ssc->add_option("--resolution", ss.scanner.scanlines, "Scanlines (and points per line)")->capture_default_str();
+  ssc->add_option("--x-extent", ss.scanner.x_extent_mm, "Table length the scanlines cover, mm (a large hand with a long "
+                                                        "forearm stub needs more than the default)")
+      ->capture_default_str();
+  ssc->add_option("--y-extent", ss.scanner.y_extent_mm, "Table width a scanline covers, mm")->capture_default_str();
   ssc->add_flag("!--no-render", ss.render, "Do not write preview pictures");
 
   // render

@@ -132,7 +132,8 @@ Json run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
   Json tubes = Json::array();
   for (const auto& t : skin.tubes)
     tubes.push_back({{"name", t.name}, {"present", t.present}, {"points", t.points}, {"rings", t.rings},
-                     {"measured", t.measured}, {"filled", t.filled}});
+                     {"measured", t.measured}, {"filled", t.filled}, {"axis_offset_mm", t.axis_offset_mm},
+                     {"section_radius_mm", t.section_radius_mm}});
   j["tubes"] = tubes;
   Json webs = Json::array();
   for (const auto& w : skin.webs) webs.push_back(to_json(w));

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <optional>
 #include <queue>
 
 #include <Eigen/Geometry>
@@ -17,6 +18,10 @@ namespace handskin {
 namespace {
 
 using namespace proportions;
+
+// The palm widens into the thenar and hypothenar eminences this far (nominal mm) beyond the
+// wrist joint (measured on the proportions' hand: the knee of its breadth along the hand).
+constexpr double kKneeBeyondWrist = 12.0;
 
 // A finger's bones lie this far (nominal mm) dorsal of the middle of its cross-sections.
 constexpr double kDorsalOffset = 1.0;
@@ -63,6 +68,42 @@ struct Grid {
   }
 };
 
+// The silhouette's breadth (across Yh) in 1 mm steps along Xh from the cut to the MCPs,
+// fitted with a continuous two-piece line (a hinge); the hinge where the breadth starts to
+// grow fast. Empty when the fit shows no such knee (the slope must at least double).
+std::optional<double> breadth_knee(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector3d& Xh,
+                                   const Eigen::Vector3d& Yh, double cut, double mcp_x, double s) {
+  // Searched from the cut (or 120 nominal mm before the MCPs) to 60 before them: the knee
+  // lies ~85 before them, and further into the palm the breadth grows slower again.
+  const double x0 = std::max(cut + 1.5, mcp_x - 120 * s), x1 = mcp_x - 60 * s;
+  const int n = static_cast<int>(x1 - x0);
+  if (n < 8) return std::nullopt;
+  std::vector<double> lo(n, 1e300), hi(n, -1e300);
+  for (const auto& q : h) {
+    const int b = static_cast<int>(std::floor(q.dot(Xh) - x0));
+    if (b < 0 || b >= n) continue;
+    lo[b] = std::min(lo[b], q.dot(Yh)), hi[b] = std::max(hi[b], q.dot(Yh));
+  }
+  std::vector<Eigen::Vector2d> xw;
+  for (int b = 0; b < n; ++b)
+    if (hi[b] > lo[b]) xw.emplace_back(x0 + b + 0.5, hi[b] - lo[b]);
+  if (xw.size() < 8) return std::nullopt;
+  double best = 1e300, best_k = 0, b1 = 0, b2 = 0;
+  for (double k = x0 + 1; k <= x1 - 4; k += 0.5) {
+    Eigen::MatrixXd A(xw.size(), 3);
+    Eigen::VectorXd y(xw.size());
+    for (size_t i = 0; i < xw.size(); ++i) {
+      A.row(i) << 1, std::min(xw[i].x() - k, 0.0), std::max(xw[i].x() - k, 0.0);
+      y(i) = xw[i].y();
+    }
+    const Eigen::Vector3d c = A.colPivHouseholderQr().solve(y);
+    const double sse = (A * c - y).squaredNorm();
+    if (sse < best) best = sse, best_k = k, b1 = c(1), b2 = c(2);
+  }
+  if (!(b2 > 0.3 && b2 > 2 * std::max(b1, 0.0))) return std::nullopt;
+  return best_k;
+}
+
 }  // namespace
 
 AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vector<std::uint32_t>& sides) {
@@ -89,7 +130,7 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     }
     return hi - lo;
   };
-  if (end_thickness(false) > end_thickness(true)) X = -X;  // the wrist's cut end is the thicker
+  if (end_thickness(false) > end_thickness(true)) X = -X;  // the wrist's cut end is the thicker (checked below)
   Eigen::Vector3d Y = Z.cross(X);  // flipped below for a left hand
   std::vector<Eigen::Vector3d> h(pts.size());  // hand coordinates (u, v, w)
   for (size_t i = 0; i < pts.size(); ++i) h[i] = Eigen::Vector3d((pts[i] - c).dot(X), (pts[i] - c).dot(Y), (pts[i] - c).dot(Z));
@@ -188,6 +229,17 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
   if (digits.size() != 5)
     throw InputError("merged cloud", "automatic skeleton placement found " + std::to_string(digits.size()) +
                                          " digits beyond the palm, not 5 (fingers touching or missing?); give a rig");
+  // The digits lie beyond the palm's centre toward the fingers' end. If most lie the other
+  // way, the end taken for the wrist's (the thicker) was the fingers' (a short forearm stub,
+  // curled fingers, a hanging thumb): turn the frame half round about Z.
+  double toward = 0;
+  for (const Digit& dg : digits) toward += std::cos(dg.angle);
+  if (toward < 0) {
+    X = -X, Y = -Y;
+    for (auto& q : h) q.x() = -q.x(), q.y() = -q.y();
+    pc = -pc;
+    for (Digit& dg : digits) dg.angle = dg.angle > 0 ? dg.angle - M_PI : dg.angle + M_PI;
+  }
   std::sort(digits.begin(), digits.end(), [](const Digit& a, const Digit& b) { return a.angle < b.angle; });
   // Back up, a right hand's thumb lies on +Y (Y = Z × X), a left hand's on −Y: the thumb is
   // the digit beyond the widest angular gap. A left hand is worked on in mirrored
@@ -233,15 +285,19 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     // Lateral offset and height as quadratics of t (least squares): a flexed digit arches
     // out of the hand's plane; a straight one gets a line. Beyond the measured centres the
     // curve goes on along its end tangents (straight into the palm, straight to the tip).
-    Eigen::MatrixXd A(centres.size(), 3);
+    // Fingers flex, they do not bend sideways between their joints: the lateral offset is a
+    // line; the height a quadratic where the measured span is long enough to show a curl.
+    Eigen::MatrixXd A(centres.size(), 3), A1(centres.size(), 3);
     Eigen::VectorXd bl(centres.size()), bz(centres.size());
     const double tm = 0.5 * (centres.front().x() + centres.back().x());
+    const bool curl = centres.size() >= 6 && centres.back().x() - centres.front().x() >= 25;
     for (size_t k = 0; k < centres.size(); ++k) {
       const double u = centres[k].x() - tm;
-      A.row(k) << 1, u, centres.size() >= 6 ? u * u : 0.0;
+      A.row(k) << 1, u, curl ? u * u : 0.0;
+      A1.row(k) << 1, u, 0.0;
       bl(k) = centres[k].y(), bz(k) = centres[k].z();
     }
-    const Eigen::Vector3d cl = A.colPivHouseholderQr().solve(bl), cz = A.colPivHouseholderQr().solve(bz);
+    const Eigen::Vector3d cl = A1.colPivHouseholderQr().solve(bl), cz = A.colPivHouseholderQr().solve(bz);
     const double ta = centres.front().x(), tb = centres.back().x();
     auto point = [&](double t) {
       const double u = std::clamp(t, ta, tb) - tm, e = t - std::clamp(t, ta, tb);
@@ -275,14 +331,27 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     double cut = 1e300;
     for (const auto& q : h) cut = std::min(cut, q.dot(Xh));
     // The hand's length along the middle finger's centre line (a curled finger is longer
-    // than its shadow): the cut to the middle MCP (where the last round put it), then along the curve.
-    const double a_mcp_guess = middle.length() - (kTipInset + kFingers[2].distal + kFingers[2].middle + kFingers[2].proximal) * s;
-    const Eigen::Vector3d mcp_guess = middle.at(std::max(a_mcp_guess, 0.0));
-    s = ((mcp_guess.dot(Xh) - cut) + (middle.length() - std::max(a_mcp_guess, 0.0))) / (kNominalHandLength + kWristCut);
+    // than its shadow): to the middle MCP (where the last round put it), then along the curve.
+    const double a_mcp_guess =
+        std::max(0.0, middle.length() - (kTipInset + kFingers[2].distal + kFingers[2].middle + kFingers[2].proximal) * s);
+    const double mcp_x = middle.at(a_mcp_guess).dot(Xh), to_tip = middle.length() - a_mcp_guess;
+    // The wrist: where the palm starts to widen into the thenar and hypothenar eminences, a
+    // knee in the silhouette's breadth along the hand, kKneeBeyondWrist beyond the joint.
+    // The cut is where the replica was sawn off (a forearm stub of any length): only a
+    // fallback when no knee shows.
+    const std::optional<double> knee = breadth_knee(h, Xh, Yh, cut, mcp_x, s);
+    double wrist_x;
+    if (knee) {
+      s = (mcp_x - *knee + to_tip) / (kNominalHandLength - kKneeBeyondWrist);
+      wrist_x = *knee - kKneeBeyondWrist * s;
+    } else {
+      s = (mcp_x - cut + to_tip) / (kNominalHandLength + kWristCut);
+      wrist_x = cut + kWristCut * s;
+    }
     double vl = 1e300, vh = -1e300, wl = 1e300, wh = -1e300;
     for (const auto& q : h)
       if (q.dot(Xh) < cut + 10) vl = std::min(vl, q.dot(Yh)), vh = std::max(vh, q.dot(Yh)), wl = std::min(wl, q.z()), wh = std::max(wh, q.z());
-    W = (cut + kWristCut * s) * Xh + 0.5 * (vl + vh) * Yh + 0.5 * (wl + wh) * Eigen::Vector3d::UnitZ();
+    W = wrist_x * Xh + 0.5 * (vl + vh) * Yh + 0.5 * (wl + wh) * Eigen::Vector3d::UnitZ();
     // digits sorted little, ring, middle, index, thumb → fingers 4, 3, 2, 1, 0; joints back
     // from the tip along the centre line by the proportions' lengths.
     for (int k = 0; k < 5; ++k) {

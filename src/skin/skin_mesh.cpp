@@ -14,6 +14,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <optional>
 
@@ -39,6 +40,10 @@ using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 constexpr double kDeg = M_PI / 180.0;
+// A digit's links may lie this far from the middle of its sections' extent (the larger of
+// the two): a rig that fits puts them within ~1 mm (the bones lie a little dorsal); 4 mm off
+// already gives 3.5–4 mm (measured on the fixture, docs/skin.md).
+constexpr double kMaxAxisOffsetMm = 2.5, kMaxAxisOffsetShare = 0.3;
 
 /// A ring's plane: polar centre `o`, in-plane axes u, v, normal n (u × v = n, pointing along
 /// the tube toward its far end). Angles are sampled on an ellipse of half-axes a (along u)
@@ -179,8 +184,15 @@ void resample_rings(TubeBuild* t, int M, const SkinOptions& o, bool shrink_root)
     }
     const auto& g = t->slab[k];
     if (static_cast<long>(g.size()) < std::max<long>(o.slicing.min_points, 10)) continue;
+    // Samples more than 2.5 times the median radius out are not this tube's section (a
+    // neighbouring digit's skin that reached the slab, where a curled finger passes near).
+    std::vector<double> radii;
+    for (const auto& p : g) radii.push_back(p.norm());
+    std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
+    const double ceiling = 2.5 * radii[radii.size() / 2];
     std::vector<std::pair<double, double>> pr;
-    for (const auto& p : g) pr.emplace_back(wrap(std::atan2(p.y(), p.x())), p.norm());
+    for (const auto& p : g)
+      if (p.norm() <= ceiling) pr.emplace_back(wrap(std::atan2(p.y(), p.x())), p.norm());
     std::sort(pr.begin(), pr.end());
     Profile P;
     for (const auto& [a, r] : pr) P.phi.push_back(a), P.rho.push_back(r);
@@ -194,7 +206,10 @@ void resample_rings(TubeBuild* t, int M, const SkinOptions& o, bool shrink_root)
     std::vector<double> sorted_rho = P.rho;
     std::nth_element(sorted_rho.begin(), sorted_rho.begin() + sorted_rho.size() / 2, sorted_rho.end());
     const double floor = 0.3 * sorted_rho[sorted_rho.size() / 2];
-    for (int j = 0; j < M; ++j) r.push_back(std::max(P.at_bridged(phi[k][j], window, bridge), floor));
+    // A bridge across an unseen gap never reaches beyond 1.2 times the farthest sample: a
+    // circle through a nearly straight arc (a curled finger cut at a slant) would bulge far.
+    const double roof = 1.2 * *std::max_element(P.rho.begin(), P.rho.end());
+    for (int j = 0; j < M; ++j) r.push_back(std::clamp(P.at_bridged(phi[k][j], window, bridge), floor, roof));
     rho[k] = std::move(r);
   }
   // Wrinkles: per angle index, a quadratic least-squares fit over ± m neighbouring rings
@@ -279,14 +294,18 @@ void add_dome(TubeBuild* t, int M, int rings, const SkinOptions& o) {
     const Eigen::Vector3d r = q - s.o;
     return Eigen::Vector3d(r.dot(s.u), r.dot(s.v), r.dot(s.n));
   };
-  // The last slab's points too: they pin the dome's rim.
+  // The last slab's points too: they pin the dome's rim. Points beyond 1.6 times the rim's
+  // largest radius are another digit's (a curled neighbour's tip), not this dome's.
+  double rim_in = 0;
+  for (const auto& p : t->rings.back()) rim_in = std::max(rim_in, (p - s.o).norm());
+  const double reach = 1.6 * rim_in;
   for (const auto& p2 : t->slab.back()) {
     const Eigen::Vector3d l(p2.x(), p2.y(), 0);
-    if (l.norm() > 1e-6) dir_pts.push_back(l.normalized()), rad.push_back(l.norm());
+    if (l.norm() > 1e-6 && l.norm() <= reach) dir_pts.push_back(l.normalized()), rad.push_back(l.norm());
   }
   for (const auto& q : t->beyond) {
     const Eigen::Vector3d l = local(q);
-    if (l.norm() > 1e-6) dir_pts.push_back(l.normalized()), rad.push_back(l.norm());
+    if (l.norm() > 1e-6 && l.norm() <= reach) dir_pts.push_back(l.normalized()), rad.push_back(l.norm());
   }
   for (size_t i = 0; i < rad.size(); ++i) {
     const auto y = sh9(dir_pts[i]);
@@ -297,15 +316,20 @@ void add_dome(TubeBuild* t, int M, int rings, const SkinOptions& o) {
   N(0, 0) += 1e-9;
   const Eigen::Matrix<double, 9, 1> c = N.ldlt().solve(rhs);
   const double cos_win = std::cos(3.0 * o.window_deg * kDeg);
+  // A fingertip is about as wide as its last ring: the dome's radius stays within 0.3–1.3
+  // times the rim's largest (the harmonic fit, unconstrained where a curled tip was not
+  // seen, can otherwise throw a spike far out).
+  const auto& last = t->rings.back();
+  double rim = 0;
+  for (const auto& p : last) rim = std::max(rim, (p - s.o).norm());
   auto radius = [&](const Eigen::Vector3d& d) {
     double sum = 0;
     int n = 0;
     for (size_t i = 0; i < rad.size(); ++i)
       if (dir_pts[i].dot(d) >= cos_win) sum += rad[i], ++n;
-    if (n >= 3) return sum / n;
-    return std::max(c.dot(sh9(d)), 0.5);
+    const double r = n >= 3 ? sum / n : c.dot(sh9(d));
+    return std::clamp(r, std::max(0.3 * rim, 0.5), std::max(1.3 * rim, 0.5));
   };
-  const auto& last = t->rings.back();
   for (int i = 1; i <= rings; ++i) {
     const double theta = 0.5 * M_PI * (1.0 - static_cast<double>(i) / (rings + 1));
     std::vector<Eigen::Vector3d> ring;
@@ -731,6 +755,21 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
     const double hs = s_c / (K - 1);
     for (int k = 0; k < K; ++k) t.st.push_back(frame_at(pl.at(k * hs), pl.tangent(k * hs, hs)));
     fill_slabs(&t, pts, hs, true);
+    {
+      std::vector<double> off, rad;
+      for (const auto& g : t.slab) {
+        if (g.size() < 20) continue;
+        Eigen::Vector2d mn = g.front(), mx = mn;
+        for (const auto& p : g) mn = mn.cwiseMin(p), mx = mx.cwiseMax(p);
+        off.push_back((0.5 * (mn + mx)).norm());
+        rad.push_back(0.25 * ((mx - mn).x() + (mx - mn).y()));
+      }
+      auto median = [](std::vector<double> v) {
+        std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+        return v[v.size() / 2];
+      };
+      if (off.size() >= 3) t.report.axis_offset_mm = median(off), t.report.section_radius_mm = median(rad);
+    }
     resample_rings(&t, 2 * pps, o, true);
     if (!t.report.present) continue;
     // Neighbouring fingers' tubes meet in the webs. Where a ring point lies nearer the
@@ -771,6 +810,21 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
     R.tubes.push_back(t.report);
   }
   if (!tubes[0].report.present) throw InputError("merged cloud", "no palm section could be measured");
+  // A rig that does not fit the cloud (another scan's, shifted, fingers swapped) puts a
+  // digit's links beside the middle of its sections: refused rather than worked around.
+  for (const auto& t : tubes) {
+    const SkinTubeReport& r = t.report;
+    if (t.id == 0 || !r.present || r.section_radius_mm <= 0) continue;
+    const double allowed = std::max(kMaxAxisOffsetMm, kMaxAxisOffsetShare * r.section_radius_mm);
+    if (r.axis_offset_mm > allowed) {
+      char buf[240];
+      std::snprintf(buf, sizeof buf,
+                    "the %s's links lie %.1f mm from the middle of its sections (allowed %.1f mm): the rig does not "
+                    "fit this scan (a rig of another scan, or its fingers swapped?)",
+                    skin_tube_name(t.id), r.axis_offset_mm, allowed);
+      throw InputError("rig", buf);
+    }
+  }
   R.seconds_rings = since(t0);
   say("rings resampled (" + std::to_string(static_cast<int>(R.seconds_rings * 1000)) + " ms)");
 

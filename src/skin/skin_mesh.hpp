@@ -61,6 +61,10 @@ struct SkinTubeReport {
   int filled = 0;           ///< rings filled from measured neighbours (no or too few points)
   size_t points = 0;        ///< measured points given to this tube
   bool present = true;      ///< false: no ring measured (a digit missing from the scan)
+  /// A digit: median over its sections of how far the middle of the section's extent lies
+  /// from the link axis, and the sections' median radius. A rig that fits puts its links
+  /// near the middle (the bones lie a little dorsal); one of another scan does not.
+  double axis_offset_mm = 0, section_radius_mm = 0;
 };
 
 struct SkinResult {

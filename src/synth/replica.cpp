@@ -257,8 +257,11 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
   const Eigen::Matrix3d R_back = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   const Eigen::Matrix3d R_palm = R_back * Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
   auto place_on_table = [&](const Eigen::Matrix3d& base) {
-    for (int attempt = 0; attempt < 200; ++attempt) {
-      Eigen::Isometry3d T = yaw_then(rng.uniform(-ro.max_yaw_deg, ro.max_yaw_deg), base);
+    // A long replica (a large hand with a long forearm stub) fits the table only turned
+    // toward its diagonal: after 200 draws within max_yaw, the yaw range widens to ±45°.
+    for (int attempt = 0; attempt < 400; ++attempt) {
+      const double yaw_range = attempt < 200 ? ro.max_yaw_deg : std::max(ro.max_yaw_deg, 45.0 * (attempt - 199) / 200.0);
+      Eigen::Isometry3d T = yaw_then(rng.uniform(-yaw_range, yaw_range), base);
       Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
       for (const auto& p : hv) {
         lo = lo.cwiseMin(T * p);
