@@ -331,3 +331,150 @@ TEST(MeshDistanceTools, SamplesCoverTheAreaAndASurfaceIsAtZeroFromItself) {
   EXPECT_LE(o.max, std::sqrt(3.0) + 1e-9);  // a corner moved by (1, 1, 1)
   EXPECT_LT(o.samples, samples.size());  // those within 3 mm of the origin were skipped
 }
+
+// ---------------- the skin stage's steps (skin/skin_steps.hpp) ----------------
+#include <CGAL/Polygon_mesh_processing/self_intersections.h>
+
+#include "skin/skin_steps.hpp"
+
+namespace {
+using namespace skin_steps;
+
+// A straight tube along X: stations every `h` mm from x = 0 to `length`, points on a circle
+// of `radius` about the X axis (noise `sigma`), `n` per mm of length.
+TubeBuild cylinder_tube(double length, double radius, double h, double sigma, std::vector<Eigen::Vector3d>* pts) {
+  TubeBuild t;
+  for (double x = 0; x <= length + 1e-9; x += h) t.st.push_back(frame_at({x, 0, 0}, Eigen::Vector3d::UnitX()));
+  Rng rng(7);
+  for (double x = -0.4 * h; x <= length + 0.4 * h; x += 0.1)
+    for (int j = 0; j < 90; ++j) {
+      const double a = 2 * M_PI * (j + rng.uniform(0, 1)) / 90, r = radius + sigma * rng.normal();
+      pts->emplace_back(x, r * std::cos(a), r * std::sin(a));
+    }
+  return t;
+}
+}  // namespace
+
+TEST(SkinSteps, EveryPointGoesToATubeAndThumbAndPalmShareTheirBoundary) {
+  const MergedArrays& m = fixture_merged();
+  const Rig rig = load_rig(kFixture + "rig.json");
+  const HandFrame H = to_hand_frame(m.points, rig, bones_from_rig(rig));
+  const TubePoints P = assign_points(H, 3.0);
+  size_t own = 0;
+  for (int t = 0; t < kSkinTubes; ++t) {
+    EXPECT_GT(P.tube[t].size(), 2000u) << skin_tube_name(t);
+    own += P.tube[t].size();
+  }
+  EXPECT_GT(own, m.points.size());  // the shared band counts twice
+  EXPECT_LT(own, m.points.size() + m.points.size() / 10);
+  const TubePoints none = assign_points(H, 0.0);
+  size_t total = 0;
+  for (const auto& t : none.tube) total += t.size();
+  EXPECT_EQ(total, m.points.size());  // without the band, each point once
+  EXPECT_LT(none.palm.size(), P.palm.size());
+}
+
+TEST(SkinSteps, WebsLieBetweenTheKnucklesAndTheMiddleJoints) {
+  const MergedArrays& m = fixture_merged();
+  const Rig rig = load_rig(kFixture + "rig.json");
+  const HandFrame H = to_hand_frame(m.points, rig, bones_from_rig(rig));
+  const Webs w = find_webs(H, 4.0);
+  ASSERT_EQ(w.points.size(), 3u);
+  EXPECT_TRUE(w.warnings.empty());
+  for (int f = 1; f <= 3; ++f) {
+    const auto a = finger_chain(static_cast<Finger>(f)), b = finger_chain(static_cast<Finger>(f + 1));
+    const double mcp = 0.5 * (H.J[a[1]].x() + H.J[b[1]].x()), pip = 0.5 * (H.J[a[2]].x() + H.J[b[2]].x());
+    EXPECT_GT(w.points[f - 1].x(), mcp) << f;
+    EXPECT_LT(w.points[f - 1].x(), pip) << f;
+  }
+  EXPECT_LT(w.x_end, 0.5 * (H.J[finger_chain(Finger::Middle)[1]].x() + H.J[finger_chain(Finger::Middle)[2]].x()));
+  EXPECT_LE(std::abs(w.alpha_end), 35 * M_PI / 180 + 1e-12);
+}
+
+TEST(SkinSteps, DigitPlanesAreSquareToTheirLinksAndOrderedAlongThem) {
+  const MergedArrays& m = fixture_merged();
+  const Rig rig = load_rig(kFixture + "rig.json");
+  const HandFrame H = to_hand_frame(m.points, rig, bones_from_rig(rig));
+  const TubePoints P = assign_points(H, 3.0);
+  for (int f = 1; f < kFingerCount; ++f) {
+    const TubeBuild t = digit_planes(H, P, f, 4.0);
+    ASSERT_TRUE(t.report.present) << f;
+    ASSERT_GE(t.st.size(), 10u);
+    const auto c = finger_chain(static_cast<Finger>(f));
+    const Eigen::Vector3d prox = (H.J[c[2]] - H.J[c[1]]).normalized();
+    EXPECT_GT(t.st[1].n.dot(prox), 0.99) << f;  // the first planes: square to the proximal phalanx
+    for (size_t k = 1; k < t.st.size(); ++k) EXPECT_GT(t.st[k].n.dot(t.st[k].o - t.st[k - 1].o), 0) << f << " " << k;
+    EXPECT_LT(t.report.axis_offset_mm, 1.2) << f;
+  }
+}
+
+TEST(SkinSteps, RingsOfANoisyCylinderHaveItsRadiusAndSameCount) {
+  std::vector<Eigen::Vector3d> pts;
+  TubeBuild t = cylinder_tube(40, 8.0, 2.0, 0.05, &pts);
+  fill_slabs(&t, pts, 2.0, false);
+  SkinOptions o;
+  resample_rings(&t, 20, o, false);
+  ASSERT_EQ(t.rings.size(), t.st.size());
+  EXPECT_EQ(t.report.measured, static_cast<int>(t.st.size()));
+  for (const auto& ring : t.rings) {
+    ASSERT_EQ(ring.size(), 20u);
+    for (const auto& p : ring) EXPECT_NEAR(std::hypot(p.y(), p.z()), 8.0, 0.05);
+  }
+  // A gap in the scan: rings without points are filled from their neighbours.
+  std::vector<Eigen::Vector3d> holed;
+  for (const auto& p : pts)
+    if (p.x() < 15 || p.x() > 25) holed.push_back(p);
+  TubeBuild u = cylinder_tube(40, 8.0, 2.0, 0.05, &pts);
+  fill_slabs(&u, holed, 2.0, false);
+  resample_rings(&u, 20, o, false);
+  EXPECT_GT(u.report.filled, 0);
+  for (const auto& ring : u.rings)
+    for (const auto& p : ring) EXPECT_NEAR(std::hypot(p.y(), p.z()), 8.0, 0.1);
+}
+
+TEST(SkinSteps, StitchJoinsCrossingTubesIntoOneClosedSurface) {
+  std::vector<Eigen::Vector3d> pa, pb;
+  std::vector<TubeBuild> tubes(2);
+  tubes[0] = cylinder_tube(60, 12.0, 3.0, 0.0, &pa);
+  tubes[1] = cylinder_tube(40, 5.0, 2.0, 0.0, &pb);
+  fill_slabs(&tubes[0], pa, 3.0, false);
+  fill_slabs(&tubes[1], pb, 2.0, false);
+  SkinOptions o;
+  resample_rings(&tubes[0], 40, o, false);
+  resample_rings(&tubes[1], 20, o, false);
+  tubes[1].id = 2;
+  // The thin tube turned to stick out of the thick one's side.
+  // (Off every symmetry: tilted and lifted a little, so that no vertex meets a face exactly.)
+  const Eigen::Isometry3d turn = Eigen::Translation3d(30.3, 0, 0.37) *
+                                 Eigen::AngleAxisd(1.4, Eigen::Vector3d(0.1, 0, 1).normalized()) *
+                                 Eigen::Translation3d(-5, 0, 0);
+  for (auto& ring : tubes[1].rings)
+    for (auto& p : ring) p = turn * p;
+  for (auto& c : tubes[1].ring_centre) c = turn * c;
+  std::map<std::array<double, 3>, std::pair<int, int>> origin;
+  int pockets = -1;
+  SM sm = stitch_tubes(tubes, Eigen::Isometry3d::Identity(), &origin, &pockets);
+  EXPECT_TRUE(CGAL::is_closed(sm));
+  EXPECT_EQ(pockets, 0);
+  EXPECT_FALSE(CGAL::Polygon_mesh_processing::does_self_intersect(sm));
+  EXPECT_GT(origin.size(), 100u);
+}
+
+TEST(SkinMesh, RingGridIsRegularPerTube) {
+  const MergedArrays& m = fixture_merged();
+  const SkinResult s = build_skin(m.points, load_rig(kFixture + "rig.json"), SkinOptions{});
+  ASSERT_EQ(s.grid.size(), static_cast<size_t>(kSkinTubes));
+  for (int t = 0; t < kSkinTubes; ++t) {
+    const RingGrid& g = s.grid[t];
+    EXPECT_EQ(g.tube, t);
+    ASSERT_TRUE(g.present);
+    ASSERT_GE(g.rings.size(), 10u);
+    const size_t M = t == 0 ? 80 : 20;  // 8 and 2 arcs of points_per_segment (10)
+    for (const auto& ring : g.rings) EXPECT_EQ(ring.size(), M) << skin_tube_name(t);
+    EXPECT_EQ(g.station.size(), g.rings.size());
+    EXPECT_EQ(g.pole.has_value(), t != 0);
+    // Plane rings first, in plane order; then a digit's dome rings (station -1).
+    for (size_t k = 1; k < g.station.size(); ++k)
+      if (g.station[k] >= 0) EXPECT_EQ(g.station[k], g.station[k - 1] + 1);
+  }
+}

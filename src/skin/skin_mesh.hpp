@@ -14,6 +14,7 @@
 /// of self-intersections. docs/skin.md has the details and the figures.
 #include <Eigen/Core>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -67,6 +68,18 @@ struct SkinTubeReport {
   double axis_offset_mm = 0, section_radius_mm = 0;
 };
 
+/// One tube's regular ring grid before stitching and decimation (rig frame, mm): its rings
+/// in order along the tube (the plane rings, then a digit's dome rings), each of the same
+/// number of points at the same angles, and a digit's fingertip pole. The Bézier patches are
+/// fitted on it.
+struct RingGrid {
+  int tube = 0;                                  ///< SkinTube
+  bool present = true;                           ///< false: the tube is missing (no rings)
+  std::vector<std::vector<Eigen::Vector3d>> rings;
+  std::vector<int> station;                      ///< per ring: its plane, -1 for a dome ring
+  std::optional<Eigen::Vector3d> pole;           ///< a digit's fingertip
+};
+
 struct SkinResult {
   TriMesh mesh;                 ///< palm frame (the rig's), mm, outward-oriented
   std::vector<int> vertex_bone; ///< per vertex: index into `bones` (nearest link, for binding)
@@ -74,6 +87,7 @@ struct SkinResult {
   std::vector<int> vertex_ring; ///< per vertex: its ring (plane) in the tube; -1 on caps and seams
   std::vector<Bone> bones;      ///< the 24 links (bones_from_rig)
   std::vector<SkinTubeReport> tubes;
+  std::vector<RingGrid> grid;   ///< per tube (SkinTube order): the ring grid before stitching
   MeshHealth health;
   bool self_intersects = false;
   bool self_intersection_checked = false;

@@ -1,0 +1,148 @@
+#include "skin/skin_steps.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/errors.hpp"
+#include "skin/profile.hpp"
+
+namespace handskin::skin_steps {
+
+using profile::segment_distance2;
+
+Station frame_at(const Eigen::Vector3d& o, const Eigen::Vector3d& n_in) {
+  Station s;
+  s.o = o;
+  s.n = n_in.normalized();
+  Eigen::Vector3d v = Eigen::Vector3d::UnitZ() - Eigen::Vector3d::UnitZ().dot(s.n) * s.n;  // back of the hand
+  if (v.norm() < 1e-6) v = Eigen::Vector3d::UnitY() - Eigen::Vector3d::UnitY().dot(s.n) * s.n;
+  s.v = v.normalized();
+  s.u = s.v.cross(s.n);
+  return s;
+}
+
+TubeBuild palm_planes(const HandFrame& H, const TubePoints& Pts, const Webs& webs, double h) {
+  const std::vector<Eigen::Vector3d>& palm_pts = Pts.palm;
+  const double x0 = H.lo.x(), x_end = webs.x_end, alpha_end = webs.alpha_end;
+  const Eigen::Vector2d wc = webs.centre;
+  TubeBuild t;
+  t.id = 0;
+  const int K = std::max(3, static_cast<int>(std::ceil((x_end - x0) / h)) + 1);
+  const double hp = (x_end - x0) / (K - 1);
+  const int fan = std::clamp(static_cast<int>(std::ceil(std::abs(alpha_end) / (2.5 * kDeg))), 1, K - 1);
+  for (int k = 0; k < K; ++k) {
+    const double ramp = std::clamp(static_cast<double>(k - (K - 1 - fan)) / fan, 0.0, 1.0);
+    const double a = alpha_end * ramp;
+    t.st.push_back(frame_at(Eigen::Vector3d(x0 + k * hp, wc.y(), 0), Eigen::Vector3d(std::cos(a), std::sin(a), 0)));
+  }
+  t.st.front().o.x() = x0 + 1e-3;  // the wrist cut: the first ring's slab is all on its distal side
+  fill_slabs(&t, palm_pts, hp, false);
+  // Polar centre and sampling ellipse per plane: the middle and half-extents of its points,
+  // smoothed along the hand.
+  std::vector<Eigen::Vector4d> box(K, Eigen::Vector4d::Zero());
+  std::vector<bool> ok(K, false);
+  for (int k = 0; k < K; ++k) {
+    if (t.slab[k].size() < 10) continue;
+    Eigen::Vector2d mn = t.slab[k].front(), mx = mn;
+    for (const auto& p : t.slab[k]) mn = mn.cwiseMin(p), mx = mx.cwiseMax(p);
+    box[k] << 0.5 * (mn + mx), 0.5 * (mx - mn);
+    ok[k] = true;
+  }
+  // Planes without points (a hole in the scan) take their neighbours' centre and ellipse.
+  for (int k = 0; k < K; ++k) {
+    if (ok[k]) continue;
+    int a = k - 1, b = k + 1;
+    while (a >= 0 && !ok[a]) --a;
+    while (b < K && !ok[b]) ++b;
+    if (a < 0 && b >= K) break;
+    if (a < 0) box[k] = box[b];
+    else if (b >= K) box[k] = box[a];
+    else box[k] = box[a] + (box[b] - box[a]) * (static_cast<double>(k - a) / (b - a));
+  }
+  for (int k = 0; k < K; ++k) ok[k] = box[k](2) > 0;
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<Eigen::Vector4d> sm = box;
+    for (int k = 0; k < K; ++k) {
+      if (!ok[k]) continue;
+      Eigen::Vector4d s = 2 * box[k];
+      double w = 2;
+      for (int d : {-1, 1})
+        if (k + d >= 0 && k + d < K && ok[k + d]) s += box[k + d], w += 1;
+      sm[k] = s / w;
+    }
+    box = sm;
+  }
+  for (int k = 0; k < K; ++k) {
+    if (!ok[k]) continue;
+    Station& s = t.st[k];
+    const Eigen::Vector2d shift = box[k].head<2>();
+    for (auto& p : t.slab[k]) p -= shift;
+    s.o += shift.x() * s.u + shift.y() * s.v;
+    s.a = std::max(box[k](2), 1.0);
+    s.b = std::clamp(box[k](3), s.a / 4, s.a * 4);
+  }
+  t.report.points = palm_pts.size();
+  return t;
+}
+
+TubeBuild digit_planes(const HandFrame& H, const TubePoints& Pts, int f, double h) {
+  const auto& J = H.J;
+  TubeBuild t;
+  t.id = 1 + f;
+  const auto chain = finger_chain(static_cast<Finger>(f));
+  std::vector<Eigen::Vector3d> axis;
+  for (size_t k = f == 0 ? 0 : 1; k < chain.size(); ++k) axis.push_back(J[chain[k]]);
+  const Polyline pl(axis);
+  const auto& pts = Pts.tube[1 + f];
+  t.report.points = pts.size();
+  t.report.name = skin_tube_name(1 + f);
+  if (pts.size() < 50) {
+    t.report.present = false;
+    return t;
+  }
+  // Where the tip ends (robust maximum of the arc length) and how wide it is there.
+  std::vector<double> s_of(pts.size());
+#pragma omp parallel for schedule(static)
+  for (long i = 0; i < static_cast<long>(pts.size()); ++i) s_of[i] = pl.project(pts[i]);
+  std::vector<double> ss = s_of;
+  std::sort(ss.begin(), ss.end());
+  const double s_max = ss[ss.size() - std::min<size_t>(5, ss.size())];
+  std::vector<double> rr;
+  for (size_t i = 0; i < pts.size(); ++i)
+    if (s_of[i] > s_max - 12 && s_of[i] < s_max - 6) {
+      const Eigen::Vector3d c = pl.at(s_of[i]);
+      rr.push_back((pts[i] - c).norm());
+    }
+  double r_tip = 6;
+  if (rr.size() >= 10) {
+    std::nth_element(rr.begin(), rr.begin() + rr.size() / 2, rr.end());
+    r_tip = rr[rr.size() / 2];
+  }
+  const double s_c = s_max - r_tip;
+  if (s_c < 2 * h) {
+    t.report.present = false;
+    return t;
+  }
+  const int K = std::max(3, static_cast<int>(std::ceil(s_c / h)) + 1);
+  const double hs = s_c / (K - 1);
+  for (int k = 0; k < K; ++k) t.st.push_back(frame_at(pl.at(k * hs), pl.tangent(k * hs, hs)));
+  fill_slabs(&t, pts, hs, true);
+  {
+    std::vector<double> off, rad;
+    for (const auto& g : t.slab) {
+      if (g.size() < 20) continue;
+      Eigen::Vector2d mn = g.front(), mx = mn;
+      for (const auto& p : g) mn = mn.cwiseMin(p), mx = mx.cwiseMax(p);
+      off.push_back((0.5 * (mn + mx)).norm());
+      rad.push_back(0.25 * ((mx - mn).x() + (mx - mn).y()));
+    }
+    auto median = [](std::vector<double> v) {
+      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+      return v[v.size() / 2];
+    };
+    if (off.size() >= 3) t.report.axis_offset_mm = median(off), t.report.section_radius_mm = median(rad);
+  }
+  return t;
+}
+
+}  // namespace handskin::skin_steps

@@ -1,0 +1,156 @@
+#pragma once
+/// The skin stage's named steps (skin_mesh.hpp: build_skin runs them in order), internal to
+/// the skin library. Everything here works in the hand frame of the rig (X along the hand,
+/// Z out of the back), millimetres:
+///   1. to_hand_frame   the cloud and the rig in the hand frame; the rig must sit in the cloud
+///   2. assign_points   each point to the tube of its nearest link (assign.cpp)
+///   3. find_webs       the finger webs and the palm's end plane (webs.cpp)
+///   4. palm_planes, digit_planes   cross-section planes (stations) and their slabs (planes.cpp)
+///   5. resample_rings, keep_apart, add_dome   rings of a fixed number of points (rings.cpp)
+///   6. stitch_tubes    tube meshes united into one closed surface (stitch.cpp)
+///   7. decimate        CGAL edge collapse to the triangle budget (decimate.cpp)
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Surface_mesh.h>
+
+#include <Eigen/Geometry>
+#include <array>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/dof.hpp"
+#include "core/rig.hpp"
+#include "skin/skin_mesh.hpp"
+#include "skin/slices.hpp"
+
+namespace handskin::skin_steps {
+
+using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+using SM = CGAL::Surface_mesh<K::Point_3>;
+constexpr double kDeg = M_PI / 180.0;
+
+/// A ring's plane: polar centre `o`, in-plane axes u, v, normal n (u × v = n, pointing along
+/// the tube toward its far end). Angles are sampled on an ellipse of half-axes a (along u)
+/// and b (along v), so a flat palm section gets its points spread along the contour.
+struct Station {
+  Eigen::Vector3d o, u, v, n;
+  double a = 1, b = 1;
+};
+
+/// One tube under construction: its stations, their slabs of points, then its rings.
+struct TubeBuild {
+  int id = 0;
+  std::vector<Station> st;
+  std::vector<std::vector<Eigen::Vector2d>> slab;  ///< per station: in-plane points relative to o
+  std::vector<Eigen::Vector3d> beyond;            ///< points past the last station (fingertip dome)
+  std::vector<std::vector<Eigen::Vector3d>> rings;
+  std::vector<int> ring_station;
+  std::vector<Eigen::Vector3d> ring_centre;
+  std::optional<Eigen::Vector3d> pole;
+  SkinTubeReport report;
+};
+
+/// Which tube a link's points go to: the carpus and the four metacarpals make the palm; the
+/// thumb's three links the thumb; the phalanges of a finger its tube.
+int tube_of_bone(const Bone& b);
+/// A station at `o` with normal `n`: v toward the back of the hand, u = v × n.
+Station frame_at(const Eigen::Vector3d& o, const Eigen::Vector3d& n);
+
+// A polyline with arc length, extended straight beyond both ends.
+struct Polyline {
+  std::vector<Eigen::Vector3d> p;
+  std::vector<double> s;
+  explicit Polyline(std::vector<Eigen::Vector3d> pts) : p(std::move(pts)) {
+    s.push_back(0);
+    for (size_t i = 1; i < p.size(); ++i) s.push_back(s.back() + (p[i] - p[i - 1]).norm());
+  }
+  Eigen::Vector3d at(double t) const {
+    size_t i = 0;
+    while (i + 2 < p.size() && t > s[i + 1]) ++i;
+    const double L = std::max(s[i + 1] - s[i], 1e-9);
+    return p[i] + (t - s[i]) / L * (p[i + 1] - p[i]);
+  }
+  Eigen::Vector3d tangent(double t, double h) const { return (at(t + h) - at(t - h)).normalized(); }
+  // Arc length of the point of the (extended) polyline nearest to q.
+  double project(const Eigen::Vector3d& q) const {
+    double best = 1e300, bs = 0;
+    for (size_t i = 0; i + 1 < p.size(); ++i) {
+      const Eigen::Vector3d d = p[i + 1] - p[i];
+      const double L2 = std::max(d.squaredNorm(), 1e-12);
+      double t = (q - p[i]).dot(d) / L2;
+      const double lo = i == 0 ? -1e9 : 0, hi = i + 2 == p.size() ? 1e9 : 1;
+      t = std::clamp(t, lo, hi);
+      const double dist = (p[i] + t * d - q).squaredNorm();
+      if (dist < best) best = dist, bs = s[i] + t * std::sqrt(L2);
+    }
+    return bs;
+  }
+};
+
+
+/// Step 1: the cloud, the joints and the links in the hand frame of the rig.
+struct HandFrame {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();  ///< rig → hand frame
+  std::vector<Eigen::Vector3d> q;                      ///< the points
+  std::array<Eigen::Vector3d, kJointCount> J;          ///< the joints
+  Eigen::Vector3d lo, hi;                              ///< the points' bounding box
+  std::vector<Eigen::Vector3d> A, B;                   ///< each link's ends
+  std::vector<int> bone_tube;                          ///< each link's tube (tube_of_bone)
+};
+/// Throws InputError when one of the palm's joints (wrist, metacarpal bases and heads) lies
+/// more than 15 mm outside the cloud's bounding box (a digit's outer joints may: that digit is
+/// then missing from the scan, a warning later).
+HandFrame to_hand_frame(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const std::vector<Bone>& bones);
+
+/// Step 2: each point to the tube of its nearest link; thumb and palm share the points within
+/// `thumb_overlap_mm` of their boundary. `palm` is every point the palm's planes may take.
+struct TubePoints {
+  std::vector<std::vector<Eigen::Vector3d>> tube;  ///< per SkinTube
+  std::vector<Eigen::Vector3d> palm;
+};
+TubePoints assign_points(const HandFrame& H, double thumb_overlap_mm);
+
+/// Step 3: the finger webs (where the skin between neighbouring fingers ends) and the palm's
+/// end plane through them: its angle about Z (clamped to ±35°) and where it crosses y = centre.y.
+struct Webs {
+  std::vector<Eigen::Vector3d> points;  ///< index|middle, middle|ring, ring|little
+  std::vector<std::string> warnings;
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  double alpha_end = 0, x_end = 0;
+};
+/// Throws InputError when the webs lie at the wrist end (a rig that does not fit).
+Webs find_webs(const HandFrame& H, double h);
+
+/// Step 4: the palm's stations (planes across the hand from the wrist cut, fanned to the end
+/// plane), their slabs, polar centres and sampling ellipses.
+TubeBuild palm_planes(const HandFrame& H, const TubePoints& P, const Webs& webs, double h);
+/// A digit's stations (perpendicular to its links, from its root to where its tip's dome
+/// starts) and slabs, with the axis-offset figures in its report; report.present is false
+/// when the digit is missing from the scan.
+TubeBuild digit_planes(const HandFrame& H, const TubePoints& P, int finger, double h);
+
+/// Step 5: give each point to its station's slab (`beyond` past the last when `dome`).
+void fill_slabs(TubeBuild* t, const std::vector<Eigen::Vector3d>& pts, double h, bool dome);
+/// Rings of M points per station: polar profiles, wrinkle filter, rings without enough
+/// samples filled from their neighbours (shrinking toward a digit's root when `shrink_root`).
+void resample_rings(TubeBuild* t, int M, const SkinOptions& o, bool shrink_root);
+/// Pull a finger's ring points back where they come nearer a neighbouring finger's links
+/// than their own (less 0.5 mm): neighbouring tubes never touch.
+void keep_apart(TubeBuild* t, const HandFrame& H, int finger);
+/// The fingertip's dome: `rings` rings about the last station and a pole.
+void add_dome(TubeBuild* t, int M, int rings, const SkinOptions& o);
+
+/// Step 6: each tube's triangles (strips, caps), then one corefinement union. `origin` maps
+/// every tube vertex's exact position (rig frame) to its (tube, ring); `pockets` counts the
+/// inner shells dropped. Throws InputError naming a tube that folds into itself, or when the
+/// tubes do not join into one surface.
+SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& hand_to_rig,
+                std::map<std::array<double, 3>, std::pair<int, int>>* origin, int* pockets);
+
+/// Step 7: quadric-error decimation of a closed mesh to `max_faces`, moving it by at most
+/// about `tolerance_mm`; each vertex's (tube, ring) in `origin` follows it.
+using Origin = SM::Property_map<SM::Vertex_index, std::pair<int, int>>;
+void decimate(SM* sm, size_t max_faces, double tolerance_mm, Origin origin);
+
+}  // namespace handskin::skin_steps

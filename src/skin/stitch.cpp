@@ -1,0 +1,166 @@
+#include "skin/skin_steps.hpp"
+
+#include <CGAL/Polygon_mesh_processing/connected_components.h>
+#include <CGAL/Polygon_mesh_processing/corefinement.h>
+#include <CGAL/Polygon_mesh_processing/measure.h>
+#include <CGAL/Polygon_mesh_processing/self_intersections.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/errors.hpp"
+
+namespace handskin::skin_steps {
+
+namespace PMP = CGAL::Polygon_mesh_processing;
+
+namespace {
+
+// Move each ring point out (or, where the ring is concave, in) by half the sagitta of its
+// chords, so that the polygon straddles the curve it samples instead of lying inside it: the
+// chords' largest distance from the curve halves (the minimax polygon of a circle).
+void straddle(std::vector<Eigen::Vector3d>* ring, const Eigen::Vector3d& centre) {
+  const std::vector<Eigen::Vector3d> p = *ring;
+  const size_t M = p.size();
+  for (size_t j = 0; j < M; ++j) {
+    const Eigen::Vector3d &a = p[(j + M - 1) % M], &b = p[j], &c = p[(j + 1) % M];
+    const Eigen::Vector3d ab = b - a, bc = c - b, ca = a - c;
+    const double area2 = ab.cross(bc).norm();
+    if (area2 < 1e-12) continue;
+    const double R = ab.norm() * bc.norm() * ca.norm() / (2 * area2);  // circumradius
+    const double chord = 0.5 * (ab.norm() + bc.norm());
+    Eigen::Vector3d out = (b - 0.5 * (a + c));  // toward the outside of a convex corner
+    const bool convex = out.dot(b - centre) > 0;
+    const Eigen::Vector3d radial = (b - centre).normalized();
+    const double sag = std::min(chord * chord / (8 * R), 0.25 * chord);
+    (*ring)[j] = b + (convex ? 0.5 : -0.5) * sag * radial;
+  }
+}
+
+// The tube's triangles (outward): strips between consecutive rings (each quad split along
+// its shorter diagonal), a flat fan over the first ring, a pole fan or a flat fan at the end.
+void tube_mesh(const TubeBuild& t, std::vector<Eigen::Vector3d>* V, std::vector<std::array<int, 3>>* F,
+               std::vector<int>* ring_of) {
+  const int M = static_cast<int>(t.rings.front().size());
+  V->clear(), F->clear(), ring_of->clear();
+  for (size_t k = 0; k < t.rings.size(); ++k) {
+    std::vector<Eigen::Vector3d> ring = t.rings[k];
+    straddle(&ring, t.ring_centre[k]);
+    for (const auto& p : ring) V->push_back(p), ring_of->push_back(t.ring_station[k]);
+  }
+  auto id = [&](size_t k, int j) { return static_cast<int>(k) * M + ((j % M) + M) % M; };
+  for (size_t k = 0; k + 1 < t.rings.size(); ++k)
+    for (int j = 0; j < M; ++j) {
+      const int a = id(k, j), b = id(k, j + 1), c = id(k + 1, j + 1), d = id(k + 1, j);
+      if (((*V)[a] - (*V)[c]).squaredNorm() <= ((*V)[b] - (*V)[d]).squaredNorm())
+        F->push_back({a, b, c}), F->push_back({a, c, d});
+      else
+        F->push_back({a, b, d}), F->push_back({b, c, d});
+    }
+  auto centroid = [&](size_t k) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const auto& p : t.rings[k]) c += p;
+    return Eigen::Vector3d(c / M);
+  };
+  const int root = static_cast<int>(V->size());
+  V->push_back(centroid(0)), ring_of->push_back(-1);
+  for (int j = 0; j < M; ++j) F->push_back({root, id(0, j + 1), id(0, j)});
+  const size_t L = t.rings.size() - 1;
+  const int end = static_cast<int>(V->size());
+  V->push_back(t.pole ? *t.pole : centroid(L)), ring_of->push_back(-1);
+  for (int j = 0; j < M; ++j) F->push_back({end, id(L, j), id(L, j + 1)});
+}
+
+SM to_surface_mesh(const std::vector<Eigen::Vector3d>& V, const std::vector<std::array<int, 3>>& F) {
+  SM sm;
+  std::vector<SM::Vertex_index> vi;
+  for (const auto& p : V) vi.push_back(sm.add_vertex(K::Point_3(p.x(), p.y(), p.z())));
+  for (const auto& f : F) HS_CHECK(sm.add_face(vi[f[0]], vi[f[1]], vi[f[2]]) != SM::null_face(), "face rejected");
+  return sm;
+}
+
+}  // namespace
+
+SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& Ti,
+                std::map<std::array<double, 3>, std::pair<int, int>>* origin_out, int* pockets_out) {
+  auto& origin = *origin_out;
+  *pockets_out = 0;
+  // The digits, which do not touch one another (keep_apart), go in as
+  // one mesh of five shells, so that the palm is stitched to all of them in a single
+  // corefinement. Corefinement needs inputs free of self-intersections: the palm is checked,
+  // and the five digits at once, which covers each digit's own folds as well as digits
+  // touching. Only if that check fails is each digit checked on its own, to name the one that
+  // folds; if none does, two digits touch (e.g. the thumb lying on the index) and they are
+  // stitched one by one instead.
+  std::vector<SM> parts;
+  std::vector<int> part_tube;
+  for (const auto& t : tubes) {
+    if (!t.report.present) continue;
+    std::vector<Eigen::Vector3d> V;
+    std::vector<std::array<int, 3>> F;
+    std::vector<int> ring_of;
+    tube_mesh(t, &V, &F, &ring_of);
+    for (auto& p : V) p = Ti * p;
+    for (size_t i = 0; i < V.size(); ++i) origin[{V[i].x(), V[i].y(), V[i].z()}] = {t.id, ring_of[i]};
+    parts.push_back(to_surface_mesh(V, F));
+    part_tube.push_back(t.id);
+  }
+  auto check_folds = [&](size_t k) {
+    if (PMP::does_self_intersect(parts[k]))
+      throw InputError("merged cloud", std::string("the ") + skin_tube_name(part_tube[k]) +
+                                           " tube folds into itself; the rig may be badly placed for this scan");
+  };
+  auto unite = [&](SM& a, SM& b, const std::string& what) {
+    SM out;
+    if (!PMP::corefine_and_compute_union(a, b, out))
+      throw InputError("merged cloud", "the " + what + " cannot be stitched to the palm into a closed manifold");
+    return out;
+  };
+  check_folds(0);
+  SM digits;
+  for (size_t k = 1; k < parts.size(); ++k) {
+    std::vector<SM::Vertex_index> map(parts[k].number_of_vertices());
+    for (auto v : parts[k].vertices()) map[v.idx()] = digits.add_vertex(parts[k].point(v));
+    for (auto f : parts[k].faces()) {
+      std::vector<SM::Vertex_index> tri;
+      for (auto v : CGAL::vertices_around_face(parts[k].halfedge(f), parts[k])) tri.push_back(map[v.idx()]);
+      digits.add_face(tri[0], tri[1], tri[2]);
+    }
+  }
+  SM skin = std::move(parts.front());  // the palm
+  if (parts.size() > 1 && !PMP::does_self_intersect(digits)) {
+    skin = unite(skin, digits, "digits");
+  } else {
+    for (size_t k = 1; k < parts.size(); ++k) check_folds(k);
+    for (size_t k = 1; k < parts.size(); ++k) skin = unite(skin, parts[k], skin_tube_name(part_tube[k]) + std::string(" tube"));
+  }
+  // The union's boundary also bounds any pocket the tubes enclose between them: inward-facing
+  // shells inside the skin. They are dropped; a second outward shell would be a digit that
+  // does not meet the palm, which is an error. Counting the components first spares the copy
+  // into pieces in the usual case of one.
+  auto component = skin.add_property_map<SM::Face_index, std::size_t>("f:component", 0).first;
+  const std::size_t components = PMP::connected_components(skin, component);
+  skin.remove_property_map(component);
+  if (components > 1) {
+    std::vector<SM> pieces;
+    PMP::split_connected_components(skin, pieces);
+    SM outer;
+    int outward = 0, pockets = 0;
+    for (auto& piece : pieces) {
+      if (PMP::volume(piece) > 0) {
+        ++outward;
+        outer = std::move(piece);
+      } else {
+        ++pockets;
+      }
+    }
+    if (outward != 1)
+      throw InputError("merged cloud", "the skin's tubes do not join into one surface (" + std::to_string(outward) +
+                                           " separate pieces); the rig may not fit this scan");
+    *pockets_out = pockets;
+    skin = std::move(outer);
+  }
+  return skin;
+}
+
+}  // namespace handskin::skin_steps
