@@ -175,6 +175,20 @@ TEST(Cli, BadInputIsOneLineAndLeavesNoOutput) {
   // Out-of-range option of the synthetic scanner.
   EXPECT_EQ(test::run(kBin + " -q synth scan --mesh " + kFix + "truth_skin.ply --rig " + kFix + "rig.json --marker-radius -2 --out " + dir, &out), 1);
   EXPECT_NE(out.find("marker_radius_mm"), std::string::npos) << out;
+  // The synthetic hand's posture and side: an unknown DOF, a value that is no number, a
+  // joint bent past what the family allows, a side that is neither.
+  const std::string hand = kBin + " -q synth hand --no-render --out " + dir;
+  EXPECT_EQ(test::run(hand + " --set index.pip.flx=30", &out), 1);
+  EXPECT_EQ(out, "error: --set: unknown DOF 'index.pip.flx'\n");
+  EXPECT_EQ(test::run(hand + " --set index.pip.flex=3O", &out), 1);
+  EXPECT_NE(out.find("'3O' is not a finite number"), std::string::npos) << out;
+  EXPECT_EQ(test::run(hand + " --set index.pip.flex=95", &out), 1);
+  EXPECT_NE(out.find("index.pip.flex"), std::string::npos) << out;
+  EXPECT_EQ(test::run(hand + " --side middle", &out), 1);
+  EXPECT_EQ(out, "error: --side: 'middle': must be right or left\n");
+  EXPECT_EQ(test::run(hand + " --forearm 60", &out), 1);
+  EXPECT_NE(out.find("forearm_mm"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir));
 }
 
 TEST(Cli, ConvertBetweenScansAndClouds) {
@@ -190,10 +204,13 @@ TEST(Cli, ConvertBetweenScansAndClouds) {
 TEST(Cli, SynthScanRunsOnAnotherHand) {
   const std::string dir = test::temp_dir("synth");
   std::string out;
-  ASSERT_EQ(test::run(kBin + " -q synth hand --hand-length 172 --spread 8 --thickness 0.9 --facet-size 2.2 --no-render --out " + dir + "/hand", &out), 0) << out;
+  // A left hand, in its relaxed posture (the default), of another size.
+  ASSERT_EQ(test::run(kBin + " -q synth hand --side left --hand-length 172 --spread 8 --thickness 0.9 --facet-size 2.2 --no-render --out " + dir + "/hand", &out), 0) << out;
+  EXPECT_EQ(rig_side(load_rig(dir + "/hand/hand_rig.json")), HandSide::Left);
   ASSERT_EQ(test::run(kBin + " -q synth scan --mesh " + dir + "/hand/hand.ply --rig " + dir + "/hand/hand_rig.json --seed 5 --out " + dir + "/scan", &out), 0) << out;
   for (const char* f : {"back.png", "back.json", "palm.png", "palm.json", "rig.json", "truth.json", "truth_skin.ply", "back_preview.png"})
     EXPECT_TRUE(fs::exists(dir + "/scan/" + f)) << f;
+  EXPECT_EQ(load_json_object(dir + "/scan/truth.json")["hand"], "left");
   ASSERT_EQ(test::run(kBin + " -q run --back " + dir + "/scan/back --palm " + dir + "/scan/palm --rig " + dir + "/scan/rig.json --out " + dir + "/out", &out), 0) << out;
   ASSERT_EQ(test::run(kBin + " -q render --mesh " + dir + "/hand/hand.ply --rig " + dir + "/hand/hand_rig.json --out " + dir + "/r.png", &out), 0) << out;
   EXPECT_GT(fs::file_size(dir + "/r.png"), 1000u);
