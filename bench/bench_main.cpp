@@ -77,6 +77,21 @@ static void BM_RegisterFixturePairMarkerOnly(benchmark::State& st) {
 }
 BENCHMARK(BM_RegisterFixturePairMarkerOnly)->Unit(benchmark::kMillisecond)->Iterations(10);
 
+// The default pipeline's registration: the marker radius estimated from the scans first
+// (every candidate radius detected in both scans and matched), then the registration.
+static void BM_RegisterFixturePairRadiusEstimated(benchmark::State& st) {
+  const std::string dir = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
+  const RangeScan back = load_scan(dir + "back"), palm = load_scan(dir + "palm");
+  RegistrationOptions o;
+  o.estimate_radius = true;
+  for (auto _ : st) {
+    const Registration reg = register_scans(back, palm, "back", "palm", o, nullptr, [](const std::string&) {});
+    benchmark::DoNotOptimize(reg.back_to_palm);
+    st.counters["radius_mm"] = reg.marker_radius_mm;
+  }
+}
+BENCHMARK(BM_RegisterFixturePairRadiusEstimated)->Unit(benchmark::kMillisecond)->Iterations(5);
+
 // ---- posture solver ----
 namespace {
 int dof(const char* n) { return dof_index(n).value(); }
