@@ -310,10 +310,12 @@ void register_command(const RegisterArgs& a, const Progress& progress) {
   save_merged((fs::path(a.out) / "merged.ply").string(), *reg.merged);
   write_file_atomic((fs::path(a.out) / "merged.png").string(), merged_preview_png(merged_arrays(*reg.merged), reg.markers_palm));
   const Json& r = reg.report;
-  std::printf("%s: %s, %zu of %zu/%zu markers matched, marker rms %.4f mm (refined %.4f mm), %zu merged points\n",
+  std::printf("%s: %s, %zu of %zu/%zu markers matched (radius %.3f mm, %s), marker rms %.4f mm (refined %.4f mm), %zu "
+              "merged points\n",
               r["status"].get<std::string>().c_str(), r["method"].get<std::string>().c_str(),
               r["matching"]["pairs_back_palm"].size(), r["scans"]["back"]["markers"].size(),
-              r["scans"]["palm"]["markers"].size(), r["marker_only"]["rms_mm"].get<double>(),
+              r["scans"]["palm"]["markers"].size(), reg.marker_radius_mm,
+              r["marker_radius"]["source"].get<std::string>().c_str(), r["marker_only"]["rms_mm"].get<double>(),
               r["refined"]["rms_mm"].get<double>(), reg.merged->size());
   if (r.contains("against_truth"))
     std::printf("against truth: rotation %.5f deg, skin mean %.4f mm, max %.4f mm\n",

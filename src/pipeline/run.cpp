@@ -93,6 +93,8 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
                     {"status", rr["status"]},
                     {"warnings", rr["warnings"]},
                     {"method", rr["method"]},
+                    {"marker_radius_mm", {{"value", reg.marker_radius_mm},
+                                          {"source", rr["marker_radius"]["source"]}}},
                     {"markers_found", {{"back", rr["scans"]["back"]["markers"].size()},
                                        {"palm", rr["scans"]["palm"]["markers"].size()}}},
                     {"markers_matched", rr["matching"]["pairs_back_palm"].size()},
