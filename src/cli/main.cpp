@@ -601,8 +601,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   shc->add_option("--spread", sh.shape.finger_spread_deg, "Extra angle between neighbouring fingers, deg [0, 15]")
       ->capture_default_str();
-  shc->add_option("--thickness", sh.shape.thickness_scale, "Thickness multiplier [0.7, 1.4]")->capture_default_str();
-  shc->add_option("--width", sh.shape.width_scale, "Breadth multiplier [0.7, 1.4]")->capture_default_str();
+  shc->add_option("--thickness", sh.shape.thickness_scale, "Palm thickness multiplier [0.7, 1.4]")->capture_default_str();
+  shc->add_option("--width", sh.shape.width_scale, "Palm and finger breadth multiplier [0.7, 1.4]")->capture_default_str();
   shc->add_option("--thumb-abduction", sh.shape.thumb_abduction_deg,
                   "Thumb metacarpal angle from the index's in the rest frame, deg [20, 70]")
       ->capture_default_str();
