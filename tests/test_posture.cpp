@@ -53,6 +53,37 @@ TEST(Skeleton, ZeroAnglesReproduceTheRig) {
   for (int j = 0; j < kJointCount; ++j) EXPECT_LT((p[j] - rig.joints[j]).norm(), 1e-9) << joints()[j].name;
 }
 
+TEST(Skeleton, AbductionPointsAwayFromTheMiddleFingerOnLeftAndRightHands) {
+  // A left hand is a right hand's mirror image: its rig's local frames are mirrored, and the
+  // abduction signs follow, so "positive = away from the middle finger" holds for both.
+  Rig right = load_rig(kFixture + "rig.json");
+  Rig left = right;
+  for (auto& j : left.joints) j.y() = -j.y();
+  left.palm_normal->y() = -left.palm_normal->y();
+  ASSERT_EQ(rig_side(right), HandSide::Right);
+  ASSERT_EQ(rig_side(left), HandSide::Left);
+  for (const Rig* rig : {&right, &left}) {
+    const Skeleton sk(*rig, "rig");
+    EXPECT_EQ(sk.side(), rig_side(*rig));
+    const int mid = joint_index("middle-finger-tip").value();
+    for (const char* f : {"index", "ring", "little"}) {
+      Angles a{};
+      const int tip = joint_index(std::string(f == std::string("little") ? "pinky" : f) + "-finger-tip").value();
+      const double d0 = (sk.positions(a)[tip] - sk.positions(a)[mid]).norm();
+      a[dof_index(std::string(f) + ".mcp.abd").value()] = 10;
+      const double d1 = (sk.positions(a)[tip] - sk.positions(a)[mid]).norm();
+      EXPECT_GT(d1, d0 + 3) << f << " " << hand_side_name(rig_side(*rig));
+    }
+    // Flexion bends toward the palm on both hands.
+    Angles a{};
+    const int tip = joint_index("index-finger-tip").value();
+    const Eigen::Vector3d back = *rig->palm_normal;
+    const double h0 = sk.positions(a)[tip].dot(back);
+    a[dof_index("index.mcp.flex").value()] = 30;
+    EXPECT_LT(sk.positions(a)[tip].dot(back), h0 - 10);
+  }
+}
+
 TEST(Skeleton, ForwardKinematicsByHand) {
   const Rig rig = load_rig(kFixture + "rig.json");
   const Skeleton sk(rig, "rig");
