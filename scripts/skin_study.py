@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Skin acceptance study (issue 5): synthetic pairs of several hands, each registered and
+"""Skin acceptance study (issue 5): synthetic pairs of several flat hands, each registered and
 skinned with the given rig and with the automatic skeleton, measured against its true skin.
 
     python3 scripts/skin_study.py [--bin build/handskin] [--work /tmp/skin-study]
@@ -38,7 +38,7 @@ def main():
     for h, opts in HANDS.items():
         hand = os.path.join(a.work, h)
         if not os.path.exists(os.path.join(hand, "hand.ply")):
-            sh([a.bin, "-q", "synth", "hand", "--out", hand, "--no-render"] + opts)
+            sh([a.bin, "-q", "synth", "hand", "--out", hand, "--posture", "flat", "--no-render"] + opts)
         for s in SEEDS:
             d = os.path.join(a.work, f"{h}{s}")
             if not os.path.exists(os.path.join(d, "truth.json")):
