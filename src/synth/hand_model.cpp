@@ -2,12 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 
 #include "core/errors.hpp"
 #include "core/hand_proportions.hpp"
 #include "posture/angle_table.hpp"
 #include "posture/skeleton.hpp"
+#include "posture/solver.hpp"
 
 namespace handskin {
 
@@ -31,14 +31,6 @@ Eigen::Vector3d heading(double deg_in_plane, double deg_down = 0) {
 
 bool all_zero(const std::array<double, kDofCount>& a) {
   return std::all_of(a.begin(), a.end(), [](double x) { return x == 0.0; });
-}
-
-double parse_degrees(const std::string& text, const std::string& what) {
-  char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  if (text.empty() || *end != '\0' || !std::isfinite(v))
-    throw InputError("--set", what + ": '" + text + "' is not a finite number of degrees");
-  return v;
 }
 
 // Rotate `v` about the unit axis `a` by `deg` (Rodrigues).
@@ -184,7 +176,7 @@ HandModel build_hand_model(const HandShapeOptions& o) {
     finger_dir[fi] = dir;
     std::vector<double> lengths = {f.proximal, f.middle, f.distal};
     if (thumb) lengths = {f.proximal, f.distal};
-    const double lf = (fi == 1 ? index_factor : 1.0) * (fl == 1.0 ? s : sl * fl);
+    const double lf = (fi == 1 ? index_factor : 1.0) * sl * fl;  // sl == s when fl == 1
     std::vector<Eigen::Vector3d> js = {cmc, mcp};
     for (double L : lengths) js.push_back(js.back() + L * lf * dir);
     for (size_t k = 0; k < chain.size(); ++k) rest.joints[chain[k]] = js[k];
@@ -197,9 +189,8 @@ HandModel build_hand_model(const HandShapeOptions& o) {
   m.rig = rest;
   if (!flat) {
     const Skeleton sk(rest, "hand options");
-    std::array<double, kDofCount> a = o.posture;
     const auto W0 = sk.frames(std::array<double, kDofCount>{});
-    const auto Wp = sk.frames(a);
+    const auto Wp = sk.frames(o.posture);
     for (int j = 0; j < kJointCount; ++j) {
       m.rig.joints[j] = Wp[j].translation();
       turn_of[j] = Wp[j].linear() * W0[j].linear().transpose();
@@ -311,12 +302,10 @@ std::array<double, kDofCount> parse_posture(const std::string& spec, const std::
       if (std::isfinite(t.rows[0][c])) a[t.columns[c]] = t.rows[0][c];
   }
   for (const std::string& s : sets) {
-    const auto eq = s.find('=');
-    if (eq == std::string::npos) throw InputError("--set", "'" + s + "' is not DOF=deg");
-    const std::string name = s.substr(0, eq), value = s.substr(eq + 1);
-    const auto d = dof_index(name);
-    if (!d) throw InputError("--set", "unknown DOF '" + name + "'");
-    a[*d] = parse_degrees(value, name);
+    int d = -1;
+    double deg = 0;
+    parse_assignment(s, "--set", &d, &deg, nullptr);  // the same DOF=value form as `solve --set`
+    a[d] = deg;
   }
   return a;
 }
