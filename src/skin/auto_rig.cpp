@@ -196,7 +196,7 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     std::vector<Eigen::Vector3d> curve;
     std::vector<double> arc;
     Eigen::Vector3d tip_skin = Eigen::Vector3d::Zero();
-    // The point at arc length `a` (clamped to the curve) and the unit tangent there.
+    // The point at arc length `a` (clamped to the curve).
     Eigen::Vector3d at(double a) const {
       const size_t i = std::clamp<size_t>(std::lower_bound(arc.begin(), arc.end(), a) - arc.begin(), 1, arc.size() - 1);
       const double u = std::clamp((a - arc[i - 1]) / std::max(arc[i] - arc[i - 1], 1e-9), 0.0, 1.0);
@@ -282,22 +282,28 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
       centres.emplace_back(t, 0.5 * (a + b), 0.5 * (zl + zh));
     }
     if (centres.size() < 4) throw InputError("merged cloud", "a digit is too short to find its axis; give a rig");
-    // Lateral offset and height as quadratics of t (least squares): a flexed digit arches
-    // out of the hand's plane; a straight one gets a line. Beyond the measured centres the
-    // curve goes on along its end tangents (straight into the palm, straight to the tip).
-    // Fingers flex, they do not bend sideways between their joints: the lateral offset is a
-    // line; the height a quadratic where the measured span is long enough to show a curl.
-    Eigen::MatrixXd A(centres.size(), 3), A1(centres.size(), 3);
-    Eigen::VectorXd bl(centres.size()), bz(centres.size());
+    // Lateral offset and height as polynomials of t (least squares). Fingers flex, they do
+    // not bend sideways between their joints: the lateral offset is a line; the height a
+    // quadratic where the measured span is long enough to show a curl (a flexed digit arches
+    // out of the hand's plane). Beyond the measured centres the curve goes on along its end
+    // tangents (straight into the palm, straight to the tip).
     const double tm = 0.5 * (centres.front().x() + centres.back().x());
     const bool curl = centres.size() >= 6 && centres.back().x() - centres.front().x() >= 25;
-    for (size_t k = 0; k < centres.size(); ++k) {
-      const double u = centres[k].x() - tm;
-      A.row(k) << 1, u, curl ? u * u : 0.0;
-      A1.row(k) << 1, u, 0.0;
-      bl(k) = centres[k].y(), bz(k) = centres[k].z();
-    }
-    const Eigen::Vector3d cl = A1.colPivHouseholderQr().solve(bl), cz = A.colPivHouseholderQr().solve(bz);
+    auto fit = [&](int coordinate, bool quadratic) {  // coefficients of 1, u, u² (u = t − tm)
+      const int n = quadratic ? 3 : 2;
+      Eigen::MatrixXd A(centres.size(), n);
+      Eigen::VectorXd b(centres.size());
+      for (size_t k = 0; k < centres.size(); ++k) {
+        const double u = centres[k].x() - tm;
+        A(k, 0) = 1, A(k, 1) = u;
+        if (quadratic) A(k, 2) = u * u;
+        b(k) = centres[k](coordinate);
+      }
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      c.head(n) = A.colPivHouseholderQr().solve(b);
+      return c;
+    };
+    const Eigen::Vector3d cl = fit(1, false), cz = fit(2, curl);
     const double ta = centres.front().x(), tb = centres.back().x();
     auto point = [&](double t) {
       const double u = std::clamp(t, ta, tb) - tm, e = t - std::clamp(t, ta, tb);
