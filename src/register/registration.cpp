@@ -230,7 +230,7 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
     // The candidate's inlier gate pulls the caps' free fits toward it: detect again at the
     // estimate and take the median free fit of the caps that agree with it (within 4 %),
     // until it settles. (A radius error moves every centre along its scan's view, the back
-    // scan's opposite to the palm scan's; the fits still run ~0.3-0.8 % small: docs/registration.md.)
+    // scan's opposite to the palm scan's; the fits still run up to 1.4 % small: docs/registration.md.)
     Json steps = Json::array({est.radius_mm});
     for (int it = 0; it < 5 && !hints; ++it) {
       const double rc = o.spheres.radius_mm;

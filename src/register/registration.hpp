@@ -34,8 +34,9 @@ struct RegistrationOptions {
   double marker_clearance_mm = 0.5;  ///< samples within radius + this of a marker are not skin
   bool refine_enabled = true;
   /// The markers' radius is not known: estimate it from the scans (spheres.radius_mm is
-  /// then ignored). Each candidate radius is tried in both scans; the one that finds the most
-  /// markers on both sides wins and the median of those caps' free-radius fits is used.
+  /// then ignored). Each candidate radius is tried in both scans and its bumps matched
+  /// between them; the one that matches the most markers wins, the trimmed median of those
+  /// caps' free-radius fits is re-detected at itself until it settles (docs/registration.md).
   bool estimate_radius = false;
   std::vector<double> radius_candidates_mm = {2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 6.0, 7.0, 8.0};
   bool IsValid(std::string* error) const;
@@ -43,11 +44,11 @@ struct RegistrationOptions {
 
 /// The markers' radius as found in the scans.
 struct RadiusEstimate {
-  double radius_mm = 0;      ///< median free-radius fit over the caps found at the best candidate
+  double radius_mm = 0;      ///< trimmed median free-radius fit over the best candidate's matched caps
   double spread_mm = 0;      ///< median absolute deviation of those fits
   double candidate_mm = 0;   ///< the candidate radius that found them
   int caps = 0;              ///< caps (both scans) the estimate rests on
-  Json tried = Json::array();  ///< per candidate: markers found in each scan
+  Json tried = Json::array();  ///< per candidate: bumps found in each scan, and matched
 };
 
 /// Approximate marker centres per scan for a replica whose bumps the detector misses

@@ -3,12 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "core/errors.hpp"
-#include "skin/profile.hpp"
 
 namespace handskin::skin_steps {
-
-using profile::segment_distance2;
 
 Station frame_at(const Eigen::Vector3d& o, const Eigen::Vector3d& n_in) {
   Station s;

@@ -2,10 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
-
-#include "core/errors.hpp"
-#include "skin/profile.hpp"
 #include <optional>
+
+#include "skin/profile.hpp"
 
 namespace handskin::skin_steps {
 

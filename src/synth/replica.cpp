@@ -162,8 +162,6 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
     }
     return true;
   };
-  // A narrower search after many failures: markers nearer the palm (the little finger's
-  // metacarpal, the thumb's base), where the flanks are broad and nothing overhangs.
   // The wrist cut face: the hand's samples within 1 mm of its proximal end, their (y, z) box.
   Eigen::Vector2d face_c, face_h;
   {
@@ -175,6 +173,8 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
     face_c = 0.5 * (lo + hi);
     face_h = 0.5 * (hi - lo);
   }
+  // A narrower search after many failures: markers nearer the palm (the little finger's
+  // metacarpal, the thumb's base), where the flanks are broad and nothing overhangs.
   for (int attempt = 0; attempt < 800 && markers.empty(); ++attempt) {
     const double reach = attempt < 400 ? 1.0 : 0.6;
     std::vector<Eigen::Vector3d> c;
