@@ -48,47 +48,41 @@ static void BM_SynthScanPair(benchmark::State& st) {
 }
 BENCHMARK(BM_SynthScanPair)->Unit(benchmark::kMillisecond)->Iterations(3);
 
-// Registration of the fixture pair, table removal through merge; the per-step split (from
-// the stage's own timings, last iteration) is reported as counters in ms.
-static void BM_RegisterFixturePair(benchmark::State& st) {
+// Registration of the fixture pair with `o`, table removal through merge; the per-step split
+// (from the stage's own timings, last iteration) and the marker radius used are counters.
+static void time_fixture_registration(benchmark::State& st, const RegistrationOptions& o) {
   const std::string dir = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
   const RangeScan back = load_scan(dir + "back"), palm = load_scan(dir + "palm");
   Json timings;
+  double radius = 0;
   for (auto _ : st) {
-    const Registration reg =
-        register_scans(back, palm, "back", "palm", RegistrationOptions{}, nullptr, [](const std::string&) {});
+    const Registration reg = register_scans(back, palm, "back", "palm", o, nullptr, [](const std::string&) {});
     timings = reg.report["timings_ms"];
+    radius = reg.marker_radius_mm;
     benchmark::DoNotOptimize(reg.back_to_palm);
   }
   for (const auto& [k, v] : timings.items()) st.counters[k] = v.get<double>();
+  st.counters["radius_mm"] = radius;
 }
+
+// The radius given (4 mm).
+static void BM_RegisterFixturePair(benchmark::State& st) { time_fixture_registration(st, RegistrationOptions{}); }
 BENCHMARK(BM_RegisterFixturePair)->Unit(benchmark::kMillisecond)->Iterations(10);
 
 // The same with the refinement off (marker-only fit), to show what the refinement costs.
 static void BM_RegisterFixturePairMarkerOnly(benchmark::State& st) {
-  const std::string dir = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
-  const RangeScan back = load_scan(dir + "back"), palm = load_scan(dir + "palm");
   RegistrationOptions o;
   o.refine_enabled = false;
-  for (auto _ : st) {
-    const Registration reg = register_scans(back, palm, "back", "palm", o, nullptr, [](const std::string&) {});
-    benchmark::DoNotOptimize(reg.back_to_palm);
-  }
+  time_fixture_registration(st, o);
 }
 BENCHMARK(BM_RegisterFixturePairMarkerOnly)->Unit(benchmark::kMillisecond)->Iterations(10);
 
 // The default pipeline's registration: the marker radius estimated from the scans first
 // (every candidate radius detected in both scans and matched), then the registration.
 static void BM_RegisterFixturePairRadiusEstimated(benchmark::State& st) {
-  const std::string dir = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
-  const RangeScan back = load_scan(dir + "back"), palm = load_scan(dir + "palm");
   RegistrationOptions o;
   o.estimate_radius = true;
-  for (auto _ : st) {
-    const Registration reg = register_scans(back, palm, "back", "palm", o, nullptr, [](const std::string&) {});
-    benchmark::DoNotOptimize(reg.back_to_palm);
-    st.counters["radius_mm"] = reg.marker_radius_mm;
-  }
+  time_fixture_registration(st, o);
 }
 BENCHMARK(BM_RegisterFixturePairRadiusEstimated)->Unit(benchmark::kMillisecond)->Iterations(5);
 
