@@ -2,6 +2,12 @@
 #include <benchmark/benchmark.h>
 
 #include <cstdlib>
+#include <chrono>
+#include <fcntl.h>
+#include <filesystem>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include "posture/calibrate.hpp"
 #include "posture/solver.hpp"
@@ -186,7 +192,7 @@ static void BM_SkinAutoRig(benchmark::State& st) {
 }
 BENCHMARK(BM_SkinAutoRig)->Unit(benchmark::kMillisecond)->Iterations(10);
 
-// The skin stage's baseline: CGAL Poisson on the fixture's merged cloud (≤ 40 000 points).
+// The skin stage's baseline: Poisson (PCL, one thread) on the fixture's merged cloud (≤ 40 000 points).
 static void BM_SkinPoissonBaseline(benchmark::State& st) {
   const MergedArrays& m = fixture_merged();
   size_t faces = 0;
@@ -194,6 +200,81 @@ static void BM_SkinPoissonBaseline(benchmark::State& st) {
   st.counters["triangles"] = static_cast<double>(faces);
 }
 BENCHMARK(BM_SkinPoissonBaseline)->Unit(benchmark::kSecond)->Iterations(1);
+
+// ------------------------------------------------------------------ the whole command
+// `handskin run` as a user runs it, in a child process: wall time, and the child's peak
+// resident memory (wait4's ru_maxrss). Goals (issue 12): the fixture ≤ 1.5 s median, and
+// ≤ 1.5 GB for the fixture and for the largest scan the format allows.
+struct ChildRun {
+  double seconds = 0, peak_mb = 0;
+  int exit_code = -1;
+};
+
+static ChildRun run_child(const std::vector<std::string>& args) {
+  std::vector<char*> argv;
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const auto t0 = std::chrono::steady_clock::now();
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const int devnull = open("/dev/null", O_WRONLY);
+    dup2(devnull, 1);
+    dup2(devnull, 2);
+    execv(argv[0], argv.data());
+    _exit(127);
+  }
+  int status = 0;
+  rusage ru{};
+  wait4(pid, &status, 0, &ru);
+  ChildRun r;
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.peak_mb = ru.ru_maxrss / 1024.0;
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return r;
+}
+
+static void report_child(benchmark::State& st, const std::vector<std::string>& args) {
+  ChildRun r;
+  for (auto _ : st) {
+    r = run_child(args);
+    st.SetIterationTime(r.seconds);
+  }
+  st.counters["peak_rss_MB"] = r.peak_mb;
+  st.counters["exit_code"] = r.exit_code;
+}
+
+static void BM_RunFixture(benchmark::State& st) {
+  const std::string out = "/tmp/handskin-bench-run";
+  report_child(st, {HANDSKIN_BINARY, "-q", "run", "--back", kFix + "back", "--palm", kFix + "palm", "--rig",
+                    kFix + "rig.json", "--out", out});
+}
+BENCHMARK(BM_RunFixture)->Unit(benchmark::kMillisecond)->UseManualTime()->Iterations(1)->Repetitions(5)
+    ->ReportAggregatesOnly(true);
+
+// The largest scans the format allows (2048 × 2048 samples; 4096 × 1024), every pixel a
+// return (a table with nothing on it): the worst a small file can ask of `run`. They are
+// refused (no markers on an empty table) — the figure is what refusing them costs.
+static void largest_scan_run(benchmark::State& st, int scanlines, int points) {
+  const std::string dir = "/tmp/handskin-bench-largest-" + std::to_string(scanlines);
+  std::filesystem::create_directories(dir);
+  for (const char* side : {"back", "palm"}) {
+    RangeScan s;
+    s.meta.scanlines = scanlines;
+    s.meta.points = points;
+    s.meta.x_step_mm = 250.0 / scanlines;
+    s.meta.y_step_mm = 200.0 / points;
+    s.meta.side = std::string(side) == "back" ? ScanSide::Back : ScanSide::Palm;
+    s.values.assign(static_cast<size_t>(scanlines) * points, 0);
+    Rng rng(3);
+    for (auto& v : s.values) v = static_cast<std::uint16_t>(100 + rng.next() % 3);
+    save_scan(dir + "/" + side, s);
+  }
+  report_child(st, {HANDSKIN_BINARY, "-q", "run", "--back", dir + "/back", "--palm", dir + "/palm", "--out", dir + "/out"});
+}
+static void BM_RunLargestScan2048x2048(benchmark::State& st) { largest_scan_run(st, 2048, 2048); }
+BENCHMARK(BM_RunLargestScan2048x2048)->Unit(benchmark::kMillisecond)->UseManualTime()->Iterations(1);
+static void BM_RunLargestScan4096x1024(benchmark::State& st) { largest_scan_run(st, 4096, 1024); }
+BENCHMARK(BM_RunLargestScan4096x1024)->Unit(benchmark::kMillisecond)->UseManualTime()->Iterations(1);
 
 // With HANDSKIN_BENCH_MERGED (a merged.ply) and HANDSKIN_BENCH_RIG (its rig) set, the skin
 // stage is also timed on that cloud, as BM_SkinBuild/file: e.g. a larger synthetic hand from

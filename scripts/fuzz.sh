@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Build the libFuzzer targets of the readers (scan, rig, angle CSV, posture model, motion capture) with clang (a separate build tree)
+# Build the libFuzzer targets of the readers (scan, rig, angle CSV, posture model, motion capture,
+# pipeline file; the scan, model and pipeline targets also substitute extreme numbers) with clang (a separate build tree)
 # and run each for a fixed number of inputs from a fixed seed, so a run is reproducible
 # (a time cap guards slow machines). Usage: scripts/fuzz.sh [runs-per-target] [seed]
 set -euo pipefail
@@ -10,7 +11,7 @@ if [ ! -f build-fuzz/CMakeCache.txt ]; then
   CC=clang CXX=clang++ cmake -S . -B build-fuzz -DHANDSKIN_FUZZ_ONLY=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
 fi
 cmake --build build-fuzz -j "${JOBS:-2}" >/dev/null
-for target in scan rig angles model mocap; do
+for target in scan rig angles model mocap pipeline; do
   corpus=$(mktemp -d)
   cp fuzz/corpus/"$target"/* "$corpus"/ 2>/dev/null || true
   echo "fuzz: $target, $RUNS inputs from seed $SEED"

@@ -34,7 +34,8 @@ TEST(Cli, HelpListsSubcommands) {
 TEST(Cli, RunOnTheFixtureWritesItsOutputs) {
   const std::string dir = test::temp_dir("run") + "/out";
   std::string out;
-  ASSERT_EQ(test::run(run_args(dir) + " --pipeline " + HANDSKIN_SOURCE_DIR + "/pipelines/cubist.json", &out), 0) << out;
+  ASSERT_EQ(test::run(run_args(dir) + " --baseline --pipeline " + HANDSKIN_SOURCE_DIR + "/pipelines/cubist.json", &out), 0)
+      << out;
   EXPECT_NE(out.find("ingest"), std::string::npos);  // progress lines
   const Json report = load_json_object(dir + "/report.json");
   EXPECT_EQ(report["format"], "handskin-report/1");
@@ -57,17 +58,31 @@ TEST(Cli, RunOnTheFixtureWritesItsOutputs) {
   EXPECT_EQ(rj["format"], "handskin-registration/1");
   EXPECT_EQ(load_cloud(dir + "/merged.ply")->size(), rj["merged"]["points"].get<size_t>());
   EXPECT_GT(fs::file_size(dir + "/merged.png"), 1000u);
-  // Skin stage: a watertight labelled mesh, the baseline beside it, the files on disk.
-  const Json& skin = report["stages"][3];
+  // Skin stage: a watertight labelled mesh, the baseline beside it (asked for), the files on disk.
+  const Json& skin = report["stages"][2];
   EXPECT_EQ(skin["name"], "skin");
   EXPECT_EQ(skin["skeleton"]["used"], "given");
   EXPECT_TRUE(skin["mesh"]["watertight"].get<bool>());
   EXPECT_LE(skin["mesh"]["triangles"].get<int>(), 10000);
   EXPECT_LT(skin["cloud_to_skin_mm"]["mean"].get<double>(), 0.15);
-  EXPECT_TRUE(skin["baseline"]["mesh"]["closed"].get<bool>());
+  EXPECT_GT(skin["baseline"]["mesh"]["triangles"].get<int>(), 1000);
+  EXPECT_LT(skin["baseline"]["cloud_to_baseline_mm"]["mean"].get<double>(), 0.2);
   for (const char* f : {"skin.ply", "skin.obj", "skin.png", "slices.json", "baseline.ply"})
     EXPECT_TRUE(fs::exists(dir + "/" + f)) << f;
+  EXPECT_EQ(report["stages"][3]["name"], "write");
+  EXPECT_EQ(report["outputs"]["report"], dir + "/report.json");
   EXPECT_EQ(load_json_object(dir + "/slices.json")["format"], "handskin-slices/1");
+  // Only what the run wrote is in the folder: no staging folder left beside it.
+  size_t files = 0;
+  for (const auto& e : fs::directory_iterator(dir)) files += e.is_regular_file();
+  EXPECT_EQ(files, report["outputs"].size());
+  for (const auto& e : fs::directory_iterator(fs::path(dir).parent_path()))
+    EXPECT_EQ(e.path().filename().string().find(".handskin-staging"), std::string::npos) << e.path();
+  // A run without --baseline does not make one, and takes the earlier run's away with it:
+  // left beside the new report it would look like part of it.
+  ASSERT_EQ(test::run(run_args(dir) + " -q", &out), 0) << out;
+  EXPECT_FALSE(fs::exists(dir + "/baseline.ply"));
+  EXPECT_FALSE(load_json_object(dir + "/report.json")["stages"][2].contains("baseline"));
 }
 
 TEST(Cli, SkinFromAMergedCloudWithAndWithoutARig) {
@@ -97,18 +112,21 @@ TEST(Cli, SkinFromAMergedCloudWithAndWithoutARig) {
   const std::string dir2 = test::temp_dir("skin2") + "/out";
   ASSERT_EQ(test::run(kBin + " -q skin --merged " + reg + "/merged.ply --pipeline " + pipe + " --out " + dir2, &out), 0) << out;
   EXPECT_EQ(load_json_object(dir2 + "/skin_report.json")["skeleton"]["used"], "automatic");
-  // A rig with two fingers swapped still closes, but is reported.
+  // A rig with two fingers swapped would still close, but bound wrongly: it is refused, naming the file.
   Json swapped = load_json_object(kFix + "rig.json");
   for (const char* j : {"metacarpal", "phalanx-proximal", "phalanx-intermediate", "phalanx-distal", "tip"})
     std::swap(swapped["joints"][std::string("index-finger-") + j], swapped["joints"][std::string("ring-finger-") + j]);
   const std::string bad_rig = test::temp_dir("skinrig") + "/rig.json";
   test::write_text(bad_rig, swapped.dump());
-  ASSERT_EQ(test::run(kBin + " skin --merged " + reg + "/merged.ply --rig " + bad_rig + " --pipeline " + pipe + " --out " +
-                          test::temp_dir("skin4") + "/out",
+  const std::string dir4 = test::temp_dir("skin4") + "/out";
+  ASSERT_EQ(test::run(kBin + " -q skin --merged " + reg + "/merged.ply --rig " + bad_rig + " --pipeline " + pipe +
+                          " --out " + dir4,
                       &out),
-            0)
+            1)
       << out;
-  EXPECT_NE(out.find("warning: the given rig lies"), std::string::npos) << out;
+  EXPECT_EQ(out.rfind("error: " + bad_rig + ": its joints lie", 0), 0u) << out;
+  EXPECT_NE(out.find("out of order"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir4));
   // Bad inputs: one line naming the file or key, nothing written.
   const std::string dir3 = test::temp_dir("skin3") + "/out";
   const std::string junk = test::temp_dir("skinjunk") + "/merged.ply";
@@ -181,7 +199,7 @@ TEST(Cli, BadInputIsOneLineAndLeavesNoOutput) {
   EXPECT_EQ(test::run(hand + " --set index.pip.flx=30", &out), 1);
   EXPECT_EQ(out, "error: --set: unknown DOF 'index.pip.flx' (names as in docs/formats.md, e.g. index.mcp.flex or I2.flex)\n");
   EXPECT_EQ(test::run(hand + " --set index.pip.flex=3O", &out), 1);
-  EXPECT_EQ(out, "error: --set: 'index.pip.flex=3O': the value must be a finite number\n");
+  EXPECT_EQ(out, "error: --set: 'index.pip.flex=3O': the value must be a finite number within ±1e4\n");
   EXPECT_EQ(test::run(hand + " --set index.pip.flex=95", &out), 1);
   EXPECT_NE(out.find("index.pip.flex"), std::string::npos) << out;
   EXPECT_EQ(test::run(hand + " --side middle", &out), 1);

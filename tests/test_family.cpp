@@ -14,7 +14,7 @@
 #include "skin/skin_mesh.hpp"
 #include "synth/hand_mesher.hpp"
 #include "synth/hand_model.hpp"
-#include "synth/mesh_distance.hpp"
+#include "mesh/mesh_distance.hpp"
 #include "synth/replica.hpp"
 
 using namespace handskin;

@@ -11,6 +11,7 @@
 #include "core/png_io.hpp"
 #include "core/rig.hpp"
 #include "pipeline/options.hpp"
+#include "pipeline/stage_options.hpp"
 #include "scan/cloud.hpp"
 #include "scan/cubist_io.hpp"
 #include "test_util.hpp"

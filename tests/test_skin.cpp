@@ -10,7 +10,7 @@
 #include "skin/baseline.hpp"
 #include "skin/skin_mesh.hpp"
 #include "skin/slices.hpp"
-#include "synth/mesh_distance.hpp"
+#include "mesh/mesh_distance.hpp"
 #include "test_util.hpp"
 #include "core/atomic_file.hpp"
 #include "core/json_util.hpp"

@@ -13,35 +13,49 @@ namespace fs = std::filesystem;
 
 namespace handskin {
 
-namespace {
 std::string temp_name_for(const std::string& path) {
   const fs::path p(path);
   return (p.parent_path() / ("." + p.stem().string() + ".tmp" + std::to_string(::getpid()) + p.extension().string()))
       .string();
 }
-}  // namespace
 
 void write_via_temp(const std::string& path, const std::function<void(const std::string& tmp)>& writer) {
+  // The folder is checked first: library writers (PCL, OpenMesh) report a missing folder in
+  // their own words, or by an exception of their own type.
+  const fs::path dir = fs::path(path).parent_path();
+  std::error_code dir_ec;
+  if (!dir.empty() && !fs::is_directory(dir, dir_ec))
+    throw InputError(path, "cannot write: folder '" + dir.string() + "' does not exist");
   const std::string tmp = temp_name_for(path);
+  auto remove_tmp = [&] {
+    std::error_code ignored;  // its own code: the cleanup must not overwrite the cause
+    fs::remove(tmp, ignored);
+  };
   try {
     writer(tmp);
-  } catch (...) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
+  } catch (const InputError&) {
+    remove_tmp();
     throw;
+  } catch (const std::exception& e) {
+    remove_tmp();
+    throw InputError(path, std::string("cannot write: ") + e.what());
   }
   std::error_code ec;
   fs::rename(tmp, path, ec);
   if (ec) {
-    fs::remove(tmp, ec);
-    throw InputError(path, "cannot write: " + ec.message());
+    const std::string cause = ec.message();
+    remove_tmp();
+    throw InputError(path, "cannot write: " + cause);
   }
 }
 
 void write_file_atomic(const std::string& path, const std::string& bytes) {
   write_via_temp(path, [&](const std::string& tmp) {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw InputError(path, std::string("cannot open for writing: ") + std::strerror(errno));
+    if (!out) {
+      const int cause = errno;
+      throw InputError(path, std::string("cannot open for writing: ") + std::strerror(cause));
+    }
     out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
     out.flush();
     if (!out) throw InputError(path, "write failed (disk full?)");

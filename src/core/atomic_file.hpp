@@ -6,6 +6,9 @@
 
 namespace handskin {
 
+/// The temporary name write_via_temp uses for `path`: `.<stem>.tmp<pid><ext>` beside it.
+std::string temp_name_for(const std::string& path);
+
 /// Write `bytes` to `path` atomically. Throws InputError naming `path` on failure.
 void write_file_atomic(const std::string& path, const std::string& bytes);
 

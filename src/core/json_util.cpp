@@ -1,5 +1,7 @@
 #include "core/json_util.hpp"
 
+#include <cstdint>
+
 #include <algorithm>
 #include <cmath>
 #include <set>
@@ -69,13 +71,19 @@ double get_positive(const Json& obj, const std::string& key, const std::string& 
   return d;
 }
 
-long get_int(const Json& obj, const std::string& key, const std::string& file, long min_value) {
+long get_int(const Json& obj, const std::string& key, const std::string& file, long min_value, long max_value) {
   const Json& v = require(obj, key, file);
   if (!v.is_number_integer()) throw InputError(file, "key '" + key + "' must be an integer");
+  const std::string range = max_value == std::numeric_limits<long>::max()
+                                ? ">= " + std::to_string(min_value)
+                                : "in [" + std::to_string(min_value) + ", " + std::to_string(max_value) + "]";
+  // Unsigned values above the long range, and every value outside the range, are refused
+  // before any narrowing (4294967808 must not become 512 as an int).
+  if (v.is_number_unsigned() && v.get<std::uint64_t>() > static_cast<std::uint64_t>(std::numeric_limits<long>::max()))
+    throw InputError(file, "key '" + key + "' must be " + range + " (got " + v.dump() + ")");
   const long i = v.get<long>();
-  if (i < min_value)
-    throw InputError(file, "key '" + key + "' must be >= " + std::to_string(min_value) + " (got " +
-                               std::to_string(i) + ")");
+  if (i < min_value || i > max_value)
+    throw InputError(file, "key '" + key + "' must be " + range + " (got " + std::to_string(i) + ")");
   return i;
 }
 
@@ -94,8 +102,9 @@ double get_finite_or(const Json& obj, const std::string& key, double def, const 
   return obj.contains(key) ? get_finite(obj, key, file) : def;
 }
 
-long get_int_or(const Json& obj, const std::string& key, long def, const std::string& file, long min_value) {
-  return obj.contains(key) ? get_int(obj, key, file, min_value) : def;
+long get_int_or(const Json& obj, const std::string& key, long def, const std::string& file, long min_value,
+                long max_value) {
+  return obj.contains(key) ? get_int(obj, key, file, min_value, max_value) : def;
 }
 
 bool get_bool_or(const Json& obj, const std::string& key, bool def, const std::string& file) {

@@ -2,6 +2,7 @@
 /// Typed access to JSON documents with errors that name the file and the key.
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
+#include <limits>
 #include <string>
 
 namespace handskin {
@@ -20,12 +21,16 @@ const Json& require(const Json& obj, const std::string& key, const std::string& 
 std::string get_string(const Json& obj, const std::string& key, const std::string& file);
 double get_finite(const Json& obj, const std::string& key, const std::string& file);
 double get_positive(const Json& obj, const std::string& key, const std::string& file);
-long get_int(const Json& obj, const std::string& key, const std::string& file, long min_value);
+/// An integer in [min_value, max_value]; a value outside (however large: it is never cast
+/// first) is an InputError naming the key and the range.
+long get_int(const Json& obj, const std::string& key, const std::string& file, long min_value,
+             long max_value = std::numeric_limits<long>::max());
 /// A JSON array of exactly 3 finite numbers; `what` names it in errors.
 Eigen::Vector3d to_vec3(const Json& v, const std::string& what, const std::string& file);
 /// Optional key with a default.
 double get_finite_or(const Json& obj, const std::string& key, double def, const std::string& file);
-long get_int_or(const Json& obj, const std::string& key, long def, const std::string& file, long min_value);
+long get_int_or(const Json& obj, const std::string& key, long def, const std::string& file, long min_value,
+                long max_value = std::numeric_limits<long>::max());
 bool get_bool_or(const Json& obj, const std::string& key, bool def, const std::string& file);
 
 /// Every key of `obj` must be in `allowed` (for option files where a typo must not pass silently).

@@ -132,4 +132,16 @@ HandSide rig_side(const Rig& rig) {
   return y >= 0 ? HandSide::Right : HandSide::Left;
 }
 
+
+std::string Bone::name() const { return std::string(joints()[joint].name) + ">" + joints()[child].name; }
+
+std::vector<Bone> bones_from_rig(const Rig& rig) {
+  std::vector<Bone> out;
+  for (int j = 1; j < kJointCount; ++j) {
+    const int p = joints()[j].parent;
+    out.push_back({p, j, rig.joints[p], rig.joints[j]});
+  }
+  return out;
+}
+
 }  // namespace handskin

@@ -6,6 +6,7 @@
 #include <array>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "core/dof.hpp"
 
@@ -36,5 +37,15 @@ HandSide rig_side(const Rig& rig);
 /// Hand frame from a rig: origin at the wrist, X toward the middle MCP, Z out of the back
 /// (palm_normal when given), Y = Z × X (toward the thumb of a right hand, the little finger of a left one). Returns T_hand_rig.
 Eigen::Isometry3d hand_frame_from_rig(const Rig& rig);
+
+/// A bone link: the segment from joint `joint` to joint `child` (rig frame). Links from the
+/// wrist to each metacarpal base are the carpus.
+struct Bone {
+  int joint = -1, child = -1;
+  Eigen::Vector3d a = Eigen::Vector3d::Zero(), b = Eigen::Vector3d::Zero();
+  std::string name() const;
+};
+/// The 24 links of a rig: wrist → each metacarpal base, and every joint → its child.
+std::vector<Bone> bones_from_rig(const Rig& rig);
 
 }  // namespace handskin

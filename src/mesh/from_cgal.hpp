@@ -1,7 +1,7 @@
 #pragma once
 /// A CGAL Surface_mesh (triangles) as the pipeline's OpenMesh TriMesh. Header-only, for the
-/// libraries that use CGAL (the hand mesher, the skin baseline); handskin_mesh itself stays
-/// free of CGAL.
+/// libraries that build meshes with CGAL (the hand mesher, the skin baseline); the mesh
+/// library's public headers stay free of CGAL (its distances use CGAL inside the .cpp).
 #include <CGAL/Surface_mesh.h>
 #include <CGAL/boost/graph/iterator.h>
 

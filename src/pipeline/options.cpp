@@ -1,159 +1,192 @@
 #include "pipeline/options.hpp"
 
 #include <algorithm>
-
-#include "skin/skin_mesh.hpp"
+#include <cmath>
+#include <cstdint>
+#include <vector>
 
 #include "core/errors.hpp"
+#include "scan/cubist_io.hpp"
 
 namespace handskin {
+
+namespace {
+
+// Every key of a pipeline file, once: its section, name, type, range and where it lives in
+// PipelineOptions. Parsing, writing and checking all walk this one table, so a key cannot be
+// read in one place and forgotten in another.
+enum class Kind { Int, Real, Bool, OptionalReal };
+struct KeySpec {
+  const char* section;
+  const char* name;
+  Kind kind;
+  double lo, hi;
+  bool lo_open;  ///< the range is (lo, hi] rather than [lo, hi]
+  void* (*field)(PipelineOptions&);
+};
+
+#define HS_FIELD(member) [](PipelineOptions& o) -> void* { return &o.member; }
+const std::vector<KeySpec>& key_table() {
+  static const std::vector<KeySpec> t = {
+      {"ingest", "min_returns", Kind::Int, 1, static_cast<double>(kMaxScanPixels), false, HS_FIELD(ingest.min_returns)},
+      {"markers", "count", Kind::Int, 3, 64, false, HS_FIELD(markers.count)},
+      {"markers", "radius_mm", Kind::OptionalReal, 1, 20, false, HS_FIELD(markers.radius_mm)},
+      {"registration", "table_margin_mm", Kind::Real, 0, 20, false, HS_FIELD(registration.table_margin_mm)},
+      {"registration", "match_tolerance_mm", Kind::Real, 0, 10, true, HS_FIELD(registration.match_tolerance_mm)},
+      {"registration", "marker_clearance_mm", Kind::Real, 0, 10, false, HS_FIELD(registration.marker_clearance_mm)},
+      {"registration", "refine", Kind::Bool, 0, 1, false, HS_FIELD(registration.refine)},
+      {"registration", "icp_gate_mm", Kind::Real, 0, 10, true, HS_FIELD(registration.icp_gate_mm)},
+      {"registration", "icp_normal_deg", Kind::Real, 0, 90, true, HS_FIELD(registration.icp_normal_deg)},
+      {"registration", "icp_trim", Kind::Real, 0, 1, true, HS_FIELD(registration.icp_trim)},
+      {"registration", "icp_max_iterations", Kind::Int, 0, 200, false, HS_FIELD(registration.icp_max_iterations)},
+      {"slicing", "planes", Kind::Int, 3, 1000, false, HS_FIELD(slicing.planes)},
+      {"slicing", "points_per_segment", Kind::Int, 2, 200, false, HS_FIELD(slicing.points_per_segment)},
+      {"skin", "thumb_overlap_mm", Kind::Real, 0, 20, false, HS_FIELD(skin.thumb_overlap_mm)},
+      {"skin", "smoothing_rings", Kind::Int, 0, 5, false, HS_FIELD(skin.smoothing_rings)},
+      {"skin", "wrinkle_mm", Kind::Real, 0, 10, false, HS_FIELD(skin.wrinkle_mm)},
+      {"skin", "cap_rings", Kind::Int, 1, 20, false, HS_FIELD(skin.cap_rings)},
+      // 0 (no decimation) or [1000, 1000000]: the gap is checked by SkinOptions::IsValid.
+      {"skin", "max_triangles", Kind::Int, 0, 1000000, false, HS_FIELD(skin.max_triangles)},
+      {"skin", "decimation_tolerance_mm", Kind::Real, 0, 1, true, HS_FIELD(skin.decimation_tolerance_mm)},
+      {"skin", "slices_json", Kind::Bool, 0, 1, false, HS_FIELD(skin.slices_json)},
+      {"skin", "baseline", Kind::Bool, 0, 1, false, HS_FIELD(skin.baseline)},
+      {"patches", "count", Kind::Int, 1, 10000, false, HS_FIELD(patches.count)},
+      {"patches", "error_grid", Kind::Int, 2, 2000, false, HS_FIELD(patches.error_grid)},
+  };
+  return t;
+}
+#undef HS_FIELD
+
+std::string key_name(const KeySpec& k) { return std::string(k.section) + "." + k.name; }
+
+std::string range_text(const KeySpec& k) {
+  auto num = [](double v) {
+    std::string s = std::to_string(v);
+    s.erase(s.find_last_not_of('0') + 1);
+    if (!s.empty() && s.back() == '.') s.pop_back();
+    return s;
+  };
+  return std::string(k.lo_open ? "(" : "[") + num(k.lo) + ", " + num(k.hi) + "]";
+}
+
+bool in_range(const KeySpec& k, double v) { return (k.lo_open ? v > k.lo : v >= k.lo) && v <= k.hi; }
+
+std::vector<const char*> section_names() {
+  std::vector<const char*> s;
+  for (const auto& k : key_table())
+    if (std::find_if(s.begin(), s.end(), [&](const char* n) { return std::string(n) == k.section; }) == s.end())
+      s.push_back(k.section);
+  return s;
+}
+
+// Const access through the same table (the table's accessors take a mutable object).
+template <typename T>
+const T& value_of(const KeySpec& k, const PipelineOptions& o) {
+  return *static_cast<const T*>(k.field(const_cast<PipelineOptions&>(o)));
+}
+
+}  // namespace
 
 bool PipelineOptions::IsValid(std::string* error) const {
   auto bad = [&](const std::string& m) {
     if (error) *error = m;
     return false;
   };
-  if (ingest.min_returns < 1) return bad("ingest.min_returns must be >= 1");
-  if (markers.count < 3) return bad("markers.count must be >= 3");
-  if (markers.radius_mm && !(*markers.radius_mm >= 1 && *markers.radius_mm <= 20))
-    return bad("markers.radius_mm must be in [1, 20] (or absent: estimated from the scans)");
-  if (!(registration.table_margin_mm >= 0 && registration.table_margin_mm <= 20))
-    return bad("registration.table_margin_mm must be in [0, 20]");
-  if (!(registration.match_tolerance_mm > 0 && registration.match_tolerance_mm <= 10))
-    return bad("registration.match_tolerance_mm must be in (0, 10]");
-  if (!(registration.marker_clearance_mm >= 0 && registration.marker_clearance_mm <= 10))
-    return bad("registration.marker_clearance_mm must be in [0, 10]");
-  if (!(registration.icp_gate_mm > 0 && registration.icp_gate_mm <= 10))
-    return bad("registration.icp_gate_mm must be in (0, 10]");
-  if (!(registration.icp_normal_deg > 0 && registration.icp_normal_deg <= 90))
-    return bad("registration.icp_normal_deg must be in (0, 90]");
-  if (!(registration.icp_trim > 0 && registration.icp_trim <= 1)) return bad("registration.icp_trim must be in (0, 1]");
-  if (registration.icp_max_iterations > 200) return bad("registration.icp_max_iterations must be in [0, 200]");
-  if (slicing.planes < 3 || slicing.planes > 1000) return bad("slicing.planes must be in [3, 1000]");
-  if (slicing.points_per_segment < 2 || slicing.points_per_segment > 200)
-    return bad("slicing.points_per_segment must be in [2, 200]");
-  if (!skin_options(*this).IsValid(error)) return false;
-  if (patches.count < 1) return bad("patches.count must be >= 1");
-  if (patches.error_grid < 2 || patches.error_grid > 2000) return bad("patches.error_grid must be in [2, 2000]");
+  for (const auto& k : key_table()) {
+    double v = 0;
+    switch (k.kind) {
+      case Kind::Int: v = static_cast<double>(value_of<long>(k, *this)); break;
+      case Kind::Real: v = value_of<double>(k, *this); break;
+      case Kind::OptionalReal: {
+        const auto& opt = value_of<std::optional<double>>(k, *this);
+        if (!opt) continue;
+        v = *opt;
+        break;
+      }
+      case Kind::Bool: continue;
+    }
+    if (!std::isfinite(v) || !in_range(k, v)) return bad(key_name(k) + " must be in " + range_text(k));
+  }
+  if (skin.max_triangles != 0 && skin.max_triangles < 1000)
+    return bad("skin.max_triangles must be 0 (no decimation) or in [1000, 1000000]");
   return true;
 }
 
 PipelineOptions parse_pipeline(const Json& j, const std::string& file) {
   if (get_string(j, "format", file) != "handskin-pipeline/1")
     throw InputError(file, "key 'format' must be \"handskin-pipeline/1\"");
-  reject_unknown_keys(j, {"format", "description", "ingest", "markers", "registration", "slicing", "skin", "patches"}, file, "");
   PipelineOptions o;
-  auto section = [&](const char* name) -> const Json* {
-    if (!j.contains(name)) return nullptr;
-    if (!j[name].is_object()) throw InputError(file, std::string("key '") + name + "' must be an object");
-    return &j[name];
-  };
-  if (const Json* s = section("ingest")) {
-    reject_unknown_keys(*s, {"min_returns"}, file, "ingest");
-    o.ingest.min_returns = get_int_or(*s, "min_returns", o.ingest.min_returns, file + ": ingest", 1);
-  }
-  if (const Json* s = section("markers")) {
-    reject_unknown_keys(*s, {"count", "radius_mm"}, file, "markers");
-    o.markers.count = get_int_or(*s, "count", o.markers.count, file + ": markers", 3);
-    if (s->contains("radius_mm") && !(*s)["radius_mm"].is_null())
-      o.markers.radius_mm = get_finite_or(*s, "radius_mm", 0.0, file + ": markers");
-  }
-  if (const Json* s = section("registration")) {
-    reject_unknown_keys(*s,
-                        {"table_margin_mm", "match_tolerance_mm", "marker_clearance_mm", "refine", "icp_gate_mm",
-                         "icp_normal_deg", "icp_trim", "icp_max_iterations"},
-                        file, "registration");
-    auto& r = o.registration;
-    const std::string f = file + ": registration";
-    r.table_margin_mm = get_finite_or(*s, "table_margin_mm", r.table_margin_mm, f);
-    r.match_tolerance_mm = get_finite_or(*s, "match_tolerance_mm", r.match_tolerance_mm, f);
-    r.marker_clearance_mm = get_finite_or(*s, "marker_clearance_mm", r.marker_clearance_mm, f);
-    r.refine = get_bool_or(*s, "refine", r.refine, f);
-    r.icp_gate_mm = get_finite_or(*s, "icp_gate_mm", r.icp_gate_mm, f);
-    r.icp_normal_deg = get_finite_or(*s, "icp_normal_deg", r.icp_normal_deg, f);
-    r.icp_trim = get_finite_or(*s, "icp_trim", r.icp_trim, f);
-    r.icp_max_iterations = get_int_or(*s, "icp_max_iterations", r.icp_max_iterations, f, 0);
-  }
-  if (const Json* s = section("slicing")) {
-    reject_unknown_keys(*s, {"planes", "points_per_segment"}, file, "slicing");
-    o.slicing.planes = get_int_or(*s, "planes", o.slicing.planes, file + ": slicing", 3);
-    o.slicing.points_per_segment = get_int_or(*s, "points_per_segment", o.slicing.points_per_segment, file + ": slicing", 2);
-  }
-  if (const Json* s = section("skin")) {
-    reject_unknown_keys(*s, {"thumb_overlap_mm", "smoothing_rings", "wrinkle_mm", "cap_rings", "max_triangles",
-                             "decimation_tolerance_mm", "slices_json", "baseline"},
-                        file, "skin");
-    auto& k = o.skin;
-    const std::string f = file + ": skin";
-    k.thumb_overlap_mm = get_finite_or(*s, "thumb_overlap_mm", k.thumb_overlap_mm, f);
-    k.smoothing_rings = get_int_or(*s, "smoothing_rings", k.smoothing_rings, f, 0);
-    k.wrinkle_mm = get_finite_or(*s, "wrinkle_mm", k.wrinkle_mm, f);
-    k.cap_rings = get_int_or(*s, "cap_rings", k.cap_rings, f, 1);
-    k.max_triangles = get_int_or(*s, "max_triangles", k.max_triangles, f, 0);
-    k.decimation_tolerance_mm = get_finite_or(*s, "decimation_tolerance_mm", k.decimation_tolerance_mm, f);
-    k.slices_json = get_bool_or(*s, "slices_json", k.slices_json, f);
-    k.baseline = get_bool_or(*s, "baseline", k.baseline, f);
-  }
-  if (const Json* s = section("patches")) {
-    reject_unknown_keys(*s, {"count", "error_grid"}, file, "patches");
-    o.patches.count = get_int_or(*s, "count", o.patches.count, file + ": patches", 1);
-    o.patches.error_grid = get_int_or(*s, "error_grid", o.patches.error_grid, file + ": patches", 2);
+  const std::vector<const char*> sections = section_names();
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    const std::string& name = it.key();
+    if (name == "format" || name == "description") continue;
+    if (std::find_if(sections.begin(), sections.end(), [&](const char* s) { return name == s; }) == sections.end())
+      throw InputError(file, "unknown key '" + name + "'");
+    if (!it.value().is_object()) throw InputError(file, "key '" + name + "' must be an object");
+    for (auto kt = it.value().begin(); kt != it.value().end(); ++kt) {
+      const auto& table = key_table();
+      const auto spec = std::find_if(table.begin(), table.end(),
+                                     [&](const KeySpec& k) { return name == k.section && kt.key() == k.name; });
+      if (spec == table.end()) throw InputError(file, "unknown key '" + name + "." + kt.key() + "'");
+      const KeySpec& k = *spec;
+      const std::string where = file + ": " + name;
+      switch (k.kind) {
+        case Kind::Int: {
+          const Json& v = kt.value();
+          const bool in = v.is_number_integer() && !(v.is_number_unsigned() && v.get<std::uint64_t>() > 1u << 31) &&
+                          in_range(k, static_cast<double>(v.get<long>()));
+          if (!in)
+            throw InputError(file, "key '" + key_name(k) + "' must be an integer in " + range_text(k) + " (got " +
+                                       v.dump() + ")");
+          *static_cast<long*>(k.field(o)) = v.get<long>();
+          break;
+        }
+        case Kind::Real: {
+          const double v = get_finite(it.value(), k.name, where);
+          if (!in_range(k, v)) throw InputError(file, "key '" + key_name(k) + "' must be in " + range_text(k));
+          *static_cast<double*>(k.field(o)) = v;
+          break;
+        }
+        case Kind::OptionalReal: {
+          auto* opt = static_cast<std::optional<double>*>(k.field(o));
+          if (kt.value().is_null()) {
+            opt->reset();
+            break;
+          }
+          const double v = get_finite(it.value(), k.name, where);
+          if (!in_range(k, v))
+            throw InputError(file, "key '" + key_name(k) + "' must be in " + range_text(k) + " (or null: estimated)");
+          *opt = v;
+          break;
+        }
+        case Kind::Bool: *static_cast<bool*>(k.field(o)) = get_bool_or(it.value(), k.name, false, where); break;
+      }
+    }
   }
   std::string err;
   if (!o.IsValid(&err)) throw InputError(file, err);
   return o;
 }
 
-RegistrationOptions registration_options(const PipelineOptions& o) {
-  RegistrationOptions r;
-  r.expected_markers = o.markers.count;
-  r.estimate_radius = !o.markers.radius_mm;
-  if (o.markers.radius_mm) r.spheres.radius_mm = *o.markers.radius_mm;
-  r.prepare.table_margin_mm = o.registration.table_margin_mm;
-  r.match_tolerance_mm = o.registration.match_tolerance_mm;
-  r.marker_clearance_mm = o.registration.marker_clearance_mm;
-  r.refine_enabled = o.registration.refine;
-  r.refine.gate_mm = o.registration.icp_gate_mm;
-  r.refine.normal_deg = o.registration.icp_normal_deg;
-  r.refine.trim = o.registration.icp_trim;
-  r.refine.max_iterations = static_cast<int>(o.registration.icp_max_iterations);
-  return r;
-}
-
-SkinOptions skin_options(const PipelineOptions& o) {
-  SkinOptions s;
-  s.slicing.planes = static_cast<int>(o.slicing.planes);
-  s.slicing.points_per_segment = static_cast<int>(o.slicing.points_per_segment);
-  s.thumb_overlap_mm = o.skin.thumb_overlap_mm;
-  s.smoothing_rings = static_cast<int>(std::min(o.skin.smoothing_rings, 1000L));
-  s.wrinkle_mm = o.skin.wrinkle_mm;
-  s.cap_rings = static_cast<int>(std::min(o.skin.cap_rings, 1000L));
-  s.max_triangles = static_cast<int>(std::min(o.skin.max_triangles, 100000000L));
-  s.decimation_tolerance_mm = o.skin.decimation_tolerance_mm;
-  return s;
-}
-
-PipelineOptions load_pipeline(const std::string& file) { return parse_pipeline(load_json_object(file), file); }
-
 Json pipeline_to_json(const PipelineOptions& o) {
   Json j;
   j["format"] = "handskin-pipeline/1";
-  j["ingest"] = {{"min_returns", o.ingest.min_returns}};
-  j["markers"] = {{"count", o.markers.count},
-                  {"radius_mm", o.markers.radius_mm ? Json(*o.markers.radius_mm) : Json(nullptr)}};
-  const auto& r = o.registration;
-  j["registration"] = {{"table_margin_mm", r.table_margin_mm},     {"match_tolerance_mm", r.match_tolerance_mm},
-                       {"marker_clearance_mm", r.marker_clearance_mm}, {"refine", r.refine},
-                       {"icp_gate_mm", r.icp_gate_mm},             {"icp_normal_deg", r.icp_normal_deg},
-                       {"icp_trim", r.icp_trim},                   {"icp_max_iterations", r.icp_max_iterations}};
-  j["slicing"] = {{"planes", o.slicing.planes}, {"points_per_segment", o.slicing.points_per_segment}};
-  const auto& k = o.skin;
-  j["skin"] = {{"thumb_overlap_mm", k.thumb_overlap_mm}, {"smoothing_rings", k.smoothing_rings},
-               {"wrinkle_mm", k.wrinkle_mm}, {"cap_rings", k.cap_rings}, {"max_triangles", k.max_triangles},
-               {"decimation_tolerance_mm", k.decimation_tolerance_mm}, {"slices_json", k.slices_json},
-               {"baseline", k.baseline}};
-  j["patches"] = {{"count", o.patches.count}, {"error_grid", o.patches.error_grid}};
+  for (const auto& k : key_table()) {
+    Json& v = j[k.section][k.name];
+    switch (k.kind) {
+      case Kind::Int: v = value_of<long>(k, o); break;
+      case Kind::Real: v = value_of<double>(k, o); break;
+      case Kind::Bool: v = value_of<bool>(k, o); break;
+      case Kind::OptionalReal: {
+        const auto& opt = value_of<std::optional<double>>(k, o);
+        v = opt ? Json(*opt) : Json(nullptr);
+        break;
+      }
+    }
+  }
   return j;
 }
+
+PipelineOptions load_pipeline(const std::string& file) { return parse_pipeline(load_json_object(file), file); }
 
 }  // namespace handskin

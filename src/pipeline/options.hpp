@@ -1,11 +1,12 @@
 #pragma once
 /// Every stage's parameters, as held by `pipelines/*.json` (format "handskin-pipeline/1").
+/// Plain data with no stage's headers (the fuzzer builds it alone); the stages' own option
+/// structs are made from it in pipeline/stage_options.hpp.
 /// The defaults here are the thesis's and equal `pipelines/cubist.json` (a test keeps them so).
 #include <optional>
 #include <string>
 
 #include "core/json_util.hpp"
-#include "register/registration.hpp"
 
 namespace handskin {
 
@@ -18,7 +19,7 @@ struct PipelineOptions {
     /// Their radius; unset: estimated from the scans (the thesis gives none; docs/registration.md).
     std::optional<double> radius_mm;
   } markers;
-  struct Registration {            ///< back scan into the palm frame (docs/algorithms.md)
+  struct Registration {            ///< back scan into the palm frame (docs/registration.md)
     double table_margin_mm = 1.0;  ///< samples this close above the table plane are table
     double match_tolerance_mm = 0.5;   ///< marker distances must agree this well between scans
     double marker_clearance_mm = 0.5;  ///< samples within radius + this of a marker are not skin
@@ -40,7 +41,7 @@ struct PipelineOptions {
     long max_triangles = 8000;     ///< decimate to at most this many triangles (0: no decimation)
     double decimation_tolerance_mm = 0.15; ///< ... moving the surface by at most this
     bool slices_json = true;       ///< write slices.json (the thesis's sections, for inspection)
-    bool baseline = true;          ///< also run CGAL Poisson on the cloud and report it beside
+    bool baseline = false;         ///< also run CGAL Poisson on the cloud and report it beside (--baseline)
   } skin;
   struct Patches {                 ///< Bézier skin (thesis §4.1.4, Table 4.1)
     long count = 96;               ///< bicubic patches, palm 48 + back 48
@@ -52,14 +53,10 @@ struct PipelineOptions {
 };
 
 /// Parse a pipeline file. Unknown sections or keys are errors (a typo must not pass silently);
-/// missing keys keep their defaults.
+/// missing keys keep their defaults. Every key, its type and its range are in one table
+/// (options.cpp), which parsing, writing and IsValid share.
 PipelineOptions parse_pipeline(const Json& j, const std::string& file);
 PipelineOptions load_pipeline(const std::string& file);
 Json pipeline_to_json(const PipelineOptions& o);
-/// The registration stage's options from the pipeline's `markers` and `registration` sections.
-RegistrationOptions registration_options(const PipelineOptions& o);
-/// The skin stage's options from the pipeline's `slicing` and `skin` sections.
-struct SkinOptions;
-SkinOptions skin_options(const PipelineOptions& o);
 
 }  // namespace handskin

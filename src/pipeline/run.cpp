@@ -1,17 +1,11 @@
 #include "pipeline/run.hpp"
 
 #include <chrono>
-#include <filesystem>
-#include <optional>
 
-#include "core/atomic_file.hpp"
 #include "core/errors.hpp"
 #include "core/rig.hpp"
-#include "register/registration.hpp"
-#include "render/preview.hpp"
-#include "scan/cloud.hpp"
-#include "scan/cubist_io.hpp"
-#include "pipeline/skin_stage.hpp"
+#include "pipeline/registration_stage.hpp"
+#include "pipeline/stage_options.hpp"
 
 namespace handskin {
 
@@ -25,39 +19,23 @@ class StageTimer {
   std::chrono::steady_clock::time_point t0_;
 };
 
-Json scan_figures(const RangeScan& scan, const std::string& stem) {
-  return {{"stem", stem},
-          {"side", side_name(scan.meta.side)},
-          {"scanlines", scan.meta.scanlines},
-          {"points", scan.meta.points},
-          {"returns", scan.count_valid()},
-          {"no_return", scan.values.size() - scan.count_valid()}};
+ScanFigures scan_figures(const RangeScan& scan, const std::string& stem) {
+  return {stem, scan.meta.side, scan.meta.scanlines, scan.meta.points, scan.count_valid()};
+}
+
+Json to_json(const ScanFigures& s) {
+  const size_t total = static_cast<size_t>(s.scanlines) * s.points;
+  return {{"stem", s.stem}, {"side", side_name(s.side)}, {"scanlines", s.scanlines}, {"points", s.points},
+          {"returns", s.returns}, {"no_return", total - s.returns}};
 }
 }  // namespace
 
-std::string merged_preview_png(const MergedArrays& m, const std::vector<Eigen::Vector3d>& markers, int width) {
-  std::vector<Eigen::Vector3f> c;
-  c.reserve(m.sides.size());
-  for (const std::uint32_t side : m.sides)
-    c.push_back(side == kSideBack ? Eigen::Vector3f(0.87f, 0.72f, 0.62f) : Eigen::Vector3f(0.55f, 0.65f, 0.85f));
-  RenderOptions ro;
-  ro.width = width;
-  ro.height = width / 2;
-  ro.view = principal_view(m.points);
-  ro.points = markers;
-  return render_points_png(m.points, m.normals, c, ro);
-}
-
 RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   const StageTimer total;
-  Json report;
-  report["format"] = "handskin-report/1";
-  report["inputs"] = {{"back", in.back_stem}, {"palm", in.palm_stem}, {"rig", in.rig_path.empty() ? "(placed automatically)" : in.rig_path},
-                      {"pipeline", in.pipeline_path.empty() ? "(built-in defaults)" : in.pipeline_path}};
-  report["pipeline"] = pipeline_to_json(in.options);
-  Json stages = Json::array();
+  RunResult R;
+  R.inputs = in;
 
-  // --- ingest: read and check every input before anything is written ---
+  // --- ingest: read and check every input before any work ---
   progress("ingest: reading scans and rig");
   const StageTimer t_ingest;
   const RangeScan back = load_scan_side(in.back_stem, ScanSide::Back, "--back");
@@ -67,85 +45,88 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
       throw InputError((s == &back ? in.back_stem : in.palm_stem) + ".png",
                        "only " + std::to_string(s->count_valid()) + " measured samples (ingest.min_returns is " +
                            std::to_string(in.options.ingest.min_returns) + ")");
-  std::optional<Rig> rig;
-  if (!in.rig_path.empty()) rig = load_palm_rig(in.rig_path);
-  std::optional<TruthSkin> truth;  // read before any work, so a bad file fails early
+  SkinStageInputs si;
+  if (!in.rig_path.empty()) {
+    si.rig = load_palm_rig(in.rig_path);
+    si.rig_name = in.rig_path;
+  }
+  std::optional<TruthSkin> truth;
   if (!in.truth_path.empty()) truth = load_truth_skin(in.truth_path);
   MarkerHints hints;
   if (!in.markers_path.empty()) hints = load_marker_hints(in.markers_path);
-  const Cloud::Ptr back_cloud = dense_copy(*scan_to_organized_cloud(back));
-  const Cloud::Ptr palm_cloud = dense_copy(*scan_to_organized_cloud(palm));
-  stages.push_back({{"name", "ingest"},
-                    {"seconds", t_ingest.seconds()},
-                    {"back", scan_figures(back, in.back_stem)},
-                    {"palm", scan_figures(palm, in.palm_stem)}});
+  R.back = scan_figures(back, in.back_stem);
+  R.palm = scan_figures(palm, in.palm_stem);
+  R.back_cloud = dense_copy(*scan_to_organized_cloud(back));
+  R.palm_cloud = dense_copy(*scan_to_organized_cloud(palm));
+  R.ingest_seconds = t_ingest.seconds();
 
   // --- registration: the back scan into the palm frame, merged cloud ---
   const StageTimer t_reg;
-  const Registration reg =
+  R.registration =
       register_scans(back, palm, in.back_stem + ".png", in.palm_stem + ".png", registration_options(in.options),
                      in.markers_path.empty() ? nullptr : &hints,
                      [&](const std::string& m) { progress("registration: " + m); });
-  for (const auto& w : reg.warnings) progress("warning: " + w);
-  const Json& rr = reg.report;
-  stages.push_back({{"name", "registration"},
-                    {"seconds", t_reg.seconds()},
-                    {"status", rr["status"]},
-                    {"warnings", rr["warnings"]},
-                    {"method", rr["method"]},
-                    {"marker_radius_mm", {{"value", reg.marker_radius_mm},
-                                          {"source", rr["marker_radius"]["source"]}}},
-                    {"markers_found", {{"back", rr["scans"]["back"]["markers"].size()},
-                                       {"palm", rr["scans"]["palm"]["markers"].size()}}},
-                    {"markers_matched", rr["matching"]["pairs_back_palm"].size()},
-                    {"marker_only_rms_mm", rr["marker_only"]["rms_mm"]},
-                    {"refined_rms_mm", rr["refined"]["rms_mm"]},
-                    {"sphere_rms_mm", {{"marker_only", rr["marker_only"]["sphere_rms_mm"]},
-                                       {"refined", rr["refined"]["sphere_rms_mm"]}}},
-                    {"icp_overlap_fraction", rr["refined"]["icp"]["overlap_fraction"]},
-                    {"merged_points", rr["merged"]["points"]},
-                    {"timings_ms", rr["timings_ms"]}});
-
-  // --- write: the two clouds in their scanner frames ---
-  progress("write: point clouds");
-  const StageTimer t_write;
-  ensure_directory(in.out_dir);
-  namespace fs = std::filesystem;
-  const std::string back_ply = (fs::path(in.out_dir) / "back.ply").string();
-  const std::string palm_ply = (fs::path(in.out_dir) / "palm.ply").string();
-  save_cloud(back_ply, *back_cloud);
-  save_cloud(palm_ply, *palm_cloud);
-  const std::string reg_json = (fs::path(in.out_dir) / "registration.json").string();
-  const std::string merged_ply = (fs::path(in.out_dir) / "merged.ply").string();
-  save_json(reg_json, reg.report);
-  save_merged(merged_ply, *reg.merged);
-  const std::string merged_png = (fs::path(in.out_dir) / "merged.png").string();
-  MergedArrays merged = merged_arrays(*reg.merged);  // for the preview and the skin
-  write_file_atomic(merged_png, merged_preview_png(merged, reg.markers_palm));
-  stages.push_back({{"name", "write"}, {"seconds", t_write.seconds()}});
+  for (const auto& w : R.registration.warnings) progress("warning: " + w);
+  if (truth) R.registration_truth = registration_against_truth(R.registration, *truth);
+  R.registration_seconds = t_reg.seconds();
 
   // --- skin: strips from the merged cloud, closed into one mesh (docs/skin.md) ---
-  SkinStageInputs si;
+  MergedArrays merged = merged_arrays(*R.registration.merged);
   si.points = std::move(merged.points);
   si.normals = std::move(merged.normals);
   si.sides = std::move(merged.sides);
-  si.rig = rig;
+  si.cloud_name = "merged cloud of " + in.back_stem + " and " + in.palm_stem;
   si.auto_rig = in.auto_rig;
-  si.out_dir = in.out_dir;
+  si.baseline = in.baseline || in.options.skin.baseline;
+  si.slices = in.options.skin.slices_json;
   si.truth = std::move(truth);
-  const Json skin = run_skin_stage(si, in.options, [&](const std::string& m) { progress("skin: " + m); });
-  stages.push_back(skin);
+  R.skin = run_skin_stage(si, in.options, [&](const std::string& m) { progress("skin: " + m); });
+  R.seconds = total.seconds();
+  return R;
+}
 
+std::vector<std::string> run_output_names() {
+  std::vector<std::string> n = {"back.ply", "palm.ply", "report.json"};
+  n.insert(n.end(), registration_output_names().begin(), registration_output_names().end());
+  n.insert(n.end(), skin_output_names().begin(), skin_output_names().end());
+  return n;
+}
+
+Json write_run_outputs(OutputSet& out, const RunResult& r) {
+  const StageTimer t_write;
+  const RunInputs& in = r.inputs;
+  Json outputs;
+  save_cloud(out.stage("back.ply"), *r.back_cloud);
+  outputs["back_cloud"] = out.final_path("back.ply");
+  save_cloud(out.stage("palm.ply"), *r.palm_cloud);
+  outputs["palm_cloud"] = out.final_path("palm.ply");
+  Json reg_report = r.registration.report;
+  if (r.registration_truth) reg_report["against_truth"] = *r.registration_truth;
+  outputs.update(write_registration_outputs(out, r.registration, reg_report));
+  outputs.update(write_skin_outputs(out, r.skin));
+
+  Json report;
+  report["format"] = "handskin-report/1";
+  report["inputs"] = {{"back", in.back_stem}, {"palm", in.palm_stem},
+                      {"rig", in.rig_path.empty() ? "(placed automatically)" : in.rig_path},
+                      {"pipeline", in.pipeline_path.empty() ? "(built-in defaults)" : in.pipeline_path}};
+  report["pipeline"] = pipeline_to_json(in.options);
+  if (in.baseline) report["pipeline"]["skin"]["baseline"] = true;
+  Json reg_stage = {{"name", "registration"}, {"seconds", r.registration_seconds}};
+  reg_stage.update(registration_summary_json(r.registration));
+  if (r.registration_truth) reg_stage["against_truth"] = *r.registration_truth;
+  Json stages = Json::array();
+  stages.push_back({{"name", "ingest"}, {"seconds", r.ingest_seconds}, {"back", to_json(r.back)},
+                    {"palm", to_json(r.palm)}});
+  stages.push_back(reg_stage);
+  stages.push_back(to_json(r.skin));
+  stages.push_back({{"name", "write"}, {"seconds", t_write.seconds()}});
   report["stages"] = stages;
-  report["outputs"] = {{"back_cloud", back_ply}, {"palm_cloud", palm_ply}, {"registration", reg_json},
-                       {"merged_cloud", merged_ply}, {"merged_preview", merged_png}};
-  for (const auto& [k, v] : skin["outputs"].items()) report["outputs"][k] = v;
-  report["total_seconds"] = total.seconds();
-  RunResult r;
-  r.report_path = (fs::path(in.out_dir) / "report.json").string();
-  save_json(r.report_path, report);
-  r.report = report;
-  return r;
+  outputs["report"] = out.final_path("report.json");
+  report["outputs"] = outputs;
+  report["total_seconds"] = r.seconds + t_write.seconds();
+  save_json(out.stage("report.json"), report);
+  return report;
 }
 
 }  // namespace handskin

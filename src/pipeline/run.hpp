@@ -1,13 +1,21 @@
 #pragma once
-/// `handskin run`: the whole pipeline from two scans and a rig to the outputs in one folder.
-/// Stages so far: ingest (both scans to point clouds), registration (back into the palm
-/// frame, merged cloud). Later stages add themselves here.
+/// `handskin run`: the whole pipeline from two scans (and a rig, or none) to the skin.
+/// Stages: ingest (both scans read and checked, to point clouds), registration (the back scan
+/// into the palm frame, merged cloud), skin (skeleton, strips, closed mesh, figures).
+/// `run_pipeline` computes every stage and writes nothing; `write_run_outputs` stages every
+/// file into an OutputSet, which the caller commits — so a failure anywhere leaves the
+/// output folder exactly as it was (docs/architecture.md).
 #include <functional>
+#include <optional>
 #include <string>
 
 #include "core/json_util.hpp"
+#include "core/output_set.hpp"
 #include "pipeline/options.hpp"
+#include "pipeline/skin_stage.hpp"
 #include "register/registration.hpp"
+#include "scan/cloud.hpp"
+#include "scan/cubist_io.hpp"
 
 namespace handskin {
 
@@ -16,26 +24,42 @@ struct RunInputs {
   std::string palm_stem;   ///< side "palm"
   std::string rig_path;    ///< hand-rig/1, palm frame; empty: the skeleton is placed automatically
   bool auto_rig = false;   ///< place the skeleton automatically even with a rig (and compare)
-  std::string out_dir;
+  bool baseline = false;   ///< also the CGAL Poisson baseline (or the pipeline's skin.baseline)
   std::string markers_path;   ///< optional handskin-markers/1 (manual marker positions)
   std::string pipeline_path;  ///< empty: built-in defaults (= pipelines/cubist.json)
-  std::string truth_path;     ///< optional truth.json (synthetic pairs): the skin's errors in the report
+  std::string truth_path;     ///< optional truth.json (synthetic pairs): errors against it in the report
   PipelineOptions options;
 };
 
 using ProgressFn = std::function<void(const std::string&)>;
 
-struct RunResult {
-  Json report;   ///< what report.json holds
-  std::string report_path;
+struct ScanFigures {
+  std::string stem;
+  ScanSide side = ScanSide::Back;
+  int scanlines = 0, points = 0;
+  size_t returns = 0;
 };
 
-/// A side view of the merged cloud (palm samples blue-grey, back samples skin-toned, the
-/// markers as red dots): how the two halves meet, at a glance. PNG bytes.
-std::string merged_preview_png(const MergedArrays& merged, const std::vector<Eigen::Vector3d>& markers, int width = 1000);
+/// Everything `run` computed: each stage's result with its figures and timings.
+struct RunResult {
+  RunInputs inputs;
+  ScanFigures back, palm;
+  Cloud::Ptr back_cloud, palm_cloud;  ///< the scans as point clouds, scanner frames
+  double ingest_seconds = 0, registration_seconds = 0;
+  Registration registration;
+  std::optional<Json> registration_truth;  ///< registration_against_truth, with --truth
+  SkinStageResult skin;
+  double seconds = 0;  ///< all stages, before any output is written
+};
 
-/// Run every stage; outputs are written atomically into `out_dir` (created if needed), the
-/// report last. Bad input throws InputError before any output is written.
+/// Run every stage. Reads the inputs, writes nothing. Bad input throws InputError naming it.
 RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress);
+
+/// Every output name `run` writes (for OutputSet::retire).
+std::vector<std::string> run_output_names();
+
+/// Stage every output of `r` into `out` — back.ply, palm.ply, the registration's, the skin's,
+/// and report.json last — and return the report (handskin-report/1). The caller commits.
+Json write_run_outputs(OutputSet& out, const RunResult& r);
 
 }  // namespace handskin

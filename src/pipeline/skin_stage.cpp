@@ -1,26 +1,15 @@
 #include "pipeline/skin_stage.hpp"
 
 #include <chrono>
-#include <filesystem>
-#include <optional>
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
 #include "render/preview.hpp"
-#include "skin/auto_rig.hpp"
-#include "skin/baseline.hpp"
-#include "skin/skin_mesh.hpp"
-#include "skin/slices.hpp"
-#include "synth/mesh_distance.hpp"
+#include "pipeline/stage_options.hpp"
 
 namespace handskin {
 
 namespace {
-namespace fs = std::filesystem;
-
-// A given rig farther than this (mean over the joints) from the automatic placement is
-// reported: the placement itself is within ~2.5 mm on the synthetic hands (docs/skin.md).
-constexpr double kRigDisagreementMm = 8.0;
 
 double since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
@@ -45,6 +34,9 @@ Json health_json(const MeshHealth& h) {
           {"components", h.components}, {"outward", h.volume_mm3 > 0}, {"volume_mm3", h.volume_mm3},
           {"area_mm2", h.area_mm2}};
 }
+
+std::string mm(double v) { return std::to_string(v).substr(0, std::to_string(v).find('.') + 2); }
+
 }  // namespace
 
 Rig load_palm_rig(const std::string& path) {
@@ -54,73 +46,118 @@ Rig load_palm_rig(const std::string& path) {
   return rig;
 }
 
-TruthSkin load_truth_skin(const std::string& path) {
-  TruthSkin t;
-  t.path = path;
-  t.json = load_json_object(path);
-  if (get_string(t.json, "format", path) != "handskin-truth/1")
-    throw InputError(path, "key 'format' must be \"handskin-truth/1\"");
-  t.skin_path = (fs::path(path).parent_path() / get_string(t.json, "skin", path)).string();
-  t.skin = load_mesh(t.skin_path);
-  if (t.json.contains("markers_palm") && t.json["markers_palm"].is_array())
-    for (const auto& m : t.json["markers_palm"]) t.markers.push_back(to_vec3(m, "markers_palm", path));
-  t.exclude_mm = t.json.value("marker_radius_mm", 4.0) + 3.0;
-  return t;
-}
-
-Json run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
-                    const std::function<void(const std::string&)>& progress) {
+SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
+                               const std::function<void(const std::string&)>& progress) {
+  const auto t_stage = std::chrono::steady_clock::now();
   const SkinOptions so = skin_options(options);  // checked by build_skin (and when the pipeline was read)
-  // --- the skeleton: given, or placed in the cloud (and compared with the given one) ---
-  const bool automatic = in.auto_rig || !in.rig;
-  Json skeleton;
-  std::vector<std::string> warnings;
-  std::optional<AutoRig> placed;
-  // The automatic placement also checks a given rig: a rig from another scan or with
-  // fingers swapped still gives a closed skin, but a wrongly bound one.
+  SkinStageResult R;
+  R.automatic = in.auto_rig || !in.rig;
+  // Errors of the skin steps say "rig" or "merged cloud": name the file the user gave.
+  auto renamed = [&](const InputError& e) {
+    if (e.where() == "rig") return InputError(in.rig ? in.rig_name : "automatic skeleton", e.detail());
+    if (e.where() == "merged cloud") return InputError(in.cloud_name, e.detail());
+    return e;
+  };
+  // --- the skeleton: given, or placed in the cloud (and the given one checked against it) ---
   const auto ta = std::chrono::steady_clock::now();
   try {
-    if (automatic) progress("placing the skeleton in the cloud");
-    placed = place_skeleton(in.points, in.sides);
+    if (R.automatic) progress("placing the skeleton in the cloud");
+    R.placed = place_skeleton(in.points, in.sides);
   } catch (const InputError& e) {
-    if (automatic) throw;
-    skeleton["automatic"] = {{"failed", e.what()}};
+    if (R.automatic) throw renamed(e);
+    R.placement_failed = e.what();
   }
-  if (placed) {
-    skeleton["automatic"] = {{"seconds", since(ta)}, {"scale", placed->scale},
-                             {"palm_radius_mm", placed->palm_radius_mm}, {"notes", placed->notes}};
-    if (in.rig) {
-      const JointError e = joint_error(placed->rig, *in.rig);
-      skeleton["automatic"]["against_given_rig"] = {{"mean_joint_error_mm", e.mean_mm}, {"max_joint_error_mm", e.max_mm},
-                                                    {"worst_joint", e.worst_joint}};
-      progress("automatic skeleton: mean joint error " + std::to_string(e.mean_mm).substr(0, 4) + " mm against the given rig");
-      if (e.mean_mm > kRigDisagreementMm)
-        warnings.push_back("the given rig lies " + std::to_string(e.mean_mm).substr(0, 4) +
-                           " mm (mean) from the skeleton placed in the cloud (worst: " + e.worst_joint +
-                           "); is it this scan's rig, with the fingers in order?");
-    }
+  R.placement_seconds = since(ta);
+  if (R.placed && in.rig) {
+    const JointError e = joint_error(R.placed->rig, *in.rig);
+    R.against_given = e;
+    progress("automatic skeleton: mean joint error " + mm(e.mean_mm) + " mm against the given rig");
+    if (e.mean_mm > kRigRefuseMm && !in.auto_rig)
+      throw InputError(in.rig_name, "its joints lie " + mm(e.mean_mm) + " mm (mean; worst " + e.worst_joint + ", " +
+                                        mm(e.max_mm) + " mm) from the skeleton found in " + in.cloud_name +
+                                        " (more than " + mm(kRigRefuseMm) +
+                                        "): a rig of another hand or scan, or with its digits out of order; give "
+                                        "this scan's rig, or none to place it automatically");
+    if (e.mean_mm > kRigWarnMm)
+      R.warnings.push_back("the given rig lies " + mm(e.mean_mm) + " mm (mean) from the skeleton placed in the cloud "
+                           "(worst: " + e.worst_joint + "); is it this scan's rig?");
   }
-  const Rig& rig = automatic ? placed->rig : *in.rig;
-  skeleton["used"] = automatic ? "automatic" : "given";
+  R.rig = R.automatic ? R.placed->rig : *in.rig;
 
   progress("building the strips (" + std::to_string(so.slicing.planes) + " planes, " +
            std::to_string(so.slicing.points_per_segment) + " points per segment)");
   const auto t0 = std::chrono::steady_clock::now();
-  const SkinResult skin = build_skin(in.points, rig, so, progress);
-  const double build_seconds = since(t0);
-  warnings.insert(warnings.end(), skin.warnings.begin(), skin.warnings.end());
-  for (const auto& w : warnings) progress("warning: " + w);
+  try {
+    R.skin = build_skin(in.points, R.rig, so, progress);
+  } catch (const InputError& e) {
+    throw renamed(e);
+  }
+  R.build_seconds = since(t0);
+  R.warnings.insert(R.warnings.end(), R.skin.warnings.begin(), R.skin.warnings.end());
+  for (const auto& w : R.warnings) progress("warning: " + w);
+  const SkinResult& skin = R.skin;
   if (!skin.watertight())
-    throw InputError("merged cloud", std::string("the skin is not a closed, manifold, outward, self-intersection-free "
-                                                 "surface (") +
-                                         std::to_string(skin.health.boundary_edges) + " boundary edges, " +
-                                         std::to_string(skin.health.nonmanifold_vertices) + " non-manifold vertices, " +
-                                         std::to_string(skin.health.components) + " components" +
-                                         (skin.self_intersects ? ", self-intersecting" : "") + "); nothing written");
+    throw InputError(in.cloud_name, std::string("the skin is not a closed, manifold, outward, self-intersection-free "
+                                                "surface (") +
+                                        std::to_string(skin.health.boundary_edges) + " boundary edges, " +
+                                        std::to_string(skin.health.nonmanifold_vertices) + " non-manifold vertices, " +
+                                        std::to_string(skin.health.components) + " components" +
+                                        (skin.self_intersects ? ", self-intersecting" : "") + ")");
+  progress("measuring the cloud against the skin");
+  const MeshDistance to_skin(skin.mesh);
+  const auto cloud = thinned(in.points, 20000);
+  R.cloud_to_skin = one_way_distance(cloud, to_skin);
+  if (in.slices) R.slices = slice_cloud(in.points, R.rig, so.slicing);
 
+  std::optional<MeshDistance> to_base;
+  if (in.baseline) {
+    progress("baseline: Poisson reconstruction of the same cloud (for comparison)");
+    SkinBaseline b;
+    b.result = poisson_baseline(in.points, in.normals);
+    b.health = mesh_health(b.result.mesh);
+    to_base.emplace(b.result.mesh);
+    b.cloud_to_baseline = one_way_distance(cloud, *to_base);
+    R.baseline = std::move(b);
+  }
+  if (in.truth) {
+    const TruthSkin& t = *in.truth;
+    progress("comparing with the true skin of " + t.path);
+    const MeshDistance to_truth(t.skin);
+    const auto ours = sample_surface(skin.mesh, 4.0), theirs = sample_surface(t.skin, 4.0);
+    SkinTruthFigures f;
+    f.skin_path = t.skin_path;
+    f.exclude_mm = t.exclude_mm;
+    f.skin_to_truth = one_way_distance(ours, to_truth, t.markers, t.exclude_mm);
+    f.truth_to_skin = one_way_distance(theirs, to_skin, t.markers, t.exclude_mm);
+    if (R.baseline) {
+      f.baseline_to_truth =
+          one_way_distance(sample_surface(R.baseline->result.mesh, 4.0), to_truth, t.markers, t.exclude_mm);
+      f.truth_to_baseline = one_way_distance(theirs, *to_base, t.markers, t.exclude_mm);
+    }
+    R.truth = std::move(f);
+  }
+  R.seconds = since(t_stage);
+  return R;
+}
+
+Json to_json(const SkinStageResult& r) {
+  const SkinResult& skin = r.skin;
+  Json skeleton;
+  if (r.placed) {
+    skeleton["automatic"] = {{"seconds", r.placement_seconds}, {"scale", r.placed->scale},
+                             {"palm_radius_mm", r.placed->palm_radius_mm}, {"notes", r.placed->notes}};
+    if (r.against_given)
+      skeleton["automatic"]["against_given_rig"] = {{"mean_joint_error_mm", r.against_given->mean_mm},
+                                                    {"max_joint_error_mm", r.against_given->max_mm},
+                                                    {"worst_joint", r.against_given->worst_joint}};
+  } else if (!r.placement_failed.empty()) {
+    skeleton["automatic"] = {{"failed", r.placement_failed}};
+  }
+  skeleton["used"] = r.automatic ? "automatic" : "given";
   Json j;
   j["name"] = "skin";
-  j["seconds"] = build_seconds;
+  j["seconds"] = r.seconds;
+  j["build_seconds"] = r.build_seconds;
   j["skeleton"] = skeleton;
   j["mesh"] = health_json(skin.health);
   j["mesh"]["self_intersections"] = skin.self_intersects;
@@ -141,73 +178,62 @@ Json run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
   Json bones = Json::array();
   for (const auto& b : skin.bones) bones.push_back(b.name());
   j["bones"] = bones;
-  j["warnings"] = warnings;
+  j["warnings"] = r.warnings;
+  j["cloud_to_skin_mm"] = distance_json(r.cloud_to_skin);
+  if (r.baseline) {
+    const auto& b = *r.baseline;
+    j["baseline"] = {{"method", "PCL Poisson (Kazhdan), depth 7, one thread"},
+                     {"seconds", b.result.seconds},
+                     {"points_used", b.result.points_used},
+                     {"faces_dropped", b.result.faces_dropped},
+                     {"mesh", health_json(b.health)},
+                     {"cloud_to_baseline_mm", distance_json(b.cloud_to_baseline)}};
+  }
+  if (r.truth) {
+    const auto& t = *r.truth;
+    j["truth"] = {{"file", t.skin_path},
+                  {"excluded_within_mm_of_markers", t.exclude_mm},
+                  {"skin_to_truth_mm", distance_json(t.skin_to_truth)},
+                  {"truth_to_skin_mm", distance_json(t.truth_to_skin)}};
+    if (t.baseline_to_truth) {
+      j["truth"]["baseline_to_truth_mm"] = distance_json(*t.baseline_to_truth);
+      j["truth"]["truth_to_baseline_mm"] = distance_json(*t.truth_to_baseline);
+    }
+  }
+  return j;
+}
 
-  progress("measuring the cloud against the skin");
-  const MeshDistance to_skin(skin.mesh);
-  const auto cloud = thinned(in.points, 20000);
-  j["cloud_to_skin_mm"] = distance_json(one_way_distance(cloud, to_skin));
+const std::vector<std::string>& skin_output_names() {
+  static const std::vector<std::string> names = {"skin.ply", "skin.obj", "skin.png", "rig_auto.json", "slices.json",
+                                                 "baseline.ply"};
+  return names;
+}
 
-  // --- files (each written through a temporary and renamed) ---
-  ensure_directory(in.out_dir);
+Json write_skin_outputs(OutputSet& out, const SkinStageResult& r) {
   Json outputs;
-  const std::string ply = (fs::path(in.out_dir) / "skin.ply").string();
-  const std::string obj = (fs::path(in.out_dir) / "skin.obj").string();
-  const std::string png = (fs::path(in.out_dir) / "skin.png").string();
-  save_skin_ply(ply, skin);
-  save_mesh(obj, skin.mesh);
+  save_skin_ply(out.stage("skin.ply"), r.skin);
+  outputs["skin_ply"] = out.final_path("skin.ply");
+  save_mesh(out.stage("skin.obj"), r.skin.mesh);
+  outputs["skin_obj"] = out.final_path("skin.obj");
   RenderOptions ro;
   ro.width = 900;
   ro.height = 500;
-  ro.view = hand_frame_from_rig(rig).linear();  // looking at the back, fingers to the right
-  write_file_atomic(png, render_mesh_png({&skin.mesh}, ro));
-  outputs["skin_ply"] = ply;
-  outputs["skin_obj"] = obj;
-  outputs["skin_png"] = png;
-  if (automatic) {
-    const std::string rp = (fs::path(in.out_dir) / "rig_auto.json").string();
-    save_rig(rp, placed->rig);
-    outputs["rig_auto"] = rp;
+  ro.view = hand_frame_from_rig(r.rig).linear();  // looking at the back, fingers to the right
+  write_file_atomic(out.stage("skin.png"), render_mesh_png({&r.skin.mesh}, ro));
+  outputs["skin_png"] = out.final_path("skin.png");
+  if (r.automatic) {
+    save_rig(out.stage("rig_auto.json"), r.rig);
+    outputs["rig_auto"] = out.final_path("rig_auto.json");
   }
-  if (options.skin.slices_json) {
-    const std::string sj = (fs::path(in.out_dir) / "slices.json").string();
-    save_json(sj, slicing_to_json(slice_cloud(in.points, rig, so.slicing)));
-    outputs["slices_json"] = sj;
+  if (r.slices) {
+    save_json(out.stage("slices.json"), slicing_to_json(*r.slices));
+    outputs["slices_json"] = out.final_path("slices.json");
   }
-
-  std::optional<BaselineResult> baseline;
-  std::optional<MeshDistance> to_base;
-  if (options.skin.baseline) {
-    progress("baseline: CGAL Poisson reconstruction of the same cloud (for comparison)");
-    baseline = poisson_baseline(in.points, in.normals);
-    const std::string bp = (fs::path(in.out_dir) / "baseline.ply").string();
-    save_mesh(bp, baseline->mesh);
-    outputs["baseline_ply"] = bp;
-    to_base.emplace(baseline->mesh);
-    j["baseline"] = {{"method", "CGAL poisson_surface_reconstruction_delaunay"},
-                     {"seconds", baseline->seconds},
-                     {"points_used", baseline->points_used},
-                     {"mesh", health_json(mesh_health(baseline->mesh))},
-                     {"cloud_to_baseline_mm", distance_json(one_way_distance(cloud, *to_base))}};
+  if (r.baseline) {
+    save_mesh(out.stage("baseline.ply"), r.baseline->result.mesh);
+    outputs["baseline_ply"] = out.final_path("baseline.ply");
   }
-
-  if (in.truth) {
-    const TruthSkin& t = *in.truth;
-    progress("comparing with the true skin of " + t.path);
-    const MeshDistance to_truth(t.skin);
-    const auto ours = sample_surface(skin.mesh, 4.0), theirs = sample_surface(t.skin, 4.0);
-    j["truth"] = {{"file", t.skin_path},
-                  {"excluded_within_mm_of_markers", t.exclude_mm},
-                  {"skin_to_truth_mm", distance_json(one_way_distance(ours, to_truth, t.markers, t.exclude_mm))},
-                  {"truth_to_skin_mm", distance_json(one_way_distance(theirs, to_skin, t.markers, t.exclude_mm))}};
-    if (baseline) {
-      j["truth"]["baseline_to_truth_mm"] =
-          distance_json(one_way_distance(sample_surface(baseline->mesh, 4.0), to_truth, t.markers, t.exclude_mm));
-      j["truth"]["truth_to_baseline_mm"] = distance_json(one_way_distance(theirs, *to_base, t.markers, t.exclude_mm));
-    }
-  }
-  j["outputs"] = outputs;
-  return j;
+  return outputs;
 }
 
 }  // namespace handskin

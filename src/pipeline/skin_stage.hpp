@@ -1,6 +1,7 @@
 #pragma once
-/// The skin stage (issue 5), shared by `handskin run` and `handskin skin`: the strip skin from
-/// the merged cloud and the rig, its files, and its figures for the report.
+/// The skin stage, shared by `handskin run` and `handskin skin`: the skeleton (given or placed
+/// in the cloud), the strip skin, and its quality figures — computed by `run_skin_stage`
+/// (no files), turned into the report by `to_json`, written by `write_skin_outputs`.
 #include <Eigen/Core>
 #include <cstdint>
 #include <functional>
@@ -9,24 +10,18 @@
 #include <vector>
 
 #include "core/json_util.hpp"
+#include "core/output_set.hpp"
 #include "core/rig.hpp"
+#include "mesh/mesh_distance.hpp"
 #include "mesh/trimesh.hpp"
 #include "pipeline/options.hpp"
+#include "skin/auto_rig.hpp"
+#include "skin/baseline.hpp"
+#include "skin/skin_mesh.hpp"
+#include "skin/slices.hpp"
+#include "synth/truth.hpp"
 
 namespace handskin {
-
-/// The true skin of a synthetic pair (truth.json, `handskin-truth/1`, written by `synth scan`).
-struct TruthSkin {
-  std::string path;                     ///< the truth.json
-  Json json;                            ///< all of it (the registration command reads back_to_palm)
-  std::string skin_path;                ///< its "skin" mesh, relative to the truth.json
-  TriMesh skin;
-  std::vector<Eigen::Vector3d> markers;  ///< "markers_palm": marker centres, palm frame
-  double exclude_mm = 7;                 ///< samples this near a marker's centre are left out (radius + 3)
-};
-/// Read and check a truth.json and its skin mesh; throws InputError naming the file and key.
-/// Callers read it before any work, so a bad file fails early and nothing is half-written.
-TruthSkin load_truth_skin(const std::string& path);
 
 /// A rig for the skin stage: a hand-rig/1 file whose joints are in the palm frame (the
 /// merged cloud's); another frame is an InputError naming the file.
@@ -35,17 +30,66 @@ Rig load_palm_rig(const std::string& path);
 struct SkinStageInputs {
   std::vector<Eigen::Vector3d> points, normals;  ///< merged cloud, palm frame (markers removed)
   std::vector<std::uint32_t> sides;               ///< per point: 0 palm scan, 1 back scan
+  std::string cloud_name = "merged cloud";        ///< names the cloud in errors (its file, when read from one)
   std::optional<Rig> rig;                         ///< joints in the palm frame; none: placed automatically
+  std::string rig_name = "rig";                   ///< names the given rig in errors (its file)
   bool auto_rig = false;                          ///< place the skeleton even when a rig is given (and compare)
-  std::string out_dir;
-  std::optional<TruthSkin> truth;  ///< a synthetic pair's true skin: figures against it
+  bool baseline = false;                          ///< also the CGAL Poisson baseline, for comparison
+  bool slices = true;                             ///< also the thesis's sections (slices.json)
+  std::optional<TruthSkin> truth;                 ///< a synthetic pair's true skin: figures against it
 };
 
-/// Place the skeleton when asked (or when no rig is given: rig_auto.json), build the skin and
-/// write skin.ply (labels), skin.obj, skin.png, and as configured slices.json and baseline.ply. Returns the stage's figures (the report's "skin" stage) with
-/// the output paths under "outputs". Throws InputError (nothing of this stage written) when
-/// the skin cannot be built or would not be a closed, manifold, self-intersection-free surface.
-Json run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
-                    const std::function<void(const std::string&)>& progress);
+/// A given rig whose joints lie farther than this (mean) from the skeleton placed in the
+/// cloud is refused: the placement is within ~6 mm on every hand of the family
+/// (docs/skin.md), a rig of another hand or with its digits swapped is tens of mm off.
+constexpr double kRigRefuseMm = 20.0;
+/// ... and one farther than this is reported with a warning.
+constexpr double kRigWarnMm = 8.0;
+
+struct SkinTruthFigures {
+  std::string skin_path;
+  double exclude_mm = 0;
+  OneWayDistance skin_to_truth, truth_to_skin;
+  std::optional<OneWayDistance> baseline_to_truth, truth_to_baseline;
+};
+
+struct SkinBaseline {
+  BaselineResult result;
+  MeshHealth health;
+  OneWayDistance cloud_to_baseline;
+};
+
+struct SkinStageResult {
+  SkinResult skin;                        ///< the mesh, its tubes, ring grid, health, timings
+  Rig rig;                                ///< the rig the skin was built on
+  bool automatic = false;                 ///< that rig was placed in the cloud
+  std::optional<AutoRig> placed;          ///< the automatic placement, when it ran and succeeded
+  std::string placement_failed;           ///< why it failed (a given rig was then used unchecked)
+  double placement_seconds = 0;
+  std::optional<JointError> against_given;  ///< the placement against the given rig
+  std::vector<std::string> warnings;
+  double build_seconds = 0, seconds = 0;  ///< the skin build; the whole stage
+  OneWayDistance cloud_to_skin;
+  std::optional<Slicing> slices;          ///< the thesis's sections (slices.json)
+  std::optional<SkinBaseline> baseline;
+  std::optional<SkinTruthFigures> truth;
+};
+
+/// Place the skeleton when asked (or when no rig is given), build the skin and measure it.
+/// Writes nothing. Throws InputError naming the rig or the cloud when the rig does not fit
+/// (or lies more than kRigRefuseMm from the placed skeleton), or when the skin would not be a
+/// closed, manifold, outward, self-intersection-free surface.
+SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
+                               const std::function<void(const std::string&)>& progress);
+
+/// The report's "skin" stage (no output paths).
+Json to_json(const SkinStageResult& r);
+
+/// Every output name the skin stage can write (for OutputSet::retire).
+const std::vector<std::string>& skin_output_names();
+
+/// Stage skin.ply (labels), skin.obj, skin.png, and as computed rig_auto.json, slices.json,
+/// baseline.ply into `out`. Returns {key: final path} for the report's "outputs".
+Json write_skin_outputs(OutputSet& out, const SkinStageResult& r);
 
 }  // namespace handskin

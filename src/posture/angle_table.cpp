@@ -32,11 +32,28 @@ std::vector<std::string> split_cells(const std::string& line) {
   }
   return cells;
 }
+// A cell as it can be shown in one line of an error: control and non-ASCII bytes as \xNN,
+// so an invisible character is seen.
+std::string printable(const std::string& c) {
+  std::string out;
+  for (const unsigned char ch : c) {
+    if (ch >= 0x20 && ch < 0x7f) {
+      out += static_cast<char>(ch);
+    } else {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\x%02X", ch);
+      out += buf;
+    }
+  }
+  return out;
+}
 }  // namespace
 
 AngleTable parse_angle_table(const std::string& text, const std::string& file) {
   AngleTable t;
-  std::istringstream in(text);
+  // A UTF-8 byte-order mark (spreadsheets write one) is not part of the first DOF's name.
+  const bool bom = text.compare(0, 3, "\xEF\xBB\xBF") == 0;
+  std::istringstream in(bom ? text.substr(3) : text);
   std::string line;
   long lineno = 0;
   bool header = false;
@@ -46,10 +63,14 @@ AngleTable parse_angle_table(const std::string& text, const std::string& file) {
     const std::vector<std::string> cells = split_cells(line);
     const std::string where = file + ":" + std::to_string(lineno);
     if (!header) {
+      if (cells.size() == 1 && line.find(';') != std::string::npos)
+        throw InputError(where, "the header is separated by ';'; this format uses ',' between cells and '.' in numbers");
+      if (cells.size() == 1 && line.find('\t') != std::string::npos)
+        throw InputError(where, "the header is separated by tabs; this format uses ',' between cells");
       std::set<int> seen;
       for (const auto& c : cells) {
         const auto d = dof_index(c);
-        if (!d) throw InputError(where, "header names unknown DOF '" + c + "'");
+        if (!d) throw InputError(where, "header names unknown DOF '" + printable(c) + "'");
         if (!seen.insert(*d).second) throw InputError(where, "header names DOF '" + c + "' twice");
         t.columns.push_back(*d);
       }

@@ -20,7 +20,10 @@ bool CalibrationOptions::IsValid(std::string* error) const {
   if (max_pairs < 0 || max_pairs > 100) return bad("max_pairs must be in [0, 100]");
   if (weights != "thesis" && weights != "inverse") return bad("weights must be 'thesis' or 'inverse'");
   if (grid_cells < 4 || grid_cells > 1000) return bad("grid_cells must be in [4, 1000]");
-  if (!(grid_weight > 0)) return bad("grid_weight must be > 0");
+  if (!(grid_weight > 0 && grid_weight <= kMaxWeight)) return bad("grid_weight must be in (0, 1e3]");
+  for (const auto& [a, b] : pairs)
+    if (a == b) return bad("a pair needs two different DOFs (got " + dofs()[a].name + " twice)");
+  if (!(limit_margin_deg <= kMaxAngle)) return bad("limit_margin_deg must be in [0, 1000]");
   if (max_grid_samples < 1) return bad("max_grid_samples must be >= 1");
   if (!(limit_margin_deg >= 0)) return bad("limit_margin_deg must be >= 0");
   if (min_rows < 3) return bad("min_rows must be >= 3");
@@ -224,6 +227,9 @@ PostureModel calibrate(const AngleTable& t, const CalibrationOptions& o, const s
     HS_CHECK(std::isfinite(l.alpha) && std::isfinite(l.beta) && std::isfinite(l.gamma) && std::isfinite(l.weight),
              "calibration produced a non-finite line");
   if (report) *report = rep;
+  // What calibration writes, its own loader must read: the same checks, by a round trip
+  // (limits widened beyond ±360, a degenerate fit, ...) refuse the table here, not later.
+  parse_model(model_to_json(m), file + " (the calibrated model)");
   return m;
 }
 

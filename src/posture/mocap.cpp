@@ -106,6 +106,12 @@ MarkerTrack parse_qualisys_tsv(const std::string& text, const std::string& file)
     }
     if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
     if (t.names.empty()) throw InputError(file, "no MARKER_NAMES line before the data");
+    // Qualisys writes every cell of every row (an unseen marker as 0 0 0): a short row is a
+    // file cut mid-row, not a frame with markers missing.
+    const size_t expected = first + 3 * t.names.size();
+    if (cells.size() < expected)
+      throw InputError(where, "the row has " + std::to_string(cells.size()) + " cells, " + std::to_string(expected) +
+                                  " expected (" + std::to_string(t.names.size()) + " markers): the file is cut mid-row?");
     t.frames.push_back(read_positions(cells, first, t.names.size(), 1.0, true, where));
   }
   if (t.names.empty()) throw InputError(file, "not a Qualisys TSV export (no MARKER_NAMES line)");
@@ -125,6 +131,14 @@ MarkerTrack parse_trc(const std::string& text, const std::string& file) {
   long lineno = 0;
   std::vector<std::string> keys;
   double scale = 1.0;
+  long declared_frames = -1, declared_markers = -1;
+  auto count_of = [](const std::string& cell, const std::string& where, const char* key) {
+    double v;
+    if (!parse_number(cell, &v) || !(v >= 0 && v <= 1e9) || v != std::floor(v))
+      throw InputError(where, std::string(key) + " '" + cell + "' is not a count");
+    return static_cast<long>(v);
+  };
+  const bool ends_with_newline = !text.empty() && text.back() == '\n';
   int stage = 0;  // 0: PathFileType, 1: keys, 2: values, 3: names, 4: X1 Y1 Z1, 5: data
   while (std::getline(in, line)) {
     ++lineno;
@@ -139,6 +153,8 @@ MarkerTrack parse_trc(const std::string& text, const std::string& file) {
     } else if (stage == 2) {
       for (size_t k = 0; k < keys.size() && k < cells.size(); ++k) {
         if (keys[k] == "DataRate" && !parse_number(cells[k], &t.rate_hz)) throw InputError(where, "DataRate is not a number");
+        if (keys[k] == "NumFrames") declared_frames = count_of(cells[k], where, "NumFrames");
+        if (keys[k] == "NumMarkers") declared_markers = count_of(cells[k], where, "NumMarkers");
         if (keys[k] == "Units") {
           if (cells[k] == "m") scale = 1000.0;
           else if (cells[k] == "cm") scale = 10.0;
@@ -155,11 +171,25 @@ MarkerTrack parse_trc(const std::string& text, const std::string& file) {
       stage = 5;  // X1 Y1 Z1 ... line
     } else {
       if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+      // A TRC leaves an unseen marker's cells empty (some writers drop trailing ones): a row
+      // may be short by whole markers, but not end inside one — nor may the file's last,
+      // unterminated row be short at all.
+      const size_t expected = 2 + 3 * t.names.size();
+      const bool last = in.peek() == std::char_traits<char>::eof();
+      if (cells.size() < expected && ((cells.size() - 2) % 3 != 0 || (last && !ends_with_newline)))
+        throw InputError(where, "the row has " + std::to_string(cells.size()) + " cells, " + std::to_string(expected) +
+                                    " expected: the file is cut mid-row?");
       t.frames.push_back(read_positions(cells, 2, t.names.size(), scale, false, where));
     }
   }
   if (stage < 5 || t.names.empty()) throw InputError(file, "incomplete TRC header");
   if (t.frames.empty()) throw InputError(file, "no data rows");
+  if (declared_markers >= 0 && declared_markers != static_cast<long>(t.names.size()))
+    throw InputError(file, "NumMarkers says " + std::to_string(declared_markers) + " but the header names " +
+                               std::to_string(t.names.size()) + " markers");
+  if (declared_frames >= 0 && declared_frames != static_cast<long>(t.frames.size()))
+    throw InputError(file, "NumFrames says " + std::to_string(declared_frames) + " but the file holds " +
+                               std::to_string(t.frames.size()) + " rows (truncated?)");
   return t;
 }
 

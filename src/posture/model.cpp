@@ -1,5 +1,7 @@
 #include "posture/model.hpp"
 
+#include <cstdio>
+
 #include <cmath>
 #include <map>
 
@@ -118,6 +120,14 @@ PostureModel builtin_model(const std::string& name) {
   return m;
 }
 
+namespace {
+std::string num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+}  // namespace
+
 PostureModel parse_model(const Json& j, const std::string& file) {
   if (get_string(j, "format", file) != "hand-posture/1") throw InputError(file, "key 'format' must be \"hand-posture/1\"");
   reject_unknown_keys(j, {"format", "name", "description", "pair_angles", "dofs", "pairs", "grids", "notes"}, file, "");
@@ -155,10 +165,11 @@ PostureModel parse_model(const Json& j, const std::string& file) {
   for (int d = 0; d < kDofCount; ++d) {
     const DofParams& p = m.dof[d];
     const std::string where = file + ": dofs." + dofs()[d].name;
-    if (!(p.stiffness > 0) || !std::isfinite(p.stiffness))
-      throw InputError(where, "stiffness must be > 0 (a joint without a spring leaves the posture undetermined)");
-    if (!(p.lo < p.hi) || !std::isfinite(p.lo) || !std::isfinite(p.hi))
-      throw InputError(where, "limits must be finite with low < high");
+    if (!(p.stiffness >= kMinStiffness && p.stiffness <= kMaxStiffness))
+      throw InputError(where, "stiffness must be in [" + num(kMinStiffness) + ", " + num(kMaxStiffness) +
+                                  "] (got " + num(p.stiffness) + ")");
+    if (!(p.lo < p.hi) || !(std::abs(p.lo) <= kMaxAngle) || !(std::abs(p.hi) <= kMaxAngle))
+      throw InputError(where, "limits must be [low, high] with low < high, within ±" + num(kMaxAngle));
     if (p.relaxed < p.lo || p.relaxed > p.hi) throw InputError(where, "relaxed angle lies outside the limits");
   }
   // An optional array of objects: each entry checked for its keys, then handed on with the
@@ -187,7 +198,11 @@ PostureModel parse_model(const Json& j, const std::string& file) {
     if (e.contains("source")) l.source = get_string(e, "source", where);
     if (l.a == l.b) throw InputError(where, "a pair needs two different DOFs");
     if (l.alpha == 0 && l.beta == 0) throw InputError(where, "alpha and beta are both zero");
-    if (l.weight < 0) throw InputError(where, "weight must be >= 0");
+    if (!(std::abs(l.alpha) <= kMaxCoefficient && std::abs(l.beta) <= kMaxCoefficient))
+      throw InputError(where, "alpha and beta must be within ±" + num(kMaxCoefficient));
+    if (!(std::abs(l.gamma) <= kMaxOffset)) throw InputError(where, "gamma must be within ±" + num(kMaxOffset));
+    if (!(l.weight >= 0 && l.weight <= kMaxWeight))
+      throw InputError(where, "weight must be in [0, " + num(kMaxWeight) + "] (got " + num(l.weight) + ")");
     if (relative) l.gamma -= l.alpha * m.dof[l.a].relaxed + l.beta * m.dof[l.b].relaxed;
     m.pairs.push_back(l);
   });
@@ -217,7 +232,14 @@ PostureModel parse_model(const Json& j, const std::string& file) {
         throw InputError(where, "samples[" + std::to_string(i) + "] must be [a, b], finite");
       g.samples.push_back({s[i][0].get<double>(), s[i][1].get<double>()});
     }
-    if (g.a == g.b || g.weight < 0) throw InputError(where, "a grid needs two different DOFs and weight >= 0");
+    if (g.a == g.b) throw InputError(where, "a grid needs two different DOFs");
+    if (!(g.weight >= 0 && g.weight <= kMaxWeight))
+      throw InputError(where, "weight must be in [0, " + num(kMaxWeight) + "] (got " + num(g.weight) + ")");
+    for (const double v : {g.lo_a, g.hi_a, g.lo_b, g.hi_b})
+      if (!(std::abs(v) <= kMaxAngle)) throw InputError(where, "ranges must lie within ±" + num(kMaxAngle));
+    for (const auto& x : g.samples)
+      if (!(std::abs(x[0]) <= kMaxAngle && std::abs(x[1]) <= kMaxAngle))
+        throw InputError(where, "samples must lie within ±" + num(kMaxAngle));
     // Tables are built by a nearest-sample search per node on load: bound the work.
     if (static_cast<double>(g.cells) * g.cells * static_cast<double>(g.samples.size()) > 2e7)
       throw InputError(where, "grid too large: cells² × samples must stay below 2e7 (e.g. 100 cells, 2000 samples)");

@@ -10,6 +10,17 @@
 
 namespace handskin {
 
+/// Bounds on every number a model may hold (checked on load, by the solver and by
+/// calibration): beyond them the linear system loses all precision and a solve returns
+/// garbage (docs/posture.md, "Bounds").
+constexpr double kMaxStiffness = 1e3, kMinStiffness = 1e-3;
+constexpr double kMaxAngle = 1000;        ///< |limits|, grid ranges and samples (deg; mm for the wrist translations)
+constexpr double kMaxCoefficient = 1e3;   ///< |alpha|, |beta| of a pair
+constexpr double kMaxOffset = 1e5;        ///< |gamma| of a pair
+constexpr double kMaxWeight = 1e3;        ///< a pair's or grid's weight
+constexpr double kMaxTorque = 1e4;        ///< |instructed input|
+constexpr double kMaxTargetWeight = 1e6;  ///< a soft target's weight
+
 struct DofParams {
   double relaxed = 0;    ///< θ̄, degrees (mm for wrist translations)
   double stiffness = 1;  ///< spring K: input per degree

@@ -46,8 +46,9 @@ PostureSolver::PostureSolver(const PostureModel& model) : model_(model) {
     lo_(d) = model.dof[d].lo;
     hi_(d) = model.dof[d].hi;
     K(d, d) = model.dof[d].stiffness;
-    if (!(model.dof[d].stiffness > 0))
-      throw InputError("model", "DOF " + dofs()[d].name + " has no spring (stiffness must be > 0)");
+    if (!(model.dof[d].stiffness >= kMinStiffness && model.dof[d].stiffness <= kMaxStiffness))
+      throw InputError(model.name.empty() ? "model" : model.name,
+                       "DOF " + dofs()[d].name + ": stiffness must be in [1e-3, 1e3] (docs/posture.md)");
   }
   // Energy ½(x−θ̄)ᵀK(x−θ̄) + ½(Ax+b)ᵀW(Ax+b) − τ̂ᵀx  =  ½xᵀH0x − g0ᵀx + const.
   H0_ = K + A_.transpose() * w_.asDiagonal() * A_;
@@ -141,13 +142,14 @@ void PostureSolver::prepare(const PostureInputs& in, Problem* p) const {
   }
   for (const auto& [d, tau] : in.torques) {
     if (d < 0 || d >= kDofCount) throw InputError("inputs", "DOF index out of range");
-    if (!std::isfinite(tau)) throw InputError(dofs()[d].name, "torque is not a finite number");
+    if (!(std::abs(tau) <= kMaxTorque))
+      throw InputError(dofs()[d].name, "the input must be a number within ±" + std::to_string(static_cast<int>(kMaxTorque)));
     p->g(d) += tau;
   }
   for (const auto& t : in.targets) {
     if (t.dof < 0 || t.dof >= kDofCount) throw InputError("inputs", "DOF index out of range");
-    if (!std::isfinite(t.angle) || !std::isfinite(t.weight) || !(t.weight > 0))
-      throw InputError(dofs()[t.dof].name, "a target needs a finite angle and a weight > 0");
+    if (!std::isfinite(t.angle) || !(t.weight > 0 && t.weight <= kMaxTargetWeight))
+      throw InputError(dofs()[t.dof].name, "a target needs a finite angle and a weight in (0, 1e6]");
     const double c = std::clamp(t.angle, lo_(t.dof), hi_(t.dof));
     if (c != t.angle) ++p->clamped;
     p->H(t.dof, t.dof) += t.weight;
@@ -241,7 +243,7 @@ PostureSolution PostureSolver::solve_linear(const PostureInputs& in) const {
   for (int d = 0; d < kDofCount; ++d)
     if (p.at_bound & bit(d)) s.at_limit.push_back(d);
   s.energy = energy(s.angles, in, false);
-  return s;
+  return checked(std::move(s));
 }
 
 PostureSolution PostureSolver::solve_nonlinear(const PostureInputs& in, int max_iterations) const {
@@ -306,6 +308,17 @@ PostureSolution PostureSolver::solve_nonlinear(const PostureInputs& in, int max_
     if (!(p.pinned & bit(d)) && ((p.at_bound & bit(d)) || x(d) <= lo_(d) + 1e-9 || x(d) >= hi_(d) - 1e-9) &&
         std::abs(x(d) - relaxed_(d)) > 1e-9)
       s.at_limit.push_back(d);
+  return checked(std::move(s));
+}
+
+PostureSolution PostureSolver::checked(PostureSolution s) const {
+  // Bounded models and inputs keep the system well posed; this is the last guard that no
+  // NaN or runaway angle is ever reported as a posture.
+  bool ok = std::isfinite(s.energy);
+  for (int d = 0; d < kDofCount; ++d) ok = ok && std::isfinite(s.angles[d]) && s.angles[d] >= lo_(d) - 1e-6 && s.angles[d] <= hi_(d) + 1e-6;
+  if (!ok)
+    throw InputError(model_.name.empty() ? "model" : model_.name,
+                     "the solve gave no finite posture within the limits; the model's numbers are out of proportion");
   return s;
 }
 
@@ -326,15 +339,15 @@ void parse_assignment(const std::string& text, const std::string& option, int* d
       char* end = nullptr;
       const std::string w = rest.substr(at + 1);
       *weight = std::strtod(w.c_str(), &end);
-      if (w.empty() || *end != '\0' || !std::isfinite(*weight) || !(*weight > 0))
-        throw InputError(option, "'" + text + "': the weight after @ must be a number > 0");
+      if (w.empty() || *end != '\0' || !(*weight > 0 && *weight <= kMaxTargetWeight))
+        throw InputError(option, "'" + text + "': the weight after @ must be a number in (0, 1e6]");
       rest = rest.substr(0, at);
     }
   }
   char* end = nullptr;
   *value = std::strtod(rest.c_str(), &end);
-  if (rest.empty() || *end != '\0' || !std::isfinite(*value))
-    throw InputError(option, "'" + text + "': the value must be a finite number");
+  if (rest.empty() || *end != '\0' || !(std::abs(*value) <= kMaxTorque))
+    throw InputError(option, "'" + text + "': the value must be a finite number within ±1e4");
 }
 
 }  // namespace handskin

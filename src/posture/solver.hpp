@@ -79,6 +79,7 @@ class PostureSolver {
   void box_qp(Problem& p, const Vec& g, const Mat& H, int cache_id, Vec* x, int* rounds) const;
   const Factor& factor(const Mat& H, int cache_id, std::uint64_t fixed_mask) const;
   double grid_energy(const Vec& x, std::vector<std::array<double, 2>>* anchors) const;
+  PostureSolution checked(PostureSolution s) const;
 
   PostureModel model_;
   Vec relaxed_, lo_, hi_, g0_;

@@ -488,6 +488,18 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
                    {"back", n_back},
                    {"marker_samples_removed", (back.points.size() - n_back) + (palm.points.size() - n_palm)}};
   rep["timings_ms"] = timings;
+  RegistrationFigures& f = out.figures;
+  f.radius_estimated = o.estimate_radius;
+  f.markers_back = mb.size();
+  f.markers_palm = mp.size();
+  f.markers_matched = match.pairs.size();
+  f.marker_only_rms_mm = rms_m;
+  f.refined_rms_mm = rms_r;
+  f.sphere_rms_marker_only_mm = ref.marker_rms_start;
+  f.sphere_rms_refined_mm = ref.marker_rms_end;
+  f.icp_overlap_fraction = ref.overlap_fraction;
+  f.merged_points = out.merged->size();
+  for (auto it = timings.begin(); it != timings.end(); ++it) f.timings_ms.emplace_back(it.key(), it.value().get<double>());
   out.report = rep;
   return out;
 }

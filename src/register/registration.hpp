@@ -70,6 +70,17 @@ struct MergedArrays {
 };
 MergedArrays merged_arrays(const MergedCloud& cloud);
 
+/// The registration's quality figures, typed (the run report's "registration" stage).
+struct RegistrationFigures {
+  bool radius_estimated = false;          ///< the markers' radius was estimated (else given)
+  size_t markers_back = 0, markers_palm = 0, markers_matched = 0;
+  double marker_only_rms_mm = 0, refined_rms_mm = 0;        ///< matched centres' residuals
+  double sphere_rms_marker_only_mm = 0, sphere_rms_refined_mm = 0;
+  double icp_overlap_fraction = 0;
+  size_t merged_points = 0;
+  std::vector<std::pair<std::string, double>> timings_ms;  ///< per step, in order
+};
+
 struct Registration {
   Eigen::Isometry3d back_to_palm = Eigen::Isometry3d::Identity();  ///< p_palm = T · p_back
   Eigen::Isometry3d marker_only = Eigen::Isometry3d::Identity();   ///< the rigid fit of the centres
@@ -78,7 +89,8 @@ struct Registration {
   std::vector<Eigen::Vector3d> markers_palm;  ///< matched marker centres, palm frame
   std::vector<std::string> warnings;
   MergedCloud::Ptr merged;
-  Json report;                                ///< registration.json
+  RegistrationFigures figures;
+  Json report;                                ///< registration.json: every detail (docs/formats.md)
 };
 
 using RegisterProgress = std::function<void(const std::string&)>;

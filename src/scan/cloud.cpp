@@ -1,5 +1,7 @@
 #include "scan/cloud.hpp"
 
+#include <pcl/console/print.h>
+
 #include <pcl/io/pcd_io.h>
 #include <pcl/io/ply_io.h>
 
@@ -105,5 +107,7 @@ void save_cloud(const std::string& path, const Cloud& cloud) {
     if (rc < 0) throw InputError(path, "cannot write point cloud");
   });
 }
+
+void silence_pcl_console() { pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS); }
 
 }  // namespace handskin

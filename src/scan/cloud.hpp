@@ -31,4 +31,7 @@ Cloud::Ptr load_cloud(const std::string& path);
 /// Save as binary PLY or PCD by extension, atomically.
 void save_cloud(const std::string& path, const Cloud& cloud);
 
+/// PCL's console messages off: every failure of ours is one line that names the file.
+void silence_pcl_console();
+
 }  // namespace handskin

@@ -1,6 +1,7 @@
 #include "scan/cubist_io.hpp"
 
 #include <algorithm>
+#include <cstdio>
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
@@ -15,22 +16,45 @@ size_t RangeScan::count_valid() const {
   return static_cast<size_t>(std::count_if(values.begin(), values.end(), [](std::uint16_t v) { return v != 0; }));
 }
 
+namespace {
+std::string num_text(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+}  // namespace
+
 ScanMeta parse_scan_meta(const std::string& json_text, const std::string& file) {
   const Json j = parse_json_object(json_text, file);
   if (get_string(j, "format", file) != "cubist-range/1")
     throw InputError(file, "key 'format' must be \"cubist-range/1\"");
   ScanMeta m;
-  // Sizes above 16384 are refused to bound memory on hostile input; CUBIST is 512.
-  m.scanlines = static_cast<int>(get_int(j, "scanlines", file, 1));
-  m.points = static_cast<int>(get_int(j, "points", file, 1));
-  if (m.scanlines > 16384) throw InputError(file, "key 'scanlines' is too large (max 16384)");
-  if (m.points > 16384) throw InputError(file, "key 'points' is too large (max 16384)");
-  m.x_origin_mm = get_finite(j, "x_origin_mm", file);
+  // Grids are bounded so that a small file cannot make the pipeline take gigabytes: a
+  // table-only scan has a return in every pixel, and every return becomes a point of the
+  // registration. CUBIST is 512 x 512; the cap is 16 times its pixels (docs/formats.md).
+  m.scanlines = static_cast<int>(get_int(j, "scanlines", file, 1, kMaxScanSide));
+  m.points = static_cast<int>(get_int(j, "points", file, 1, kMaxScanSide));
+  if (static_cast<long>(m.scanlines) * m.points > kMaxScanPixels)
+    throw InputError(file, "keys 'scanlines' x 'points' = " + std::to_string(static_cast<long>(m.scanlines) * m.points) +
+                               " samples, more than the " + std::to_string(kMaxScanPixels) + " a scan may hold");
+  // Origins and steps are bounded so that every sample's coordinate stays finite and
+  // meaningful in mm (a step of 1e308 would make infinities out of finite numbers).
+  auto bounded = [&](const char* key, double lo, double hi) {
+    const double v = get_finite(j, key, file);
+    if (!(v >= lo && v <= hi))
+      throw InputError(file, std::string("key '") + key + "' must be in [" + num_text(lo) + ", " + num_text(hi) +
+                                 "] mm (got " + num_text(v) + ")");
+    return v;
+  };
+  m.x_origin_mm = bounded("x_origin_mm", -kMaxScanOriginMm, kMaxScanOriginMm);
   m.x_step_mm = get_positive(j, "x_step_mm", file);
-  m.y_origin_mm = get_finite(j, "y_origin_mm", file);
+  m.x_step_mm = bounded("x_step_mm", kMinScanStepMm, kMaxScanStepMm);
+  m.y_origin_mm = bounded("y_origin_mm", -kMaxScanOriginMm, kMaxScanOriginMm);
   m.y_step_mm = get_positive(j, "y_step_mm", file);
-  m.z_origin_mm = get_finite(j, "z_origin_mm", file);
+  m.y_step_mm = bounded("y_step_mm", kMinScanStepMm, kMaxScanStepMm);
+  m.z_origin_mm = bounded("z_origin_mm", -kMaxScanOriginMm, kMaxScanOriginMm);
   m.z_step_mm = get_positive(j, "z_step_mm", file);
+  m.z_step_mm = bounded("z_step_mm", kMinScanStepMm, kMaxScanStepMm);
   const std::string side = get_string(j, "side", file);
   if (side == "back") m.side = ScanSide::Back;
   else if (side == "palm") m.side = ScanSide::Palm;
@@ -61,7 +85,7 @@ RangeScan decode_scan(const std::string& png_bytes, const std::string& png_name,
                       const std::string& json_name) {
   RangeScan scan;
   scan.meta = parse_scan_meta(json_text, json_name);
-  Gray16Image img = decode_gray16_png(png_bytes, png_name);
+  Gray16Image img = decode_gray16_png(png_bytes, png_name, std::max(scan.meta.scanlines, scan.meta.points));
   if (img.height != scan.meta.scanlines)
     throw InputError(json_name, "key 'scanlines' is " + std::to_string(scan.meta.scanlines) + " but " + png_name +
                                     " has " + std::to_string(img.height) + " rows");

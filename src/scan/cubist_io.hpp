@@ -11,6 +11,13 @@ namespace handskin {
 enum class ScanSide { Back, Palm };
 const char* side_name(ScanSide s);
 
+/// The largest grid a scan may have: 4096 on a side and 2048 x 2048 samples in all (16 times
+/// CUBIST's 512 x 512). Larger sidecars are refused before the image is decoded.
+constexpr int kMaxScanSide = 4096;
+constexpr long kMaxScanPixels = 2048L * 2048L;
+/// Origins within ±1 km and steps in [1 nm, 1 m]: every coordinate finite, in mm.
+constexpr double kMaxScanOriginMm = 1e6, kMinScanStepMm = 1e-6, kMaxScanStepMm = 1e3;
+
 struct ScanMeta {
   int scanlines = 512;                  ///< rows (X = const lines)
   int points = 512;                     ///< columns along a scanline

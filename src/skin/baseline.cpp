@@ -1,24 +1,15 @@
 #include "skin/baseline.hpp"
 
-#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
-#include <CGAL/Surface_mesh.h>
-#include <CGAL/compute_average_spacing.h>
-#include <CGAL/poisson_surface_reconstruction.h>
-#include <CGAL/Random.h>
-#include <CGAL/property_map.h>
+#include <pcl/PolygonMesh.h>
+#include <pcl/conversions.h>
+#include <pcl/point_types.h>
+#include <pcl/surface/poisson.h>
 
 #include <chrono>
-#include <utility>
 
 #include "core/errors.hpp"
-#include "mesh/from_cgal.hpp"
 
 namespace handskin {
-
-namespace {
-using K = CGAL::Exact_predicates_inexact_constructions_kernel;
-using Pwn = std::pair<K::Point_3, K::Vector_3>;
-}  // namespace
 
 size_t thinning_step(size_t n, size_t max_points) {
   return std::max<size_t>(1, (n + max_points - 1) / std::max<size_t>(max_points, 1));
@@ -28,27 +19,41 @@ BaselineResult poisson_baseline(const std::vector<Eigen::Vector3d>& points, cons
                                 size_t max_points) {
   HS_CHECK(points.size() == normals.size(), "points and normals differ in length");
   const auto t0 = std::chrono::steady_clock::now();
-  // CGAL's surface mesher draws its initial points from the default random, which is seeded
-  // from the clock: fix it, as the hand mesher does, so a run repeats.
-  CGAL::get_default_random() = CGAL::Random(1);
   BaselineResult r;
-  std::vector<Pwn> pwn;
+  auto cloud = std::make_shared<pcl::PointCloud<pcl::PointNormal>>();
   const size_t step = thinning_step(points.size(), max_points);
   for (size_t i = 0; i < points.size(); i += step) {
     if (normals[i].squaredNorm() < 0.5) continue;  // samples without a normal cannot orient the field
-    pwn.emplace_back(K::Point_3(points[i].x(), points[i].y(), points[i].z()),
-                     K::Vector_3(normals[i].x(), normals[i].y(), normals[i].z()));
+    pcl::PointNormal p;
+    p.x = static_cast<float>(points[i].x()), p.y = static_cast<float>(points[i].y()), p.z = static_cast<float>(points[i].z());
+    p.normal_x = static_cast<float>(normals[i].x()), p.normal_y = static_cast<float>(normals[i].y()),
+    p.normal_z = static_cast<float>(normals[i].z());
+    cloud->push_back(p);
   }
-  if (pwn.size() < 100) throw InputError("merged cloud", "too few oriented points for the Poisson baseline");
-  r.points_used = pwn.size();
-  r.average_spacing_mm = CGAL::compute_average_spacing<CGAL::Sequential_tag>(
-      pwn, 6, CGAL::parameters::point_map(CGAL::First_of_pair_property_map<Pwn>()));
-  CGAL::Surface_mesh<K::Point_3> sm;
-  const bool ok = CGAL::poisson_surface_reconstruction_delaunay(
-      pwn.begin(), pwn.end(), CGAL::First_of_pair_property_map<Pwn>(), CGAL::Second_of_pair_property_map<Pwn>(), sm,
-      r.average_spacing_mm);
-  HS_CHECK(ok && sm.number_of_faces() > 0, "CGAL Poisson reconstruction failed");
-  r.mesh = to_trimesh(sm);
+  if (cloud->size() < 100) throw InputError("merged cloud", "too few oriented points for the Poisson baseline");
+  r.points_used = cloud->size();
+  // Kazhdan's screened Poisson as PCL ships it, on one thread: its parallel accumulation
+  // changes the last bits between runs, and so the mesh. (CGAL's Poisson meshes its function
+  // with the Surface_mesher, whose maps are keyed by memory addresses: it differs from run to
+  // run too, CGAL issue #6240.) Depth 8 puts cells of ~1 mm on a hand.
+  pcl::Poisson<pcl::PointNormal> poisson;
+  poisson.setDepth(7);
+  poisson.setScale(1.5f);
+  poisson.setThreads(1);
+  poisson.setManifold(true);
+  poisson.setOutputPolygons(false);
+  poisson.setInputCloud(cloud);
+  pcl::PolygonMesh pm;
+  poisson.reconstruct(pm);
+  pcl::PointCloud<pcl::PointXYZ> v;
+  pcl::fromPCLPointCloud2(pm.cloud, v);
+  HS_CHECK(!pm.polygons.empty() && !v.empty(), "Poisson reconstruction gave no surface");
+  std::vector<TriMesh::VertexHandle> vh;
+  for (const auto& p : v.points) vh.push_back(r.mesh.add_vertex(TriMesh::Point(p.x, p.y, p.z)));
+  for (const auto& f : pm.polygons) {
+    HS_CHECK(f.vertices.size() == 3, "Poisson reconstruction gave a non-triangle");
+    if (!r.mesh.add_face(vh[f.vertices[0]], vh[f.vertices[1]], vh[f.vertices[2]]).is_valid()) ++r.faces_dropped;
+  }
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }

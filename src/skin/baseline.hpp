@@ -1,7 +1,7 @@
 #pragma once
-/// What a user would otherwise do with the merged cloud: CGAL's Poisson surface
-/// reconstruction (issue 5's baseline), to compare the strip skin against in accuracy,
-/// triangle count and time.
+/// What a user would otherwise do with the merged cloud: Poisson surface reconstruction
+/// (Kazhdan's, as PCL ships it; issue 5's baseline), to compare the strip skin against in
+/// accuracy, triangle count and time. Opt-in (`--baseline`): it takes seconds.
 #include <Eigen/Core>
 #include <vector>
 
@@ -13,6 +13,7 @@ struct BaselineResult {
   TriMesh mesh;
   double seconds = 0;
   size_t points_used = 0;
+  size_t faces_dropped = 0;  ///< faces the mesh could not take (they would make an edge non-manifold)
   double average_spacing_mm = 0;
 };
 

@@ -10,7 +10,7 @@
 /// consecutive rings pair up into strips. Fingertips get a dome of rings about a tip centre,
 /// the wrist cut and the tubes' inner ends flat caps. The tubes are then stitched into one
 /// surface by a CGAL corefinement union (finger roots into the palm, the thumb web),
-/// decimated to the triangle budget (OpenMesh) and checked: closed, manifold, outward, free
+/// decimated to the triangle budget (CGAL edge collapse, Garland–Heckbert quadrics) and checked: closed, manifold, outward, free
 /// of self-intersections. docs/skin.md has the details and the figures.
 #include <Eigen/Core>
 #include <functional>
@@ -42,7 +42,7 @@ struct SkinOptions {
   int cap_rings = 4;              ///< rings of a fingertip's dome, plus its pole
   double window_deg = 2.0;        ///< radius at an angle: mean of the samples within ± this
   double min_coverage_deg = 150;  ///< a ring's samples must cover this much of the circle
-  /// Decimation (OpenMesh, quadric error) to at most this many triangles, moving the
+  /// Decimation (CGAL edge collapse, quadric error) to at most this many triangles, moving the
   /// surface by at most decimation_tolerance_mm; 0: keep every strip triangle.
   int max_triangles = 8000;
   double decimation_tolerance_mm = 0.15;

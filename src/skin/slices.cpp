@@ -12,17 +12,6 @@
 
 namespace handskin {
 
-std::string Bone::name() const { return std::string(joints()[joint].name) + ">" + joints()[child].name; }
-
-std::vector<Bone> bones_from_rig(const Rig& rig) {
-  std::vector<Bone> out;
-  for (int j = 1; j < kJointCount; ++j) {
-    const int p = joints()[j].parent;
-    out.push_back({p, j, rig.joints[p], rig.joints[j]});
-  }
-  return out;
-}
-
 bool SliceOptions::IsValid(std::string* error) const {
   auto bad = [&](const std::string& m) {
     if (error) *error = m;

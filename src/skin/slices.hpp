@@ -13,16 +13,6 @@
 
 namespace handskin {
 
-/// A bone link: the segment from joint `joint` to joint `child` (rig frame). Links from the
-/// wrist to each metacarpal base are the carpus.
-struct Bone {
-  int joint = -1, child = -1;
-  Eigen::Vector3d a = Eigen::Vector3d::Zero(), b = Eigen::Vector3d::Zero();
-  std::string name() const;
-};
-/// The 24 links of a rig: wrist → each metacarpal base, and every joint → its child.
-std::vector<Bone> bones_from_rig(const Rig& rig);
-
 struct SliceOptions {
   int planes = 50;               ///< cross-section planes from the wrist cut to the fingertips
   int points_per_segment = 10;   ///< resampled points per plane and link (eq. 4.1)

@@ -6,7 +6,7 @@
 #include <map>
 
 #include "core/errors.hpp"
-#include "synth/triangle_tree.hpp"
+#include "mesh/triangle_tree.hpp"
 #include "core/random.hpp"
 
 namespace handskin {

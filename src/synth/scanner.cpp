@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include "core/errors.hpp"
-#include "synth/triangle_tree.hpp"
+#include "mesh/triangle_tree.hpp"
 #include "core/random.hpp"
 
 namespace handskin {

@@ -1,4 +1,4 @@
-#include "synth/mesh_distance.hpp"
+#include "mesh/mesh_distance.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 
 #include "core/random.hpp"
 
-#include "synth/triangle_tree.hpp"
+#include "mesh/triangle_tree.hpp"
 
 namespace handskin {
 

@@ -1,0 +1,173 @@
+// run, register, skin: the pipeline's commands.
+#include <filesystem>
+#include <memory>
+
+#include "cli/commands.hpp"
+#include "core/errors.hpp"
+#include "core/output_set.hpp"
+#include "pipeline/options.hpp"
+#include "pipeline/stage_options.hpp"
+#include "pipeline/registration_stage.hpp"
+#include "pipeline/run.hpp"
+#include "pipeline/skin_stage.hpp"
+#include "scan/cubist_io.hpp"
+
+namespace handskin::cli {
+
+namespace {
+
+// ---------------- run ----------------
+struct RunArgs {
+  RunInputs in;
+  std::string out_dir;
+};
+
+void run_command(RunArgs a, const Progress& progress) {
+  RunInputs& in = a.in;
+  OutputSet out(a.out_dir);  // an output path that cannot be a folder fails before any work
+  if (!in.pipeline_path.empty()) in.options = load_pipeline(in.pipeline_path);
+  const RunResult r = run_pipeline(in, [&](const std::string& m) { progress("run", m); });
+  progress("run", "writing the outputs");
+  out.retire(run_output_names());
+  const Json report = write_run_outputs(out, r);
+  out.commit();
+  progress("run", "done in " + std::to_string(report["total_seconds"].get<double>()).substr(0, 5) + " s");
+  std::printf("outputs in %s (report: %s)\n", a.out_dir.c_str(), out.final_path("report.json").c_str());
+}
+
+// ---------------- skin ----------------
+struct SkinArgs {
+  std::string merged, rig, out = "skin", pipeline, truth;
+  bool auto_rig = false, baseline = false;
+};
+
+void skin_command(const SkinArgs& a, const Progress& progress) {
+  OutputSet out(a.out);
+  PipelineOptions po;
+  if (!a.pipeline.empty()) po = load_pipeline(a.pipeline);
+  SkinStageInputs in;
+  if (!a.rig.empty()) {
+    in.rig = load_palm_rig(a.rig);
+    in.rig_name = a.rig;
+  }
+  in.auto_rig = a.auto_rig;
+  in.baseline = a.baseline || po.skin.baseline;
+  in.slices = po.skin.slices_json;
+  if (!a.truth.empty()) in.truth = load_truth_skin(a.truth);  // before any work, so a bad file fails early
+  progress("skin", "reading " + a.merged);
+  MergedArrays m = merged_arrays(*load_merged(a.merged));
+  in.points = std::move(m.points);
+  in.normals = std::move(m.normals);
+  in.sides = std::move(m.sides);
+  in.cloud_name = a.merged;
+  const SkinStageResult r = run_skin_stage(in, po, [&](const std::string& msg) { progress("skin", msg); });
+  Json report = to_json(r);
+  report["format"] = "handskin-skin-report/1";
+  report["inputs"] = {{"merged", a.merged}, {"rig", a.rig.empty() ? "(placed automatically)" : a.rig},
+                      {"pipeline", a.pipeline.empty() ? "(built-in defaults)" : a.pipeline}};
+  std::vector<std::string> names = skin_output_names();
+  names.push_back("skin_report.json");
+  out.retire(names);
+  report["outputs"] = write_skin_outputs(out, r);
+  report["outputs"]["report"] = out.final_path("skin_report.json");
+  save_json(out.stage("skin_report.json"), report);
+  out.commit();
+  const MeshHealth& h = r.skin.health;
+  std::printf("skin: %zu vertices, %zu triangles, watertight %s, cloud to skin mean %.3f p95 %.3f max %.2f mm, %.0f ms -> %s\n",
+              h.vertices, h.faces, r.skin.watertight() ? "yes" : "no", r.cloud_to_skin.mean, r.cloud_to_skin.p95,
+              r.cloud_to_skin.max, 1000 * r.build_seconds, out.final_path("skin_report.json").c_str());
+  if (r.against_given)
+    std::printf("automatic skeleton: mean joint error %.2f mm (max %.2f, %s) against %s\n", r.against_given->mean_mm,
+                r.against_given->max_mm, r.against_given->worst_joint.c_str(), a.rig.c_str());
+  if (r.truth)
+    std::printf("against the truth: skin->truth mean %.3f p95 %.3f mm; truth->skin within 1 mm %.2f %%\n",
+                r.truth->skin_to_truth.mean, r.truth->skin_to_truth.p95, 100 * r.truth->truth_to_skin.within_1mm);
+}
+
+// ---------------- register ----------------
+struct RegisterArgs {
+  std::string back, palm, out = "registration", markers, pipeline, truth;
+  bool no_refine = false;
+};
+
+void register_command(const RegisterArgs& a, const Progress& progress) {
+  OutputSet out(a.out);
+  PipelineOptions po;
+  if (!a.pipeline.empty()) po = load_pipeline(a.pipeline);
+  RegistrationOptions ro = registration_options(po);
+  if (a.no_refine) ro.refine_enabled = false;
+  const RangeScan back = load_scan_side(a.back, ScanSide::Back, "--back");
+  const RangeScan palm = load_scan_side(a.palm, ScanSide::Palm, "--palm");
+  MarkerHints hints;
+  if (!a.markers.empty()) hints = load_marker_hints(a.markers);
+  std::optional<TruthSkin> truth;  // read before any work so a bad file fails early
+  if (!a.truth.empty()) truth = load_truth_skin(a.truth);
+  const Registration reg = register_scans(back, palm, a.back + ".png", a.palm + ".png", ro,
+                                          a.markers.empty() ? nullptr : &hints,
+                                          [&](const std::string& m) { progress("register", m); });
+  for (const auto& w : reg.warnings) progress("register", "warning: " + w);
+  Json report = reg.report;
+  if (truth) report["against_truth"] = registration_against_truth(reg, *truth);
+  out.retire(registration_output_names());
+  write_registration_outputs(out, reg, report);
+  out.commit();
+  const RegistrationFigures& f = reg.figures;
+  std::printf("%s: %s, %zu of %zu/%zu markers matched (radius %.3f mm, %s), marker rms %.4f mm (refined %.4f mm), %zu "
+              "merged points\n",
+              reg.warnings.empty() ? "ok" : "ok_with_warnings", reg.refined ? "refined" : "markers", f.markers_matched,
+              f.markers_back, f.markers_palm, reg.marker_radius_mm, f.radius_estimated ? "estimated" : "given",
+              f.marker_only_rms_mm, f.refined_rms_mm, f.merged_points);
+  const Json& r = report;
+  if (r.contains("against_truth"))
+    std::printf("against truth: rotation %.5f deg, skin mean %.4f mm, max %.4f mm\n",
+                r["against_truth"]["chosen"]["rotation_deg"].get<double>(),
+                r["against_truth"]["chosen"]["skin_mean_mm"].get<double>(),
+                r["against_truth"]["chosen"]["skin_max_mm"].get<double>());
+}
+
+}  // namespace
+
+void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* out) {
+  auto ra = std::make_shared<RunArgs>();
+  RunInputs* in = &ra->in;
+  auto* run = app.add_subcommand("run", "Run the pipeline on a back/palm scan pair (and a rig, or none)");
+  run->add_option("--back", in->back_stem, "Back scan stem (<stem>.png + <stem>.json)")->required();
+  run->add_option("--palm", in->palm_stem, "Palm scan stem")->required();
+  run->add_option("--rig", in->rig_path, "hand-rig/1 file, joints in the palm frame (default: placed automatically)");
+  run->add_flag("--auto-rig", in->auto_rig, "Place the skeleton automatically even with --rig, and report its joint error");
+  run->add_option("--out", ra->out_dir, "Output folder (created if needed; only our files in it are replaced, all "
+                                        "at once when every stage succeeded)")
+      ->required();
+  run->add_option("--pipeline", in->pipeline_path, "Pipeline parameters (default: built-in = pipelines/cubist.json)");
+  run->add_option("--markers", in->markers_path,
+                  "Manual marker positions (handskin-markers/1) for scans whose bumps the detector misses");
+  run->add_option("--truth", in->truth_path, "truth.json of a synthetic pair: add the errors against it to the report");
+  run->add_flag("--baseline", in->baseline, "Also reconstruct the cloud with CGAL's Poisson (baseline.ply, for comparison; ~4 s)");
+  out->push_back({run, [ra, &progress] { run_command(*ra, progress); }});
+
+  auto rg = std::make_shared<RegisterArgs>();
+  auto* regc = app.add_subcommand("register", "Register the back scan into the palm scan's frame and merge them");
+  regc->add_option("--back", rg->back, "Back scan stem (<stem>.png + <stem>.json)")->required();
+  regc->add_option("--palm", rg->palm, "Palm scan stem")->required();
+  regc->add_option("--out", rg->out, "Output folder: registration.json, merged.ply, merged.png")->capture_default_str();
+  regc->add_option("--markers", rg->markers, "Manual marker positions (handskin-markers/1), replacing detection");
+  regc->add_option("--pipeline", rg->pipeline, "Pipeline parameters (markers, registration sections)");
+  regc->add_option("--truth", rg->truth, "truth.json of a synthetic pair: add the errors against it to the report");
+  regc->add_flag("--no-refine", rg->no_refine, "Keep the marker-only fit (no joint sphere/ICP refinement)");
+  out->push_back({regc, [rg, &progress] { register_command(*rg, progress); }});
+
+  auto sk = std::make_shared<SkinArgs>();
+  auto* skinc = app.add_subcommand("skin", "Skin mesh from a merged cloud and a rig: strips between planes, closed (thesis §4.1.2-4.1.3)");
+  skinc->add_option("--merged", sk->merged, "Merged cloud (merged.ply from handskin register)")->required();
+  skinc->add_option("--rig", sk->rig, "hand-rig/1 file, joints in the palm frame (default: placed automatically)");
+  skinc->add_flag("--auto-rig", sk->auto_rig, "Place the skeleton automatically even with --rig, and report its joint error");
+  skinc->add_option("--out", sk->out, "Output folder: skin.ply, skin.obj, skin.png, slices.json, skin_report.json "
+                                      "(+ rig_auto.json, baseline.ply)")
+      ->capture_default_str();
+  skinc->add_option("--pipeline", sk->pipeline, "Pipeline parameters (slicing, skin sections)");
+  skinc->add_option("--truth", sk->truth, "truth.json of a synthetic pair: add the errors against its true skin");
+  skinc->add_flag("--baseline", sk->baseline, "Also reconstruct the cloud with CGAL's Poisson (baseline.ply, for comparison)");
+  out->push_back({skinc, [sk, &progress] { skin_command(*sk, progress); }});
+}
+
+}  // namespace handskin::cli

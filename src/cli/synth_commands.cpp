@@ -1,0 +1,183 @@
+// synth hand, synth scan: synthetic data.
+#include <filesystem>
+#include <memory>
+#include <optional>
+
+#include "cli/commands.hpp"
+#include "core/atomic_file.hpp"
+#include "core/errors.hpp"
+#include "core/output_set.hpp"
+#include "core/rig.hpp"
+#include "render/preview.hpp"
+#include "scan/cubist_io.hpp"
+#include "synth/hand_mesher.hpp"
+#include "synth/hand_model.hpp"
+#include "synth/replica.hpp"
+#include "synth/truth.hpp"
+
+namespace handskin::cli {
+
+namespace {
+
+void check_options(bool ok, const std::string& where, const std::string& err) {
+  if (!ok) throw InputError(where, err);
+}
+
+// ---------------- synth hand ----------------
+struct SynthHandArgs {
+  std::string out = "hand";
+  HandShapeOptions shape;
+  std::string posture = "relaxed", side = "right";
+  std::vector<std::string> sets;
+  std::optional<double> thumb_pronation, index_ring_ratio, forearm;
+  HandMeshOptions mesh;
+  bool render = true;
+};
+
+void synth_hand(const SynthHandArgs& args, const Progress& progress) {
+  SynthHandArgs a = args;
+  OutputSet out(a.out);
+  if (a.side != "right" && a.side != "left") throw InputError("--side", "'" + a.side + "': must be right or left");
+  a.shape.side = a.side == "left" ? HandSide::Left : HandSide::Right;
+  a.shape.posture = parse_posture(a.posture, a.sets);
+  a.shape.thumb_pronation_deg =
+      a.thumb_pronation ? *a.thumb_pronation : (a.posture == "relaxed" ? relaxed_thumb_pronation() : 0.0);
+  a.shape.index_ring_ratio = a.index_ring_ratio;
+  a.shape.forearm_mm = a.forearm;
+  std::string err;
+  check_options(a.shape.IsValid(&err), "hand options", err);
+  check_options(a.mesh.IsValid(&err), "mesh options", err);
+  progress("synth hand", "building the skeleton and implicit surface");
+  const HandModel model = build_hand_model(a.shape);
+  progress("synth hand", "meshing with CGAL's surface mesher (a few seconds)");
+  const HandMeshResult r = mesh_hand(model, a.mesh);
+  out.retire({"hand.ply", "hand_rig.json", "hand_back.png", "hand_side.png"});
+  save_mesh(out.stage("hand.ply"), r.mesh);
+  save_rig(out.stage("hand_rig.json"), model.rig);
+  if (a.render) {
+    RenderOptions ro;
+    ro.view = named_view("back");
+    write_file_atomic(out.stage("hand_back.png"), render_mesh_png({&r.mesh}, ro));
+    ro.view = named_view("side");
+    write_file_atomic(out.stage("hand_side.png"), render_mesh_png({&r.mesh}, ro));
+  }
+  out.commit();
+  progress("synth hand", std::to_string(r.health.vertices) + " vertices, " + std::to_string(r.health.faces) +
+                             " triangles, closed=" + (r.health.closed() ? "yes" : "no") +
+                             ", manifold=" + (r.health.manifold() ? "yes" : "no") +
+                             ", self-intersections=" + (r.self_intersects ? "yes" : "no") + ", meshed in " +
+                             std::to_string(r.seconds).substr(0, 5) + " s");
+  std::printf("%s\n%s\n", out.final_path("hand.ply").c_str(), out.final_path("hand_rig.json").c_str());
+}
+
+// ---------------- synth scan ----------------
+struct SynthScanArgs {
+  std::string mesh, rig, out = "scans";
+  std::uint64_t seed = 1;
+  ReplicaOptions replica;
+  ScannerOptions scanner;
+  bool render = true;
+};
+
+void synth_scan(const SynthScanArgs& a, const Progress& progress) {
+  OutputSet out(a.out);
+  std::string err;
+  check_options(a.replica.IsValid(&err), "replica options", err);
+  check_options(a.scanner.IsValid(&err), "scanner options", err);
+  const TriMesh hand = load_mesh(a.mesh);
+  const Rig rig = load_rig(a.rig);
+  progress("synth scan", "placing markers and scanning both sides (seed " + std::to_string(a.seed) + ")");
+  const ScanPair pair = synthesize_scan_pair(hand, rig, a.replica, a.scanner, a.seed, !progress.quiet);
+  out.retire({"back.png", "back.json", "palm.png", "palm.json", "rig.json", "truth.json", "truth_skin.ply",
+              "back_preview.png", "palm_preview.png"});
+  for (const auto& [stem, sim] : {std::pair<const char*, const ScanSimulation*>{"back", &pair.back}, {"palm", &pair.palm}}) {
+    const std::string png = out.stage(std::string(stem) + ".png");
+    out.stage(std::string(stem) + ".json");
+    save_scan(png.substr(0, png.size() - 4), sim->scan);
+  }
+  save_rig(out.stage("rig.json"), pair.rig_palm);
+  save_mesh(out.stage("truth_skin.ply"), pair.skin_palm);
+  save_json(out.stage("truth.json"), truth_to_json(pair, rig, a.seed, a.replica, a.scanner, "truth_skin.ply"));
+  if (a.render) {
+    write_file_atomic(out.stage("back_preview.png"), render_scan_png(pair.back.scan));
+    write_file_atomic(out.stage("palm_preview.png"), render_scan_png(pair.palm.scan));
+  }
+  out.commit();
+  progress("synth scan", "back: " + std::to_string(pair.back.scan.count_valid()) + " returns, palm: " +
+                             std::to_string(pair.palm.scan.count_valid()) + " returns; " +
+                             std::to_string(pair.markers_hand.size()) + " markers visible in both");
+  for (const char* f : {"back.png", "back.json", "palm.png", "palm.json", "rig.json", "truth.json", "truth_skin.ply"})
+    std::printf("%s\n", out.final_path(f).c_str());
+}
+
+}  // namespace
+
+void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) {
+  auto* synth = app.add_subcommand("synth", "Make synthetic data: a hand of the family, or a scan pair of a hand");
+  synth->require_subcommand(1);
+  auto sh = std::make_shared<SynthHandArgs>();
+  auto* shc = synth->add_subcommand(
+      "hand", "Build a hand of the synthetic family (mesh + rig): right or left, any proportions, posed by the skeleton");
+  shc->add_option("--out", sh->out, "Output folder: hand.ply, hand_rig.json, hand_back.png, hand_side.png")
+      ->capture_default_str();
+  shc->add_option("--hand-length", sh->shape.hand_length_mm, "Wrist joint to middle fingertip, mm [120, 260]")
+      ->capture_default_str();
+  shc->add_option("--spread", sh->shape.finger_spread_deg, "Extra angle between neighbouring fingers, deg [0, 15]")
+      ->capture_default_str();
+  shc->add_option("--thickness", sh->shape.thickness_scale, "Palm thickness multiplier [0.7, 1.4]")->capture_default_str();
+  shc->add_option("--width", sh->shape.width_scale, "Palm and finger breadth multiplier [0.7, 1.4]")->capture_default_str();
+  shc->add_option("--thumb-abduction", sh->shape.thumb_abduction_deg,
+                  "Thumb metacarpal angle from the index's in the rest frame, deg [20, 70]")
+      ->capture_default_str();
+  shc->add_option("--finger-thickness", sh->shape.finger_thickness_scale, "Finger girth multiplier [0.7, 1.4]")
+      ->capture_default_str();
+  shc->add_option("--finger-length", sh->shape.finger_length_scale, "Phalanx length multiplier against the palm [0.85, 1.15]")
+      ->capture_default_str();
+  shc->add_option("--index-ring-ratio", sh->index_ring_ratio, "Index : ring finger length [0.85, 1.05] (default 0.929)");
+  shc->add_option("--forearm", sh->forearm, "Forearm stub beyond the wrist joint, mm [0, 40] (default 12 x scale)");
+  shc->add_option("--side", sh->side, "right or left")->capture_default_str();
+  shc->add_option("--posture", sh->posture, "relaxed, flat, or a joint-angle CSV (first row; formats/hand-rig.md)")
+      ->capture_default_str();
+  shc->add_option("--set", sh->sets, "DOF=deg on top of the posture (repeatable), e.g. --set index.pip.flex=30");
+  shc->add_option("--thumb-pronation", sh->thumb_pronation,
+                  "Thumb sections turned about its axis, deg [0, 90] (default: 35 relaxed, 0 otherwise)");
+  shc->add_option("--facet-size", sh->mesh.facet_size_mm, "Mesher facet size bound, mm (smaller: more triangles)")
+      ->capture_default_str();
+  shc->add_option("--facet-distance", sh->mesh.facet_distance_mm, "Mesher facet distance bound, mm")->capture_default_str();
+  shc->add_option("--seed", sh->mesh.seed, "Mesher seed")->capture_default_str();
+  shc->add_flag("!--no-render", sh->render, "Do not write preview pictures");
+  out->push_back({shc, [sh, &progress] { synth_hand(*sh, progress); }});
+
+  auto ss = std::make_shared<SynthScanArgs>();
+  auto* ssc = synth->add_subcommand("scan", "Scan a hand replica (hand + 9 markers) back up and palm up");
+  ssc->add_option("--mesh", ss->mesh, "Hand surface mesh (.ply/.obj/.off), same frame as --rig")->required();
+  ssc->add_option("--rig", ss->rig, "hand-rig/1 of that mesh")->required();
+  ssc->add_option("--out", ss->out, "Output folder: back/palm .png + .json, rig.json, truth.json, truth_skin.ply, "
+                                    "back_preview.png, palm_preview.png")
+      ->capture_default_str();
+  ssc->add_option("--seed", ss->seed, "Random seed (markers, placements, noise)")->capture_default_str();
+  ssc->add_option("--marker-radius", ss->replica.marker_radius_mm, "Marker radius, mm")->capture_default_str();
+  ssc->add_option("--markers", ss->replica.marker_count, "Number of markers")->capture_default_str();
+  ssc->add_option("--omit-back-marker", ss->replica.omit_marker_in_back,
+                  "Hard case: leave this marker (0-based) off the back scan")->capture_default_str();
+  ssc->add_flag("--extra-bump", ss->replica.extra_bump, "Hard case: a marker-sized blob on the back of the hand");
+  ssc->add_option("--max-yaw", ss->replica.max_yaw_deg, "Random yaw on the table, ± deg")->capture_default_str();
+  ssc->add_option("--noise", ss->scanner.noise_sigma_mm, "Depth noise sigma before quantisation, mm")->capture_default_str();
+  ssc->add_option("--laser-tilt", ss->scanner.laser_tilt_deg, "Laser sheet tilt from vertical, deg")->capture_default_str();
+  ssc->add_option("--max-incidence", ss->scanner.max_incidence_deg, "Steepest surface that returns, deg")
+      ->capture_default_str();
+  ssc->add_option("--table-height", ss->scanner.table_height_mm, "Table top above the Z origin, mm")->capture_default_str();
+  ssc->add_option("--table-tilt", ss->scanner.table_tilt_deg, "Table tilt about Y, deg")->capture_default_str();
+  ssc->add_option("--resolution", ss->scanner.scanlines, "Scanlines (and points per line)")->capture_default_str();
+  ssc->add_option("--x-extent", ss->scanner.x_extent_mm, "Table length the scanlines cover, mm (a large hand with a long "
+                                                         "forearm stub needs more than the default)")
+      ->capture_default_str();
+  ssc->add_option("--y-extent", ss->scanner.y_extent_mm, "Table width a scanline covers, mm")->capture_default_str();
+  ssc->add_flag("!--no-render", ss->render, "Do not write preview pictures");
+  out->push_back({ssc, [ss, &progress] {
+                    ss->scanner.points = ss->scanner.scanlines;
+                    synth_scan(*ss, progress);
+                  }});
+}
+
+}  // namespace handskin::cli

@@ -1,0 +1,117 @@
+// render, convert: pictures and format conversion.
+#include <filesystem>
+#include <memory>
+
+#include "cli/commands.hpp"
+#include "core/atomic_file.hpp"
+#include "core/errors.hpp"
+#include "core/rig.hpp"
+#include "mesh/trimesh.hpp"
+#include "posture/skeleton.hpp"
+#include "render/preview.hpp"
+#include "scan/cloud.hpp"
+#include "scan/cubist_io.hpp"
+
+namespace handskin::cli {
+
+namespace {
+namespace fs = std::filesystem;
+
+// Pictures are bounded: the rasteriser holds a few buffers of width × height.
+constexpr int kMinPictureWidth = 16, kMaxPictureWidth = 4096;
+
+// ---------------- render ----------------
+struct RenderArgs {
+  std::string mesh, scan, rig, out, view = "back";
+  int width = 800;
+};
+
+void render(const RenderArgs& a) {
+  if (a.mesh.empty() == a.scan.empty()) throw InputError("render", "give exactly one of --mesh or --scan");
+  if (!a.scan.empty()) {
+    if (!a.rig.empty()) throw InputError("--rig", "draws a mesh's joints; a scan is drawn in its own frame");
+    write_file_atomic(a.out, render_scan_png(load_scan(a.scan)));
+  } else {
+    RenderOptions ro;
+    ro.width = a.width;
+    ro.height = a.width * 3 / 4;
+    ro.view = named_view(a.view);
+    std::optional<Rig> rig;
+    if (!a.rig.empty()) {
+      rig = load_rig(a.rig);
+      const Skeleton check(*rig, a.rig);  // the same checks as solve: a rig one command refuses, all do
+    }
+    const TriMesh mesh = load_mesh(a.mesh);
+    if (rig) {
+      // Views are defined in the hand frame: bring the mesh frame there through the rig.
+      ro.view = ro.view * hand_frame_from_rig(*rig).linear();
+      for (const auto& j : rig->joints) ro.points.push_back(j);
+    }
+    write_file_atomic(a.out, render_mesh_png({&mesh}, ro));
+  }
+  std::printf("%s\n", a.out.c_str());
+}
+
+// ---------------- convert ----------------
+struct ConvertArgs {
+  std::string in, out, like, side;
+};
+
+bool is_cloud_path(const std::string& p) {
+  const std::string e = fs::path(p).extension().string();
+  return e == ".ply" || e == ".pcd";
+}
+
+void convert(const ConvertArgs& a, const Progress& progress) {
+  if (!is_cloud_path(a.in)) {
+    if (!is_cloud_path(a.out)) throw InputError("--out", "converting a scan needs a .ply or .pcd output");
+    const RangeScan scan = load_scan(a.in);
+    save_cloud(a.out, *dense_copy(*scan_to_organized_cloud(scan)));
+    progress("convert", std::to_string(scan.count_valid()) + " points written");
+  } else {
+    if (is_cloud_path(a.out)) {
+      save_cloud(a.out, *load_cloud(a.in));
+    } else {
+      // The grid comes from an existing scan's sidecar (--like) or the CUBIST defaults.
+      ScanMeta meta = a.like.empty() ? ScanMeta{} : parse_scan_meta(read_file(a.like + ".json"), a.like + ".json");
+      if (a.side == "back") meta.side = ScanSide::Back;
+      else if (a.side == "palm") meta.side = ScanSide::Palm;
+      else if (!a.side.empty()) throw InputError("--side", "'" + a.side + "': must be back or palm");
+      else if (a.like.empty()) throw InputError("--side", "give --side back or --side palm (or --like <stem>)");
+      meta.device = "converted from " + fs::path(a.in).filename().string();
+      size_t dropped = 0;
+      const RangeScan scan = cloud_to_scan(*load_cloud(a.in), meta, &dropped);
+      if (scan.count_valid() == 0) throw InputError(a.in, "no point falls on the scan grid");
+      save_scan(a.out, scan);
+      progress("convert", std::to_string(scan.count_valid()) + " samples, " + std::to_string(dropped) +
+                              " points off the grid or out of range dropped");
+    }
+  }
+  std::printf("%s\n", a.out.c_str());
+}
+
+}  // namespace
+
+void add_tool_commands(CLI::App& app, const Progress& progress, Commands* out) {
+  auto ra = std::make_shared<RenderArgs>();
+  auto* rc = app.add_subcommand("render", "Draw a mesh (shaded) or a scan (height colours) to a PNG");
+  rc->add_option("--mesh", ra->mesh, "Mesh to draw");
+  rc->add_option("--scan", ra->scan, "Scan stem to draw");
+  rc->add_option("--rig", ra->rig, "Rig of the mesh: views follow the hand, joints drawn as dots");
+  rc->add_option("--view", ra->view, "back, palm or side")->capture_default_str();
+  rc->add_option("--size", ra->width, "Picture width in pixels (height = 3/4 of it)")
+      ->capture_default_str()
+      ->check(CLI::Range(kMinPictureWidth, kMaxPictureWidth));
+  rc->add_option("--out", ra->out, "PNG to write")->required();
+  out->push_back({rc, [ra] { render(*ra); }});
+
+  auto ca = std::make_shared<ConvertArgs>();
+  auto* cc = app.add_subcommand("convert", "Convert between scans (<stem>) and point clouds (.ply/.pcd)");
+  cc->add_option("--in", ca->in, "Scan stem or .ply/.pcd cloud")->required();
+  cc->add_option("--out", ca->out, "Scan stem or .ply/.pcd cloud")->required();
+  cc->add_option("--like", ca->like, "Cloud -> scan: take the grid from this scan's sidecar (default: CUBIST 512 x 512)");
+  cc->add_option("--side", ca->side, "Cloud -> scan: back or palm");
+  out->push_back({cc, [ca, &progress] { convert(*ca, progress); }});
+}
+
+}  // namespace handskin::cli

@@ -1,0 +1,39 @@
+#include "pipeline/stage_options.hpp"
+
+#include <algorithm>
+
+namespace handskin {
+
+RegistrationOptions registration_options(const PipelineOptions& o) {
+  RegistrationOptions r;
+  r.expected_markers = o.markers.count;
+  r.estimate_radius = !o.markers.radius_mm;
+  if (o.markers.radius_mm) r.spheres.radius_mm = *o.markers.radius_mm;
+  r.prepare.table_margin_mm = o.registration.table_margin_mm;
+  r.match_tolerance_mm = o.registration.match_tolerance_mm;
+  r.marker_clearance_mm = o.registration.marker_clearance_mm;
+  r.refine_enabled = o.registration.refine;
+  r.refine.gate_mm = o.registration.icp_gate_mm;
+  r.refine.normal_deg = o.registration.icp_normal_deg;
+  r.refine.trim = o.registration.icp_trim;
+  r.refine.max_iterations = static_cast<int>(o.registration.icp_max_iterations);
+  return r;
+}
+
+SkinOptions skin_options(const PipelineOptions& o) {
+  // Values are range-checked by the table (IsValid) before a stage uses them; the clamps
+  // only keep the narrowing defined for an unchecked object.
+  auto to_int = [](long v) { return static_cast<int>(std::clamp(v, -1000000000L, 1000000000L)); };
+  SkinOptions s;
+  s.slicing.planes = to_int(o.slicing.planes);
+  s.slicing.points_per_segment = to_int(o.slicing.points_per_segment);
+  s.thumb_overlap_mm = o.skin.thumb_overlap_mm;
+  s.smoothing_rings = to_int(o.skin.smoothing_rings);
+  s.wrinkle_mm = o.skin.wrinkle_mm;
+  s.cap_rings = to_int(o.skin.cap_rings);
+  s.max_triangles = to_int(o.skin.max_triangles);
+  s.decimation_tolerance_mm = o.skin.decimation_tolerance_mm;
+  return s;
+}
+
+}  // namespace handskin

@@ -1,0 +1,63 @@
+#include "synth/truth.hpp"
+
+#include <filesystem>
+
+#include "core/errors.hpp"
+#include "core/transform.hpp"
+
+namespace handskin {
+
+Json truth_to_json(const ScanPair& pair, const Rig& hand_rig, std::uint64_t seed, const ReplicaOptions& replica,
+                   const ScannerOptions& scanner, const std::string& skin_file) {
+  Json truth;
+  truth["format"] = "handskin-truth/1";
+  truth["hand"] = hand_side_name(rig_side(hand_rig));
+  truth["seed"] = seed;
+  truth["back_to_palm"] = isometry_to_json(pair.back_to_palm);
+  truth["palm_from_hand"] = isometry_to_json(pair.T_palm_hand);
+  truth["back_from_hand"] = isometry_to_json(pair.T_back_hand);
+  truth["marker_radius_mm"] = replica.marker_radius_mm;
+  Json mp = Json::array(), mb = Json::array(), returns = Json::array();
+  for (size_t k = 0; k < pair.markers_hand.size(); ++k) {
+    mp.push_back(to_json(pair.T_palm_hand * pair.markers_hand[k]));
+    mb.push_back(to_json(pair.T_back_hand * pair.markers_hand[k]));
+    auto count = [&](const ScanSimulation& sim) {
+      return k + 1 < sim.returns_per_object.size() ? sim.returns_per_object[k + 1] : size_t{0};
+    };
+    returns.push_back({{"back", static_cast<int>(k) == replica.omit_marker_in_back ? size_t{0} : count(pair.back)},
+                       {"palm", count(pair.palm)}});
+  }
+  truth["markers_palm"] = mp;
+  truth["markers_back"] = mb;
+  truth["marker_returns"] = returns;
+  if (replica.omit_marker_in_back >= 0) truth["marker_omitted_in_back"] = replica.omit_marker_in_back;
+  if (pair.extra_bump_hand) truth["extra_bump_back"] = to_json(pair.T_back_hand * *pair.extra_bump_hand);
+  truth["skin"] = skin_file;
+  truth["scanner"] = {{"laser_tilt_deg", scanner.laser_tilt_deg},
+                      {"max_incidence_deg", scanner.max_incidence_deg},
+                      {"noise_sigma_mm", scanner.noise_sigma_mm},
+                      {"table_height_mm", scanner.table_height_mm},
+                      {"table_tilt_deg", scanner.table_tilt_deg}};
+  truth["placement_attempts"] = pair.placement_attempts;
+  return truth;
+}
+
+TruthSkin load_truth_skin(const std::string& path) {
+  namespace fs = std::filesystem;
+  TruthSkin t;
+  t.path = path;
+  t.json = load_json_object(path);
+  if (get_string(t.json, "format", path) != "handskin-truth/1")
+    throw InputError(path, "key 'format' must be \"handskin-truth/1\"");
+  t.back_to_palm = isometry_from_json(require(t.json, "back_to_palm", path), "back_to_palm", path);
+  t.skin_path = (fs::path(path).parent_path() / get_string(t.json, "skin", path)).string();
+  t.skin = load_mesh(t.skin_path);
+  if (t.json.contains("markers_palm")) {
+    if (!t.json["markers_palm"].is_array()) throw InputError(path, "key 'markers_palm' must be an array");
+    for (const auto& m : t.json["markers_palm"]) t.markers.push_back(to_vec3(m, "markers_palm", path));
+  }
+  t.exclude_mm = get_finite_or(t.json, "marker_radius_mm", 4.0, path) + 3.0;
+  return t;
+}
+
+}  // namespace handskin
