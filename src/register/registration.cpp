@@ -2,8 +2,10 @@
 
 #include <pcl/io/ply_io.h>
 
+#include <array>
 #include <chrono>
 #include <cmath>
+#include <exception>
 #include <cstdio>
 
 #include "core/atomic_file.hpp"
@@ -133,25 +135,46 @@ RadiusEstimate estimate_marker_radius(const PreparedScan& back, const PreparedSc
   RadiusEstimate best;
   double best_score = -1;
   const size_t keep = static_cast<size_t>(o.expected_markers) + 6;  // as find_markers: matching cost grows fast
-  for (const double rc : o.radius_candidates_mm) {
+  // The detections (every candidate in both scans) are independent: they run in parallel,
+  // each into its own slot, so the result does not depend on the threads. The scoring below
+  // goes through them in order.
+  const size_t nc = o.radius_candidates_mm.size();
+  std::vector<std::array<std::vector<SphereFit>, 2>> detected(nc);
+  std::vector<std::exception_ptr> failure(2 * nc);
+  auto options_for = [&](double rc) {
     SphereOptions so = o.spheres;
     so.radius_mm = rc;
     so.radius_tolerance = 0.15;  // candidates ≤ 0.5 mm apart below 5 mm: every radius between them is caught
     so.inlier_mm = std::min(so.inlier_mm, 0.5 * rc);
-    std::vector<SphereFit> fits[2];
-    for (int side = 0; side < 2; ++side) {
+    return so;
+  };
+#pragma omp parallel for schedule(dynamic)
+  for (long job = 0; job < static_cast<long>(2 * nc); ++job) {
+    const size_t c = static_cast<size_t>(job) / 2;
+    const int side = static_cast<int>(job % 2);
+    try {
+      const SphereOptions so = options_for(o.radius_candidates_mm[c]);
       const PreparedScan& s = side == 0 ? palm : back;
       const std::optional<std::vector<Eigen::Vector3d>>* h = hints ? (side == 0 ? &hints->palm : &hints->back) : nullptr;
+      std::vector<SphereFit>& out = detected[c][side];
       if (h && *h) {
         for (const auto& g : **h) {
           std::string why;
-          if (auto f = fit_sphere_near(s, g, so.hint_search_mm, so, &why)) fits[side].push_back(*f);
+          if (auto f = fit_sphere_near(s, g, so.hint_search_mm, so, &why)) out.push_back(*f);
         }
       } else {
-        fits[side] = detect_spheres(s, so);
-        if (fits[side].size() > keep) fits[side].resize(keep);
+        out = detect_spheres(s, so);
+        if (out.size() > keep) out.resize(keep);
       }
+    } catch (...) {
+      failure[static_cast<size_t>(job)] = std::current_exception();
     }
+  }
+  for (const auto& e : failure)
+    if (e) std::rethrow_exception(e);
+  for (size_t c = 0; c < nc; ++c) {
+    const double rc = o.radius_candidates_mm[c];
+    const std::vector<SphereFit>* fits = detected[c].data();
     Json row = {{"radius_mm", rc}, {"palm", fits[0].size()}, {"back", fits[1].size()}, {"matched", 0}};
     if (fits[0].size() < 3 || fits[1].size() < 3) {
       best.tried.push_back(row);
