@@ -50,7 +50,7 @@ def main():
         out = os.path.join(a.work, "out-" + name)
         sh([a.bin, "-q", "register", "--back", d + "/back", "--palm", d + "/palm", "--out", out])
         sh([a.bin, "-q", "skin", "--merged", out + "/merged.ply", "--rig", d + "/rig.json", "--truth", d + "/truth.json",
-            "--out", out + "/given"])
+            "--baseline", "--out", out + "/given"])
         sh([a.bin, "-q", "skin", "--merged", out + "/merged.ply", "--rig", d + "/rig.json", "--auto-rig", "--truth",
             d + "/truth.json", "--out", out + "/auto"])
         g = json.load(open(out + "/given/skin_report.json"))

@@ -160,6 +160,12 @@ TEST(Contracts, FailedRegisterSkinAndSynthLeaveTheirFoldersAsTheyWere) {
                       &out),
             1);
   EXPECT_EQ(snapshot(reg), before);
+  // An output that cannot be a folder (a file of the user's is there) is refused before any work.
+  EXPECT_EQ(test::run(kBin + " -q register --back " + kFix + "back --palm " + kFix + "palm --out '" + reg + "/my notes.txt'",
+                      &out),
+            1);
+  EXPECT_NE(out.find("exists and is not a folder"), std::string::npos) << out;
+  EXPECT_EQ(snapshot(reg), before);
   EXPECT_TRUE(no_staging_left(fs::path(reg).parent_path().string()));
 }
 

@@ -142,7 +142,7 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
   run->add_option("--markers", in->markers_path,
                   "Manual marker positions (handskin-markers/1) for scans whose bumps the detector misses");
   run->add_option("--truth", in->truth_path, "truth.json of a synthetic pair: add the errors against it to the report");
-  run->add_flag("--baseline", in->baseline, "Also reconstruct the cloud with CGAL's Poisson (baseline.ply, for comparison; ~4 s)");
+  run->add_flag("--baseline", in->baseline, "Also a Poisson reconstruction of the cloud (baseline.ply and its figures, for comparison; ~0.5 s)");
   out->push_back({run, [ra, &progress] { run_command(*ra, progress); }});
 
   auto rg = std::make_shared<RegisterArgs>();
@@ -166,7 +166,7 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
       ->capture_default_str();
   skinc->add_option("--pipeline", sk->pipeline, "Pipeline parameters (slicing, skin sections)");
   skinc->add_option("--truth", sk->truth, "truth.json of a synthetic pair: add the errors against its true skin");
-  skinc->add_flag("--baseline", sk->baseline, "Also reconstruct the cloud with CGAL's Poisson (baseline.ply, for comparison)");
+  skinc->add_flag("--baseline", sk->baseline, "Also a Poisson reconstruction of the cloud (baseline.ply and its figures, for comparison; ~0.5 s)");
   out->push_back({skinc, [sk, &progress] { skin_command(*sk, progress); }});
 }
 

@@ -39,4 +39,7 @@ void reject_unknown_keys(const Json& obj, std::initializer_list<const char*> all
 
 Json to_json(const Eigen::Vector3d& v);
 
+/// A number as messages show it: %g ("1e+300", "0.5", "4096").
+std::string number_text(double v);
+
 }  // namespace handskin

@@ -60,13 +60,7 @@ const std::vector<KeySpec>& key_table() {
 std::string key_name(const KeySpec& k) { return std::string(k.section) + "." + k.name; }
 
 std::string range_text(const KeySpec& k) {
-  auto num = [](double v) {
-    std::string s = std::to_string(v);
-    s.erase(s.find_last_not_of('0') + 1);
-    if (!s.empty() && s.back() == '.') s.pop_back();
-    return s;
-  };
-  return std::string(k.lo_open ? "(" : "[") + num(k.lo) + ", " + num(k.hi) + "]";
+  return std::string(k.lo_open ? "(" : "[") + number_text(k.lo) + ", " + number_text(k.hi) + "]";
 }
 
 bool in_range(const KeySpec& k, double v) { return (k.lo_open ? v > k.lo : v >= k.lo) && v <= k.hi; }

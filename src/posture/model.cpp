@@ -120,14 +120,6 @@ PostureModel builtin_model(const std::string& name) {
   return m;
 }
 
-namespace {
-std::string num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
-}  // namespace
-
 PostureModel parse_model(const Json& j, const std::string& file) {
   if (get_string(j, "format", file) != "hand-posture/1") throw InputError(file, "key 'format' must be \"hand-posture/1\"");
   reject_unknown_keys(j, {"format", "name", "description", "pair_angles", "dofs", "pairs", "grids", "notes"}, file, "");
@@ -166,12 +158,16 @@ PostureModel parse_model(const Json& j, const std::string& file) {
     const DofParams& p = m.dof[d];
     const std::string where = file + ": dofs." + dofs()[d].name;
     if (!(p.stiffness >= kMinStiffness && p.stiffness <= kMaxStiffness))
-      throw InputError(where, "stiffness must be in [" + num(kMinStiffness) + ", " + num(kMaxStiffness) +
-                                  "] (got " + num(p.stiffness) + ")");
+      throw InputError(where, "stiffness must be in [" + number_text(kMinStiffness) + ", " + number_text(kMaxStiffness) +
+                                  "] (got " + number_text(p.stiffness) + ")");
     if (!(p.lo < p.hi) || !(std::abs(p.lo) <= kMaxAngle) || !(std::abs(p.hi) <= kMaxAngle))
-      throw InputError(where, "limits must be [low, high] with low < high, within ±" + num(kMaxAngle));
+      throw InputError(where, "limits must be [low, high] with low < high, within ±" + number_text(kMaxAngle));
     if (p.relaxed < p.lo || p.relaxed > p.hi) throw InputError(where, "relaxed angle lies outside the limits");
   }
+  auto check_weight = [](double w, const std::string& where) {
+    if (!(w >= 0 && w <= kMaxWeight))
+      throw InputError(where, "weight must be in [0, " + number_text(kMaxWeight) + "] (got " + number_text(w) + ")");
+  };
   // An optional array of objects: each entry checked for its keys, then handed on with the
   // name that errors use ("<file>: pairs[3]").
   auto each_entry = [&](const char* key, std::initializer_list<const char*> keys, const auto& take) {
@@ -199,10 +195,9 @@ PostureModel parse_model(const Json& j, const std::string& file) {
     if (l.a == l.b) throw InputError(where, "a pair needs two different DOFs");
     if (l.alpha == 0 && l.beta == 0) throw InputError(where, "alpha and beta are both zero");
     if (!(std::abs(l.alpha) <= kMaxCoefficient && std::abs(l.beta) <= kMaxCoefficient))
-      throw InputError(where, "alpha and beta must be within ±" + num(kMaxCoefficient));
-    if (!(std::abs(l.gamma) <= kMaxOffset)) throw InputError(where, "gamma must be within ±" + num(kMaxOffset));
-    if (!(l.weight >= 0 && l.weight <= kMaxWeight))
-      throw InputError(where, "weight must be in [0, " + num(kMaxWeight) + "] (got " + num(l.weight) + ")");
+      throw InputError(where, "alpha and beta must be within ±" + number_text(kMaxCoefficient));
+    if (!(std::abs(l.gamma) <= kMaxOffset)) throw InputError(where, "gamma must be within ±" + number_text(kMaxOffset));
+    check_weight(l.weight, where);
     if (relative) l.gamma -= l.alpha * m.dof[l.a].relaxed + l.beta * m.dof[l.b].relaxed;
     m.pairs.push_back(l);
   });
@@ -212,8 +207,7 @@ PostureModel parse_model(const Json& j, const std::string& file) {
     g.a = require_dof(get_string(e, "a", where), where);
     g.b = require_dof(get_string(e, "b", where), where);
     g.weight = get_finite(e, "weight", where);
-    g.cells = static_cast<int>(get_int(e, "cells", where, 4));
-    if (g.cells > 1000) throw InputError(where, "cells must be <= 1000");
+    g.cells = static_cast<int>(get_int(e, "cells", where, 4, 1000));
     auto range = [&](const char* key, double* lo, double* hi) {
       const Json& r = require(e, key, where);
       if (!r.is_array() || r.size() != 2 || !r[0].is_number() || !r[1].is_number() ||
@@ -233,13 +227,12 @@ PostureModel parse_model(const Json& j, const std::string& file) {
       g.samples.push_back({s[i][0].get<double>(), s[i][1].get<double>()});
     }
     if (g.a == g.b) throw InputError(where, "a grid needs two different DOFs");
-    if (!(g.weight >= 0 && g.weight <= kMaxWeight))
-      throw InputError(where, "weight must be in [0, " + num(kMaxWeight) + "] (got " + num(g.weight) + ")");
+    check_weight(g.weight, where);
     for (const double v : {g.lo_a, g.hi_a, g.lo_b, g.hi_b})
-      if (!(std::abs(v) <= kMaxAngle)) throw InputError(where, "ranges must lie within ±" + num(kMaxAngle));
+      if (!(std::abs(v) <= kMaxAngle)) throw InputError(where, "ranges must lie within ±" + number_text(kMaxAngle));
     for (const auto& x : g.samples)
       if (!(std::abs(x[0]) <= kMaxAngle && std::abs(x[1]) <= kMaxAngle))
-        throw InputError(where, "samples must lie within ±" + num(kMaxAngle));
+        throw InputError(where, "samples must lie within ±" + number_text(kMaxAngle));
     // Tables are built by a nearest-sample search per node on load: bound the work.
     if (static_cast<double>(g.cells) * g.cells * static_cast<double>(g.samples.size()) > 2e7)
       throw InputError(where, "grid too large: cells² × samples must stay below 2e7 (e.g. 100 cells, 2000 samples)");

@@ -16,14 +16,6 @@ size_t RangeScan::count_valid() const {
   return static_cast<size_t>(std::count_if(values.begin(), values.end(), [](std::uint16_t v) { return v != 0; }));
 }
 
-namespace {
-std::string num_text(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
-}  // namespace
-
 ScanMeta parse_scan_meta(const std::string& json_text, const std::string& file) {
   const Json j = parse_json_object(json_text, file);
   if (get_string(j, "format", file) != "cubist-range/1")
@@ -42,8 +34,8 @@ ScanMeta parse_scan_meta(const std::string& json_text, const std::string& file) 
   auto bounded = [&](const char* key, double lo, double hi) {
     const double v = get_finite(j, key, file);
     if (!(v >= lo && v <= hi))
-      throw InputError(file, std::string("key '") + key + "' must be in [" + num_text(lo) + ", " + num_text(hi) +
-                                 "] mm (got " + num_text(v) + ")");
+      throw InputError(file, std::string("key '") + key + "' must be in [" + number_text(lo) + ", " + number_text(hi) +
+                                 "] mm (got " + number_text(v) + ")");
     return v;
   };
   m.x_origin_mm = bounded("x_origin_mm", -kMaxScanOriginMm, kMaxScanOriginMm);
