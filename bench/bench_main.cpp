@@ -13,6 +13,7 @@
 #include "posture/solver.hpp"
 #include "register/registration.hpp"
 #include "skin/auto_rig.hpp"
+#include "patches/patches.hpp"
 #include "skin/baseline.hpp"
 #include "skin/skin_mesh.hpp"
 
@@ -200,6 +201,20 @@ static void BM_SkinPoissonBaseline(benchmark::State& st) {
   st.counters["triangles"] = static_cast<double>(faces);
 }
 BENCHMARK(BM_SkinPoissonBaseline)->Unit(benchmark::kSecond)->Iterations(1);
+
+// Bézier patches (issue 13, in progress): layout + fit + parameter correction of the 92
+// patches on the fixture's merged cloud and skin (the skin built outside the timing).
+static void BM_PatchesFixture(benchmark::State& st) {
+  const MergedArrays& m = fixture_merged();
+  static const SkinResult skin = build_skin(m.points, load_rig(kFix + "rig.json"), SkinOptions{});
+  PatchSkin p;
+  for (auto _ : st) p = fit_patch_skin(skin, m.points, m.sides, PatchOptions{});
+  st.counters["patches"] = static_cast<double>(p.patches.size());
+  st.counters["rounds"] = static_cast<double>(p.max_update_per_round.size());
+  st.counters["palm_mean_mm"] = p.side[0].mean;
+  st.counters["back_mean_mm"] = p.side[1].mean;
+}
+BENCHMARK(BM_PatchesFixture)->Unit(benchmark::kMillisecond)->Iterations(5);
 
 // ------------------------------------------------------------------ the whole command
 // `handskin run` as a user runs it, in a child process: wall time, and the child's peak

@@ -69,7 +69,10 @@ TEST(Cli, RunOnTheFixtureWritesItsOutputs) {
   EXPECT_LT(skin["baseline"]["cloud_to_baseline_mm"]["mean"].get<double>(), 0.2);
   for (const char* f : {"skin.ply", "skin.obj", "skin.png", "slices.json", "baseline.ply"})
     EXPECT_TRUE(fs::exists(dir + "/" + f)) << f;
-  EXPECT_EQ(report["stages"][3]["name"], "write");
+  EXPECT_EQ(report["stages"][3]["name"], "patches");
+  EXPECT_EQ(report["stages"][3]["continuity"]["g0_gap_mm"].get<double>(), 0.0);
+  EXPECT_EQ(load_json_object(dir + "/patches.json")["patches"].size(), 92u);
+  EXPECT_EQ(report["stages"][4]["name"], "write");
   EXPECT_EQ(report["outputs"]["report"], dir + "/report.json");
   EXPECT_EQ(load_json_object(dir + "/slices.json")["format"], "handskin-slices/1");
   // Only what the run wrote is in the folder: no staging folder left beside it.

@@ -6,6 +6,7 @@
 #include "core/errors.hpp"
 #include "core/output_set.hpp"
 #include "pipeline/options.hpp"
+#include "pipeline/patch_stage.hpp"
 #include "pipeline/stage_options.hpp"
 #include "pipeline/registration_stage.hpp"
 #include "pipeline/run.hpp"
@@ -125,6 +126,70 @@ void register_command(const RegisterArgs& a, const Progress& progress) {
                 r["against_truth"]["chosen"]["skin_max_mm"].get<double>());
 }
 
+// ---------------- patches ----------------
+struct PatchesArgs {
+  std::string skin_dir, rig, out, pipeline, truth;
+  std::optional<long> count;
+};
+
+void patches_command(const PatchesArgs& a, const Progress& progress) {
+  namespace fs = std::filesystem;
+  const std::string out_dir = a.out.empty() ? a.skin_dir : a.out;
+  OutputSet out(out_dir);
+  PipelineOptions po;
+  if (!a.pipeline.empty()) po = load_pipeline(a.pipeline);
+  if (a.count) {
+    po.patches.count = *a.count;
+    std::string err;
+    if (!po.IsValid(&err)) throw InputError("--count", err);
+  }
+  const std::string merged = (fs::path(a.skin_dir) / "merged.ply").string();
+  // The rig the skin was built on: given, else the one `run`/`skin` placed, else the one `run` was given.
+  std::string rig_path = a.rig;
+  if (rig_path.empty() && fs::exists(fs::path(a.skin_dir) / "rig_auto.json"))
+    rig_path = (fs::path(a.skin_dir) / "rig_auto.json").string();
+  if (rig_path.empty() && fs::exists(fs::path(a.skin_dir) / "report.json")) {
+    const Json rep = load_json_object((fs::path(a.skin_dir) / "report.json").string());
+    if (rep.contains("inputs") && rep["inputs"].contains("rig") && rep["inputs"]["rig"].is_string() &&
+        rep["inputs"]["rig"].get<std::string>().rfind("(", 0) != 0)
+      rig_path = rep["inputs"]["rig"].get<std::string>();
+  }
+  if (rig_path.empty())
+    throw InputError("--rig", "no rig for " + a.skin_dir + " (no rig_auto.json, no rig in its report.json); give --rig");
+  SkinStageInputs in;
+  in.rig = load_palm_rig(rig_path);
+  in.rig_name = rig_path;
+  std::optional<TruthSkin> truth;
+  if (!a.truth.empty()) truth = load_truth_skin(a.truth);
+  progress("patches", "reading " + merged);
+  MergedArrays m = merged_arrays(*load_merged(merged));
+  progress("patches", "rebuilding the skin's ring grid on " + rig_path);
+  const SkinResult skin = build_skin(m.points, *in.rig, skin_options(po));
+  const PatchOptions opts = patch_options(po);
+  progress("patches", "fitting " + std::to_string(opts.palm_around * opts.palm_along + 5 * opts.digit_around * opts.digit_along) +
+                          " bicubic patches, correcting the parameters");
+  const PatchStageResult r = run_patch_stage(skin, m.points, m.sides, opts, truth ? &*truth : nullptr);
+  Json report = to_json(r);
+  report["format"] = "handskin-patches-report/1";
+  report["inputs"] = {{"merged", merged}, {"rig", rig_path}, {"pipeline", a.pipeline.empty() ? "(built-in defaults)" : a.pipeline}};
+  std::vector<std::string> names = patch_output_names();
+  names.push_back("patches_report.json");
+  out.retire(names);
+  report["outputs"] = write_patch_outputs(out, r);
+  report["outputs"]["report"] = out.final_path("patches_report.json");
+  save_json(out.stage("patches_report.json"), report);
+  out.commit();
+  const PatchSkin& s = r.patches;
+  std::printf("patches: %zu bicubic patches, %zu control points; data to surface: palm mean %.3f max %.2f mm, back mean "
+              "%.3f max %.2f mm; G0 gap %.1e mm, G1 jump median %.2f deg; %zu correction rounds, %.0f ms -> %s\n",
+              s.patches.size(), s.control_points, s.side[0].mean, s.side[0].max, s.side[1].mean, s.side[1].max,
+              s.g0_gap_mm, s.g1_median_deg, s.max_update_per_round.size(), 1000 * s.seconds,
+              out.final_path("patches_report.json").c_str());
+  if (r.surface_to_truth)
+    std::printf("against the truth: surface->truth mean %.3f p95 %.3f mm; truth->surface within 1 mm %.2f %%\n",
+                r.surface_to_truth->mean, r.surface_to_truth->p95, 100 * r.truth_to_surface->within_1mm);
+}
+
 }  // namespace
 
 void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* out) {
@@ -168,6 +233,17 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
   skinc->add_option("--truth", sk->truth, "truth.json of a synthetic pair: add the errors against its true skin");
   skinc->add_flag("--baseline", sk->baseline, "Also a Poisson reconstruction of the cloud (baseline.ply and its figures, for comparison; ~0.5 s)");
   out->push_back({skinc, [sk, &progress] { skin_command(*sk, progress); }});
+
+  auto pa = std::make_shared<PatchesArgs>();
+  auto* pc = app.add_subcommand("patches", "Bicubic Bezier patches on a skin (thesis §4.1.4; in progress: per tube, open ends)");
+  pc->add_option("--skin-dir", pa->skin_dir, "Output folder of run (or of register + skin): merged.ply and the rig")->required();
+  pc->add_option("--rig", pa->rig, "The skin's rig (default: rig_auto.json there, else the rig its report.json names)");
+  pc->add_option("--out", pa->out, "Output folder: patches.json, patches.obj, patches.ply, patches_report.json "
+                                   "(default: --skin-dir)");
+  pc->add_option("--pipeline", pa->pipeline, "Pipeline parameters (slicing, skin, patches sections)");
+  pc->add_option("--count", pa->count, "Patches wanted, [24, 1500] (default: patches.count, 96; the layout's nearest)");
+  pc->add_option("--truth", pa->truth, "truth.json of a synthetic pair: add the surface's distances to the true skin");
+  out->push_back({pc, [pa, &progress] { patches_command(*pa, progress); }});
 }
 
 }  // namespace handskin::cli

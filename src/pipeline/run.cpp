@@ -79,8 +79,12 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   si.auto_rig = in.auto_rig;
   si.baseline = in.baseline || in.options.skin.baseline;
   si.slices = in.options.skin.slices_json;
-  si.truth = std::move(truth);
+  si.truth = truth;
   R.skin = run_skin_stage(si, in.options, [&](const std::string& m) { progress("skin: " + m); });
+
+  // --- patches: bicubic Bézier patches on the skin's ring grid (docs/patches.md) ---
+  progress("patches: fitting and correcting the parameters");
+  R.patches = run_patch_stage(R.skin.skin, si.points, si.sides, patch_options(in.options), truth ? &*truth : nullptr);
   R.seconds = total.seconds();
   return R;
 }
@@ -89,6 +93,7 @@ std::vector<std::string> run_output_names() {
   std::vector<std::string> n = {"back.ply", "palm.ply", "report.json"};
   n.insert(n.end(), registration_output_names().begin(), registration_output_names().end());
   n.insert(n.end(), skin_output_names().begin(), skin_output_names().end());
+  n.insert(n.end(), patch_output_names().begin(), patch_output_names().end());
   return n;
 }
 
@@ -104,6 +109,7 @@ Json write_run_outputs(OutputSet& out, const RunResult& r) {
   if (r.registration_truth) reg_report["against_truth"] = *r.registration_truth;
   outputs.update(write_registration_outputs(out, r.registration, reg_report));
   outputs.update(write_skin_outputs(out, r.skin));
+  outputs.update(write_patch_outputs(out, r.patches));
 
   Json report;
   report["format"] = "handskin-report/1";
@@ -120,6 +126,7 @@ Json write_run_outputs(OutputSet& out, const RunResult& r) {
                     {"palm", to_json(r.palm)}});
   stages.push_back(reg_stage);
   stages.push_back(to_json(r.skin));
+  stages.push_back(to_json(r.patches));
   stages.push_back({{"name", "write"}, {"seconds", t_write.seconds()}});
   report["stages"] = stages;
   outputs["report"] = out.final_path("report.json");

@@ -1,7 +1,8 @@
 #pragma once
 /// `handskin run`: the whole pipeline from two scans (and a rig, or none) to the skin.
 /// Stages: ingest (both scans read and checked, to point clouds), registration (the back scan
-/// into the palm frame, merged cloud), skin (skeleton, strips, closed mesh, figures).
+/// into the palm frame, merged cloud), skin (skeleton, strips, closed mesh, figures), patches
+/// (bicubic Bézier patches on the skin's ring grid, their fitting error).
 /// `run_pipeline` computes every stage and writes nothing; `write_run_outputs` stages every
 /// file into an OutputSet, which the caller commits — so a failure anywhere leaves the
 /// output folder exactly as it was (docs/architecture.md).
@@ -12,6 +13,7 @@
 #include "core/json_util.hpp"
 #include "core/output_set.hpp"
 #include "pipeline/options.hpp"
+#include "pipeline/patch_stage.hpp"
 #include "pipeline/skin_stage.hpp"
 #include "register/registration.hpp"
 #include "scan/cloud.hpp"
@@ -49,6 +51,7 @@ struct RunResult {
   Registration registration;
   std::optional<Json> registration_truth;  ///< registration_against_truth, with --truth
   SkinStageResult skin;
+  PatchStageResult patches;  ///< Bézier patches on the skin's ring grid (issue 13, in progress)
   double seconds = 0;  ///< all stages, before any output is written
 };
 

@@ -1,6 +1,7 @@
 #include "pipeline/stage_options.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace handskin {
 
@@ -34,6 +35,18 @@ SkinOptions skin_options(const PipelineOptions& o) {
   s.max_triangles = to_int(o.skin.max_triangles);
   s.decimation_tolerance_mm = o.skin.decimation_tolerance_mm;
   return s;
+}
+
+PatchOptions patch_options(const PipelineOptions& o) {
+  // The layout scales as k²: palm 8k × 4k, each digit 4k × 3k, 92k² patches in all.
+  const double k = std::sqrt(static_cast<double>(o.patches.count) / 92.0);
+  auto spans = [&](double base, int lo) { return std::max(lo, static_cast<int>(std::lround(base * k))); };
+  PatchOptions p;
+  p.palm_around = std::min(spans(8, 3), 64);
+  p.palm_along = std::min(spans(4, 1), 64);
+  p.digit_around = std::min(spans(4, 3), 64);
+  p.digit_along = std::min(spans(3, 1), 64);
+  return p;
 }
 
 }  // namespace handskin

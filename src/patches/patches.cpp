@@ -1,0 +1,480 @@
+#include "patches/patches.hpp"
+
+#include <Eigen/Dense>
+#include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
+
+#include <algorithm>
+#include <unordered_map>
+#include <chrono>
+#include <cmath>
+
+#include "core/errors.hpp"
+
+namespace handskin {
+
+namespace {
+
+void bernstein(double t, double B[4], double D[4]) {
+  const double s = 1 - t;
+  B[0] = s * s * s, B[1] = 3 * t * s * s, B[2] = 3 * t * t * s, B[3] = t * t * t;
+  if (D) D[0] = -3 * s * s, D[1] = 3 * s * s - 6 * t * s, D[2] = 6 * t * s - 3 * t * t, D[3] = 3 * t * t;
+}
+
+// Patch (a, b) and local (s, t) of (u, v): u wraps around the tube, v is clamped to [0, nv].
+void locate(int nu, int nv, double u, double v, int* a, int* b, double* s, double* t) {
+  u = std::fmod(u, static_cast<double>(nu));
+  if (u < 0) u += nu;
+  v = std::clamp(v, 0.0, static_cast<double>(nv));
+  *a = std::min(static_cast<int>(u), nu - 1);
+  *b = std::min(static_cast<int>(v), nv - 1);
+  *s = u - *a;
+  *t = v - *b;
+}
+
+int net_index(int NU, int NV, int i, int j) { return ((i % NU + NU) % NU) * NV + j; }
+
+double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  const Eigen::Vector3d d = b - a;
+  const double t = std::clamp((p - a).dot(d) / std::max(d.squaredNorm(), 1e-12), 0.0, 1.0);
+  return (a + t * d - p).norm();
+}
+
+int nearest_link(const Eigen::Vector3d& p, const std::vector<Bone>& bones) {
+  int best = -1;
+  double bd = 1e300;
+  for (size_t k = 0; k < bones.size(); ++k) {
+    const double d = segment_distance(p, bones[k].a, bones[k].b);
+    if (d < bd) bd = d, best = static_cast<int>(k);
+  }
+  return best;
+}
+
+// The ring points in a hash grid of `cell` mm: the nearest within a radius, exactly (rings of
+// cells are searched outward until no nearer point can lie beyond them). Faster here than a
+// k-d tree: every query lands within a cell or two of its answer.
+class NodeGrid {
+ public:
+  NodeGrid(const std::vector<Eigen::Vector3d>& pts, double cell) : pts_(pts), cell_(cell) {
+    for (size_t k = 0; k < pts.size(); ++k) cells_[key(pts[k])].push_back(static_cast<int>(k));
+  }
+  int nearest(const Eigen::Vector3d& q, double radius) const {
+    const Eigen::Vector3i c = coords(q);
+    int best = -1;
+    double bd2 = radius * radius;
+    const int max_ring = static_cast<int>(std::ceil(radius / cell_)) + 1;
+    for (int ring = 0; ring <= max_ring; ++ring) {
+      // Everything in rings beyond this one is at least (ring - 1) cells away... ring·cell when
+      // the point sits at its cell's edge: stop once that exceeds the best distance.
+      if (best >= 0 && (ring - 1) * cell_ > std::sqrt(bd2)) break;
+      for (int dx = -ring; dx <= ring; ++dx)
+        for (int dy = -ring; dy <= ring; ++dy)
+          for (int dz = -ring; dz <= ring; ++dz) {
+            if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != ring) continue;
+            const auto it = cells_.find(pack(c + Eigen::Vector3i(dx, dy, dz)));
+            if (it == cells_.end()) continue;
+            for (const int k : it->second) {
+              const double d2 = (pts_[k] - q).squaredNorm();
+              if (d2 < bd2 || (d2 == bd2 && best >= 0 && k < best)) bd2 = d2, best = k;
+            }
+          }
+    }
+    return best;
+  }
+
+ private:
+  Eigen::Vector3i coords(const Eigen::Vector3d& p) const {
+    return Eigen::Vector3i(static_cast<int>(std::floor(p.x() / cell_)), static_cast<int>(std::floor(p.y() / cell_)),
+                           static_cast<int>(std::floor(p.z() / cell_)));
+  }
+  static std::int64_t pack(const Eigen::Vector3i& c) {
+    return (static_cast<std::int64_t>(c.x() & 0x1FFFFF) << 42) | (static_cast<std::int64_t>(c.y() & 0x1FFFFF) << 21) |
+           static_cast<std::int64_t>(c.z() & 0x1FFFFF);
+  }
+  std::int64_t key(const Eigen::Vector3d& p) const { return pack(coords(p)); }
+  const std::vector<Eigen::Vector3d>& pts_;
+  double cell_;
+  std::unordered_map<std::int64_t, std::vector<int>> cells_;
+};
+
+struct Datum {
+  Eigen::Vector3d p;
+  double u = 0, v = 0, w = 1;
+  int side = -1;  ///< 0 palm, 1 back; -1 a ring point (weak data, parameters fixed)
+};
+
+// Least squares for the tube's net (eq. 4.5): data, C1 across borders, fairness. The normal
+// equations are assembled from per-patch blocks into a sparse matrix.
+void fit_net(TubeSurface* T, const std::vector<Datum>& data, const PatchOptions& o) {
+  const int NU = 3 * T->nu, NV = 3 * T->nv + 1, n = NU * NV;
+  // Each patch's 16 × 16 block of the normal equations is one product C·Cᵀ of its data's
+  // basis values (columns scaled by √w), then scattered into the tube's matrix once.
+  const int patches = T->nu * T->nv;
+  std::vector<std::vector<int>> of_patch(patches);
+  std::vector<Eigen::Matrix<double, 16, 1>> basis(data.size());
+  double wsum = 0;
+  for (size_t k = 0; k < data.size(); ++k) {
+    const Datum& d = data[k];
+    int a, b;
+    double s, t, Bu[4], Bv[4];
+    locate(T->nu, T->nv, d.u, d.v, &a, &b, &s, &t);
+    bernstein(s, Bu, nullptr);
+    bernstein(t, Bv, nullptr);
+    const double sw = std::sqrt(d.w);
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) basis[k](4 * i + j) = sw * Bu[i] * Bv[j];
+    of_patch[a * T->nv + b].push_back(static_cast<int>(k));
+    wsum += d.w;
+  }
+  std::vector<Eigen::Matrix<double, 16, 16>> block(patches);
+  std::vector<Eigen::Matrix<double, 16, 3>> rhs(patches);
+#pragma omp parallel for schedule(dynamic) if (patches > 8)
+  for (int k = 0; k < patches; ++k) {
+    const std::vector<int>& ids = of_patch[k];
+    Eigen::Matrix<double, 16, Eigen::Dynamic> C(16, ids.size());
+    Eigen::Matrix<double, Eigen::Dynamic, 3> Y(ids.size(), 3);
+    for (size_t q = 0; q < ids.size(); ++q) {
+      C.col(q) = basis[ids[q]];
+      Y.row(q) = std::sqrt(data[ids[q]].w) * data[ids[q]].p.transpose();
+    }
+    block[k].noalias() = C * C.transpose();
+    rhs[k].noalias() = C * Y;
+  }
+  std::vector<Eigen::Triplet<double>> A;
+  A.reserve(static_cast<size_t>(patches) * 256 + static_cast<size_t>(n) * 18);
+  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(n, 3);
+  for (int a = 0; a < T->nu; ++a)
+    for (int b = 0; b < T->nv; ++b) {
+      int idx[16];
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) idx[4 * i + j] = net_index(NU, NV, 3 * a + i, 3 * b + j);
+      const int k = a * T->nv + b;
+      for (int x = 0; x < 16; ++x) {
+        for (int y = 0; y < 16; ++y) A.emplace_back(idx[x], idx[y], block[k](x, y));
+        R.row(idx[x]) += rhs[k].row(x);
+      }
+    }
+  // Second differences of the net (fairness everywhere, C1 at the borders): rows e_a − 2e_b + e_c.
+  const double per_point = wsum / n;
+  auto triple = [&](int i0, int i1, int i2, double w) {
+    const int id[3] = {i0, i1, i2};
+    const double c[3] = {1, -2, 1};
+    for (int x = 0; x < 3; ++x)
+      for (int y = 0; y < 3; ++y) A.emplace_back(id[x], id[y], w * c[x] * c[y]);
+  };
+  for (int i = 0; i < NU; ++i)
+    for (int j = 0; j < NV; ++j) {
+      const bool border_u = i % 3 == 0, border_v = j % 3 == 0 && j > 0 && j < NV - 1;
+      triple(net_index(NU, NV, i - 1, j), net_index(NU, NV, i, j), net_index(NU, NV, i + 1, j),
+             per_point * (o.fairness + (border_u ? o.c1_weight : 0)));
+      if (j > 0 && j < NV - 1)
+        triple(net_index(NU, NV, i, j - 1), net_index(NU, NV, i, j), net_index(NU, NV, i, j + 1),
+               per_point * (o.fairness + (border_v ? o.c1_weight : 0)));
+    }
+  // The normal matrix is banded (each net point couples with its patches' 4 × 4 blocks):
+  // sparse Cholesky (LDLᵀ), never an inverse.
+  Eigen::SparseMatrix<double> As(n, n);
+  As.setFromTriplets(A.begin(), A.end());  // duplicates are summed
+  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(As);
+  HS_CHECK(ldlt.info() == Eigen::Success, "patch fit: the normal equations could not be factored");
+  const Eigen::MatrixXd X = ldlt.solve(R);
+  T->net.resize(n);
+  for (int k = 0; k < n; ++k) T->net[k] = X.row(k).transpose();
+}
+
+// Newton (Gauss–Newton) foot point of d.p on the surface from (d.u, d.v), at most `iterations`
+// steps; returns how far the parameters moved (in spans).
+double foot_point(const TubeSurface& T, Datum* d, int iterations, double* residual2 = nullptr) {
+  double moved = 0;
+  for (int it = 0; it < iterations; ++it) {
+    Eigen::Vector3d S, Su, Sv;
+    T.derivatives(d->u, d->v, &S, &Su, &Sv);
+    const Eigen::Vector3d r = d->p - S;
+    if (residual2) *residual2 = r.squaredNorm();  // at the parameters before this step
+    Eigen::Matrix2d J;
+    J << Su.dot(Su), Su.dot(Sv), Su.dot(Sv), Sv.dot(Sv);
+    const Eigen::Vector2d g(Su.dot(r), Sv.dot(r));
+    if (std::abs(J.determinant()) < 1e-12) break;
+    Eigen::Vector2d step = J.ldlt().solve(g);
+    const double len = step.norm();
+    if (len > 0.5) step *= 0.5 / len;  // at most half a span per step
+    const double v0 = d->v;
+    d->u += step(0);
+    d->v = std::clamp(d->v + step(1), 0.0, static_cast<double>(T.nv));
+    moved += std::hypot(step(0), d->v - v0);
+    if (step.norm() < 1e-7) break;
+  }
+  return moved;
+}
+
+DistanceFigures figures_of(std::vector<double> r) {
+  DistanceFigures f;
+  f.points = r.size();
+  if (r.empty()) return f;
+  double s = 0, s2 = 0;
+  for (double x : r) s += x, s2 += x * x, f.max = std::max(f.max, x);
+  f.mean = s / r.size();
+  f.rms = std::sqrt(s2 / r.size());
+  const size_t k = static_cast<size_t>(0.95 * (r.size() - 1));
+  std::nth_element(r.begin(), r.begin() + k, r.end());
+  f.p95 = r[k];
+  return f;
+}
+
+}  // namespace
+
+bool PatchOptions::IsValid(std::string* error) const {
+  auto bad = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (palm_around < 3 || palm_around > 64 || digit_around < 3 || digit_around > 64)
+    return bad("patches around a tube must be in [3, 64]");
+  if (palm_along < 1 || palm_along > 64 || digit_along < 1 || digit_along > 64)
+    return bad("patches along a tube must be in [1, 64]");
+  if (!(fairness >= 0 && fairness <= 10)) return bad("fairness must be in [0, 10]");
+  if (!(c1_weight >= 0 && c1_weight <= 1e4)) return bad("c1_weight must be in [0, 1e4]");
+  if (!(ring_weight > 0 && ring_weight <= 10)) return bad("ring_weight must be in (0, 10]");
+  if (max_corrections < 0 || max_corrections > 100) return bad("max_corrections must be in [0, 100]");
+  if (!(correction_tolerance > 0)) return bad("correction_tolerance must be > 0");
+  if (tessellation < 1 || tessellation > 64) return bad("tessellation must be in [1, 64]");
+  return true;
+}
+
+Eigen::Vector3d BezierPatch::eval(double u, double v) const {
+  double Bu[4], Bv[4];
+  bernstein(u, Bu, nullptr);
+  bernstein(v, Bv, nullptr);
+  Eigen::Vector3d s = Eigen::Vector3d::Zero();
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) s += Bu[i] * Bv[j] * P[4 * i + j];
+  return s;
+}
+
+const Eigen::Vector3d& TubeSurface::net_at(int i, int j) const { return net[net_index(3 * nu, 3 * nv + 1, i, j)]; }
+
+void TubeSurface::derivatives(double u, double v, Eigen::Vector3d* S, Eigen::Vector3d* Su, Eigen::Vector3d* Sv) const {
+  int a, b;
+  double s, t, Bu[4], Du[4], Bv[4], Dv[4];
+  locate(nu, nv, u, v, &a, &b, &s, &t);
+  bernstein(s, Bu, Du);
+  bernstein(t, Bv, Dv);
+  *S = *Su = *Sv = Eigen::Vector3d::Zero();
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) {
+      const Eigen::Vector3d& p = net_at(3 * a + i, 3 * b + j);
+      *S += Bu[i] * Bv[j] * p;
+      *Su += Du[i] * Bv[j] * p;
+      *Sv += Bu[i] * Dv[j] * p;
+    }
+}
+
+Eigen::Vector3d TubeSurface::eval(double u, double v) const {
+  Eigen::Vector3d S, Su, Sv;
+  derivatives(u, v, &S, &Su, &Sv);
+  return S;
+}
+
+PatchSkin fit_patch_skin(const SkinResult& skin, const std::vector<Eigen::Vector3d>& points,
+                         const std::vector<std::uint32_t>& sides, const PatchOptions& o) {
+  std::string err;
+  if (!o.IsValid(&err)) throw InputError("patch options", err);
+  HS_CHECK(points.size() == sides.size(), "points and sides differ in length");
+  const auto t0 = std::chrono::steady_clock::now();
+  PatchSkin out;
+  for (const auto& b : skin.bones) out.bones.push_back(b.name());
+
+  // --- the tubes' parameter domains: chord length along and around the rings ---
+  struct Domain {
+    int grid = 0;                      ///< index into skin.grid
+    std::vector<double> u_of_point, v_of_ring;
+  };
+  std::vector<Domain> domains;
+  std::vector<Eigen::Vector3d> nodes;
+  std::vector<std::array<int, 3>> node_of;  // tube slot, ring, point
+  for (size_t g = 0; g < skin.grid.size(); ++g) {
+    const RingGrid& rg = skin.grid[g];
+    if (!rg.present || rg.rings.size() < 2) continue;
+    const size_t m = rg.rings[0].size();
+    TubeSurface T;
+    T.tube = rg.tube;
+    const bool palm = rg.tube == static_cast<int>(SkinTube::Palm);
+    T.nu = palm ? o.palm_around : o.digit_around;
+    T.nv = palm ? o.palm_along : o.digit_along;
+    Domain D;
+    D.grid = static_cast<int>(g);
+    std::vector<double> around(m + 1, 0.0);
+    for (const auto& ring : rg.rings)
+      for (size_t j = 0; j < m; ++j) around[j + 1] += (ring[(j + 1) % m] - ring[j]).norm();
+    for (size_t j = 1; j <= m; ++j) around[j] += around[j - 1];
+    for (size_t j = 0; j < m; ++j) D.u_of_point.push_back(T.nu * around[j] / around[m]);
+    std::vector<double> along(1, 0.0);
+    auto centroid = [&](const std::vector<Eigen::Vector3d>& r) {
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      for (const auto& p : r) c += p;
+      return Eigen::Vector3d(c / static_cast<double>(r.size()));
+    };
+    for (size_t r = 1; r < rg.rings.size(); ++r)
+      along.push_back(along.back() + (centroid(rg.rings[r]) - centroid(rg.rings[r - 1])).norm());
+    for (double a : along) D.v_of_ring.push_back(T.nv * a / std::max(along.back(), 1e-9));
+    for (size_t r = 0; r < rg.rings.size(); ++r)
+      for (size_t j = 0; j < m; ++j) {
+        const auto& p = rg.rings[r][j];
+        nodes.push_back(p);
+        node_of.push_back({static_cast<int>(out.tubes.size()), static_cast<int>(r), static_cast<int>(j)});
+      }
+    out.tubes.push_back(T);
+    domains.push_back(std::move(D));
+  }
+  if (out.tubes.empty()) throw InputError("skin", "no ring grid to fit patches on");
+
+  // --- data: each measured point to the tube of its nearest ring point, parameters from it;
+  //     the ring points themselves as weak data (they bridge what the scans did not see) ---
+  std::vector<std::vector<Datum>> data(out.tubes.size());
+  constexpr double kFarMm = 5.0;  // farther from every ring: not the skin (a stray sample)
+  const NodeGrid grid(nodes, 2.0);
+  std::vector<int> nearest(points.size(), -1);
+#pragma omp parallel for schedule(static)
+  for (long k = 0; k < static_cast<long>(points.size()); ++k) nearest[k] = grid.nearest(points[k], kFarMm);
+  for (size_t k = 0; k < points.size(); ++k) {
+    if (nearest[k] < 0) continue;
+    const auto& [t, r, j] = node_of[nearest[k]];
+    data[t].push_back({points[k], domains[t].u_of_point[j], domains[t].v_of_ring[r], 1.0, static_cast<int>(sides[k])});
+  }
+  for (size_t t = 0; t < out.tubes.size(); ++t) {
+    const RingGrid& rg = skin.grid[domains[t].grid];
+    for (size_t r = 0; r < rg.rings.size(); ++r)
+      for (size_t j = 0; j < rg.rings[r].size(); ++j)
+        data[t].push_back({rg.rings[r][j], domains[t].u_of_point[j], domains[t].v_of_ring[r], o.ring_weight, -1});
+  }
+
+  // --- fit, then correct the parameters (eqs. 4.6–4.7) until they settle ---
+  // Each round: foot points on the current surface (their residuals give the round's RMS),
+  // then the refit. The tubes are independent: fitted in parallel.
+  auto fit_all = [&] {
+#pragma omp parallel for schedule(dynamic)
+    for (long t = 0; t < static_cast<long>(out.tubes.size()); ++t) fit_net(&out.tubes[t], data[t], o);
+  };
+  fit_all();
+  for (int round = 0; round <= o.max_corrections; ++round) {
+    double max_update = 0, sum2 = 0;
+    long count = 0;
+    for (size_t t = 0; t < out.tubes.size(); ++t) {
+      std::vector<Datum>& D = data[t];
+#pragma omp parallel for reduction(max : max_update) reduction(+ : sum2, count) schedule(static)
+      for (long k = 0; k < static_cast<long>(D.size()); ++k)
+        if (D[k].side >= 0) {
+          double r2 = 0;
+          max_update = std::max(max_update, foot_point(out.tubes[t], &D[k], 1, &r2));
+          sum2 += r2;
+          ++count;
+        }
+    }
+    out.rms_per_round.push_back(std::sqrt(sum2 / std::max(count, 1L)));
+    if (round == o.max_corrections) break;
+    out.max_update_per_round.push_back(max_update);
+    fit_all();
+    if (max_update < o.correction_tolerance) break;
+  }
+  // Final foot points on the final surface: the exact data → surface distances.
+  std::vector<double> residual[2];
+  for (size_t t = 0; t < out.tubes.size(); ++t) {
+    std::vector<Datum>& D = data[t];
+    std::vector<double> r(D.size(), -1);
+#pragma omp parallel for schedule(static)
+    for (long k = 0; k < static_cast<long>(D.size()); ++k)
+      if (D[k].side >= 0) {
+        foot_point(out.tubes[t], &D[k], 8);
+        r[k] = (out.tubes[t].eval(D[k].u, D[k].v) - D[k].p).norm();
+      }
+    for (size_t k = 0; k < D.size(); ++k)
+      if (D[k].side >= 0) residual[D[k].side == 1 ? 1 : 0].push_back(r[k]);
+  }
+  out.side = {figures_of(residual[0]), figures_of(residual[1])};
+
+  // --- patches, their links, the net's binding, continuity figures ---
+  std::vector<double> g1;
+  for (TubeSurface& T : out.tubes) {
+    const int NU = 3 * T.nu, NV = 3 * T.nv + 1;
+    T.net_link.resize(T.net.size());
+    for (size_t k = 0; k < T.net.size(); ++k) T.net_link[k] = nearest_link(T.net[k], skin.bones);
+    out.control_points += T.net.size();
+    for (int a = 0; a < T.nu; ++a)
+      for (int b = 0; b < T.nv; ++b) {
+        BezierPatch P;
+        P.tube = T.tube, P.span_u = a, P.span_v = b;
+        for (int i = 0; i < 4; ++i)
+          for (int j = 0; j < 4; ++j) P.P[4 * i + j] = T.net[net_index(NU, NV, 3 * a + i, 3 * b + j)];
+        P.link = nearest_link(P.eval(0.5, 0.5), skin.bones);
+        out.patches.push_back(P);
+      }
+    // Shared borders: the same curve from both sides (G0), and the angle between the two
+    // sides' normals along it (G1), 9 samples per border.
+    auto normal = [&](double u, double v) {
+      Eigen::Vector3d S, Su, Sv;
+      T.derivatives(u, v, &S, &Su, &Sv);
+      return Eigen::Vector3d(Su.cross(Sv).normalized());
+    };
+    auto side_eval = [&](int a, int b, double s, double t) {  // patch (a, b)'s own evaluation
+      BezierPatch P;
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) P.P[4 * i + j] = T.net[net_index(NU, NV, 3 * a + i, 3 * b + j)];
+      return P.eval(s, t);
+    };
+    constexpr double kEps = 1e-6;
+    for (int a = 0; a < T.nu; ++a)
+      for (int b = 0; b < T.nv; ++b)
+        for (int q = 1; q <= 9; ++q) {
+          const double s = q / 10.0;
+          // the border between (a, b) and (a + 1, b): u = a + 1
+          out.g0_gap_mm = std::max(out.g0_gap_mm, (side_eval(a, b, 1, s) - side_eval((a + 1) % T.nu, b, 0, s)).norm());
+          g1.push_back(std::acos(std::clamp(normal(a + 1 - kEps, b + s).dot(normal(a + 1 + kEps, b + s)), -1.0, 1.0)) *
+                       180 / M_PI);
+          if (b + 1 < T.nv) {
+            out.g0_gap_mm = std::max(out.g0_gap_mm, (side_eval(a, b, s, 1) - side_eval(a, b + 1, s, 0)).norm());
+            g1.push_back(std::acos(std::clamp(normal(a + s, b + 1 - kEps).dot(normal(a + s, b + 1 + kEps)), -1.0, 1.0)) *
+                         180 / M_PI);
+          }
+        }
+  }
+  if (!g1.empty()) {
+    std::sort(g1.begin(), g1.end());
+    out.g1_median_deg = g1[g1.size() / 2];
+    out.g1_p95_deg = g1[static_cast<size_t>(0.95 * (g1.size() - 1))];
+    out.g1_max_deg = g1.back();
+  }
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+TriMesh tessellate(const PatchSkin& s, int n) {
+  HS_CHECK(n >= 1, "tessellation needs at least one quad per patch side");
+  TriMesh mesh;
+  for (const TubeSurface& T : s.tubes) {
+    const int NU = T.nu * n, NV = T.nv * n + 1;
+    std::vector<TriMesh::VertexHandle> vh(static_cast<size_t>(NU) * NV);
+    for (int i = 0; i < NU; ++i)
+      for (int j = 0; j < NV; ++j) {
+        const Eigen::Vector3d p = T.eval(static_cast<double>(i) / n, static_cast<double>(j) / n);
+        vh[i * NV + j] = mesh.add_vertex(TriMesh::Point(p.x(), p.y(), p.z()));
+      }
+    // Outward: the normal at a mid-tube point against the direction from the ring's centre.
+    const int jm = NV / 2;
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (int i = 0; i < NU; ++i) centre += T.eval(static_cast<double>(i) / n, static_cast<double>(jm) / n);
+    centre /= NU;
+    Eigen::Vector3d S, Su, Sv;
+    T.derivatives(0.5, static_cast<double>(jm) / n, &S, &Su, &Sv);
+    const bool flip = Su.cross(Sv).dot(S - centre) < 0;
+    for (int i = 0; i < NU; ++i)
+      for (int j = 0; j + 1 < NV; ++j) {
+        auto a = vh[i * NV + j], b = vh[((i + 1) % NU) * NV + j], c = vh[((i + 1) % NU) * NV + j + 1], d = vh[i * NV + j + 1];
+        if (flip) std::swap(b, d);
+        mesh.add_face(a, b, c);
+        mesh.add_face(a, c, d);
+      }
+  }
+  return mesh;
+}
+
+}  // namespace handskin

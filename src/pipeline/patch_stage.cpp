@@ -1,0 +1,128 @@
+#include "pipeline/patch_stage.hpp"
+
+#include <chrono>
+#include <cstdio>
+
+#include "core/atomic_file.hpp"
+
+namespace handskin {
+
+namespace {
+Json distance_json(const OneWayDistance& d) {
+  return {{"mean", d.mean}, {"median", d.median}, {"p95", d.p95}, {"max", d.max},
+          {"within_1mm", d.within_1mm}, {"samples", d.samples}};
+}
+Json figures_json(const DistanceFigures& f) {
+  return {{"mean", f.mean}, {"rms", f.rms}, {"p95", f.p95}, {"max", f.max}, {"points", f.points}};
+}
+}  // namespace
+
+PatchStageResult run_patch_stage(const SkinResult& skin, const std::vector<Eigen::Vector3d>& points,
+                                 const std::vector<std::uint32_t>& sides, const PatchOptions& options,
+                                 const TruthSkin* truth) {
+  const auto t0 = std::chrono::steady_clock::now();
+  PatchStageResult r;
+  r.options = options;
+  r.patches = fit_patch_skin(skin, points, sides, options);
+  r.tessellation = tessellate(r.patches, options.tessellation);
+  if (truth) {
+    const MeshDistance to_truth(truth->skin), to_surface(r.tessellation);
+    r.truth_file = truth->skin_path;
+    r.surface_to_truth = one_way_distance(sample_surface(r.tessellation, 4.0), to_truth, truth->markers, truth->exclude_mm);
+    r.truth_to_surface = one_way_distance(sample_surface(truth->skin, 4.0), to_surface, truth->markers, truth->exclude_mm);
+  }
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+Json to_json(const PatchStageResult& r) {
+  const PatchSkin& s = r.patches;
+  Json tubes = Json::array();
+  for (const auto& t : s.tubes)
+    tubes.push_back({{"tube", skin_tube_name(t.tube)}, {"around", t.nu}, {"along", t.nv}, {"control_points", t.net.size()}});
+  Json j = {{"name", "patches"},
+            {"seconds", r.seconds},
+            {"fit_seconds", s.seconds},
+            {"patches", s.patches.size()},
+            {"control_points", s.control_points},
+            {"layout", tubes},
+            {"data_to_surface_mm", {{"palm", figures_json(s.side[0])}, {"back", figures_json(s.side[1])}}},
+            {"correction", {{"rounds", s.max_update_per_round.size()},
+                            {"max_update_spans", s.max_update_per_round},
+                            {"rms_mm", s.rms_per_round},
+                            {"tolerance_spans", r.options.correction_tolerance}}},
+            {"continuity", {{"g0_gap_mm", s.g0_gap_mm},
+                            {"g1_normal_jump_deg", {{"median", s.g1_median_deg}, {"p95", s.g1_p95_deg}, {"max", s.g1_max_deg}}}}},
+            {"options", {{"fairness", r.options.fairness}, {"c1_weight", r.options.c1_weight},
+                         {"ring_weight", r.options.ring_weight}, {"tessellation", r.options.tessellation}}}};
+  if (r.surface_to_truth)
+    j["truth"] = {{"file", r.truth_file},
+                  {"surface_to_truth_mm", distance_json(*r.surface_to_truth)},
+                  {"truth_to_surface_mm", distance_json(*r.truth_to_surface)}};
+  return j;
+}
+
+Json patches_to_json(const PatchSkin& s) {
+  Json patches = Json::array();
+  for (const auto& p : s.patches) {
+    Json cps = Json::array();
+    for (const auto& c : p.P) cps.push_back(to_json(c));
+    patches.push_back({{"tube", skin_tube_name(p.tube)}, {"span_u", p.span_u}, {"span_v", p.span_v},
+                       {"link", p.link >= 0 ? Json(s.bones[p.link]) : Json(nullptr)}, {"control_points", cps}});
+  }
+  Json tubes = Json::array();
+  for (const auto& t : s.tubes) {
+    Json links = Json::array();
+    for (int l : t.net_link) links.push_back(l);
+    tubes.push_back({{"tube", skin_tube_name(t.tube)}, {"around", t.nu}, {"along", t.nv}, {"net_links", links}});
+  }
+  return {{"format", "handskin-patches/1"},
+          {"units", "mm"},
+          {"frame", "palm"},
+          {"bones", s.bones},
+          {"tubes", tubes},
+          {"patches", patches}};
+}
+
+std::string patches_obj(const PatchSkin& s) {
+  std::string out = "# handskin Bezier patches (bicubic), palm frame, mm\n";
+  char buf[160];
+  size_t base = 1;
+  for (const auto& t : s.tubes) {
+    const int NU = 3 * t.nu, NV = 3 * t.nv + 1;
+    std::snprintf(buf, sizeof buf, "g %s\n", skin_tube_name(t.tube));
+    out += buf;
+    for (const auto& p : t.net) {
+      std::snprintf(buf, sizeof buf, "v %.6f %.6f %.6f\n", p.x(), p.y(), p.z());
+      out += buf;
+    }
+    for (int a = 0; a < t.nu; ++a)
+      for (int b = 0; b < t.nv; ++b) {
+        out += "cstype bezier\ndeg 3 3\nsurf 0 1 0 1";
+        for (int j = 0; j < 4; ++j)  // OBJ lists a surface's control points u fastest
+          for (int i = 0; i < 4; ++i) {
+            const int ii = ((3 * a + i) % NU + NU) % NU;
+            out += " " + std::to_string(base + static_cast<size_t>(ii * NV + 3 * b + j));
+          }
+        out += "\nparm u 0 1\nparm v 0 1\nend\n";
+      }
+    base += t.net.size();
+  }
+  return out;
+}
+
+const std::vector<std::string>& patch_output_names() {
+  static const std::vector<std::string> names = {"patches.json", "patches.obj", "patches.ply"};
+  return names;
+}
+
+Json write_patch_outputs(OutputSet& out, const PatchStageResult& r) {
+  save_json(out.stage("patches.json"), patches_to_json(r.patches));
+  write_file_atomic(out.stage("patches.obj"), patches_obj(r.patches));
+  save_mesh(out.stage("patches.ply"), r.tessellation);
+  return {{"patches_json", out.final_path("patches.json")},
+          {"patches_obj", out.final_path("patches.obj")},
+          {"patches_ply", out.final_path("patches.ply")}};
+}
+
+}  // namespace handskin

@@ -1,0 +1,46 @@
+#pragma once
+/// The patch stage (issue 13, in progress): bicubic Bézier patches fitted on the skin's ring
+/// grid and the merged cloud, their figures, and their files (patches.json, patches.obj,
+/// patches.ply). `handskin patches` runs it; `run` will.
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/json_util.hpp"
+#include "core/output_set.hpp"
+#include "mesh/mesh_distance.hpp"
+#include "patches/patches.hpp"
+#include "synth/truth.hpp"
+
+namespace handskin {
+
+struct PatchStageResult {
+  PatchSkin patches;
+  PatchOptions options;
+  TriMesh tessellation;                     ///< patches.ply
+  std::optional<OneWayDistance> surface_to_truth, truth_to_surface;
+  std::string truth_file;
+  double seconds = 0;
+};
+
+/// Fit the patches, tessellate them, and with a truth measure the surface against it.
+PatchStageResult run_patch_stage(const SkinResult& skin, const std::vector<Eigen::Vector3d>& points,
+                                 const std::vector<std::uint32_t>& sides, const PatchOptions& options,
+                                 const TruthSkin* truth);
+
+/// The stage's figures (patches_report.json's body).
+Json to_json(const PatchStageResult& r);
+
+/// `handskin-patches/1`: every patch's 16 control points (row-major P00…P33, the first index
+/// around the tube), its tube, spans, link and fit, and each control point's link.
+Json patches_to_json(const PatchSkin& s);
+
+/// OBJ free-form surfaces: each tube's net as shared vertices, each patch a `cstype bezier`,
+/// `deg 3 3` surface over them.
+std::string patches_obj(const PatchSkin& s);
+
+/// Stage patches.json, patches.obj, patches.ply into `out`; returns {key: final path}.
+Json write_patch_outputs(OutputSet& out, const PatchStageResult& r);
+const std::vector<std::string>& patch_output_names();
+
+}  // namespace handskin
