@@ -374,3 +374,17 @@ TEST(Contracts, TheBaselineIsOptInAndRepeatsByteForByte) {
   EXPECT_TRUE(bytes[0] == bytes[1]) << "baseline.ply differs between two runs";
   EXPECT_FALSE(fs::exists(reg + "/baseline.ply"));  // not made unless asked for
 }
+
+TEST(Contracts, RunGivesTheSameBytesOnOneThreadAndOnTwo) {
+  // Stages run pieces in parallel (registration's detections, the skin's check beside its
+  // build, the patches' foot points), each into its own slot: the thread count changes nothing.
+  std::string out;
+  const std::string one = test::temp_dir("t1") + "/out", two = test::temp_dir("t2") + "/out";
+  ASSERT_EQ(test::run("OMP_NUM_THREADS=1 " + run_cmd(one), &out), 0) << out;
+  ASSERT_EQ(test::run("OMP_NUM_THREADS=2 " + run_cmd(two), &out), 0) << out;
+  for (const char* f : {"merged.ply", "skin.ply", "skin.obj", "slices.json", "patches.json", "patches.ply"})
+    EXPECT_TRUE(read_file(one + "/" + f) == read_file(two + "/" + f)) << f;
+  Json a = load_json_object(one + "/registration.json"), b = load_json_object(two + "/registration.json");
+  a.erase("timings_ms"), b.erase("timings_ms");
+  EXPECT_TRUE(a == b);
+}

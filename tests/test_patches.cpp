@@ -80,6 +80,28 @@ TEST(Patches, ATubeOfKnownShapeIsFittedWithExactBordersAndSmoothJoins) {
         for (int j = 0; j < 4; ++j) EXPECT_EQ(p.P[12 + j], q.P[j]);
 }
 
+TEST(Patches, ADigitIsClosedAtItsTipByPatchesMeetingAtThePole) {
+  SkinResult skin = tube_skin();
+  skin.grid[0].tube = static_cast<int>(SkinTube::Index);
+  skin.grid[0].pole = Eigen::Vector3d(0, 0, 70);
+  std::vector<Eigen::Vector3d> pts;
+  std::vector<std::uint32_t> sides;
+  for (const auto& ring : skin.grid[0].rings)
+    for (const auto& p : ring) pts.push_back(p), sides.push_back(0);
+  const PatchSkin s = fit_patch_skin(skin, pts, sides, PatchOptions{});
+  ASSERT_EQ(s.tubes.size(), 1u);
+  EXPECT_TRUE(s.tubes[0].closed_end);
+  // The last row of the net is one point, near the pole; every patch of the last span row
+  // has that point as its whole far edge.
+  const TubeSurface& T = s.tubes[0];
+  for (int i = 0; i < 3 * T.nu; ++i) EXPECT_EQ(T.net_at(i, 3 * T.nv), T.net_at(0, 3 * T.nv));
+  EXPECT_LT((T.net_at(0, 3 * T.nv) - Eigen::Vector3d(0, 0, 70)).norm(), 1.0);
+  // Tessellated, only the root's ring is open, and the tip is one vertex.
+  const MeshHealth h = mesh_health(tessellate(s, 4));
+  EXPECT_EQ(h.boundary_edges, static_cast<size_t>(T.nu * 4));
+  EXPECT_EQ(h.nonmanifold_vertices, 0u);
+}
+
 TEST(Patches, TheLayoutFollowsPatchesCount) {
   PipelineOptions po;
   PatchOptions o = patch_options(po);  // 96 -> 92: palm 8 x 4, digits 4 x 3
@@ -119,6 +141,8 @@ TEST(Patches, TheCommandWritesPatchesOnTheFixture) {
     EXPECT_GT(r["data_to_surface_mm"][side]["points"].get<int>(), 50000) << side;
   }
   EXPECT_GT(r["truth"]["truth_to_surface_mm"]["within_1mm"].get<double>(), 0.9);
+  // Fingertips closed: the open rings are the palm's two ends and the five digits' roots.
+  EXPECT_EQ(mesh_health(load_mesh(dir + "/patches.ply")).boundary_edges, static_cast<size_t>(2 * 8 * 8 + 5 * 4 * 8));
   // Same inputs, same bytes.
   const std::string first = read_file(dir + "/patches.json");
   ASSERT_EQ(test::run(cmd, &out), 0) << out;

@@ -106,7 +106,16 @@ struct Datum {
 // Least squares for the tube's net (eq. 4.5): data, C1 across borders, fairness. The normal
 // equations are assembled from per-patch blocks into a sparse matrix.
 void fit_net(TubeSurface* T, const std::vector<Datum>& data, const PatchOptions& o) {
-  const int NU = 3 * T->nu, NV = 3 * T->nv + 1, n = NU * NV;
+  const int NU = 3 * T->nu, NV = 3 * T->nv + 1;
+  // Unknowns: one per net point, except that a closed end's row is one point.
+  std::vector<int> unknown(static_cast<size_t>(NU) * NV);
+  int n = 0;
+  for (int i = 0; i < NU; ++i)
+    for (int j = 0; j < NV; ++j) {
+      const bool tied = (j == 0 && T->closed_start) || (j == NV - 1 && T->closed_end);
+      unknown[net_index(NU, NV, i, j)] = tied && i > 0 ? unknown[net_index(NU, NV, 0, j)] : n++;
+    }
+  auto id = [&](int i, int j) { return unknown[net_index(NU, NV, i, j)]; };
   // Each patch's 16 × 16 block of the normal equations is one product C·Cᵀ of its data's
   // basis values (columns scaled by √w), then scattered into the tube's matrix once.
   const int patches = T->nu * T->nv;
@@ -141,13 +150,13 @@ void fit_net(TubeSurface* T, const std::vector<Datum>& data, const PatchOptions&
     rhs[k].noalias() = C * Y;
   }
   std::vector<Eigen::Triplet<double>> A;
-  A.reserve(static_cast<size_t>(patches) * 256 + static_cast<size_t>(n) * 18);
+  A.reserve(static_cast<size_t>(patches) * 256 + unknown.size() * 18);
   Eigen::MatrixXd R = Eigen::MatrixXd::Zero(n, 3);
   for (int a = 0; a < T->nu; ++a)
     for (int b = 0; b < T->nv; ++b) {
       int idx[16];
       for (int i = 0; i < 4; ++i)
-        for (int j = 0; j < 4; ++j) idx[4 * i + j] = net_index(NU, NV, 3 * a + i, 3 * b + j);
+        for (int j = 0; j < 4; ++j) idx[4 * i + j] = id(3 * a + i, 3 * b + j);
       const int k = a * T->nv + b;
       for (int x = 0; x < 16; ++x) {
         for (int y = 0; y < 16; ++y) A.emplace_back(idx[x], idx[y], block[k](x, y));
@@ -165,11 +174,9 @@ void fit_net(TubeSurface* T, const std::vector<Datum>& data, const PatchOptions&
   for (int i = 0; i < NU; ++i)
     for (int j = 0; j < NV; ++j) {
       const bool border_u = i % 3 == 0, border_v = j % 3 == 0 && j > 0 && j < NV - 1;
-      triple(net_index(NU, NV, i - 1, j), net_index(NU, NV, i, j), net_index(NU, NV, i + 1, j),
-             per_point * (o.fairness + (border_u ? o.c1_weight : 0)));
+      triple(id(i - 1, j), id(i, j), id(i + 1, j), per_point * (o.fairness + (border_u ? o.c1_weight : 0)));
       if (j > 0 && j < NV - 1)
-        triple(net_index(NU, NV, i, j - 1), net_index(NU, NV, i, j), net_index(NU, NV, i, j + 1),
-               per_point * (o.fairness + (border_v ? o.c1_weight : 0)));
+        triple(id(i, j - 1), id(i, j), id(i, j + 1), per_point * (o.fairness + (border_v ? o.c1_weight : 0)));
     }
   // The normal matrix is banded (each net point couples with its patches' 4 × 4 blocks):
   // sparse Cholesky (LDLᵀ), never an inverse.
@@ -178,8 +185,8 @@ void fit_net(TubeSurface* T, const std::vector<Datum>& data, const PatchOptions&
   const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(As);
   HS_CHECK(ldlt.info() == Eigen::Success, "patch fit: the normal equations could not be factored");
   const Eigen::MatrixXd X = ldlt.solve(R);
-  T->net.resize(n);
-  for (int k = 0; k < n; ++k) T->net[k] = X.row(k).transpose();
+  T->net.resize(unknown.size());
+  for (size_t k = 0; k < unknown.size(); ++k) T->net[k] = X.row(unknown[k]).transpose();
 }
 
 // Newton (Gauss–Newton) foot point of d.p on the surface from (d.u, d.v), at most `iterations`
@@ -286,7 +293,8 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const std::vector<Eigen::Vector
 
   // --- the tubes' parameter domains: chord length along and around the rings ---
   struct Domain {
-    int grid = 0;                      ///< index into skin.grid
+    std::vector<std::vector<Eigen::Vector3d>> rings;  ///< the tube's rings, with the closing ones
+    std::vector<char> closing;                        ///< per ring: added to close an end (weak data)
     std::vector<double> u_of_point, v_of_ring;
   };
   std::vector<Domain> domains;
@@ -302,25 +310,45 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const std::vector<Eigen::Vector
     T.nu = palm ? o.palm_around : o.digit_around;
     T.nv = palm ? o.palm_along : o.digit_along;
     Domain D;
-    D.grid = static_cast<int>(g);
-    std::vector<double> around(m + 1, 0.0);
-    for (const auto& ring : rg.rings)
-      for (size_t j = 0; j < m; ++j) around[j + 1] += (ring[(j + 1) % m] - ring[j]).norm();
-    for (size_t j = 1; j <= m; ++j) around[j] += around[j - 1];
-    for (size_t j = 0; j < m; ++j) D.u_of_point.push_back(T.nu * around[j] / around[m]);
-    std::vector<double> along(1, 0.0);
+    // Closing rings: a digit's tip ends at its pole (and a capped start would begin at its
+    // first ring's centre, drawn in halfway). The closed row of control points is one point
+    // (tied in fit_net): the end is closed by patches with one edge collapsed.
     auto centroid = [&](const std::vector<Eigen::Vector3d>& r) {
       Eigen::Vector3d c = Eigen::Vector3d::Zero();
       for (const auto& p : r) c += p;
       return Eigen::Vector3d(c / static_cast<double>(r.size()));
     };
-    for (size_t r = 1; r < rg.rings.size(); ++r)
-      along.push_back(along.back() + (centroid(rg.rings[r]) - centroid(rg.rings[r - 1])).norm());
+    // The wrist end stays open: capping it (a cone of patches to the first ring's centre) took
+    // the fixture's surface → truth mean from 0.54 to 0.69 mm (docs/patches.md).
+    T.closed_start = false;
+    T.closed_end = !palm && rg.pole.has_value();
+    if (T.closed_start) {
+      const Eigen::Vector3d c = centroid(rg.rings.front());
+      std::vector<Eigen::Vector3d> half;
+      for (const auto& p : rg.rings.front()) half.push_back(0.5 * (p + c));
+      D.rings.push_back(std::vector<Eigen::Vector3d>(m, c));
+      D.rings.push_back(half);
+      D.closing = {1, 1};
+    }
+    for (const auto& ring : rg.rings) D.rings.push_back(ring), D.closing.push_back(0);
+    if (T.closed_end) D.rings.push_back(std::vector<Eigen::Vector3d>(m, *rg.pole)), D.closing.push_back(1);
+    std::vector<double> around(m + 1, 0.0);
+    for (const auto& ring : rg.rings)
+      for (size_t j = 0; j < m; ++j) around[j + 1] += (ring[(j + 1) % m] - ring[j]).norm();
+    for (size_t j = 1; j <= m; ++j) around[j] += around[j - 1];
+    for (size_t j = 0; j < m; ++j) D.u_of_point.push_back(T.nu * around[j] / around[m]);
+    // Along: the mean distance between corresponding points of consecutive rings (along the
+    // tube this is the rings' spacing; over a cap, its radius).
+    std::vector<double> along(1, 0.0);
+    for (size_t r = 1; r < D.rings.size(); ++r) {
+      double d = 0;
+      for (size_t j = 0; j < m; ++j) d += (D.rings[r][j] - D.rings[r - 1][j]).norm();
+      along.push_back(along.back() + d / static_cast<double>(m));
+    }
     for (double a : along) D.v_of_ring.push_back(T.nv * a / std::max(along.back(), 1e-9));
-    for (size_t r = 0; r < rg.rings.size(); ++r)
+    for (size_t r = 0; r < D.rings.size(); ++r)
       for (size_t j = 0; j < m; ++j) {
-        const auto& p = rg.rings[r][j];
-        nodes.push_back(p);
+        nodes.push_back(D.rings[r][j]);
         node_of.push_back({static_cast<int>(out.tubes.size()), static_cast<int>(r), static_cast<int>(j)});
       }
     out.tubes.push_back(T);
@@ -342,10 +370,10 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const std::vector<Eigen::Vector
     data[t].push_back({points[k], domains[t].u_of_point[j], domains[t].v_of_ring[r], 1.0, static_cast<int>(sides[k])});
   }
   for (size_t t = 0; t < out.tubes.size(); ++t) {
-    const RingGrid& rg = skin.grid[domains[t].grid];
-    for (size_t r = 0; r < rg.rings.size(); ++r)
-      for (size_t j = 0; j < rg.rings[r].size(); ++j)
-        data[t].push_back({rg.rings[r][j], domains[t].u_of_point[j], domains[t].v_of_ring[r], o.ring_weight, -1});
+    const Domain& D = domains[t];
+    for (size_t r = 0; r < D.rings.size(); ++r)
+      for (size_t j = 0; j < D.rings[r].size(); ++j)
+        data[t].push_back({D.rings[r][j], D.u_of_point[j], D.v_of_ring[r], o.ring_weight, -1});
   }
 
   // --- fit, then correct the parameters (eqs. 4.6–4.7) until they settle ---
@@ -415,6 +443,9 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const std::vector<Eigen::Vector
       T.derivatives(u, v, &S, &Su, &Sv);
       return Eigen::Vector3d(Su.cross(Sv).normalized());
     };
+    auto jump_deg = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+      return std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180 / M_PI;
+    };
     auto side_eval = [&](int a, int b, double s, double t) {  // patch (a, b)'s own evaluation
       BezierPatch P;
       for (int i = 0; i < 4; ++i)
@@ -428,12 +459,14 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const std::vector<Eigen::Vector
           const double s = q / 10.0;
           // the border between (a, b) and (a + 1, b): u = a + 1
           out.g0_gap_mm = std::max(out.g0_gap_mm, (side_eval(a, b, 1, s) - side_eval((a + 1) % T.nu, b, 0, s)).norm());
-          g1.push_back(std::acos(std::clamp(normal(a + 1 - kEps, b + s).dot(normal(a + 1 + kEps, b + s)), -1.0, 1.0)) *
-                       180 / M_PI);
+          {
+            const double j = jump_deg(normal(a + 1 - kEps, b + s), normal(a + 1 + kEps, b + s));
+            if (std::isfinite(j)) g1.push_back(j);  // not at a closed end's collapsed point
+          }
           if (b + 1 < T.nv) {
             out.g0_gap_mm = std::max(out.g0_gap_mm, (side_eval(a, b, s, 1) - side_eval(a, b + 1, s, 0)).norm());
-            g1.push_back(std::acos(std::clamp(normal(a + s, b + 1 - kEps).dot(normal(a + s, b + 1 + kEps)), -1.0, 1.0)) *
-                         180 / M_PI);
+            const double j = jump_deg(normal(a + s, b + 1 - kEps), normal(a + s, b + 1 + kEps));
+            if (std::isfinite(j)) g1.push_back(j);
           }
         }
   }
@@ -455,6 +488,11 @@ TriMesh tessellate(const PatchSkin& s, int n) {
     std::vector<TriMesh::VertexHandle> vh(static_cast<size_t>(NU) * NV);
     for (int i = 0; i < NU; ++i)
       for (int j = 0; j < NV; ++j) {
+        // A closed end's row is one point: one vertex.
+        if (i > 0 && ((j == 0 && T.closed_start) || (j == NV - 1 && T.closed_end))) {
+          vh[i * NV + j] = vh[j];
+          continue;
+        }
         const Eigen::Vector3d p = T.eval(static_cast<double>(i) / n, static_cast<double>(j) / n);
         vh[i * NV + j] = mesh.add_vertex(TriMesh::Point(p.x(), p.y(), p.z()));
       }
@@ -470,8 +508,8 @@ TriMesh tessellate(const PatchSkin& s, int n) {
       for (int j = 0; j + 1 < NV; ++j) {
         auto a = vh[i * NV + j], b = vh[((i + 1) % NU) * NV + j], c = vh[((i + 1) % NU) * NV + j + 1], d = vh[i * NV + j + 1];
         if (flip) std::swap(b, d);
-        mesh.add_face(a, b, c);
-        mesh.add_face(a, c, d);
+        if (a != b && b != c && a != c) mesh.add_face(a, b, c);
+        if (a != c && c != d && a != d) mesh.add_face(a, c, d);
       }
   }
   return mesh;

@@ -48,6 +48,9 @@ struct BezierPatch {
 struct TubeSurface {
   int tube = 0;
   int nu = 0, nv = 0;  ///< spans around (periodic) and along
+  /// The start (the palm's wrist end) or the end (a digit's tip) is closed: that row of the
+  /// net is one point, so its patches have one edge collapsed there.
+  bool closed_start = false, closed_end = false;
   /// The Bézier net: 3·nu × (3·nv + 1) points, periodic in the first index; patch (a, b) is
   /// the 4 × 4 block at (3a, 3b). Shared borders are shared entries.
   std::vector<Eigen::Vector3d> net;

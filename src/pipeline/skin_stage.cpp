@@ -1,6 +1,7 @@
 #include "pipeline/skin_stage.hpp"
 
 #include <chrono>
+#include <exception>
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
@@ -59,15 +60,44 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
     return e;
   };
   // --- the skeleton: given, or placed in the cloud (and the given one checked against it) ---
-  const auto ta = std::chrono::steady_clock::now();
-  try {
-    if (R.automatic) progress("placing the skeleton in the cloud");
-    R.placed = place_skeleton(in.points, in.sides);
-  } catch (const InputError& e) {
-    if (R.automatic) throw renamed(e);
-    R.placement_failed = e.what();
+  // With a rig given, the placement (its check) and the skin build are independent: they run
+  // at once, and their errors are reported in the order of a sequential run (the check first).
+  auto place = [&] {
+    const auto ta = std::chrono::steady_clock::now();
+    try {
+      if (R.automatic) progress("placing the skeleton in the cloud");
+      R.placed = place_skeleton(in.points, in.sides);
+    } catch (const InputError& e) {
+      if (R.automatic) throw renamed(e);
+      R.placement_failed = e.what();
+    }
+    R.placement_seconds = since(ta);
+  };
+  std::exception_ptr build_error;
+  auto build = [&](const Rig& rig) {
+    const auto t0 = std::chrono::steady_clock::now();
+    try {
+      R.skin = build_skin(in.points, rig, so, progress);
+    } catch (...) {
+      build_error = std::current_exception();
+    }
+    };
+  progress("building the strips (" + std::to_string(so.slicing.planes) + " planes, " +
+           std::to_string(so.slicing.points_per_segment) + " points per segment)");
+  if (R.automatic) {
+    place();
+    R.rig = R.placed->rig;
+    build(R.rig);
+  } else {
+    R.rig = *in.rig;
+#pragma omp parallel sections
+    {
+#pragma omp section
+      place();  // a given rig: the placement records its failure, never throws
+#pragma omp section
+      build(R.rig);
+    }
   }
-  R.placement_seconds = since(ta);
   if (R.placed && in.rig) {
     const JointError e = joint_error(R.placed->rig, *in.rig);
     R.against_given = e;
@@ -82,17 +112,13 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
       R.warnings.push_back("the given rig lies " + mm(e.mean_mm) + " mm (mean) from the skeleton placed in the cloud "
                            "(worst: " + e.worst_joint + "); is it this scan's rig?");
   }
-  R.rig = R.automatic ? R.placed->rig : *in.rig;
-
-  progress("building the strips (" + std::to_string(so.slicing.planes) + " planes, " +
-           std::to_string(so.slicing.points_per_segment) + " points per segment)");
-  const auto t0 = std::chrono::steady_clock::now();
-  try {
-    R.skin = build_skin(in.points, R.rig, so, progress);
-  } catch (const InputError& e) {
-    throw renamed(e);
+  if (build_error) {
+    try {
+      std::rethrow_exception(build_error);
+    } catch (const InputError& e) {
+      throw renamed(e);
+    }
   }
-  R.build_seconds = since(t0);
   R.warnings.insert(R.warnings.end(), R.skin.warnings.begin(), R.skin.warnings.end());
   for (const auto& w : R.warnings) progress("warning: " + w);
   const SkinResult& skin = R.skin;

@@ -231,8 +231,24 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
   // --- 1. table, speckle, normals ---
   progress("removing the table and speckle");
   auto t = Clock::now();
-  const PreparedScan back = prepare_scan(back_scan, o.prepare, back_file);
-  const PreparedScan palm = prepare_scan(palm_scan, o.prepare, palm_file);
+  // Both scans at once (independent; PCL's RANSAC has its own fixed seed per model); the
+  // back scan's error first.
+  PreparedScan prepared[2];
+  {
+    std::exception_ptr failed[2];
+#pragma omp parallel for schedule(static, 1)
+    for (int side = 0; side < 2; ++side) {
+      try {
+        prepared[side] = side == 0 ? prepare_scan(back_scan, o.prepare, back_file) : prepare_scan(palm_scan, o.prepare, palm_file);
+      } catch (...) {
+        failed[side] = std::current_exception();
+      }
+    }
+    for (const auto& e : failed)
+      if (e) std::rethrow_exception(e);
+  }
+  const PreparedScan& back = prepared[0];
+  const PreparedScan& palm = prepared[1];
   timings["prepare_ms"] = ms_since(t);
 
   // --- 2. markers in each scan (their radius first, when the pipeline does not fix it) ---
@@ -257,9 +273,21 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
     Json steps = Json::array({est.radius_mm});
     for (int it = 0; it < 5 && !hints; ++it) {
       const double rc = o.spheres.radius_mm;
+      std::vector<SphereFit> fits[2];  // both scans at once: independent, each into its own slot
+      std::exception_ptr failed[2];
+#pragma omp parallel for schedule(static, 1)
+      for (int side = 0; side < 2; ++side) {
+        try {
+          fits[side] = detect_spheres(side == 0 ? back : palm, o.spheres);
+        } catch (...) {
+          failed[side] = std::current_exception();
+        }
+      }
+      for (const auto& e : failed)
+        if (e) std::rethrow_exception(e);
       std::vector<double> radii;
-      for (const PreparedScan* s : {&back, &palm})
-        for (const SphereFit& f : detect_spheres(*s, o.spheres))
+      for (const auto& side : fits)
+        for (const SphereFit& f : side)
           if (std::abs(f.radius_free - rc) <= 0.04 * rc) radii.push_back(f.radius_free);
       if (radii.size() < 6) break;
       std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
@@ -279,10 +307,21 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
   progress("finding the marker spheres (radius " + fmt("%.2f", r) + " mm)");
   Json side_rep[2];
   const std::string hints_file = hints ? hints->file : "";
-  std::vector<SphereFit> mb =
-      find_markers(back, o, hints ? hints->back : std::nullopt, hints_file, back_file, &side_rep[1]);
-  std::vector<SphereFit> mp =
-      find_markers(palm, o, hints ? hints->palm : std::nullopt, hints_file, palm_file, &side_rep[0]);
+  // Both scans at once (independent, each into its own slot); the back scan's error first.
+  std::vector<SphereFit> found[2];
+  std::exception_ptr failed[2];
+#pragma omp parallel for schedule(static, 1)
+  for (int side = 0; side < 2; ++side) {
+    try {
+      found[side] = side == 0 ? find_markers(back, o, hints ? hints->back : std::nullopt, hints_file, back_file, &side_rep[1])
+                              : find_markers(palm, o, hints ? hints->palm : std::nullopt, hints_file, palm_file, &side_rep[0]);
+    } catch (...) {
+      failed[side] = std::current_exception();
+    }
+  }
+  for (const auto& e : failed)
+    if (e) std::rethrow_exception(e);
+  std::vector<SphereFit> mb = std::move(found[0]), mp = std::move(found[1]);
   timings["markers_ms"] = ms_since(t);
   // With the radius estimated, a bump whose own free fit strays from it (a fingertip of
   // about the markers' size) is not a marker: the markers share one radius.

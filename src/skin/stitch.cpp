@@ -1,11 +1,15 @@
 #include "skin/skin_steps.hpp"
 
+#include <CGAL/Random.h>
+
 #include <CGAL/Polygon_mesh_processing/connected_components.h>
 #include <CGAL/Polygon_mesh_processing/corefinement.h>
 #include <CGAL/Polygon_mesh_processing/measure.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 
 #include <algorithm>
+#include <array>
+#include <cstdint>
 #include <cmath>
 
 #include "core/errors.hpp"
@@ -79,12 +83,45 @@ SM to_surface_mesh(const std::vector<Eigen::Vector3d>& V, const std::vector<std:
   return sm;
 }
 
+// The corefinement's output order follows its containers' memory addresses, which change with
+// what other threads allocate: the same union came out in another vertex order now and then
+// (and decimation, which breaks ties by order, then differed too). Vertices sorted by
+// position, each face starting at its smallest index, faces sorted: one order for one surface.
+SM canonical_order(const SM& in) {
+  std::vector<SM::Vertex_index> order(in.vertices().begin(), in.vertices().end());
+  auto key = [&](SM::Vertex_index v) {
+    const auto& p = in.point(v);
+    return std::array<double, 3>{p.x(), p.y(), p.z()};
+  };
+  std::sort(order.begin(), order.end(), [&](SM::Vertex_index a, SM::Vertex_index b) { return key(a) < key(b); });
+  std::vector<std::uint32_t> rank(in.number_of_vertices() + in.number_of_removed_vertices());
+  for (std::size_t k = 0; k < order.size(); ++k) rank[order[k].idx()] = static_cast<std::uint32_t>(k);
+  std::vector<std::array<std::uint32_t, 3>> faces;
+  for (auto f : in.faces()) {
+    std::array<std::uint32_t, 3> t{};
+    int k = 0;
+    for (auto v : CGAL::vertices_around_face(in.halfedge(f), in)) t[k++] = rank[v.idx()];
+    std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());  // keeps the orientation
+    faces.push_back(t);
+  }
+  std::sort(faces.begin(), faces.end());
+  SM out;
+  std::vector<SM::Vertex_index> vh;
+  for (auto v : order) vh.push_back(out.add_vertex(in.point(v)));
+  for (const auto& t : faces) out.add_face(vh[t[0]], vh[t[1]], vh[t[2]]);
+  return out;
+}
+
 }  // namespace
 
 SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& Ti,
                 std::map<std::array<double, 3>, std::pair<int, int>>* origin_out, int* pockets_out) {
   auto& origin = *origin_out;
   *pockets_out = 0;
+  // CGAL's box intersection (inside the self-intersection checks and the corefinement) draws
+  // from the default random, which is seeded from the clock: the union's vertex order then
+  // changed from run to run. Seeded here, in the thread that builds the skin.
+  CGAL::get_default_random() = CGAL::Random(1);
   // The digits, which do not touch one another (keep_apart), go in as
   // one mesh of five shells, so that the palm is stitched to all of them in a single
   // corefinement. Corefinement needs inputs free of self-intersections: the palm is checked,
@@ -160,7 +197,7 @@ SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& Ti
     *pockets_out = pockets;
     skin = std::move(outer);
   }
-  return skin;
+  return canonical_order(skin);
 }
 
 }  // namespace handskin::skin_steps
