@@ -266,6 +266,17 @@ static void BM_RunFixture(benchmark::State& st) {
 BENCHMARK(BM_RunFixture)->Unit(benchmark::kMillisecond)->UseManualTime()->Iterations(1)->Repetitions(5)
     ->ReportAggregatesOnly(true);
 
+// The same without the patch stage (patches.enabled false): the run as issue 12 measured it.
+static void BM_RunFixtureNoPatches(benchmark::State& st) {
+  const std::string dir = "/tmp/handskin-bench-run-nopatches";
+  std::filesystem::create_directories(dir);
+  write_file_atomic(dir + "/pipeline.json", R"({"format": "handskin-pipeline/1", "patches": {"enabled": false}})");
+  report_child(st, {HANDSKIN_BINARY, "-q", "run", "--back", kFix + "back", "--palm", kFix + "palm", "--rig",
+                    kFix + "rig.json", "--pipeline", dir + "/pipeline.json", "--out", dir + "/out"});
+}
+BENCHMARK(BM_RunFixtureNoPatches)->Unit(benchmark::kMillisecond)->UseManualTime()->Iterations(1)->Repetitions(5)
+    ->ReportAggregatesOnly(true);
+
 // The largest scans the format allows (2048 × 2048 samples; 4096 × 1024), every pixel a
 // return (a table with nothing on it): the worst a small file can ask of `run`. They are
 // refused (no markers on an empty table) — the figure is what refusing them costs.

@@ -147,6 +147,27 @@ TEST(Patches, TheCommandWritesPatchesOnTheFixture) {
   const std::string first = read_file(dir + "/patches.json");
   ASSERT_EQ(test::run(cmd, &out), 0) << out;
   EXPECT_TRUE(first == read_file(dir + "/patches.json"));
+  // The report opens in a browser with nothing else: a headless Chromium draws it (the
+  // screenshot is kept with the tests' artefacts).
+  const std::string html = read_file(dir + "/patches_report.html");
+  EXPECT_NE(html.find("Table 4.1"), std::string::npos);
+  size_t images = 0;
+  for (size_t at = html.find("src=\"data:image/png;base64,"); at != std::string::npos;
+       at = html.find("src=\"data:image/png;base64,", at + 1))
+    ++images;
+  EXPECT_EQ(images, 4u);  // the error from the palm and the back, the layout twice
+  EXPECT_EQ(html.find("http"), std::string::npos);  // nothing fetched when viewed
+  fs::create_directories(HANDSKIN_ARTEFACTS);
+  const std::string shot = std::string(HANDSKIN_ARTEFACTS) + "/patches_report.png";
+  fs::remove(shot);
+  ASSERT_EQ(test::run("command -v chromium", &out), 0) << "chromium is needed for this test (scripts/setup.sh installs it)";
+  ASSERT_EQ(test::run("chromium --headless --no-sandbox --disable-gpu --hide-scrollbars --window-size=1400,2400 "
+                      "--screenshot=" + shot + " file://" + dir + "/patches_report.html",
+                      &out),
+            0)
+      << out;
+  ASSERT_TRUE(fs::exists(shot)) << out;
+  EXPECT_GT(fs::file_size(shot), 100000u);  // pictures and tables, not a blank page
   // Without a rig to find, a clear error.
   EXPECT_EQ(test::run(kBin + " -q patches --skin-dir " + dir + " --out " + dir + "/x", &out), 1);
   EXPECT_NE(out.find("give --rig"), std::string::npos) << out;

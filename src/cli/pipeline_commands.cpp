@@ -168,14 +168,15 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
   const PatchOptions opts = patch_options(po);
   progress("patches", "fitting " + std::to_string(opts.palm_around * opts.palm_along + 5 * opts.digit_around * opts.digit_along) +
                           " bicubic patches, correcting the parameters");
-  const PatchStageResult r = run_patch_stage(skin, m.points, m.sides, opts, truth ? &*truth : nullptr);
+  const PatchStageResult r =
+      run_patch_stage(skin, m.points, m.sides, opts, truth ? &*truth : nullptr, static_cast<int>(po.patches.error_grid));
   Json report = to_json(r);
   report["format"] = "handskin-patches-report/1";
   report["inputs"] = {{"merged", merged}, {"rig", rig_path}, {"pipeline", a.pipeline.empty() ? "(built-in defaults)" : a.pipeline}};
   std::vector<std::string> names = patch_output_names();
   names.push_back("patches_report.json");
   out.retire(names);
-  report["outputs"] = write_patch_outputs(out, r);
+  report["outputs"] = write_patch_outputs(out, r, *in.rig);
   report["outputs"]["report"] = out.final_path("patches_report.json");
   save_json(out.stage("patches_report.json"), report);
   out.commit();

@@ -415,8 +415,19 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const std::vector<Eigen::Vector
         foot_point(out.tubes[t], &D[k], 8);
         r[k] = (out.tubes[t].eval(D[k].u, D[k].v) - D[k].p).norm();
       }
+    // Patches are numbered tube by tube, around-major (as built below).
+    size_t first_patch = 0;
+    for (size_t q = 0; q < t; ++q) first_patch += static_cast<size_t>(out.tubes[q].nu) * out.tubes[q].nv;
     for (size_t k = 0; k < D.size(); ++k)
-      if (D[k].side >= 0) residual[D[k].side == 1 ? 1 : 0].push_back(r[k]);
+      if (D[k].side >= 0) {
+        residual[D[k].side == 1 ? 1 : 0].push_back(r[k]);
+        int a, b;
+        double ls, lt;
+        locate(out.tubes[t].nu, out.tubes[t].nv, D[k].u, D[k].v, &a, &b, &ls, &lt);
+        out.samples.push_back({D[k].p, static_cast<float>(r[k]), static_cast<std::uint8_t>(D[k].side == 1 ? 1 : 0),
+                               static_cast<int>(first_patch) + a * out.tubes[t].nv + b, static_cast<float>(ls),
+                               static_cast<float>(lt)});
+      }
   }
   out.side = {figures_of(residual[0]), figures_of(residual[1])};
 

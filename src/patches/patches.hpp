@@ -11,8 +11,8 @@
 /// foot-point projection (eqs. 4.6–4.7) until the largest update falls below a tolerance.
 ///
 /// Not yet: the tubes are not joined into one surface (finger roots overlap the palm tube as
-/// the strip skin's tubes do before their union), the fingertips and the wrist are left open,
-/// and there is no report.html (issue 13 is open; docs/patches.md says what is missing).
+/// the strip skin's tubes do before their union) and the wrist is left open (issue 13 is
+/// open; docs/patches.md says what is missing).
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
@@ -71,6 +71,16 @@ struct PatchSkin {
   std::vector<std::string> bones;   ///< link names (BezierPatch::link)
   /// Data → surface by foot points, per side of the merged cloud (0 palm scan, 1 back scan).
   std::array<DistanceFigures, 2> side;
+  /// Every measured point that was fitted, with its scan side and its foot-point distance (mm)
+  /// and foot point's (tube, u, v): for the report's pictures and its cell-grid error.
+  struct Sample {
+    Eigen::Vector3d p;
+    float error = 0;
+    std::uint8_t side = 0;
+    int patch = -1;          ///< index into `patches` of the foot point
+    float s = 0, t = 0;      ///< the foot point's parameters in that patch, [0, 1]
+  };
+  std::vector<Sample> samples;
   std::vector<double> max_update_per_round;  ///< largest parameter update of each correction round
   /// Data → surface RMS at the start of each round (round 0: on the chord-length fit), by
   /// the residuals of that round's foot-point search.

@@ -50,6 +50,7 @@ const std::vector<KeySpec>& key_table() {
       {"skin", "decimation_tolerance_mm", Kind::Real, 0, 1, true, HS_FIELD(skin.decimation_tolerance_mm)},
       {"skin", "slices_json", Kind::Bool, 0, 1, false, HS_FIELD(skin.slices_json)},
       {"skin", "baseline", Kind::Bool, 0, 1, false, HS_FIELD(skin.baseline)},
+      {"patches", "enabled", Kind::Bool, 0, 1, false, HS_FIELD(patches.enabled)},
       {"patches", "count", Kind::Int, 24, 1500, false, HS_FIELD(patches.count)},
       {"patches", "error_grid", Kind::Int, 2, 2000, false, HS_FIELD(patches.error_grid)},
   };

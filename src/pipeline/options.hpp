@@ -44,6 +44,7 @@ struct PipelineOptions {
     bool baseline = false;         ///< also run CGAL Poisson on the cloud and report it beside (--baseline)
   } skin;
   struct Patches {                 ///< Bézier skin (thesis §4.1.4, Table 4.1)
+    bool enabled = true;           ///< run fits the patches (false: skin only, as before issue 13)
     long count = 96;               ///< bicubic patches, palm 48 + back 48
     long error_grid = 100;         ///< error measured against a grid of n x n surface cells
   } patches;

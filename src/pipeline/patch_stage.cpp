@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "core/atomic_file.hpp"
+#include "pipeline/patch_report.hpp"
 
 namespace handskin {
 
@@ -19,7 +20,7 @@ Json figures_json(const DistanceFigures& f) {
 
 PatchStageResult run_patch_stage(const SkinResult& skin, const std::vector<Eigen::Vector3d>& points,
                                  const std::vector<std::uint32_t>& sides, const PatchOptions& options,
-                                 const TruthSkin* truth) {
+                                 const TruthSkin* truth, int error_grid) {
   const auto t0 = std::chrono::steady_clock::now();
   PatchStageResult r;
   r.options = options;
@@ -31,6 +32,7 @@ PatchStageResult run_patch_stage(const SkinResult& skin, const std::vector<Eigen
     r.surface_to_truth = one_way_distance(sample_surface(r.tessellation, 4.0), to_truth, truth->markers, truth->exclude_mm);
     r.truth_to_surface = one_way_distance(sample_surface(truth->skin, 4.0), to_surface, truth->markers, truth->exclude_mm);
   }
+  r.figures = patch_report_figures(r.patches, error_grid);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }
@@ -53,6 +55,7 @@ Json to_json(const PatchStageResult& r) {
                             {"tolerance_spans", r.options.correction_tolerance}}},
             {"continuity", {{"g0_gap_mm", s.g0_gap_mm},
                             {"g1_normal_jump_deg", {{"median", s.g1_median_deg}, {"p95", s.g1_p95_deg}, {"max", s.g1_max_deg}}}}},
+            {"table_4_1", to_json(r.figures)},
             {"options", {{"fairness", r.options.fairness}, {"c1_weight", r.options.c1_weight},
                          {"ring_weight", r.options.ring_weight}, {"tessellation", r.options.tessellation}}}};
   if (r.surface_to_truth)
@@ -112,17 +115,19 @@ std::string patches_obj(const PatchSkin& s) {
 }
 
 const std::vector<std::string>& patch_output_names() {
-  static const std::vector<std::string> names = {"patches.json", "patches.obj", "patches.ply"};
+  static const std::vector<std::string> names = {"patches.json", "patches.obj", "patches.ply", "patches_report.html"};
   return names;
 }
 
-Json write_patch_outputs(OutputSet& out, const PatchStageResult& r) {
+Json write_patch_outputs(OutputSet& out, const PatchStageResult& r, const Rig& rig, const Json& run_report) {
   save_json(out.stage("patches.json"), patches_to_json(r.patches));
   write_file_atomic(out.stage("patches.obj"), patches_obj(r.patches));
   save_mesh(out.stage("patches.ply"), r.tessellation);
+  write_file_atomic(out.stage("patches_report.html"), patch_report_html(r, r.figures, rig, run_report));
   return {{"patches_json", out.final_path("patches.json")},
           {"patches_obj", out.final_path("patches.obj")},
-          {"patches_ply", out.final_path("patches.ply")}};
+          {"patches_ply", out.final_path("patches.ply")},
+          {"patches_report_html", out.final_path("patches_report.html")}};
 }
 
 }  // namespace handskin

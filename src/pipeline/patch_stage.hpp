@@ -9,10 +9,26 @@
 #include "core/json_util.hpp"
 #include "core/output_set.hpp"
 #include "mesh/mesh_distance.hpp"
+#include "core/rig.hpp"
 #include "patches/patches.hpp"
 #include "synth/truth.hpp"
 
 namespace handskin {
+
+struct PatchReportFigures {
+  /// Table 4.1 computed the thesis's way: every patch sampled on error_grid × error_grid
+  /// points, each data point's distance to the nearest sample; per side (palm, back).
+  int error_grid = 100;
+  std::array<double, 2> cell_mean_mm{}, cell_max_mm{};
+  /// The scanner's noise floor per side: RMS distance of the points to planes fitted to their
+  /// neighbours within 1.5 mm (of the same scan), over a sample of the points.
+  std::array<double, 2> noise_floor_mm{};
+  double seconds = 0;
+};
+
+/// Table 4.1's cell-grid error and the noise floor (for the report).
+PatchReportFigures patch_report_figures(const PatchSkin& s, int error_grid);
+Json to_json(const PatchReportFigures& f);
 
 struct PatchStageResult {
   PatchSkin patches;
@@ -20,13 +36,14 @@ struct PatchStageResult {
   TriMesh tessellation;                     ///< patches.ply
   std::optional<OneWayDistance> surface_to_truth, truth_to_surface;
   std::string truth_file;
+  PatchReportFigures figures;
   double seconds = 0;
 };
 
 /// Fit the patches, tessellate them, and with a truth measure the surface against it.
 PatchStageResult run_patch_stage(const SkinResult& skin, const std::vector<Eigen::Vector3d>& points,
                                  const std::vector<std::uint32_t>& sides, const PatchOptions& options,
-                                 const TruthSkin* truth);
+                                 const TruthSkin* truth, int error_grid = 100);
 
 /// The stage's figures (patches_report.json's body).
 Json to_json(const PatchStageResult& r);
@@ -39,8 +56,9 @@ Json patches_to_json(const PatchSkin& s);
 /// `deg 3 3` surface over them.
 std::string patches_obj(const PatchSkin& s);
 
-/// Stage patches.json, patches.obj, patches.ply into `out`; returns {key: final path}.
-Json write_patch_outputs(OutputSet& out, const PatchStageResult& r);
+/// Stage patches.json, patches.obj, patches.ply and patches_report.html (`rig` orients its
+/// pictures; `run_report` adds the run's stages to it) into `out`; returns {key: final path}.
+Json write_patch_outputs(OutputSet& out, const PatchStageResult& r, const Rig& rig, const Json& run_report = Json());
 const std::vector<std::string>& patch_output_names();
 
 }  // namespace handskin

@@ -83,8 +83,11 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   R.skin = run_skin_stage(si, in.options, [&](const std::string& m) { progress("skin: " + m); });
 
   // --- patches: bicubic Bézier patches on the skin's ring grid (docs/patches.md) ---
-  progress("patches: fitting and correcting the parameters");
-  R.patches = run_patch_stage(R.skin.skin, si.points, si.sides, patch_options(in.options), truth ? &*truth : nullptr);
+  if (in.options.patches.enabled) {
+    progress("patches: fitting and correcting the parameters");
+    R.patches = run_patch_stage(R.skin.skin, si.points, si.sides, patch_options(in.options), truth ? &*truth : nullptr,
+                                static_cast<int>(in.options.patches.error_grid));
+  }
   R.seconds = total.seconds();
   return R;
 }
@@ -109,7 +112,6 @@ Json write_run_outputs(OutputSet& out, const RunResult& r) {
   if (r.registration_truth) reg_report["against_truth"] = *r.registration_truth;
   outputs.update(write_registration_outputs(out, r.registration, reg_report));
   outputs.update(write_skin_outputs(out, r.skin));
-  outputs.update(write_patch_outputs(out, r.patches));
 
   Json report;
   report["format"] = "handskin-report/1";
@@ -126,7 +128,9 @@ Json write_run_outputs(OutputSet& out, const RunResult& r) {
                     {"palm", to_json(r.palm)}});
   stages.push_back(reg_stage);
   stages.push_back(to_json(r.skin));
-  stages.push_back(to_json(r.patches));
+  if (r.patches) stages.push_back(to_json(*r.patches));
+  report["stages"] = stages;  // the computing stages, for the patch report's page
+  if (r.patches) outputs.update(write_patch_outputs(out, *r.patches, r.skin.rig, report));
   stages.push_back({{"name", "write"}, {"seconds", t_write.seconds()}});
   report["stages"] = stages;
   outputs["report"] = out.final_path("report.json");

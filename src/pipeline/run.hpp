@@ -51,7 +51,7 @@ struct RunResult {
   Registration registration;
   std::optional<Json> registration_truth;  ///< registration_against_truth, with --truth
   SkinStageResult skin;
-  PatchStageResult patches;  ///< Bézier patches on the skin's ring grid (issue 13, in progress)
+  std::optional<PatchStageResult> patches;  ///< Bézier patches on the skin's ring grid (patches.enabled)
   double seconds = 0;  ///< all stages, before any output is written
 };
 

@@ -163,8 +163,7 @@ RadiusEstimate estimate_marker_radius(const PreparedScan& back, const PreparedSc
           if (auto f = fit_sphere_near(s, g, so.hint_search_mm, so, &why)) out.push_back(*f);
         }
       } else {
-        out = detect_spheres(s, so);
-        if (out.size() > keep) out.resize(keep);
+        out = detect_spheres(s, so, nullptr, keep);
       }
     } catch (...) {
       failure[static_cast<size_t>(job)] = std::current_exception();

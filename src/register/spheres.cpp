@@ -9,6 +9,7 @@
 #include <pcl/segmentation/sac_segmentation.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <cmath>
 #include <cstdio>
 #include <unordered_map>
@@ -218,7 +219,7 @@ std::optional<SphereFit> fit_sphere_near(const PreparedScan& s, const Eigen::Vec
 }
 
 std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions& o,
-                                      std::vector<SphereCandidateReport>* report) {
+                                      std::vector<SphereCandidateReport>* report, size_t max_found) {
   std::string err;
   if (!o.IsValid(&err)) throw InputError("marker options", err);
   const double r = o.radius_mm;
@@ -235,13 +236,45 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
   auto key = [](long a, long b, long c) {
     return ((a + (1L << 20)) << 42) | ((b + (1L << 20)) << 21) | (c + (1L << 20));
   };
-  std::unordered_map<long, Cell> grid;
-  grid.reserve(s.points.size());
+  // An open-addressing table (linear probing): the votes are looked up ~30 times each, and
+  // std::unordered_map's node per cell made this the costliest step of registration. The
+  // peaks are sorted below, so the table's order does not reach the result.
+  struct CellTable {
+    std::vector<long> keys;  // -1: empty (keys are >= 0)
+    std::vector<Cell> cells;
+    size_t mask = 0;
+    explicit CellTable(size_t n) {
+      size_t cap = 16;
+      while (cap < 2 * n + 16) cap <<= 1;
+      keys.assign(cap, -1);
+      cells.resize(cap);
+      mask = cap - 1;
+    }
+    static size_t slot_of(long k) {
+      std::uint64_t x = static_cast<std::uint64_t>(k);
+      x ^= x >> 33;
+      x *= 0xff51afd7ed558ccdULL;
+      x ^= x >> 33;
+      return static_cast<size_t>(x);
+    }
+    Cell& at(long k) {
+      size_t i = slot_of(k) & mask;
+      while (keys[i] != -1 && keys[i] != k) i = (i + 1) & mask;
+      keys[i] = k;
+      return cells[i];
+    }
+    const Cell* find(long k) const {
+      for (size_t i = slot_of(k) & mask; keys[i] != -1; i = (i + 1) & mask)
+        if (keys[i] == k) return &cells[i];
+      return nullptr;
+    }
+  };
+  CellTable grid(s.points.size());
   for (size_t k = 0; k < s.points.size(); ++k) {
     if (!s.has_normal(k)) continue;
     const Eigen::Vector3d v = s.points[k] - r * s.normals[k];
-    Cell& g = grid[key(std::lround(std::floor(v.x() / cell)), std::lround(std::floor(v.y() / cell)),
-                       std::lround(std::floor(v.z() / cell)))];
+    Cell& g = grid.at(key(std::lround(std::floor(v.x() / cell)), std::lround(std::floor(v.y() / cell)),
+                          std::lround(std::floor(v.z() / cell))));
     ++g.votes;
     g.sum += v;
   }
@@ -250,10 +283,10 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
     for (long da = -half; da <= half; ++da)
       for (long db = -half; db <= half; ++db)
         for (long dc = -half; dc <= half; ++dc) {
-          const auto it = grid.find(key(a + da, b + db, c + dc));
-          if (it == grid.end()) continue;
-          total += it->second.votes;
-          if (sum) *sum += it->second.sum;
+          const Cell* g = grid.find(key(a + da, b + db, c + dc));
+          if (!g) continue;
+          total += g->votes;
+          if (sum) *sum += g->sum;
         }
     return total;
   };
@@ -263,15 +296,19 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
     Eigen::Vector3d centre;
   };
   std::vector<Peak> peaks;
-  for (const auto& [k, g] : grid) {
+  for (size_t slot = 0; slot < grid.keys.size(); ++slot) {
+    if (grid.keys[slot] == -1) continue;
+    const long k = grid.keys[slot];
+    const Cell& g = grid.cells[slot];
     const long a = (k >> 42) - (1L << 20), b = ((k >> 21) & ((1L << 21) - 1)) - (1L << 20),
                c = (k & ((1L << 21) - 1)) - (1L << 20);
     bool is_max = true;
     for (long da = -1; da <= 1 && is_max; ++da)
       for (long db = -1; db <= 1 && is_max; ++db)
         for (long dc = -1; dc <= 1; ++dc) {
-          const auto it = grid.find(key(a + da, b + db, c + dc));
-          if (it != grid.end() && (it->second.votes > g.votes || (it->second.votes == g.votes && it->first < k))) {
+          const long nk = key(a + da, b + db, c + dc);
+          const Cell* n = grid.find(nk);
+          if (n && (n->votes > g.votes || (n->votes == g.votes && nk < k))) {
             is_max = false;
             break;
           }
@@ -290,7 +327,7 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
 
   std::vector<SphereFit> found;
   const size_t max_candidates = 100;
-  for (size_t p = 0; p < peaks.size() && p < max_candidates; ++p) {
+  for (size_t p = 0; p < peaks.size() && p < max_candidates && found.size() < max_found; ++p) {
     const Peak& pk = peaks[p];
     bool near_found = false;
     for (const auto& f : found)

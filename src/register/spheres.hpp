@@ -41,10 +41,12 @@ struct SphereCandidateReport {
   std::string rejected_because;  ///< empty when accepted
 };
 
-/// Every marker-like sphere in the scan, strongest first. `candidates` (if given) receives
+/// Every marker-like sphere in the scan, strongest first; at most `max_found` (the strongest:
+/// the search stops there, the same as cutting a full list). `candidates` (if given) receives
 /// each Hough candidate examined and why it was rejected.
 std::vector<SphereFit> detect_spheres(const PreparedScan& scan, const SphereOptions& options,
-                                      std::vector<SphereCandidateReport>* candidates = nullptr);
+                                      std::vector<SphereCandidateReport>* candidates = nullptr,
+                                      size_t max_found = static_cast<size_t>(-1));
 
 /// Fit a marker sphere near `guess` (a candidate or a manual position). Empty, with the
 /// reason in `why`, when the samples there are not a sphere of the marker's radius.

@@ -1,0 +1,321 @@
+#include "pipeline/patch_report.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <unordered_map>
+
+#include "render/preview.hpp"
+
+namespace handskin {
+
+namespace {
+
+// Points in a hash grid of `cell` mm, for radius queries.
+class PointHash {
+ public:
+  PointHash(const std::vector<Eigen::Vector3d>& pts, double cell) : pts_(pts), cell_(cell) {
+    for (size_t k = 0; k < pts.size(); ++k) cells_[pack(coords(pts[k]))].push_back(static_cast<int>(k));
+  }
+  template <class F>
+  void within(const Eigen::Vector3d& q, double radius, F&& f) const {
+    const Eigen::Vector3i c = coords(q);
+    const int rings = static_cast<int>(std::ceil(radius / cell_));
+    for (int ring = 0; ring <= rings; ++ring)
+      visit_ring(c, ring, [&](int k) {
+        if ((pts_[k] - q).squaredNorm() <= radius * radius) f(k);
+      });
+  }
+
+ private:
+  template <class F>
+  void visit_ring(const Eigen::Vector3i& c, int ring, F&& f) const {
+    for (int dx = -ring; dx <= ring; ++dx)
+      for (int dy = -ring; dy <= ring; ++dy)
+        for (int dz = -ring; dz <= ring; ++dz) {
+          if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != ring) continue;
+          const auto it = cells_.find(pack(c + Eigen::Vector3i(dx, dy, dz)));
+          if (it != cells_.end())
+            for (const int k : it->second) f(k);
+        }
+  }
+  Eigen::Vector3i coords(const Eigen::Vector3d& p) const {
+    return Eigen::Vector3i(static_cast<int>(std::floor(p.x() / cell_)), static_cast<int>(std::floor(p.y() / cell_)),
+                           static_cast<int>(std::floor(p.z() / cell_)));
+  }
+  static std::int64_t pack(const Eigen::Vector3i& c) {
+    return (static_cast<std::int64_t>(c.x() & 0x1FFFFF) << 42) | (static_cast<std::int64_t>(c.y() & 0x1FFFFF) << 21) |
+           static_cast<std::int64_t>(c.z() & 0x1FFFFF);
+  }
+  const std::vector<Eigen::Vector3d>& pts_;
+  double cell_;
+  std::unordered_map<std::int64_t, std::vector<int>> cells_;
+};
+
+std::string base64(const std::string& in) {
+  static const char* t = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((in.size() + 2) / 3 * 4);
+  size_t i = 0;
+  for (; i + 2 < in.size(); i += 3) {
+    const unsigned v = (static_cast<unsigned char>(in[i]) << 16) | (static_cast<unsigned char>(in[i + 1]) << 8) |
+                       static_cast<unsigned char>(in[i + 2]);
+    out += t[v >> 18], out += t[(v >> 12) & 63], out += t[(v >> 6) & 63], out += t[v & 63];
+  }
+  if (i + 1 == in.size()) {
+    const unsigned v = static_cast<unsigned char>(in[i]) << 16;
+    out += t[v >> 18], out += t[(v >> 12) & 63], out += "==";
+  } else if (i + 2 == in.size()) {
+    const unsigned v = (static_cast<unsigned char>(in[i]) << 16) | (static_cast<unsigned char>(in[i + 1]) << 8);
+    out += t[v >> 18], out += t[(v >> 12) & 63], out += t[(v >> 6) & 63], out += '=';
+  }
+  return out;
+}
+
+// Error colour: blue (0) → green → yellow → red (at `top` mm and beyond).
+Eigen::Vector3f heat(double e, double top) {
+  const double x = std::clamp(e / top, 0.0, 1.0);
+  const Eigen::Vector3f stops[4] = {{0.15f, 0.3f, 0.85f}, {0.2f, 0.75f, 0.35f}, {0.95f, 0.85f, 0.2f}, {0.85f, 0.1f, 0.1f}};
+  const double s = x * 3;
+  const int k = std::min(2, static_cast<int>(s));
+  const float f = static_cast<float>(s - k);
+  return (1 - f) * stops[k] + f * stops[k + 1];
+}
+
+std::string fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+
+std::string html_escape(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    if (c == '<') o += "&lt;";
+    else if (c == '>') o += "&gt;";
+    else if (c == '&') o += "&amp;";
+    else o += c;
+  }
+  return o;
+}
+
+}  // namespace
+
+PatchReportFigures patch_report_figures(const PatchSkin& s, int error_grid) {
+  const auto t0 = std::chrono::steady_clock::now();
+  PatchReportFigures f;
+  f.error_grid = error_grid;
+  // Table 4.1 the thesis's way: each patch as error_grid² cell samples; a point's error is
+  // its distance to the nearest cell sample of its patch around its foot point (±2 cells).
+  const int n = error_grid;
+  std::vector<Eigen::Vector3d> cells(s.patches.size() * static_cast<size_t>(n) * n);
+#pragma omp parallel for schedule(static)
+  for (long q = 0; q < static_cast<long>(s.patches.size()); ++q)
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j)
+        cells[(static_cast<size_t>(q) * n + i) * n + j] = s.patches[q].eval((i + 0.5) / n, (j + 0.5) / n);
+  std::vector<double> d(s.samples.size(), 0);
+#pragma omp parallel for schedule(static)
+  for (long k = 0; k < static_cast<long>(s.samples.size()); ++k) {
+    const auto& q = s.samples[k];
+    if (q.patch < 0) continue;
+    const int ci = std::clamp(static_cast<int>(q.s * n), 0, n - 1), cj = std::clamp(static_cast<int>(q.t * n), 0, n - 1);
+    double best = 1e300;
+    for (int i = std::max(0, ci - 2); i <= std::min(n - 1, ci + 2); ++i)
+      for (int j = std::max(0, cj - 2); j <= std::min(n - 1, cj + 2); ++j)
+        best = std::min(best, (cells[(static_cast<size_t>(q.patch) * n + i) * n + j] - q.p).squaredNorm());
+    d[k] = std::sqrt(best);
+  }
+  std::array<double, 2> sum{};
+  std::array<size_t, 2> count{};
+  for (size_t k = 0; k < s.samples.size(); ++k) {
+    const int side = s.samples[k].side;
+    sum[side] += d[k], ++count[side];
+    f.cell_max_mm[side] = std::max(f.cell_max_mm[side], d[k]);
+  }
+  for (int side = 0; side < 2; ++side) f.cell_mean_mm[side] = count[side] ? sum[side] / count[side] : 0;
+  // The noise floor: local planes (PCA of the neighbours within 1.5 mm, same scan), every
+  // 20th point, RMS of the point's distance to its neighbours' plane.
+  for (int side = 0; side < 2; ++side) {
+    std::vector<Eigen::Vector3d> pts;
+    for (const auto& q : s.samples)
+      if (q.side == side) pts.push_back(q.p);
+    if (pts.size() < 100) continue;
+    const PointHash hash(pts, 1.5);
+    double ss = 0;
+    size_t n = 0;
+    for (size_t k = 0; k < pts.size(); k += 20) {
+      std::vector<int> nb;
+      hash.within(pts[k], 1.5, [&](int j) {
+        if (j != static_cast<int>(k)) nb.push_back(j);
+      });
+      if (nb.size() < 8) continue;
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      for (int j : nb) c += pts[j];
+      c /= static_cast<double>(nb.size());
+      Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+      for (int j : nb) C += (pts[j] - c) * (pts[j] - c).transpose();
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
+      const double r = es.eigenvectors().col(0).dot(pts[k] - c);
+      ss += r * r, ++n;
+    }
+    f.noise_floor_mm[side] = n ? std::sqrt(ss / n) : 0;
+  }
+  f.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return f;
+}
+
+Json to_json(const PatchReportFigures& f) {
+  return {{"error_grid", f.error_grid},
+          {"cell_grid_mm", {{"palm", {{"mean", f.cell_mean_mm[0]}, {"max", f.cell_max_mm[0]}}},
+                            {"back", {{"mean", f.cell_mean_mm[1]}, {"max", f.cell_max_mm[1]}}}}},
+          {"noise_floor_mm", {{"palm", f.noise_floor_mm[0]}, {"back", f.noise_floor_mm[1]}}},
+          {"seconds", f.seconds}};
+}
+
+std::string patch_report_html(const PatchStageResult& r, const PatchReportFigures& f, const Rig& rig,
+                              const Json& run_report) {
+  const PatchSkin& s = r.patches;
+  constexpr double kTop = 0.5;  // the colour scale's top, mm
+  // Pictures: the data coloured by error, seen from the palm (palm scan) and the back (back scan).
+  const Eigen::Matrix3d hand = hand_frame_from_rig(rig).linear();
+  auto error_view = [&](int side, const char* view) {
+    std::vector<Eigen::Vector3d> p, n;
+    std::vector<Eigen::Vector3f> c;
+    for (const auto& q : s.samples)
+      if (q.side == side) p.push_back(q.p), n.push_back(Eigen::Vector3d::Zero()), c.push_back(heat(q.error, kTop));
+    RenderOptions ro;
+    ro.width = 720;
+    ro.height = 480;
+    ro.view = named_view(view) * hand;
+    return p.empty() ? std::string() : render_points_png(p, n, c, ro);
+  };
+  // The layout: the tessellation's samples, each patch its own colour (a checkerboard).
+  auto layout_view = [&](const char* view) {
+    std::vector<Eigen::Vector3d> p, n;
+    std::vector<Eigen::Vector3f> c;
+    const Eigen::Matrix3d V = named_view(view) * hand;
+    constexpr int kPerSpan = 36;  // samples per patch side: dense enough for the splats to close
+    for (const auto& t : s.tubes)
+      for (int i = 0; i < kPerSpan * t.nu; ++i)
+        for (int j = 0; j <= kPerSpan * t.nv; ++j) {
+          const double u = static_cast<double>(i) / kPerSpan, v = static_cast<double>(j) / kPerSpan;
+          Eigen::Vector3d S, Su, Sv;
+          t.derivatives(u, v, &S, &Su, &Sv);
+          Eigen::Vector3d nn = Su.cross(Sv);
+          if (nn.norm() < 1e-12) continue;
+          nn.normalize();
+          if ((V * nn).z() < 0) nn = -nn;  // facing the viewer, for the shading
+          const int a = std::min(static_cast<int>(u), t.nu - 1), b = std::min(static_cast<int>(v), t.nv - 1);
+          const bool odd = (a + b + t.tube) % 2;
+          p.push_back(S), n.push_back(nn);
+          c.push_back(odd ? Eigen::Vector3f(0.85f, 0.62f, 0.48f) : Eigen::Vector3f(0.55f, 0.68f, 0.85f));
+        }
+    RenderOptions ro;
+    ro.width = 720;
+    ro.height = 480;
+    ro.view = V;
+    return render_points_png(p, n, c, ro);
+  };
+  auto img = [&](const std::string& png, const std::string& alt) {
+    return png.empty() ? std::string("<p>(no points)</p>")
+                       : "<img alt=\"" + alt + "\" src=\"data:image/png;base64," + base64(png) + "\">";
+  };
+  // Histogram of the foot-point errors, 0–0.5 mm in 0.025 mm bins, the rest in one bin.
+  std::array<std::array<size_t, 21>, 2> hist{};
+  for (const auto& q : s.samples) ++hist[q.side][std::min<size_t>(20, static_cast<size_t>(q.error / 0.025))];
+  size_t hmax = 1;
+  for (const auto& h : hist)
+    for (size_t v : h) hmax = std::max(hmax, v);
+  std::string svg = "<svg viewBox=\"0 0 640 220\" width=\"640\" height=\"220\" role=\"img\" aria-label=\"error histogram\">";
+  for (int side = 0; side < 2; ++side)
+    for (int b = 0; b < 21; ++b) {
+      const double h = 180.0 * hist[side][b] / hmax;
+      svg += "<rect x=\"" + fmt("%.1f", 20 + b * 29.0 + side * 13.0) + "\" y=\"" + fmt("%.1f", 190 - h) +
+             "\" width=\"12\" height=\"" + fmt("%.1f", h) + "\" fill=\"" + (side ? "#d9a07a" : "#7f9ed9") + "\"/>";
+    }
+  for (int b = 0; b <= 20; b += 4)
+    svg += "<text x=\"" + fmt("%.0f", 20 + b * 29.0) + "\" y=\"208\" font-size=\"11\">" + fmt("%.2f", b * 0.025) + "</text>";
+  svg += "<text x=\"600\" y=\"208\" font-size=\"11\">&gt;0.5</text></svg>";
+
+  auto row = [](std::initializer_list<std::string> cells, bool head = false) {
+    std::string o = "<tr>";
+    for (const auto& c : cells) o += (head ? "<th>" : "<td>") + c + (head ? "</th>" : "</td>");
+    return o + "</tr>\n";
+  };
+  std::string h;
+  h += "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>handskin: patch fitting error</title>\n";
+  h += "<style>body{font-family:sans-serif;max-width:1500px;margin:1em auto;padding:0 1em;color:#222}"
+       "table{border-collapse:collapse;margin:.5em 0 1.2em}td,th{border:1px solid #bbb;padding:.25em .6em;text-align:right}"
+       "th{background:#eee}td:first-child,th:first-child{text-align:left}img{max-width:100%;border:1px solid #ccc}"
+       ".pics{display:flex;flex-wrap:wrap;gap:1em}.pics figure{margin:0}"
+       ".bar{width:360px;height:14px;background:linear-gradient(to right,#264dd9,#33bf59,#f2d933,#d91a1a)}"
+       ".ticks{display:flex;justify-content:space-between;width:360px;font-size:.85em}</style></head><body>\n";
+  h += "<h1>Bézier patch fitting error</h1>\n";
+  h += "<p>" + std::to_string(s.patches.size()) + " bicubic patches, " + std::to_string(s.control_points) +
+       " control points (thesis §4.1.4, Table 4.1). Distances in mm, from the measured points to the surface.</p>\n";
+  h += "<h2>Table 4.1: fitting error per side</h2>\n<table>\n";
+  h += row({"side", "points", "mean (foot points)", "max (foot points)",
+            "mean (" + std::to_string(f.error_grid) + "×" + std::to_string(f.error_grid) + " cells)", "max (cells)",
+            "p95", "scanner noise floor"},
+           true);
+  const char* names[2] = {"palm", "back"};
+  for (int side = 0; side < 2; ++side) {
+    const auto& d = s.side[side];
+    h += row({names[side], std::to_string(d.points), fmt("%.3f", d.mean), fmt("%.3f", d.max), fmt("%.3f", f.cell_mean_mm[side]),
+              fmt("%.3f", f.cell_max_mm[side]), fmt("%.3f", d.p95), fmt("%.3f", f.noise_floor_mm[side])});
+  }
+  h += "</table>\n<p>The thesis: palm mean 0.030, max 3.6 (thumb base); back mean 0.027, max 0.43.</p>\n";
+  h += "<h2>The error on the hand</h2>\n<div class=\"bar\" aria-hidden=\"true\"></div><div class=\"ticks\"><span>0</span><span>" +
+       fmt("%.2f", kTop / 2) + "</span><span>≥ " + fmt("%.2f", kTop) + " mm</span></div>\n";
+  // The four pictures are independent: drawn at once.
+  std::string pics[4];
+#pragma omp parallel for schedule(dynamic)
+  for (int k = 0; k < 4; ++k)
+    pics[k] = k == 0 ? error_view(0, "palm") : k == 1 ? error_view(1, "back") : layout_view(k == 2 ? "back" : "palm");
+  h += "<div class=\"pics\"><figure>" + img(pics[0], "palm-scan points coloured by error, palm view") +
+       "<figcaption>palm (palm scan)</figcaption></figure><figure>" +
+       img(pics[1], "back-scan points coloured by error, back view") +
+       "<figcaption>back (back scan)</figcaption></figure></div>\n";
+  h += "<h2>Patch layout</h2>\n<div class=\"pics\"><figure>" + img(pics[2], "patch layout, back view") +
+       "<figcaption>back</figcaption></figure><figure>" + img(pics[3], "patch layout, palm view") +
+       "<figcaption>palm</figcaption></figure></div>\n";
+  h += "<h2>Error histogram</h2>\n<p>Blue: palm scan; orange: back scan; bins of 0.025 mm.</p>\n" + svg + "\n";
+  h += "<h2>Parameter correction</h2>\n<table>\n" + row({"round", "largest parameter update (spans)", "RMS (mm)"}, true);
+  for (size_t k = 0; k < s.rms_per_round.size(); ++k)
+    h += row({std::to_string(k), k == 0 ? std::string("chord length") : fmt("%.4f", s.max_update_per_round[k - 1]),
+              fmt("%.4f", s.rms_per_round[k])});
+  h += "</table>\n<h2>Continuity</h2>\n<table>\n" + row({"figure", "value"}, true);
+  h += row({"G0 gap on shared borders (mm)", fmt("%.2g", s.g0_gap_mm)});
+  h += row({"G1 normal jump, median (deg)", fmt("%.3f", s.g1_median_deg)});
+  h += row({"G1 normal jump, p95 (deg)", fmt("%.3f", s.g1_p95_deg)});
+  h += row({"G1 normal jump, max (deg)", fmt("%.3f", s.g1_max_deg)});
+  h += "</table>\n";
+  if (r.surface_to_truth) {
+    h += "<h2>Against the true skin</h2>\n<table>\n" + row({"direction", "mean", "p95", "max", "within 1 mm"}, true);
+    for (const auto& [name, d] : {std::pair<const char*, OneWayDistance>{"surface → truth", *r.surface_to_truth},
+                                  {"truth → surface", *r.truth_to_surface}})
+      h += row({name, fmt("%.3f", d.mean), fmt("%.3f", d.p95), fmt("%.3f", d.max), fmt("%.2f %%", 100 * d.within_1mm)});
+    h += "</table>\n";
+  }
+  if (run_report.is_object() && run_report.contains("stages")) {
+    h += "<h2>The run</h2>\n<table>\n" + row({"stage", "seconds"}, true);
+    for (const auto& st : run_report["stages"])
+      h += row({html_escape(st.value("name", "")), fmt("%.3f", st.value("seconds", 0.0))});
+    h += "</table>\n";
+    for (const auto& st : run_report["stages"])
+      if (st.value("name", "") == "registration")
+        h += "<p>Registration: " + html_escape(st.value("method", "")) + ", " +
+             std::to_string(st.value("markers_matched", 0)) + " markers matched, marker RMS " +
+             fmt("%.4f", st.value("refined_rms_mm", 0.0)) + " mm, marker radius " +
+             fmt("%.3f", st["marker_radius_mm"].value("value", 0.0)) + " mm.</p>\n";
+  }
+  h += "<p>Fit: " + fmt("%.0f", 1000 * s.seconds) + " ms; this report's figures: " + fmt("%.0f", 1000 * f.seconds) +
+       " ms. Made by handskin (docs/patches.md).</p>\n</body></html>\n";
+  return h;
+}
+
+}  // namespace handskin
