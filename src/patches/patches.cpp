@@ -5,11 +5,11 @@
 #include <Eigen/SparseCholesky>
 
 #include <algorithm>
-#include <unordered_map>
 #include <chrono>
 #include <cmath>
 
 #include "core/errors.hpp"
+#include "mesh/point_grid.hpp"
 
 namespace handskin {
 
@@ -49,53 +49,6 @@ int nearest_link(const Eigen::Vector3d& p, const std::vector<Bone>& bones) {
   }
   return best;
 }
-
-// The ring points in a hash grid of `cell` mm: the nearest within a radius, exactly (rings of
-// cells are searched outward until no nearer point can lie beyond them). Faster here than a
-// k-d tree: every query lands within a cell or two of its answer.
-class NodeGrid {
- public:
-  NodeGrid(const std::vector<Eigen::Vector3d>& pts, double cell) : pts_(pts), cell_(cell) {
-    for (size_t k = 0; k < pts.size(); ++k) cells_[key(pts[k])].push_back(static_cast<int>(k));
-  }
-  int nearest(const Eigen::Vector3d& q, double radius) const {
-    const Eigen::Vector3i c = coords(q);
-    int best = -1;
-    double bd2 = radius * radius;
-    const int max_ring = static_cast<int>(std::ceil(radius / cell_)) + 1;
-    for (int ring = 0; ring <= max_ring; ++ring) {
-      // Everything in rings beyond this one is at least (ring - 1) cells away... ring·cell when
-      // the point sits at its cell's edge: stop once that exceeds the best distance.
-      if (best >= 0 && (ring - 1) * cell_ > std::sqrt(bd2)) break;
-      for (int dx = -ring; dx <= ring; ++dx)
-        for (int dy = -ring; dy <= ring; ++dy)
-          for (int dz = -ring; dz <= ring; ++dz) {
-            if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != ring) continue;
-            const auto it = cells_.find(pack(c + Eigen::Vector3i(dx, dy, dz)));
-            if (it == cells_.end()) continue;
-            for (const int k : it->second) {
-              const double d2 = (pts_[k] - q).squaredNorm();
-              if (d2 < bd2 || (d2 == bd2 && best >= 0 && k < best)) bd2 = d2, best = k;
-            }
-          }
-    }
-    return best;
-  }
-
- private:
-  Eigen::Vector3i coords(const Eigen::Vector3d& p) const {
-    return Eigen::Vector3i(static_cast<int>(std::floor(p.x() / cell_)), static_cast<int>(std::floor(p.y() / cell_)),
-                           static_cast<int>(std::floor(p.z() / cell_)));
-  }
-  static std::int64_t pack(const Eigen::Vector3i& c) {
-    return (static_cast<std::int64_t>(c.x() & 0x1FFFFF) << 42) | (static_cast<std::int64_t>(c.y() & 0x1FFFFF) << 21) |
-           static_cast<std::int64_t>(c.z() & 0x1FFFFF);
-  }
-  std::int64_t key(const Eigen::Vector3d& p) const { return pack(coords(p)); }
-  const std::vector<Eigen::Vector3d>& pts_;
-  double cell_;
-  std::unordered_map<std::int64_t, std::vector<int>> cells_;
-};
 
 struct Datum {
   Eigen::Vector3d p;
@@ -360,7 +313,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const std::vector<Eigen::Vector
   //     the ring points themselves as weak data (they bridge what the scans did not see) ---
   std::vector<std::vector<Datum>> data(out.tubes.size());
   constexpr double kFarMm = 5.0;  // farther from every ring: not the skin (a stray sample)
-  const NodeGrid grid(nodes, 2.0);
+  const PointGrid grid(nodes, 2.0);  // exact nearest ring point within kFarMm
   std::vector<int> nearest(points.size(), -1);
 #pragma omp parallel for schedule(static)
   for (long k = 0; k < static_cast<long>(points.size()); ++k) nearest[k] = grid.nearest(points[k], kFarMm);

@@ -6,54 +6,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <unordered_map>
 
+#include "mesh/point_grid.hpp"
 #include "render/preview.hpp"
 
 namespace handskin {
 
 namespace {
-
-// Points in a hash grid of `cell` mm, for radius queries.
-class PointHash {
- public:
-  PointHash(const std::vector<Eigen::Vector3d>& pts, double cell) : pts_(pts), cell_(cell) {
-    for (size_t k = 0; k < pts.size(); ++k) cells_[pack(coords(pts[k]))].push_back(static_cast<int>(k));
-  }
-  template <class F>
-  void within(const Eigen::Vector3d& q, double radius, F&& f) const {
-    const Eigen::Vector3i c = coords(q);
-    const int rings = static_cast<int>(std::ceil(radius / cell_));
-    for (int ring = 0; ring <= rings; ++ring)
-      visit_ring(c, ring, [&](int k) {
-        if ((pts_[k] - q).squaredNorm() <= radius * radius) f(k);
-      });
-  }
-
- private:
-  template <class F>
-  void visit_ring(const Eigen::Vector3i& c, int ring, F&& f) const {
-    for (int dx = -ring; dx <= ring; ++dx)
-      for (int dy = -ring; dy <= ring; ++dy)
-        for (int dz = -ring; dz <= ring; ++dz) {
-          if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != ring) continue;
-          const auto it = cells_.find(pack(c + Eigen::Vector3i(dx, dy, dz)));
-          if (it != cells_.end())
-            for (const int k : it->second) f(k);
-        }
-  }
-  Eigen::Vector3i coords(const Eigen::Vector3d& p) const {
-    return Eigen::Vector3i(static_cast<int>(std::floor(p.x() / cell_)), static_cast<int>(std::floor(p.y() / cell_)),
-                           static_cast<int>(std::floor(p.z() / cell_)));
-  }
-  static std::int64_t pack(const Eigen::Vector3i& c) {
-    return (static_cast<std::int64_t>(c.x() & 0x1FFFFF) << 42) | (static_cast<std::int64_t>(c.y() & 0x1FFFFF) << 21) |
-           static_cast<std::int64_t>(c.z() & 0x1FFFFF);
-  }
-  const std::vector<Eigen::Vector3d>& pts_;
-  double cell_;
-  std::unordered_map<std::int64_t, std::vector<int>> cells_;
-};
 
 std::string base64(const std::string& in) {
   static const char* t = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -144,7 +103,7 @@ PatchReportFigures patch_report_figures(const PatchSkin& s, int error_grid) {
     for (const auto& q : s.samples)
       if (q.side == side) pts.push_back(q.p);
     if (pts.size() < 100) continue;
-    const PointHash hash(pts, 1.5);
+    const PointGrid hash(pts, 1.5);
     double ss = 0;
     size_t n = 0;
     for (size_t k = 0; k < pts.size(); k += 20) {
