@@ -1,0 +1,87 @@
+#!/usr/bin/env python3
+"""Patch study (issue 13): the Bézier patches on one scan pair of each hand of the family
+(scripts/family_study.py's hands: right and left, 160-215 mm, curled fingers, raised thumbs,
+markers 3 mm), with the pair's rig, measured against the truth.
+
+    python3 scripts/patch_study.py [--bin build/handskin] [--work /tmp/patch-study] [--count 96]
+
+Prints a Markdown table and the median and worst figures; pairs already in --work are reused.
+"""
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from family_study import HANDS, SCAN  # noqa: E402
+
+
+def sh(args):
+    r = subprocess.run(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    return r.returncode, r.stdout
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--bin", default="build/handskin")
+    ap.add_argument("--work", default="/tmp/patch-study")
+    ap.add_argument("--count", default="96")
+    a = ap.parse_args()
+    os.makedirs(a.work, exist_ok=True)
+    rows, figures = [], []
+    for h, opts in HANDS.items():
+        hand = os.path.join(a.work, h)
+        if not os.path.exists(os.path.join(hand, "hand.ply")):
+            rc, out = sh([a.bin, "-q", "synth", "hand", "--out", hand, "--no-render"] + opts)
+            if rc:
+                rows.append([h, "synth hand: " + out.strip().splitlines()[-1]])
+                continue
+        d = os.path.join(a.work, h + "-scan")
+        if not os.path.exists(os.path.join(d, "truth.json")):
+            rc, out = sh([a.bin, "-q", "synth", "scan", "--mesh", hand + "/hand.ply", "--rig", hand + "/hand_rig.json",
+                          "--out", d, "--seed", "1", "--marker-radius", "3", "--no-render"] + SCAN.get(h, []))
+            if rc:
+                rows.append([h, "synth scan: " + out.strip().splitlines()[-1]])
+                continue
+        o = os.path.join(a.work, h + "-out")
+        if not os.path.exists(os.path.join(o, "merged.ply")):
+            rc, out = sh([a.bin, "-q", "register", "--back", d + "/back", "--palm", d + "/palm", "--out", o])
+            if rc:
+                rows.append([h, "register: " + out.strip().splitlines()[-1]])
+                continue
+        rc, out = sh([a.bin, "-q", "patches", "--skin-dir", o, "--rig", d + "/rig.json", "--truth", d + "/truth.json",
+                      "--count", a.count, "--out", o + "/patches"])
+        if rc:
+            rows.append([h, "patches: " + out.strip().splitlines()[-1]])
+            continue
+        r = json.load(open(o + "/patches/patches_report.json"))
+        ds, nf, t = r["data_to_surface_mm"], r["table_4_1"]["noise_floor_mm"], r["truth"]
+        g1 = r["continuity"]["g1_normal_jump_deg"]
+        f = {"palm_mean": ds["palm"]["mean"], "palm_max": ds["palm"]["max"], "back_mean": ds["back"]["mean"],
+             "back_max": ds["back"]["max"], "floor": max(nf["palm"], nf["back"]),
+             "truth_mean": t["surface_to_truth_mm"]["mean"], "truth_p95": t["surface_to_truth_mm"]["p95"],
+             "within": t["truth_to_surface_mm"]["within_1mm"], "g0": r["continuity"]["g0_gap_mm"],
+             "g1_med": g1["median"], "g1_p95": g1["p95"], "ms": 1000 * r["fit_seconds"], "rounds": r["correction"]["rounds"]}
+        figures.append(f)
+        rows.append([h, f'{f["palm_mean"]:.3f} / {f["palm_max"]:.2f}', f'{f["back_mean"]:.3f} / {f["back_max"]:.2f}',
+                     f'{nf["palm"]:.3f} / {nf["back"]:.3f}', f'{f["g0"]:.0e}', f'{f["g1_med"]:.3f} / {f["g1_p95"]:.3f}',
+                     f'{f["truth_mean"]:.3f} / {f["truth_p95"]:.3f}', f'{100 * f["within"]:.2f} %', str(f["rounds"]),
+                     f'{f["ms"]:.0f}'])
+        print(h, "done", file=sys.stderr)
+    head = ["hand", "palm: data→surface mean / max", "back: mean / max", "noise floor palm / back", "G0 gap",
+            "G1 median / p95 (deg)", "surface→truth mean / p95", "truth within 1 mm", "rounds", "fit ms"]
+    print("| " + " | ".join(head) + " |")
+    print("|" + "---|" * len(head))
+    for r in rows:
+        print("| " + " | ".join(r) + " |")
+    if figures:
+        for k in ("palm_mean", "back_mean", "palm_max", "back_max", "truth_mean", "truth_p95", "within", "ms"):
+            v = [f[k] for f in figures]
+            print(f"{k}: median {statistics.median(v):.3f}, min {min(v):.3f}, max {max(v):.3f}")
+    print(f"{len(figures)} of {len(rows)} pairs fitted")
+
+
+if __name__ == "__main__":
+    main()
