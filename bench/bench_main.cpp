@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "posture/calibrate.hpp"
+#include "synth/angle_recording.hpp"
 #include "posture/solver.hpp"
 #include "register/registration.hpp"
 #include "skin/auto_rig.hpp"
@@ -109,10 +110,59 @@ PostureModel curved_model() {
     t.lines.push_back(r);
   }
   CalibrationOptions o;
+  o.method = "thesis-pairs";
   o.grids = true;
   return calibrate(t, o, "bench", nullptr);
 }
+
+// Calibrated from a synthetic recording (19 DOFs): the Gaussian (dense synergy rows) or a
+// mixture of 8 Gaussians.
+PostureModel synthetic_model(const std::string& kind, const std::string& method) {
+  AngleRecordingOptions r;
+  r.kind = kind;
+  r.rows = 4000;
+  CalibrationOptions o;
+  o.method = method;
+  o.evaluate = false;
+  if (method == "mixture") o.components = 8;
+  o.shrinkage = 0.01;
+  return calibrate(synth_angle_recording(r).table, o, "bench", nullptr);
+}
+
+// Rows pinning the standard tasks' joint sets (one MCP; the MCPs; the PIPs), values varying.
+std::vector<PostureInputs> task_rows() {
+  const std::vector<std::vector<int>> sets = {
+      {dof("middle.mcp.flex")},
+      {dof("thumb.mcp.flex"), dof("index.mcp.flex"), dof("middle.mcp.flex"), dof("ring.mcp.flex"), dof("little.mcp.flex")},
+      {dof("index.pip.flex"), dof("middle.pip.flex"), dof("ring.pip.flex"), dof("little.pip.flex")}};
+  Rng rng(4);
+  std::vector<PostureInputs> rows(4096);
+  for (size_t i = 0; i < rows.size(); ++i)
+    for (int d : sets[i % 3]) rows[i].pins.emplace_back(d, rng.uniform(10, 70));
+  return rows;
+}
 }  // namespace
+
+// The default (Gaussian) calibration's model in batch: postures per second on one core.
+static void BM_PostureGaussianBatch(benchmark::State& st) {
+  const PostureSolver s(synthetic_model("gaussian", "gaussian"));
+  const std::vector<PostureInputs> rows = task_rows();
+  size_t i = 0;
+  for (auto _ : st) benchmark::DoNotOptimize(s.solve(rows[i++ % rows.size()]).angles[0]);
+  st.SetItemsProcessed(static_cast<int64_t>(st.iterations()));
+}
+BENCHMARK(BM_PostureGaussianBatch)->Unit(benchmark::kMicrosecond);
+
+// The mixture mode (8 components): one posture (issue 14's bound: 50 µs).
+static void BM_PostureMixtureSolve(benchmark::State& st) {
+  const PostureSolver s(synthetic_model("curved", "mixture"));
+  const std::vector<PostureInputs> rows = task_rows();
+  size_t i = 0;
+  for (auto _ : st) benchmark::DoNotOptimize(s.solve(rows[i++ % rows.size()]).angles[0]);
+  st.SetItemsProcessed(static_cast<int64_t>(st.iterations()));
+  st.counters["components"] = static_cast<double>(s.model().mixture.components.size());
+}
+BENCHMARK(BM_PostureMixtureSolve)->Unit(benchmark::kMicrosecond);
 
 // One posture from one pinned input, linear model, the factorisation cached (same pin set).
 static void BM_PostureLinearSolve(benchmark::State& st) {

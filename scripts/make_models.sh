@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Regenerate models/: the two built-in parameter sets written out, and the model calibrated
-# from the shared Qualisys recording (../shared/data/mocap, BSD licence: see its LICENSE).
+# Regenerate models/: the two built-in parameter sets written out, and the models calibrated
+# (thesis pairs with grids, Gaussian, mixture) from the shared Qualisys recording (../shared/data/mocap, BSD licence: see its LICENSE).
 # Usage: scripts/make_models.sh [handskin-binary] [output-folder]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -17,5 +17,8 @@ trap 'rm -rf "$work"' EXIT
 # a temporary path.
 cd "$work"
 "$BIN" --quiet mocap --in "$MOCAP" --out qualisys-hand-recording-angles.csv >/dev/null
-"$BIN" --quiet calibrate --angles qualisys-hand-recording-angles.csv --out "$OUT/qualisys-calibrated.json" --grids >/dev/null
+"$BIN" --quiet calibrate --angles qualisys-hand-recording-angles.csv --out "$OUT/qualisys-calibrated.json" --method thesis-pairs --grids >/dev/null
+"$BIN" --quiet calibrate --angles qualisys-hand-recording-angles.csv --out "$OUT/qualisys-gaussian.json" >/dev/null
+"$BIN" --quiet calibrate --angles qualisys-hand-recording-angles.csv --out "$OUT/qualisys-mixture.json" --method mixture \
+  --no-evaluate >/dev/null
 echo "$OUT"

@@ -281,7 +281,7 @@ TEST(Cli, MocapCalibrateModel) {
   const std::string tsv = std::string(HANDSKIN_SOURCE_DIR) + "/../shared/data/mocap/qualisys-hand-recording.tsv";
   ASSERT_EQ(test::run(kBin + " -q mocap --in " + tsv + " --out " + dir + "/a.csv --every 10", &out), 0) << out;
   EXPECT_EQ(read_angle_table(dir + "/a.csv").rows.size(), 600u);
-  ASSERT_EQ(test::run(kBin + " -q calibrate --angles " + dir + "/a.csv --out " + dir + "/m.json --grids --report " + dir +
+  ASSERT_EQ(test::run(kBin + " -q calibrate --angles " + dir + "/a.csv --out " + dir + "/m.json --method thesis-pairs --grids --report " + dir +
                           "/r.json",
                       &out),
             0)

@@ -230,6 +230,7 @@ TEST(Solver, NonlinearPotentialNeverIncreasesAndConverges) {
     t.lines.push_back(r + 2);
   }
   CalibrationOptions co;
+  co.method = "thesis-pairs";
   co.grids = true;
   co.grid_weight = 2.0;
   const PostureModel m = calibrate(t, co, "curve.csv", nullptr);
@@ -291,6 +292,7 @@ TEST(Calibrate, RecoversPlantedLinesAndWeightOrder) {
   const AngleTable t = planted(600, 3);
   for (const char* weights : {"thesis", "inverse"}) {
     CalibrationOptions o;
+    o.method = "thesis-pairs";
     o.weights = weights;
     Json rep;
     const PostureModel m = calibrate(t, o, "planted.csv", &rep);
@@ -398,7 +400,9 @@ TEST(Mocap, SharedQualisysRecordingReadsAndCalibrates) {
   const MocapAngles a = angles_from_markers(t, kMocap);
   EXPECT_EQ(a.table.columns.size(), 14u);
   Json rep;
-  const PostureModel m = calibrate(a.table, CalibrationOptions{}, kMocap, &rep);
+  CalibrationOptions o;
+  o.method = "thesis-pairs";
+  const PostureModel m = calibrate(a.table, o, kMocap, &rep);
   ASSERT_GE(m.pairs.size(), 3u);
   for (const auto& p : rep["pairs"]) EXPECT_GE(std::abs(p["r"].get<double>()), 0.5);
   EXPECT_FALSE(m.notes.empty());  // the recording drifts past textbook ranges: said so

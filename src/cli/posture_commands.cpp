@@ -85,9 +85,15 @@ void solve_command(const SolveArgs& a, const Progress& progress) {
   std::vector<char> pinned(kDofCount, 0), limited(kDofCount, 0);
   for (const auto& [d, v] : in.pins) pinned[d] = 1;
   for (int d : s.at_limit) limited[d] = 1;
-  std::printf("model %s: %d %s, energy %.4f%s\n", model.name.c_str(), s.iterations,
-              solver.has_grids() && !a.linear ? "Gauss-Newton step(s)" : "active-set round(s)", s.energy,
-              s.converged ? "" : " (not converged)");
+  if (!s.component_weights.empty()) {
+    std::printf("model %s: mixture of %zu Gaussians, posterior weights", model.name.c_str(), s.component_weights.size());
+    for (double w : s.component_weights) std::printf(" %.3f", w);
+    std::printf(", free energy %.4f\n", s.energy);
+  } else {
+    std::printf("model %s: %d %s, energy %.4f%s\n", model.name.c_str(), s.iterations,
+                solver.has_grids() && !a.linear ? "Gauss-Newton step(s)" : "active-set round(s)", s.energy,
+                s.converged ? "" : " (not converged)");
+  }
   std::printf("%-18s %9s %9s  %s\n", "DOF", "angle", "relaxed", "");
   for (int d = 0; d < kDofCount; ++d)
     std::printf("%-18s %9.3f %9.3f  %s\n", dofs()[d].name.c_str(), s.angles[d], model.dof[d].relaxed,
@@ -101,10 +107,33 @@ void solve_command(const SolveArgs& a, const Progress& progress) {
 
 // ---------------- calibrate ----------------
 struct CalibrateArgs {
-  std::string angles, out, report;
+  std::vector<std::string> angles;
+  std::string out, report;
   std::vector<std::string> pairs;
   CalibrationOptions options;
+  bool no_evaluate = false;
 };
+
+// The cross-validation as a table: per scheme and task, the model's held-out RMS beside the
+// training mean posture's and the linear regression's.
+void print_cross_validation(const Json& rep) {
+  if (!rep.contains("cross_validation")) return;
+  auto num = [](const Json& v) { return v.is_number() ? std::to_string(v.get<double>()).substr(0, 5) : std::string("  -  "); };
+  for (const char* scheme : {"blocks", "recordings"}) {
+    if (!rep["cross_validation"].contains(scheme)) continue;
+    const Json& cv = rep["cross_validation"][scheme];
+    std::printf("held-out %s (%d folds), RMS deg over the predicted joints:\n",
+                std::string(scheme) == "blocks" ? "blocks of each recording" : "recordings, one left out at a time",
+                cv["folds"].get<int>());
+    const bool linear = !cv["tasks"].empty() && cv["tasks"][0].contains("linear_model_rms_deg");
+    std::printf("  %-34s %7s %s %7s %7s %7s\n", "task", "model", linear ? "linear" : "", "mean", "linreg", "ratio");
+    for (const auto& t : cv["tasks"])
+      std::printf("  %-34s %7s %s %7s %7s %7s\n", t["task"].get<std::string>().c_str(), num(t["model_rms_deg"]).c_str(),
+                  linear ? num(t["linear_model_rms_deg"]).c_str() : "", num(t["mean_posture_rms_deg"]).c_str(),
+                  num(t["linear_regression_rms_deg"]).c_str(), num(t["model_over_regression"]).c_str());
+  }
+  for (const auto& s : rep["tasks_skipped"]) std::printf("  (skipped: %s)\n", s.get<std::string>().c_str());
+}
 
 void calibrate_command(CalibrateArgs a, const Progress& progress) {
   for (const auto& p : a.pairs) {
@@ -114,22 +143,36 @@ void calibrate_command(CalibrateArgs a, const Progress& progress) {
     if (da == db) throw InputError("--pair", "'" + p + "' names one DOF twice; a pair needs two different DOFs");
     a.options.pairs.emplace_back(da, db);
   }
+  a.options.evaluate = !a.no_evaluate;
   std::string err;
   if (!a.options.IsValid(&err)) throw InputError("calibrate", err);
-  const AngleTable table = read_angle_table(a.angles);
-  progress("calibrate", std::to_string(table.rows.size()) + " rows, " + std::to_string(table.columns.size()) + " DOFs");
+  std::vector<AngleTable> tables;
+  size_t rows = 0;
+  for (const auto& f : a.angles) tables.push_back(read_angle_table(f)), rows += tables.back().rows.size();
+  progress("calibrate", std::to_string(a.angles.size()) + " recording(s), " + std::to_string(rows) + " rows; method " +
+                            a.options.method + (a.options.evaluate ? ", with cross-validation" : ""));
   Json rep;
-  const PostureModel m = calibrate(table, a.options, a.angles, &rep);
+  const PostureModel m = calibrate(tables, a.angles, a.options, &rep);
   const PostureSolver check(m);  // refuses a model that would not solve
   save_model(a.out, m);
   if (!a.report.empty()) save_json(a.report, rep);
   for (const auto& n : m.notes) progress("calibrate", "note: " + n);
-  std::printf("%zu pair(s)%s -> %s\n", m.pairs.size(), m.grids.empty() ? "" : " with grids", a.out.c_str());
-  for (const auto& p : rep["pairs"])
-    std::printf("  %-16s ~ %-16s r %+.3f  slope %s  spread %.2f deg  weight %.3f\n", p["a"].get<std::string>().c_str(),
-                p["b"].get<std::string>().c_str(), p["r"].get<double>(),
-                p["slope"].is_null() ? "vertical" : std::to_string(p["slope"].get<double>()).substr(0, 6).c_str(),
-                p["spread_rms_deg"].get<double>(), p["weight"].get<double>());
+  if (a.options.method == "thesis-pairs") {
+    std::printf("%zu pair(s)%s -> %s\n", m.pairs.size(), m.grids.empty() ? "" : " with grids", a.out.c_str());
+    for (const auto& p : rep["pairs"])
+      std::printf("  %-16s ~ %-16s r %+.3f  slope %s  spread %.2f deg  weight %.3f\n", p["a"].get<std::string>().c_str(),
+                  p["b"].get<std::string>().c_str(), p["r"].get<double>(),
+                  p["slope"].is_null() ? "vertical" : std::to_string(p["slope"].get<double>()).substr(0, 6).c_str(),
+                  p["spread_rms_deg"].get<double>(), p["weight"].get<double>());
+  } else {
+    std::printf("%s: %zu DOFs from %lld frames (%lld complete), shrinkage %g, offsets %s, %zu synergy row(s)%s -> %s\n",
+                a.options.method.c_str(), rep["gaussian"]["dofs"].get<size_t>(), rep["frames"].get<long long>(),
+                rep["frames_complete"].get<long long>(), rep["shrinkage"].get<double>(), rep["offsets"].get<std::string>().c_str(),
+                m.constraints.size(),
+                m.mixture.components.empty() ? "" : (", " + std::to_string(m.mixture.components.size()) + " mixture components").c_str(),
+                a.out.c_str());
+  }
+  print_cross_validation(rep);
 }
 
 // ---------------- mocap ----------------
@@ -170,22 +213,35 @@ void add_posture_commands(CLI::App& app, const Progress& progress, Commands* out
   solvec->add_flag("--json", sv->json, "Print JSON (handskin-posture-solution/1)");
   solvec->add_option("--picture", sv->picture, "With --rig: draw the relaxed (grey) and solved (red) skeleton to a PNG");
   solvec->add_option("--view", sv->view, "Picture view: side, back or palm")->capture_default_str();
-  solvec->add_flag("--linear", sv->linear, "Ignore the model's non-linear grids");
+  solvec->add_flag("--linear", sv->linear, "Ignore the model's non-linear grids or mixture (the linear model alone)");
   solvec->add_option("--inputs", sv->inputs, "Batch: CSV of partial postures (given cells are pinned)");
   solvec->add_option("--out", sv->out, "Batch: CSV of full postures, rows in input order");
   out->push_back({solvec, [sv, &progress] { solve_command(*sv, progress); }});
 
   auto ca = std::make_shared<CalibrateArgs>();
-  auto* calc = app.add_subcommand("calibrate", "Posture model from a joint-angle CSV (thesis §3.2.2-3.2.3)");
-  calc->add_option("--angles", ca->angles, "Joint-angle CSV (header: DOF names; empty cell = not measured)")->required();
+  auto* calc = app.add_subcommand("calibrate", "Posture model from joint-angle recordings, with held-out figures");
+  calc->add_option("--angles", ca->angles,
+                   "Joint-angle CSV (header: DOF names; empty cell = not measured); repeat for several recordings (one per person or session)")
+      ->required();
   calc->add_option("--out", ca->out, "Model to write (hand-posture/1)")->required();
-  calc->add_option("--pair", ca->pairs, "A pair to fit, dofA:dofB (repeatable; default: chosen by correlation)");
-  calc->add_option("--min-correlation", ca->options.min_correlation, "|r| for automatic pairs")->capture_default_str();
-  calc->add_option("--max-pairs", ca->options.max_pairs, "Most automatic pairs")->capture_default_str();
-  calc->add_option("--weights", ca->options.weights, "thesis (eq. 3.18) or inverse (1/spread)")->capture_default_str();
-  calc->add_flag("--grids", ca->options.grids, "Also build non-linear grid potentials (thesis §3.2.3)");
-  calc->add_option("--grid-weight", ca->options.grid_weight, "Weight of the grid potentials, (0, 1e3]")->capture_default_str();
-  calc->add_option("--report", ca->report, "Write the calibration figures as JSON");
+  calc->add_option("--method", ca->options.method,
+                   "gaussian (conditional mean of the shrunk joint covariance), mixture (of Gaussians, non-linear), "
+                   "or thesis-pairs (thesis §3.2.2-3.2.3)")
+      ->capture_default_str();
+  calc->add_option("--offsets", ca->options.offsets,
+                   "Per-recording offsets: remove, keep, or auto (chosen by leaving recordings out)")
+      ->capture_default_str();
+  calc->add_option("--shrinkage", ca->options.shrinkage, "Covariance shrinkage toward its diagonal, [0, 1]; default: chosen by cross-validation");
+  calc->add_option("--components", ca->options.components, "Mixture components, 2-16; default: chosen by cross-validation");
+  calc->add_option("--folds", ca->options.folds, "Held-out blocks per recording")->capture_default_str();
+  calc->add_flag("--no-evaluate", ca->no_evaluate, "Skip the cross-validated figures (the fit still validates its choices)");
+  calc->add_option("--pair", ca->pairs, "thesis-pairs: a pair to fit, dofA:dofB (repeatable; default: chosen by correlation)");
+  calc->add_option("--min-correlation", ca->options.min_correlation, "thesis-pairs: |r| for automatic pairs")->capture_default_str();
+  calc->add_option("--max-pairs", ca->options.max_pairs, "thesis-pairs: most automatic pairs")->capture_default_str();
+  calc->add_option("--weights", ca->options.weights, "thesis-pairs: thesis (eq. 3.18) or inverse (1/spread)")->capture_default_str();
+  calc->add_flag("--grids", ca->options.grids, "thesis-pairs: also build non-linear grid potentials (thesis §3.2.3)");
+  calc->add_option("--grid-weight", ca->options.grid_weight, "thesis-pairs: weight of the grid potentials, (0, 1e3]")->capture_default_str();
+  calc->add_option("--report", ca->report, "Write the calibration figures and the cross-validation as JSON");
   out->push_back({calc, [ca, &progress] { calibrate_command(*ca, progress); }});
 
   auto mo = std::make_shared<ModelArgs>();

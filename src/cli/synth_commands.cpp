@@ -11,6 +11,8 @@
 #include "render/preview.hpp"
 #include "scan/cubist_io.hpp"
 #include "synth/hand_mesher.hpp"
+#include "posture/angle_table.hpp"
+#include "synth/angle_recording.hpp"
 #include "synth/hand_model.hpp"
 #include "synth/replica.hpp"
 #include "synth/truth.hpp"
@@ -110,10 +112,27 @@ void synth_scan(const SynthScanArgs& a, const Progress& progress) {
     std::printf("%s\n", out.final_path(f).c_str());
 }
 
+// ---------------- synth angles ----------------
+struct SynthAnglesArgs {
+  AngleRecordingOptions options;
+  std::string out, truth;
+};
+
+void synth_angles(const SynthAnglesArgs& a, const Progress& progress) {
+  std::string err;
+  check_options(a.options.IsValid(&err), "synth angles", err);
+  const AngleRecording r = synth_angle_recording(a.options);
+  progress("synth", std::to_string(r.table.rows.size()) + " frames of " + std::to_string(r.table.columns.size()) + " DOFs (" +
+                        a.options.kind + ")");
+  if (!a.truth.empty()) save_json(a.truth, r.truth);
+  write_angle_table(a.out, r.table);
+  std::printf("%zu frames -> %s%s\n", r.table.rows.size(), a.out.c_str(), a.truth.empty() ? "" : (", truth -> " + a.truth).c_str());
+}
+
 }  // namespace
 
 void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) {
-  auto* synth = app.add_subcommand("synth", "Make synthetic data: a hand of the family, or a scan pair of a hand");
+  auto* synth = app.add_subcommand("synth", "Make synthetic data: a hand of the family, a scan pair of a hand, or a joint-angle recording");
   synth->require_subcommand(1);
   auto sh = std::make_shared<SynthHandArgs>();
   auto* shc = synth->add_subcommand(
@@ -174,6 +193,21 @@ void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) 
       ->capture_default_str();
   ssc->add_option("--y-extent", ss->scanner.y_extent_mm, "Table width a scanline covers, mm")->capture_default_str();
   ssc->add_flag("!--no-render", ss->render, "Do not write preview pictures");
+  auto sa = std::make_shared<SynthAnglesArgs>();
+  auto* sac = synth->add_subcommand(
+      "angles", "A joint-angle recording with known structure (a Gaussian of three synergies, or a curved grasp), to test calibration");
+  sac->add_option("--out", sa->out, "Joint-angle CSV to write")->required();
+  sac->add_option("--truth", sa->truth, "Also write the truth (mean and covariance, or the formulas) as JSON");
+  sac->add_option("--kind", sa->options.kind, "gaussian or curved")->capture_default_str();
+  sac->add_option("--rows", sa->options.rows, "Frames, [10, 1e6]")->capture_default_str();
+  sac->add_option("--seed", sa->options.seed, "The hand (means, synergy loadings) and the frames")->capture_default_str();
+  sac->add_option("--person", sa->options.person, "0: no offsets; k >= 1: person k's own offsets (another glove calibration)")
+      ->capture_default_str();
+  sac->add_option("--offset-sd", sa->options.offset_sd, "Sd of a person's offsets, deg")->capture_default_str();
+  sac->add_option("--gaps", sa->options.gaps, "Fraction of cells left empty, [0, 0.5]")->capture_default_str();
+  sac->add_option("--noise", sa->options.noise, "curved: noise per joint, deg")->capture_default_str();
+  out->push_back({sac, [sa, &progress] { synth_angles(*sa, progress); }});
+
   out->push_back({ssc, [ss, &progress] {
                     ss->scanner.points = ss->scanner.scanlines;
                     synth_scan(*ss, progress);

@@ -5,9 +5,13 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <optional>
 #include <set>
 
 #include "core/errors.hpp"
+#include "posture/evaluate.hpp"
+#include "posture/gaussian.hpp"
+#include "posture/solver.hpp"
 
 namespace handskin {
 
@@ -27,6 +31,15 @@ bool CalibrationOptions::IsValid(std::string* error) const {
   if (max_grid_samples < 1) return bad("max_grid_samples must be >= 1");
   if (!(limit_margin_deg >= 0)) return bad("limit_margin_deg must be >= 0");
   if (min_rows < 3) return bad("min_rows must be >= 3");
+  if (method != "gaussian" && method != "mixture" && method != "thesis-pairs")
+    return bad("method must be 'gaussian', 'mixture' or 'thesis-pairs'");
+  if (offsets != "auto" && offsets != "remove" && offsets != "keep") return bad("offsets must be 'auto', 'remove' or 'keep'");
+  if (!(shrinkage < 0 || shrinkage <= 1)) return bad("shrinkage must be in [0, 1] (or negative: chosen by cross-validation)");
+  if (components != 0 && (components < 2 || components > kMaxMixtureComponents))
+    return bad("components must be 0 (chosen) or in [2, " + std::to_string(kMaxMixtureComponents) + "]");
+  if (folds < 2 || folds > 50) return bad("folds must be in [2, 50]");
+  if (method != "thesis-pairs" && (grids || !pairs.empty()))
+    return bad("pairs and grids belong to the thesis's pairwise calibration: add --method thesis-pairs");
   return true;
 }
 
@@ -64,9 +77,8 @@ double correlation(const std::vector<double>& x, const std::vector<double>& y) {
 
 }  // namespace
 
-PostureModel calibrate(const AngleTable& t, const CalibrationOptions& o, const std::string& file, Json* report) {
-  std::string err;
-  if (!o.IsValid(&err)) throw InputError("calibration options", err);
+// Thesis §3.2.2–3.2.3 on one (merged) table: `--method thesis-pairs`.
+PostureModel calibrate_pairs(const AngleTable& t, const CalibrationOptions& o, const std::string& file, Json* report) {
   PostureModel m;
   m.name = "calibrated";
   m.description = "Calibrated from " + file + " (" + std::to_string(t.rows.size()) + " rows)";
@@ -227,10 +239,343 @@ PostureModel calibrate(const AngleTable& t, const CalibrationOptions& o, const s
     HS_CHECK(std::isfinite(l.alpha) && std::isfinite(l.beta) && std::isfinite(l.gamma) && std::isfinite(l.weight),
              "calibration produced a non-finite line");
   if (report) *report = rep;
+  return m;
+}
+
+namespace {
+
+constexpr double kShrinkGrid[] = {0.0, 0.001, 0.003, 0.01, 0.03, 0.1, 0.3};
+constexpr int kComponentGrid[] = {2, 3, 4, 6, 8};
+constexpr double kAngleCap = 180;  ///< a joint angle beyond ±180° is drift: clamped, never a limit
+
+// All tables in one: the union of their columns, rows one after the other.
+AngleTable merged(const std::vector<AngleTable>& tables, std::vector<int>* recording) {
+  AngleTable out;
+  for (const auto& t : tables)
+    for (int d : t.columns)
+      if (std::find(out.columns.begin(), out.columns.end(), d) == out.columns.end()) out.columns.push_back(d);
+  for (size_t r = 0; r < tables.size(); ++r)
+    for (size_t i = 0; i < tables[r].rows.size(); ++i) {
+      std::vector<double> row(out.columns.size(), std::nan(""));
+      for (size_t c = 0; c < tables[r].columns.size(); ++c) {
+        const size_t k = std::find(out.columns.begin(), out.columns.end(), tables[r].columns[c]) - out.columns.begin();
+        row[k] = tables[r].rows[i][c];
+      }
+      out.rows.push_back(std::move(row));
+      out.lines.push_back(tables[r].lines.empty() ? 0 : tables[r].lines[i]);
+      recording->push_back(static_cast<int>(r));
+    }
+  return out;
+}
+
+AngleTable as_table(const PostureSamples& s) {
+  AngleTable t;
+  t.columns = s.dofs;
+  for (Eigen::Index i = 0; i < s.x.rows(); ++i) {
+    t.rows.emplace_back();
+    for (Eigen::Index c = 0; c < s.x.cols(); ++c) t.rows.back().push_back(s.x(i, c));
+  }
+  return t;
+}
+
+struct GaussianChoice {
+  bool remove_offsets = true;
+  double shrinkage = 0.01;
+};
+
+// The linear (single Gaussian) model on these samples: springs and synergy rows for the
+// measured DOFs, their mean as the rest posture; DOFs the samples lack keep the base's
+// springs and rest, and the anatomical lines among them only (a line that touched a measured
+// DOF would change its fitted statistics).
+PostureModel gaussian_model(const PostureModel& base, const PostureSamples& s, const GaussianChoice& g, long min_pair,
+                            GaussianStats* stats_out = nullptr, double* scale_out = nullptr, const GaussianMixtureFit* mix = nullptr) {
+  PostureModel m = base;
+  const GaussianStats st = gaussian_stats(s, g.remove_offsets, g.shrinkage, min_pair);
+  std::vector<Eigen::MatrixXd> covs{st.cov};
+  if (mix) covs.insert(covs.end(), mix->cov.begin(), mix->cov.end());
+  const double scale = energy_scale_for(covs);
+  const std::vector<double> k = factor_precision(st.cov, st.mean, s.dofs, scale, "Gaussian calibration", &m.constraints);
+  for (size_t c = 0; c < s.dofs.size(); ++c) {
+    DofParams& p = m.dof[s.dofs[c]];
+    p.stiffness = k[c];
+    p.relaxed = std::clamp(st.mean(static_cast<Eigen::Index>(c)), p.lo, p.hi);
+  }
+  for (const PairLine& l : builtin_model("anatomical").pairs)
+    if (std::find(s.dofs.begin(), s.dofs.end(), l.a) == s.dofs.end() && std::find(s.dofs.begin(), s.dofs.end(), l.b) == s.dofs.end()) {
+      PairLine line = l;
+      line.source = "anatomical (not measured): " + l.source;
+      m.pairs.push_back(line);
+    }
+  if (mix) {
+    m.mixture.energy_scale = scale;
+    double total = 0;
+    for (double w : mix->weight) total += w;
+    for (size_t c = 0; c < mix->weight.size(); ++c) {
+      MixtureComponent comp;
+      comp.weight = mix->weight[c] / total;
+      const std::vector<double> kc = factor_precision(mix->cov[c], mix->mean[c], s.dofs, scale,
+                                                      "mixture component " + std::to_string(c + 1), &comp.constraints);
+      for (size_t i = 0; i < s.dofs.size(); ++i) {
+        const DofParams& p = m.dof[s.dofs[i]];
+        comp.relaxed.emplace_back(s.dofs[i], std::clamp(mix->mean[c](static_cast<Eigen::Index>(i)), p.lo, p.hi));
+        comp.stiffness.emplace_back(s.dofs[i], kc[i]);
+      }
+      m.mixture.components.push_back(std::move(comp));
+    }
+  }
+  if (stats_out) *stats_out = st;
+  if (scale_out) *scale_out = scale;
+  return m;
+}
+
+PostureModel mixture_model(const PostureModel& base, const PostureSamples& s, const GaussianChoice& g, int C, long min_pair,
+                           int* iterations = nullptr) {
+  const GaussianStats st = gaussian_stats(s, g.remove_offsets, g.shrinkage, min_pair);
+  const GaussianMixtureFit f = fit_mixture(s, st, g.remove_offsets, C, g.shrinkage);
+  if (iterations) *iterations = f.iterations;
+  return gaussian_model(base, s, g, min_pair, nullptr, nullptr, &f);
+}
+
+// How a candidate ranks: the mean and the worst over the tasks of its held-out RMS over the
+// linear regression's, averaged — a candidate that beats the regression on most tasks but
+// loses on one does not win on the mean alone.
+double score(const TaskErrors& model, const TaskErrors& linreg) {
+  double sum = 0, worst = 0;
+  int n = 0;
+  for (size_t t = 0; t < model.sse.size(); ++t)
+    if (model.cells[t] && linreg.cells[t] && linreg.rms(t) > 0) {
+      const double r = model.rms(t) / linreg.rms(t);
+      sum += r, worst = std::max(worst, r), ++n;
+    }
+  return n ? 0.5 * (sum / n + worst) : std::nan("");
+}
+
+Json json_number(double v) { return std::isfinite(v) ? Json(v) : Json(nullptr); }
+
+Json cv_json(const std::vector<PostureTask>& tasks, const PostureSamples& s, const TaskErrors& model, const TaskErrors& mean,
+             const TaskErrors& linreg, const TaskErrors* linear_model) {
+  Json out = Json::array();
+  for (size_t t = 0; t < tasks.size(); ++t) {
+    Json given = Json::array(), pred = Json::array();
+    for (int c : tasks[t].given) given.push_back(dofs()[s.dofs[c]].name);
+    for (int c : tasks[t].predicted) pred.push_back(dofs()[s.dofs[c]].name);
+    Json j = {{"task", tasks[t].name},          {"given", given},
+              {"predicted", pred},              {"cells", model.cells[t]},
+              {"model_rms_deg", json_number(model.rms(t))},
+              {"mean_posture_rms_deg", json_number(mean.rms(t))},
+              {"linear_regression_rms_deg", json_number(linreg.rms(t))},
+              {"model_over_regression", json_number(model.rms(t) / linreg.rms(t))}};
+    if (linear_model) j["linear_model_rms_deg"] = json_number(linear_model->rms(t));
+    out.push_back(j);
+  }
+  return out;
+}
+
+}  // namespace
+
+PostureModel calibrate(const std::vector<AngleTable>& tables, const std::vector<std::string>& files,
+                       const CalibrationOptions& o, Json* report) {
+  std::string err;
+  if (!o.IsValid(&err)) throw InputError("calibration options", err);
+  HS_CHECK(!tables.empty() && tables.size() == files.size(), "calibrate needs one name per table");
+  std::vector<int> rec;
+  const AngleTable all = merged(tables, &rec);
+  std::string label = files[0];
+  for (size_t r = 1; r < files.size(); ++r) label += ", " + files[r];
+  Json rep;
+  PostureModel m = calibrate_pairs(all, o, label, &rep);  // also the checks, limits and coverage
+  rep["method"] = o.method;
+  Json recs = Json::array();
+  for (size_t r = 0; r < tables.size(); ++r) recs.push_back({{"file", files[r]}, {"rows", tables[r].rows.size()}});
+  rep["recordings"] = recs;
+
+  // The measured columns: enough values, not constant; values clamped into the limits.
+  PostureSamples s;
+  s.recordings = static_cast<int>(tables.size());
+  s.recording = rec;
+  std::vector<size_t> keep;
+  Json unused = Json::array();
+  for (size_t c = 0; c < all.columns.size(); ++c) {
+    double lo = 1e300, hi = -1e300;
+    long n = 0;
+    for (const auto& row : all.rows)
+      if (std::isfinite(row[c])) lo = std::min(lo, row[c]), hi = std::max(hi, row[c]), ++n;
+    if (n >= o.min_rows && hi - lo > 1e-9) keep.push_back(c), s.dofs.push_back(all.columns[c]);
+    else unused.push_back(dofs()[all.columns[c]].name);
+  }
+  rep["dofs_not_used"] = unused;
+  s.x.resize(static_cast<Eigen::Index>(all.rows.size()), static_cast<Eigen::Index>(keep.size()));
+  long clamped = 0, complete = 0;
+  for (size_t i = 0; i < all.rows.size(); ++i) {
+    bool full = true;
+    for (size_t k = 0; k < keep.size(); ++k) {
+      double v = all.rows[i][keep[k]];
+      if (std::isfinite(v)) {
+        const DofParams& p = m.dof[s.dofs[k]];
+        const double c = std::clamp(v, p.lo, p.hi);
+        clamped += c != v;
+        v = c;
+      } else {
+        full = false;
+      }
+      s.x(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(k)) = v;
+    }
+    complete += full;
+  }
+  rep["frames"] = all.rows.size();
+  rep["frames_complete"] = complete;
+  rep["values_clamped_to_limits"] = clamped;
+  if (s.dofs.size() < 2 && o.method != "thesis-pairs")
+    throw InputError(label, "fewer than two DOFs have " + std::to_string(o.min_rows) + " or more varying values; nothing to correlate");
+
+  std::vector<std::string> skipped;
+  const std::vector<PostureTask> tasks = standard_tasks(s.dofs, &skipped);
+  rep["tasks_skipped"] = skipped;
+  const bool several = tables.size() >= 2;
+  std::vector<Split> blocks, leave_out;
+  bool blocks_ok = true;
+  for (size_t r = 0; r < tables.size(); ++r) blocks_ok = blocks_ok && tables[r].rows.size() >= static_cast<size_t>(4 * o.folds);
+  if (blocks_ok) blocks = block_splits(s, o.folds);
+  if (several) leave_out = recording_splits(s);
+  const std::vector<Split>& select = several ? leave_out : blocks;
+  TaskErrors sel_mean, sel_linreg;
+  if (!select.empty() && !tasks.empty()) baseline_errors(s, tasks, select, &sel_mean, &sel_linreg);
+
+  PostureModel base;  // limits and defaults from the pairs pass, none of its lines
+  base.name = "calibrated";
+  base.description = m.description;
+  base.dof = default_dof_params();
+  for (int d : s.dofs) base.dof[d] = m.dof[d];
+  for (int d = 0; d < kDofCount; ++d) base.dof[d].lo = m.dof[d].lo, base.dof[d].hi = m.dof[d].hi;
+  base.notes = m.notes;
+
+  ModelFit fit;
+  GaussianChoice g;
+  if (o.method == "thesis-pairs") {
+    fit = [&](const PostureSamples& train) { return calibrate_pairs(as_table(train), o, label, nullptr); };
+  } else {
+    // Shrinkage and offsets: given, or the candidates' best held-out figure relative to the
+    // linear regression (mean over the tasks).
+    std::vector<GaussianChoice> cands;
+    const std::vector<bool> offs = o.offsets == "auto" ? (several ? std::vector<bool>{true, false} : std::vector<bool>{true})
+                                                      : std::vector<bool>{o.offsets == "remove"};
+    for (bool off : offs) {
+      if (o.shrinkage >= 0) cands.push_back({off, o.shrinkage});
+      else
+        for (double r : kShrinkGrid) cands.push_back({off, r});
+    }
+    Json sel = Json::array();
+    double best = 1e300;
+    g = cands.front();
+    if (cands.size() > 1 && !select.empty() && !tasks.empty()) {
+      for (const auto& c : cands) {
+        const double sc = score(model_errors(s, tasks, select, [&](const PostureSamples& tr) {
+                                  return gaussian_model(base, tr, c, o.min_rows);
+                                }),
+                                sel_linreg);
+        sel.push_back({{"offsets", c.remove_offsets ? "remove" : "keep"}, {"shrinkage", c.shrinkage}, {"score", json_number(sc)}});
+        if (sc < best) best = sc, g = c;
+      }
+    } else if (o.shrinkage < 0) {
+      g.shrinkage = 0.01;
+      m.notes.push_back("no standard task to cross-validate on: shrinkage 0.01, not chosen");
+    }
+    rep.erase("pairs");
+    rep.erase("weights");
+    rep["selection"] = {{"scheme", several ? "leave one recording out" : "held-out blocks"},
+                        {"score", "(mean + worst) / 2 over the tasks of model RMS / linear regression RMS"},
+                        {"candidates", sel}};
+    rep["offsets"] = g.remove_offsets ? "removed per recording" : "kept";
+    rep["shrinkage"] = g.shrinkage;
+    GaussianStats st;
+    double scale = 1;
+    PostureModel lin = gaussian_model(base, s, g, o.min_rows, &st, &scale);
+    Json syn = Json::array();
+    for (const auto& c : lin.constraints) syn.push_back({{"weight", c.weight}, {"source", c.source}});
+    rep["gaussian"] = {{"dofs", s.dofs.size()},
+                       {"energy_scale", scale},
+                       {"floored_eigenvalues", st.floored_eigenvalues},
+                       {"synergy_rows", syn}};
+    Json cover = Json::object();
+    for (size_t c = 0; c < s.dofs.size(); ++c) {
+      long n = 0;
+      for (Eigen::Index i = 0; i < s.x.rows(); ++i) n += std::isfinite(s.x(i, static_cast<Eigen::Index>(c)));
+      cover[dofs()[s.dofs[c]].name] = {{"values", n}, {"mean", st.mean(static_cast<Eigen::Index>(c))},
+                                       {"sd", std::sqrt(st.cov(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(c)))}};
+    }
+    rep["dofs_used"] = cover;
+    lin.name = "calibrated";
+    lin.description = "Gaussian calibration from " + label + " (" + std::to_string(all.rows.size()) + " rows, " +
+                      std::to_string(s.dofs.size()) + " DOFs, shrinkage " + fmt("%g", g.shrinkage) + ")";
+    m = lin;
+    fit = [&](const PostureSamples& tr) { return gaussian_model(base, tr, g, o.min_rows); };
+    if (o.method == "mixture") {
+      // Components: given, or chosen by the same held-out figure; kept only if no task gets
+      // worse than with the single Gaussian.
+      std::vector<int> comps;
+      if (o.components) comps.push_back(o.components);
+      else
+        for (int c : kComponentGrid) comps.push_back(c);
+      const long m_cols = static_cast<long>(s.dofs.size());
+      comps.erase(std::remove_if(comps.begin(), comps.end(), [&](int c) { return s.x.rows() < 4L * c * (m_cols + 1); }), comps.end());
+      Json mx = Json::array();
+      int chosen = 1;
+      if (!select.empty() && !tasks.empty()) {
+        const TaskErrors lin_err = model_errors(s, tasks, select, fit);
+        double best_mx = score(lin_err, sel_linreg);
+        for (int c : comps) {
+          const TaskErrors e = model_errors(s, tasks, select, [&](const PostureSamples& tr) {
+            return mixture_model(base, tr, g, c, o.min_rows);
+          });
+          bool no_worse = true;
+          for (size_t t = 0; t < tasks.size(); ++t) no_worse = no_worse && !(e.rms(t) > lin_err.rms(t));
+          const double sc = score(e, sel_linreg);
+          mx.push_back({{"components", c}, {"score", json_number(sc)}, {"no_task_worse_than_linear", no_worse}});
+          if (no_worse && sc < best_mx) best_mx = sc, chosen = c;
+        }
+      }
+      Json mrep = {{"candidates", mx}, {"components", chosen}};
+      if (chosen > 1) {
+        int its = 0;
+        m = mixture_model(base, s, g, chosen, o.min_rows, &its);
+        m.description = "Mixture of " + std::to_string(chosen) + " Gaussians from " + label + " (" + std::to_string(all.rows.size()) +
+                        " rows, " + std::to_string(s.dofs.size()) + " DOFs)";
+        mrep["em_iterations"] = its;
+        fit = [&, chosen](const PostureSamples& tr) { return mixture_model(base, tr, g, chosen, o.min_rows); };
+      } else {
+        m.notes.push_back("mixture: no number of components beat the single Gaussian on held-out frames; the linear model is kept");
+      }
+      rep["mixture"] = mrep;
+    }
+  }
+  if (o.evaluate && !tasks.empty()) {
+    Json cv = Json::object();
+    auto scheme = [&](const std::vector<Split>& splits, const char* name, Json extra) {
+      if (splits.empty()) return;
+      TaskErrors mean, linreg;
+      baseline_errors(s, tasks, splits, &mean, &linreg);
+      const TaskErrors model = model_errors(s, tasks, splits, fit);
+      std::optional<TaskErrors> linear;
+      if (!m.mixture.components.empty())
+        linear = model_errors(s, tasks, splits, [&](const PostureSamples& tr) { return gaussian_model(base, tr, g, o.min_rows); });
+      extra["tasks"] = cv_json(tasks, s, model, mean, linreg, linear ? &*linear : nullptr);
+      cv[name] = extra;
+    };
+    scheme(blocks, "blocks", {{"folds", o.folds}});
+    scheme(leave_out, "recordings", {{"folds", leave_out.size()}});
+    rep["cross_validation"] = cv;
+  }
+  for (const auto& n : base.notes)
+    if (std::find(m.notes.begin(), m.notes.end(), n) == m.notes.end()) m.notes.push_back(n);
+  if (report) *report = rep;
   // What calibration writes, its own loader must read: the same checks, by a round trip
   // (limits widened beyond ±360, a degenerate fit, ...) refuse the table here, not later.
-  parse_model(model_to_json(m), file + " (the calibrated model)");
+  parse_model(model_to_json(m), label + " (the calibrated model)");
   return m;
+}
+
+PostureModel calibrate(const AngleTable& table, const CalibrationOptions& options, const std::string& file, Json* report) {
+  return calibrate({table}, {file}, options, report);
 }
 
 }  // namespace handskin

@@ -71,7 +71,46 @@ PairLine relative_line(const std::array<DofParams, kDofCount>& d, const std::str
   return l;
 }
 
+LinearConstraint parse_constraint(const Json& e, const std::string& where) {
+  LinearConstraint c;
+  const Json& t = require(e, "terms", where);
+  if (!t.is_object() || t.empty()) throw InputError(where, "key 'terms' must be a non-empty object of DOF: coefficient");
+  double norm = 0;
+  for (auto it = t.begin(); it != t.end(); ++it) {
+    const int d = require_dof(it.key(), where + ".terms");
+    if (!it.value().is_number() || !(std::abs(it.value().get<double>()) <= kMaxCoefficient))
+      throw InputError(where + ".terms." + it.key(), "must be a number within ±" + number_text(kMaxCoefficient));
+    c.terms.emplace_back(d, it.value().get<double>());
+    norm += std::abs(c.terms.back().second);
+  }
+  if (norm == 0) throw InputError(where, "every coefficient is zero");
+  c.offset = get_finite(e, "offset", where);
+  if (!(std::abs(c.offset) <= kMaxOffset)) throw InputError(where, "offset must be within ±" + number_text(kMaxOffset));
+  c.weight = get_finite(e, "weight", where);
+  if (!(c.weight >= 0 && c.weight <= kMaxWeight))
+    throw InputError(where, "weight must be in [0, " + number_text(kMaxWeight) + "] (got " + number_text(c.weight) + ")");
+  if (e.contains("source")) c.source = get_string(e, "source", where);
+  return c;
+}
+
+Json constraint_to_json(const LinearConstraint& c) {
+  Json t = Json::object();
+  for (const auto& [d, v] : c.terms) t[dofs()[d].name] = v;
+  return {{"terms", t}, {"offset", c.offset}, {"weight", c.weight}, {"source", c.source}};
+}
+
 }  // namespace
+
+PostureModel component_model(const PostureModel& base, const MixtureComponent& c) {
+  PostureModel m = base;
+  m.pairs.clear();
+  m.grids.clear();
+  m.mixture = {};
+  m.constraints = c.constraints;
+  for (const auto& [d, v] : c.relaxed) m.dof[d].relaxed = v;
+  for (const auto& [d, v] : c.stiffness) m.dof[d].stiffness = v;
+  return m;
+}
 
 PostureModel builtin_model(const std::string& name) {
   PostureModel m;
@@ -122,7 +161,8 @@ PostureModel builtin_model(const std::string& name) {
 
 PostureModel parse_model(const Json& j, const std::string& file) {
   if (get_string(j, "format", file) != "hand-posture/1") throw InputError(file, "key 'format' must be \"hand-posture/1\"");
-  reject_unknown_keys(j, {"format", "name", "description", "pair_angles", "dofs", "pairs", "grids", "notes"}, file, "");
+  reject_unknown_keys(j, {"format", "name", "description", "pair_angles", "dofs", "pairs", "constraints", "grids", "mixture", "notes"},
+                      file, "");
   PostureModel m;
   m.dof = default_dof_params();
   if (j.contains("name")) m.name = get_string(j, "name", file);
@@ -238,6 +278,63 @@ PostureModel parse_model(const Json& j, const std::string& file) {
       throw InputError(where, "grid too large: cells² × samples must stay below 2e7 (e.g. 100 cells, 2000 samples)");
     m.grids.push_back(std::move(g));
   });
+  each_entry("constraints", {"terms", "offset", "weight", "source"}, [&](const Json& e, const std::string& where) {
+    m.constraints.push_back(parse_constraint(e, where));
+  });
+  if (m.constraints.size() > static_cast<size_t>(kMaxConstraints))
+    throw InputError(file, "key 'constraints': at most " + std::to_string(kMaxConstraints) + " rows");
+  if (j.contains("mixture")) {
+    const Json& mx = j["mixture"];
+    const std::string where = file + ": mixture";
+    if (!mx.is_object()) throw InputError(where, "must be an object");
+    reject_unknown_keys(mx, {"energy_scale", "components"}, file, "mixture");
+    m.mixture.energy_scale = get_finite(mx, "energy_scale", where);
+    if (!(m.mixture.energy_scale > 0 && m.mixture.energy_scale <= kMaxWeight))
+      throw InputError(where, "energy_scale must be in (0, " + number_text(kMaxWeight) + "]");
+    const Json& cs = require(mx, "components", where);
+    if (!cs.is_array() || cs.empty() || cs.size() > static_cast<size_t>(kMaxMixtureComponents))
+      throw InputError(where, "key 'components' must be an array of 1 to " + std::to_string(kMaxMixtureComponents) + " objects");
+    double total = 0;
+    for (size_t k = 0; k < cs.size(); ++k) {
+      const std::string cw = where + ".components[" + std::to_string(k) + "]";
+      const Json& c = cs[k];
+      if (!c.is_object()) throw InputError(cw, "must be an object");
+      reject_unknown_keys(c, {"weight", "relaxed", "stiffness", "constraints"}, file, "mixture.components[" + std::to_string(k) + "]");
+      MixtureComponent comp;
+      comp.weight = get_finite(c, "weight", cw);
+      if (!(comp.weight > 0 && comp.weight <= 1)) throw InputError(cw, "weight must be in (0, 1]");
+      total += comp.weight;
+      auto per_dof = [&](const char* key, std::vector<std::pair<int, double>>* out) {
+        if (!c.contains(key)) return;
+        if (!c[key].is_object()) throw InputError(cw, std::string("key '") + key + "' must be an object keyed by DOF name");
+        for (auto it = c[key].begin(); it != c[key].end(); ++it) {
+          const int d = require_dof(it.key(), cw + "." + key);
+          if (!it.value().is_number() || !std::isfinite(it.value().get<double>()))
+            throw InputError(cw + "." + key + "." + it.key(), "must be a finite number");
+          out->emplace_back(d, it.value().get<double>());
+        }
+      };
+      per_dof("relaxed", &comp.relaxed);
+      per_dof("stiffness", &comp.stiffness);
+      for (const auto& [d, v] : comp.relaxed)
+        if (v < m.dof[d].lo || v > m.dof[d].hi) throw InputError(cw + ".relaxed." + dofs()[d].name, "lies outside the limits");
+      for (const auto& [d, v] : comp.stiffness)
+        if (!(v >= kMinStiffness && v <= kMaxStiffness))
+          throw InputError(cw + ".stiffness." + dofs()[d].name, "must be in [1e-3, 1e3]");
+      if (c.contains("constraints")) {
+        if (!c["constraints"].is_array() || c["constraints"].size() > static_cast<size_t>(kMaxConstraints))
+          throw InputError(cw, "key 'constraints' must be an array of at most " + std::to_string(kMaxConstraints) + " rows");
+        for (size_t r = 0; r < c["constraints"].size(); ++r) {
+          const std::string rw = cw + ".constraints[" + std::to_string(r) + "]";
+          if (!c["constraints"][r].is_object()) throw InputError(rw, "must be an object");
+          reject_unknown_keys(c["constraints"][r], {"terms", "offset", "weight", "source"}, file, rw.substr(file.size() + 2));
+          comp.constraints.push_back(parse_constraint(c["constraints"][r], rw));
+        }
+      }
+      m.mixture.components.push_back(std::move(comp));
+    }
+    if (std::abs(total - 1) > 1e-6) throw InputError(where, "the component weights must sum to 1 (got " + number_text(total) + ")");
+  }
   if (j.contains("notes")) {
     if (!j["notes"].is_array()) throw InputError(file, "key 'notes' must be an array of strings");
     for (const auto& n : j["notes"])
@@ -274,6 +371,22 @@ Json model_to_json(const PostureModel& m) {
                   {"range_b", {g.lo_b, g.hi_b}}, {"cells", g.cells}, {"samples", s}});
   }
   j["grids"] = gs;
+  if (!m.constraints.empty()) {
+    Json cs = Json::array();
+    for (const auto& c : m.constraints) cs.push_back(constraint_to_json(c));
+    j["constraints"] = cs;
+  }
+  if (!m.mixture.components.empty()) {
+    Json comps = Json::array();
+    for (const auto& c : m.mixture.components) {
+      Json r = Json::object(), k = Json::object(), cs = Json::array();
+      for (const auto& [d, v] : c.relaxed) r[dofs()[d].name] = v;
+      for (const auto& [d, v] : c.stiffness) k[dofs()[d].name] = v;
+      for (const auto& row : c.constraints) cs.push_back(constraint_to_json(row));
+      comps.push_back({{"weight", c.weight}, {"relaxed", r}, {"stiffness", k}, {"constraints", cs}});
+    }
+    j["mixture"] = {{"energy_scale", m.mixture.energy_scale}, {"components", comps}};
+  }
   j["notes"] = m.notes;
   return j;
 }

@@ -45,13 +45,46 @@ struct PairGrid {
   std::vector<std::array<double, 2>> samples;
 };
 
+/// A constraint potential over any number of DOFs, ½·w·(Σ c_i θ_i + γ)² on absolute angles
+/// (a row of A, b and W that is not limited to two joints). The Gaussian calibration writes
+/// its precision as springs plus such rows: each row is a postural synergy, a direction of
+/// joint space along which the measured hands hardly vary (docs/posture.md).
+struct LinearConstraint {
+  std::vector<std::pair<int, double>> terms;  ///< DOF, coefficient c_i
+  double offset = 0, weight = 0;              ///< γ, w
+  std::string source;
+};
+constexpr int kMaxConstraints = 256;  ///< rows a model (or a mixture component) may hold
+
+/// One Gaussian of a posture mixture, written like a linear model: its rest posture, its
+/// springs and its constraint rows. DOFs it does not list take the model's own values.
+struct MixtureComponent {
+  double weight = 0;  ///< prior probability π_c
+  std::vector<std::pair<int, double>> relaxed, stiffness;
+  std::vector<LinearConstraint> constraints;
+};
+/// A mixture of Gaussians over postures (the non-linear mode of docs/posture.md). Each
+/// component's energy E_c is the negative log density times `energy_scale`; the solver gives
+/// each component's constrained optimum the weight of its posterior probability.
+struct PostureMixture {
+  double energy_scale = 1;
+  std::vector<MixtureComponent> components;
+};
+constexpr int kMaxMixtureComponents = 16;
+
 struct PostureModel {
   std::string name, description;
   std::array<DofParams, kDofCount> dof;
   std::vector<PairLine> pairs;
+  std::vector<LinearConstraint> constraints;
   std::vector<PairGrid> grids;
+  PostureMixture mixture;          ///< empty: none
   std::vector<std::string> notes;  ///< e.g. limits widened by calibration
 };
+
+/// The model a mixture component stands for: `base` with the component's rest posture,
+/// springs and constraint rows in place of its own pairs, constraints, grids and mixture.
+PostureModel component_model(const PostureModel& base, const MixtureComponent& c);
 
 /// Anatomical defaults per DOF: relaxed posture, stiffness, limits (sources in docs/posture.md).
 std::array<DofParams, kDofCount> default_dof_params();

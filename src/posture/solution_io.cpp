@@ -43,6 +43,7 @@ Json posture_solution_to_json(const PostureModel& model, const PostureInputs& in
   j["iterations"] = s.iterations;
   j["energy"] = s.energy;
   j["converged"] = s.converged;
+  if (!s.component_weights.empty()) j["component_weights"] = s.component_weights;
   j["clamped_inputs"] = s.clamped_inputs;
   if (joint_pos) {
     Json jp = Json::object();

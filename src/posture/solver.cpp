@@ -29,16 +29,23 @@ constexpr std::uint64_t bit(int i) { return std::uint64_t{1} << i; }
 }  // namespace
 
 PostureSolver::PostureSolver(const PostureModel& model) : model_(model) {
-  const int m = static_cast<int>(model.pairs.size());
+  // Rows of A, b, W: the pair lines, then the general constraint rows.
+  const int np = static_cast<int>(model.pairs.size()), m = np + static_cast<int>(model.constraints.size());
   A_ = Eigen::MatrixXd::Zero(m, kDofCount);
   b_ = Eigen::VectorXd::Zero(m);
   w_ = Eigen::VectorXd::Zero(m);
-  for (int k = 0; k < m; ++k) {
+  for (int k = 0; k < np; ++k) {
     const PairLine& l = model.pairs[k];
     A_(k, l.a) = l.alpha;
     A_(k, l.b) = l.beta;
     b_(k) = l.gamma;
     w_(k) = l.weight;
+  }
+  for (int k = np; k < m; ++k) {
+    const LinearConstraint& c = model.constraints[k - np];
+    for (const auto& [d, v] : c.terms) A_(k, d) += v;
+    b_(k) = c.offset;
+    w_(k) = c.weight;
   }
   Mat K = Mat::Zero();
   for (int d = 0; d < kDofCount; ++d) {
@@ -76,6 +83,15 @@ PostureSolver::PostureSolver(const PostureModel& model) : model_(model) {
     Hgrid_(g.b, g.b) += g.w;
     grids_.push_back(std::move(g));
   }
+  for (const MixtureComponent& c : model.mixture.components) {
+    const PostureModel cm = component_model(model, c);
+    components_.push_back(std::make_unique<PostureSolver>(cm));
+    log_weight_.push_back(std::log(c.weight));
+    // ½ log det of the component's full system (the Gaussian's precision, up to the scale).
+    Eigen::LLT<Eigen::MatrixXd> llt(components_.back()->H0_);
+    HS_CHECK(llt.info() == Eigen::Success, "mixture component is not positive definite");
+    half_logdet_.push_back(Eigen::MatrixXd(llt.matrixL()).diagonal().array().log().sum());
+  }
 }
 
 PostureSolver::~PostureSolver() = default;
@@ -111,7 +127,7 @@ double PostureSolver::energy(const Angles& xa, const PostureInputs& in, bool wit
   const Vec dx = x - relaxed_;
   double e = 0;
   for (int d = 0; d < kDofCount; ++d) e += 0.5 * model_.dof[d].stiffness * dx(d) * dx(d);
-  const Eigen::VectorXd r = A_ * x + b_;
+  const Eigen::VectorXd r = A_ * x + b_;  // pair lines and constraint rows
   e += 0.5 * r.dot(w_.asDiagonal() * r);
   for (const auto& t : in.targets) e += 0.5 * t.weight * (x(t.dof) - t.angle) * (x(t.dof) - t.angle);
   for (const auto& [d, tau] : in.torques) e -= tau * x(d);
@@ -323,7 +339,68 @@ PostureSolution PostureSolver::checked(PostureSolution s) const {
 }
 
 PostureSolution PostureSolver::solve(const PostureInputs& in) const {
+  if (!components_.empty()) return solve_mixture(in);
   return grids_.empty() ? solve_linear(in) : solve_nonlinear(in);
+}
+
+PostureSolution PostureSolver::solve_mixture(const PostureInputs& in) const {
+  if (components_.empty()) return solve_linear(in);
+  // Each component c is a Gaussian with density ∝ exp(−E_c / s). With the pins fixed, its
+  // constrained optimum x_c has the free energy E_c(x_c) − s·½ log det(H_c) + s·½ log det(H_c
+  // over the unpinned DOFs): the negative log of the pinned values' marginal density. The
+  // answer is the posterior-weighted mean of the x_c, the conditional mean of the mixture
+  // (for pins alone exactly; torques and targets enter every component's energy alike).
+  std::uint64_t pinned = 0;
+  for (const auto& [d, v] : in.pins)
+    if (d >= 0 && d < kDofCount) pinned |= bit(d);
+  const double s = model_.mixture.energy_scale;
+  const size_t C = components_.size();
+  thread_local std::vector<PostureSolution> sols;
+  thread_local std::vector<double> logp;
+  sols.resize(C);
+  logp.resize(C);
+  double best = -1e300;
+  for (size_t c = 0; c < C; ++c) {
+    sols[c] = components_[c]->solve_linear(in);
+    logp[c] = log_weight_[c] + half_logdet_[c] - components_[c]->half_logdet_free(pinned) - sols[c].energy / s;
+    best = std::max(best, logp[c]);
+  }
+  double total = 0;
+  for (size_t c = 0; c < C; ++c) total += (logp[c] = std::exp(logp[c] - best));
+  PostureSolution out;
+  Vec x = Vec::Zero();
+  for (size_t c = 0; c < C; ++c) {
+    out.component_weights.push_back(logp[c] / total);
+    x += (logp[c] / total) * Eigen::Map<const Vec>(sols[c].angles.data());
+    out.iterations = std::max(out.iterations, sols[c].iterations);
+    out.clamped_inputs = std::max(out.clamped_inputs, sols[c].clamped_inputs);
+  }
+  // The weights are a convex combination of points inside the box: the result is too.
+  for (int d = 0; d < kDofCount; ++d) x(d) = std::clamp(x(d), lo_(d), hi_(d));
+  Eigen::Map<Vec>(out.angles.data()) = x;
+  for (int d = 0; d < kDofCount; ++d)
+    if (!(pinned & bit(d)) && (x(d) <= lo_(d) + 1e-9 || x(d) >= hi_(d) - 1e-9)) out.at_limit.push_back(d);
+  out.energy = -s * (std::log(total) + best);  // the mixture's free energy at this input
+  return checked(std::move(out));
+}
+
+double PostureSolver::half_logdet_free(std::uint64_t pinned) const {
+  const auto it = logdet_cache_.find(pinned);
+  if (it != logdet_cache_.end()) return it->second;
+  std::vector<int> f;
+  for (int d = 0; d < kDofCount; ++d)
+    if (!(pinned & bit(d))) f.push_back(d);
+  double v = 0;
+  if (!f.empty()) {
+    Eigen::MatrixXd H(f.size(), f.size());
+    for (size_t r = 0; r < f.size(); ++r)
+      for (size_t c = 0; c < f.size(); ++c) H(r, c) = H0_(f[r], f[c]);
+    Eigen::LLT<Eigen::MatrixXd> llt(H);
+    HS_CHECK(llt.info() == Eigen::Success, "posture system is not positive definite");
+    v = Eigen::MatrixXd(llt.matrixL()).diagonal().array().log().sum();
+  }
+  if (logdet_cache_.size() < 4096) logdet_cache_.emplace(pinned, v);
+  return v;
 }
 
 void parse_assignment(const std::string& text, const std::string& option, int* dof, double* value, double* weight) {

@@ -1,7 +1,8 @@
 #pragma once
 /// The posture solver (thesis §3.2): springs K on every DOF about the relaxed posture θ̄,
 /// linear pair constraints J = ½(Aθ+b)ᵀW(Aθ+b), instructed torques τ̂, pinned angles, soft
-/// targets, joint limits, and optional non-linear grid potentials (§3.2.3).
+/// targets, joint limits, optional non-linear grid potentials (§3.2.3) and an optional
+/// mixture of Gaussians over postures (the calibrated non-linear mode).
 ///
 /// Linear model: the equilibrium (K + AᵀWA)θ = τ̂ − AᵀWb (eq. 3.17, θ measured from θ̄),
 /// solved over the unpinned DOFs as a box-constrained quadratic programme (active set): the
@@ -39,6 +40,7 @@ struct PostureSolution {
   std::vector<int> at_limit;   ///< DOFs held at a limit
   int clamped_inputs = 0;      ///< pins or targets outside the limits, moved onto them
   bool converged = true;
+  std::vector<double> component_weights;  ///< mixture: each component's posterior weight
 };
 
 class PostureSolver {
@@ -52,8 +54,12 @@ class PostureSolver {
   PostureSolution solve_linear(const PostureInputs& in) const;
   /// Linear model plus the grid potentials.
   PostureSolution solve_nonlinear(const PostureInputs& in, int max_iterations = 50) const;
-  /// solve_nonlinear if the model has grids, else solve_linear.
+  /// The mixture's conditional mean (docs/posture.md, "Mixture"); solve_linear without one.
+  PostureSolution solve_mixture(const PostureInputs& in) const;
+  /// solve_mixture if the model has a mixture, else solve_nonlinear if it has grids, else
+  /// solve_linear.
   PostureSolution solve(const PostureInputs& in) const;
+  bool has_mixture() const { return !components_.empty(); }
 
   /// The total potential of a posture for these inputs (what the solvers minimise).
   double energy(const Angles& x, const PostureInputs& in, bool with_grids) const;
@@ -88,6 +94,11 @@ class PostureSolver {
   Eigen::VectorXd b_, w_;
   std::vector<Grid> grids_;
   mutable std::unordered_map<std::uint64_t, std::unique_ptr<Factor>> cache_[3];  ///< H0, H0+grids, other
+  // Mixture: one linear solver per component, log π_c and ½ log det H_c.
+  std::vector<std::unique_ptr<PostureSolver>> components_;
+  std::vector<double> log_weight_, half_logdet_;
+  double half_logdet_free(std::uint64_t pinned) const;  ///< ½ log det of H0 over the unpinned DOFs (cached)
+  mutable std::unordered_map<std::uint64_t, double> logdet_cache_;
 };
 
 /// Parse "name=value" (a --set / --torque argument) or "name=value@weight" (a --target).
