@@ -275,6 +275,7 @@ TEST(GaussianCalibration, BadModelsAndOptionsAreRefused) {
   refused([](Json& j) { j["mixture"]["components"][1]["stiffness"]["middle.mcp.flex"] = 0; }, "stiffness");
   refused([](Json& j) { j["mixture"]["components"][0]["relaxed"]["middle.mcp.flex"] = 900; }, "outside the limits");
   refused([](Json& j) { j["mixture"]["energy_scale"] = -1; }, "energy_scale");
+  refused([](Json& j) { j["mixture"]["energy_scale"] = 1e-300; }, "energy_scale");
   refused([](Json& j) { j["mixture"]["components"] = Json::array(); }, "components");
   refused([](Json& j) { j["constraints"][0]["terms"] = Json::object(); }, "terms");
   refused([](Json& j) { j["constraints"][0]["terms"]["no.such.dof"] = 1; }, "unknown DOF");

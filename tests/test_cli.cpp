@@ -275,6 +275,54 @@ TEST(Cli, SolveSingleAndBatch) {
   EXPECT_NE(out.find("stiffness"), std::string::npos) << out;
 }
 
+TEST(Cli, CalibrateSeveralRecordingsAndMixture) {
+  const std::string dir = test::temp_dir("calib-many");
+  std::string out;
+  for (int p = 1; p <= 3; ++p)
+    ASSERT_EQ(test::run(kBin + " -q synth angles --rows 600 --seed " + std::to_string(p) + " --person " + std::to_string(p) +
+                            " --gaps 0.05 --out " + dir + "/p" + std::to_string(p) + ".csv --truth " + dir + "/t" +
+                            std::to_string(p) + ".json",
+                        &out),
+              0)
+        << out;
+  EXPECT_EQ(load_json_object(dir + "/t1.json")["format"].get<std::string>(), "handskin-angle-truth/1");
+  ASSERT_EQ(test::run(kBin + " -q calibrate --angles " + dir + "/p1.csv --angles " + dir + "/p2.csv --angles " + dir +
+                          "/p3.csv --out " + dir + "/m.json --report " + dir + "/r.json",
+                      &out),
+            0)
+      << out;
+  // The terminal table: both schemes, the three tasks, the baselines.
+  for (const char* s : {"held-out blocks", "held-out recordings", "PIPs -> DIPs", "MCPs -> the rest", "linreg", "mean"})
+    EXPECT_NE(out.find(s), std::string::npos) << s << "\n" << out;
+  const Json r = load_json_object(dir + "/r.json");
+  EXPECT_EQ(r["recordings"].size(), 3u);
+  EXPECT_EQ(r["cross_validation"]["recordings"]["tasks"].size(), 3u);
+  EXPECT_GT(r["frames"].get<long>(), r["frames_complete"].get<long>());  // the gaps are counted
+  ASSERT_EQ(test::run(kBin + " -q solve --model " + dir + "/m.json --set middle.mcp.flex=50 --json", &out), 0) << out;
+  // The mixture on a curved grasp: solve reports its posterior weights.
+  ASSERT_EQ(test::run(kBin + " -q synth angles --kind curved --rows 1500 --out " + dir + "/c.csv", &out), 0) << out;
+  ASSERT_EQ(test::run(kBin + " -q calibrate --angles " + dir + "/c.csv --method mixture --components 3 --out " + dir + "/x.json",
+                      &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("3 mixture components"), std::string::npos) << out;
+  ASSERT_EQ(test::run(kBin + " -q solve --model " + dir + "/x.json --set middle.mcp.flex=50", &out), 0) << out;
+  EXPECT_NE(out.find("mixture of 3 Gaussians"), std::string::npos) << out;
+  // Bad usage (exit 2) and bad data (exit 1), no model written.
+  for (const std::string bad : {"--method pca", "--shrinkage 2", "--components 1", "--offsets some", "--folds 1"}) {
+    EXPECT_EQ(test::run(kBin + " -q calibrate --angles " + dir + "/c.csv --out " + dir + "/bad.json " + bad, &out), 2) << bad;
+    EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+  }
+  EXPECT_EQ(test::run(kBin + " -q calibrate --angles " + dir + "/c.csv --out " + dir + "/bad.json --grids", &out), 1);
+  EXPECT_NE(out.find("thesis-pairs"), std::string::npos) << out;
+  test::write_text(dir + "/flat.csv", "I2.flex,I3.flex\n1,2\n1,2\n1,2\n1,2\n1,2\n1,2\n1,2\n1,2\n1,2\n1,2\n1,2\n");
+  EXPECT_EQ(test::run(kBin + " -q calibrate --angles " + dir + "/flat.csv --out " + dir + "/bad.json", &out), 1);
+  EXPECT_NE(out.find("flat.csv"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir + "/bad.json"));
+  EXPECT_EQ(test::run(kBin + " -q synth angles --kind spiral --out " + dir + "/s.csv", &out), 2);
+  EXPECT_EQ(test::run(kBin + " -q synth angles --rows 5 --out " + dir + "/s.csv", &out), 2);
+}
+
 TEST(Cli, MocapCalibrateModel) {
   const std::string dir = test::temp_dir("calib");
   std::string out;

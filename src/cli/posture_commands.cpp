@@ -227,13 +227,17 @@ void add_posture_commands(CLI::App& app, const Progress& progress, Commands* out
   calc->add_option("--method", ca->options.method,
                    "gaussian (conditional mean of the shrunk joint covariance), mixture (of Gaussians, non-linear), "
                    "or thesis-pairs (thesis §3.2.2-3.2.3)")
+      ->check(CLI::IsMember({"gaussian", "mixture", "thesis-pairs"}))
       ->capture_default_str();
   calc->add_option("--offsets", ca->options.offsets,
                    "Per-recording offsets: remove, keep, or auto (chosen by leaving recordings out)")
+      ->check(CLI::IsMember({"auto", "remove", "keep"}))
       ->capture_default_str();
-  calc->add_option("--shrinkage", ca->options.shrinkage, "Covariance shrinkage toward its diagonal, [0, 1]; default: chosen by cross-validation");
-  calc->add_option("--components", ca->options.components, "Mixture components, 2-16; default: chosen by cross-validation");
-  calc->add_option("--folds", ca->options.folds, "Held-out blocks per recording")->capture_default_str();
+  calc->add_option("--shrinkage", ca->options.shrinkage, "Covariance shrinkage toward its diagonal, [0, 1]; default: chosen by cross-validation")
+      ->check(CLI::Range(0.0, 1.0));
+  calc->add_option("--components", ca->options.components, "Mixture components, 2-16; default: chosen by cross-validation")
+      ->check(CLI::Range(2, 16));
+  calc->add_option("--folds", ca->options.folds, "Held-out blocks per recording, 2-50")->check(CLI::Range(2, 50))->capture_default_str();
   calc->add_flag("--no-evaluate", ca->no_evaluate, "Skip the cross-validated figures (the fit still validates its choices)");
   calc->add_option("--pair", ca->pairs, "thesis-pairs: a pair to fit, dofA:dofB (repeatable; default: chosen by correlation)");
   calc->add_option("--min-correlation", ca->options.min_correlation, "thesis-pairs: |r| for automatic pairs")->capture_default_str();

@@ -198,13 +198,13 @@ void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) 
       "angles", "A joint-angle recording with known structure (a Gaussian of three synergies, or a curved grasp), to test calibration");
   sac->add_option("--out", sa->out, "Joint-angle CSV to write")->required();
   sac->add_option("--truth", sa->truth, "Also write the truth (mean and covariance, or the formulas) as JSON");
-  sac->add_option("--kind", sa->options.kind, "gaussian or curved")->capture_default_str();
-  sac->add_option("--rows", sa->options.rows, "Frames, [10, 1e6]")->capture_default_str();
+  sac->add_option("--kind", sa->options.kind, "gaussian or curved")->check(CLI::IsMember({"gaussian", "curved"}))->capture_default_str();
+  sac->add_option("--rows", sa->options.rows, "Frames, [10, 1e6]")->check(CLI::Range(10L, 1000000L))->capture_default_str();
   sac->add_option("--seed", sa->options.seed, "The hand (means, synergy loadings) and the frames")->capture_default_str();
   sac->add_option("--person", sa->options.person, "0: no offsets; k >= 1: person k's own offsets (another glove calibration)")
       ->capture_default_str();
   sac->add_option("--offset-sd", sa->options.offset_sd, "Sd of a person's offsets, deg")->capture_default_str();
-  sac->add_option("--gaps", sa->options.gaps, "Fraction of cells left empty, [0, 0.5]")->capture_default_str();
+  sac->add_option("--gaps", sa->options.gaps, "Fraction of cells left empty, [0, 0.5]")->check(CLI::Range(0.0, 0.5))->capture_default_str();
   sac->add_option("--noise", sa->options.noise, "curved: noise per joint, deg")->capture_default_str();
   out->push_back({sac, [sa, &progress] { synth_angles(*sa, progress); }});
 

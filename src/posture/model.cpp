@@ -289,8 +289,8 @@ PostureModel parse_model(const Json& j, const std::string& file) {
     if (!mx.is_object()) throw InputError(where, "must be an object");
     reject_unknown_keys(mx, {"energy_scale", "components"}, file, "mixture");
     m.mixture.energy_scale = get_finite(mx, "energy_scale", where);
-    if (!(m.mixture.energy_scale > 0 && m.mixture.energy_scale <= kMaxWeight))
-      throw InputError(where, "energy_scale must be in (0, " + number_text(kMaxWeight) + "]");
+    if (!(m.mixture.energy_scale >= 1e-6 && m.mixture.energy_scale <= kMaxWeight))
+      throw InputError(where, "energy_scale must be in [1e-6, " + number_text(kMaxWeight) + "]");
     const Json& cs = require(mx, "components", where);
     if (!cs.is_array() || cs.empty() || cs.size() > static_cast<size_t>(kMaxMixtureComponents))
       throw InputError(where, "key 'components' must be an array of 1 to " + std::to_string(kMaxMixtureComponents) + " objects");
