@@ -14,8 +14,9 @@ import argparse
 import json
 import os
 import statistics
-import subprocess
 import sys
+
+from study_util import run as sh
 
 # name: synth hand options
 HANDS = {
@@ -42,11 +43,6 @@ PAIRS = [(1, "2.5"), (2, "3.0"), (3, "3.5"), (4, "4.0")]  # seed, marker radius 
 # synth scan options per hand: the largest hand with the longest stub and a spread thumb
 # spans 255 x 191 mm, more than the default 250 x 200 mm field holds.
 SCAN = {"H04": ["--x-extent", "300", "--y-extent", "240"]}
-
-
-def sh(args):
-    r = subprocess.run(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    return r.returncode, r.stdout
 
 
 def main():

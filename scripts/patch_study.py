@@ -11,16 +11,11 @@ import argparse
 import json
 import os
 import statistics
-import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from family_study import HANDS, SCAN  # noqa: E402
-
-
-def sh(args):
-    r = subprocess.run(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    return r.returncode, r.stdout
+from study_util import run as sh  # noqa: E402
 
 
 def main():

@@ -15,15 +15,8 @@ import csv
 import json
 import math
 import os
-import subprocess
-import sys
 
-
-def sh(args):
-    r = subprocess.run(args, capture_output=True, text=True)
-    if r.returncode != 0:
-        sys.exit(f"failed ({r.returncode}): {' '.join(args)}\n{r.stdout}{r.stderr}")
-    return r.stdout
+from study_util import run_or_exit as sh
 
 
 def calibrate(bin_, work, name, angles, method):

@@ -9,8 +9,9 @@ Prints a Markdown table (docs/skin.md holds the last one). Pairs already in --wo
 import argparse
 import json
 import os
-import subprocess
 import sys
+
+from study_util import run_or_exit as sh
 
 HANDS = {  # name: synth hand options
     "A": [],
@@ -18,13 +19,6 @@ HANDS = {  # name: synth hand options
     "C": ["--hand-length", "165", "--spread", "2", "--thickness", "0.85", "--width", "0.9", "--thumb-abduction", "30"],
 }
 SEEDS = [11, 12]
-
-
-def sh(args):
-    r = subprocess.run(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    if r.returncode != 0:
-        sys.exit("failed: " + " ".join(args) + "\n" + r.stdout)
-    return r.stdout
 
 
 def main():
