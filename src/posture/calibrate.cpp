@@ -5,7 +5,8 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
-#include <optional>
+#include <tuple>
+#include <functional>
 #include <set>
 
 #include "core/errors.hpp"
@@ -287,10 +288,9 @@ struct GaussianChoice {
 // measured DOFs, their mean as the rest posture; DOFs the samples lack keep the base's
 // springs and rest, and the anatomical lines among them only (a line that touched a measured
 // DOF would change its fitted statistics).
-PostureModel gaussian_model(const PostureModel& base, const PostureSamples& s, const GaussianChoice& g, long min_pair,
-                            GaussianStats* stats_out = nullptr, double* scale_out = nullptr, const GaussianMixtureFit* mix = nullptr) {
+PostureModel gaussian_model(const PostureModel& base, const PostureSamples& s, const GaussianStats& st, double* scale_out = nullptr,
+                            const GaussianMixtureFit* mix = nullptr) {
   PostureModel m = base;
-  const GaussianStats st = gaussian_stats(s, g.remove_offsets, g.shrinkage, min_pair);
   std::vector<Eigen::MatrixXd> covs{st.cov};
   if (mix) covs.insert(covs.end(), mix->cov.begin(), mix->cov.end());
   const double scale = energy_scale_for(covs);
@@ -323,18 +323,36 @@ PostureModel gaussian_model(const PostureModel& base, const PostureSamples& s, c
       m.mixture.components.push_back(std::move(comp));
     }
   }
-  if (stats_out) *stats_out = st;
   if (scale_out) *scale_out = scale;
   return m;
 }
 
-PostureModel mixture_model(const PostureModel& base, const PostureSamples& s, const GaussianChoice& g, int C, long min_pair,
-                           int* iterations = nullptr) {
-  const GaussianStats st = gaussian_stats(s, g.remove_offsets, g.shrinkage, min_pair);
+PostureModel mixture_model(const PostureModel& base, const PostureSamples& s, const GaussianChoice& g, const GaussianStats& moments,
+                           int C, int* iterations = nullptr) {
+  const GaussianStats st = shrink_stats(moments, g.shrinkage);
   const GaussianMixtureFit f = fit_mixture(s, st, g.remove_offsets, C, g.shrinkage);
   if (iterations) *iterations = f.iterations;
-  return gaussian_model(base, s, g, min_pair, nullptr, nullptr, &f);
+  return gaussian_model(base, s, st, nullptr, &f);
 }
+
+// The moments of each split's training rows, per offsets choice, computed once: shrinkage
+// candidates, mixture candidates and the final evaluation all start from them.
+class MomentCache {
+ public:
+  MomentCache(const PostureSamples& s, long min_pair) : s_(s), min_pair_(min_pair) {}
+  const GaussianStats& get(const std::vector<Split>* splits, size_t k, bool remove_offsets, const PostureSamples& train) {
+    const auto key = std::make_tuple(static_cast<const void*>(splits), k, remove_offsets);
+    auto it = cache_.find(key);
+    if (it == cache_.end()) it = cache_.emplace(key, gaussian_moments(train, remove_offsets, min_pair_)).first;
+    return it->second;
+  }
+  const GaussianStats& all(bool remove_offsets) { return get(nullptr, 0, remove_offsets, s_); }
+
+ private:
+  const PostureSamples& s_;
+  long min_pair_;
+  std::map<std::tuple<const void*, size_t, bool>, GaussianStats> cache_;
+};
 
 // How a candidate ranks: the mean and the worst over the tasks of its held-out RMS over the
 // linear regression's, averaged — a candidate that beats the regression on most tasks but
@@ -449,13 +467,44 @@ PostureModel calibrate(const std::vector<AngleTable>& tables, const std::vector<
   for (int d = 0; d < kDofCount; ++d) base.dof[d].lo = m.dof[d].lo, base.dof[d].hi = m.dof[d].hi;
   base.notes = m.notes;
 
-  ModelFit fit;
+  // Held-out errors per (scheme, model), computed once: the selection's figures are reused
+  // by the report.
+  std::map<std::pair<const void*, std::string>, TaskErrors> done;
+  using FitFor = std::function<ModelFit(const std::vector<Split>&)>;
+  auto errors = [&](const std::vector<Split>& splits, const std::string& key, const FitFor& fit_for) -> const TaskErrors& {
+    const auto k = std::make_pair(static_cast<const void*>(&splits), key);
+    auto it = done.find(k);
+    if (it == done.end()) it = done.emplace(k, model_errors(s, tasks, splits, fit_for(splits))).first;
+    return it->second;
+  };
+  MomentCache moments(s, o.min_rows);
+  auto gaussian_fit = [&](const GaussianChoice& c) -> FitFor {
+    return [&, c](const std::vector<Split>& splits) -> ModelFit {
+      return [&, c, sp = &splits](const PostureSamples& tr, size_t k) {
+        return gaussian_model(base, tr, shrink_stats(moments.get(sp, k, c.remove_offsets, tr), c.shrinkage));
+      };
+    };
+  };
+  auto mixture_fit = [&](const GaussianChoice& c, int C) -> FitFor {
+    return [&, c, C](const std::vector<Split>& splits) -> ModelFit {
+      return [&, c, C, sp = &splits](const PostureSamples& tr, size_t k) {
+        return mixture_model(base, tr, c, moments.get(sp, k, c.remove_offsets, tr), C);
+      };
+    };
+  };
+  auto key_of = [](const GaussianChoice& c) { return fmt("gaussian %g ", c.shrinkage) + (c.remove_offsets ? "remove" : "keep"); };
+
+  FitFor fit;
+  std::string fit_key, linear_key;
   GaussianChoice g;
   if (o.method == "thesis-pairs") {
-    fit = [&](const PostureSamples& train) { return calibrate_pairs(as_table(train), o, label, nullptr); };
+    fit = [&](const std::vector<Split>&) -> ModelFit {
+      return [&](const PostureSamples& train, size_t) { return calibrate_pairs(as_table(train), o, label, nullptr); };
+    };
+    fit_key = "thesis-pairs";
   } else {
-    // Shrinkage and offsets: given, or the candidates' best held-out figure relative to the
-    // linear regression (mean over the tasks).
+    // Shrinkage and offsets: given, or the candidate with the best held-out score relative to
+    // the linear regression.
     std::vector<GaussianChoice> cands;
     const std::vector<bool> offs = o.offsets == "auto" ? (several ? std::vector<bool>{true, false} : std::vector<bool>{true})
                                                       : std::vector<bool>{o.offsets == "remove"};
@@ -469,10 +518,7 @@ PostureModel calibrate(const std::vector<AngleTable>& tables, const std::vector<
     g = cands.front();
     if (cands.size() > 1 && !select.empty() && !tasks.empty()) {
       for (const auto& c : cands) {
-        const double sc = score(model_errors(s, tasks, select, [&](const PostureSamples& tr) {
-                                  return gaussian_model(base, tr, c, o.min_rows);
-                                }),
-                                sel_linreg);
+        const double sc = score(errors(select, key_of(c), gaussian_fit(c)), sel_linreg);
         sel.push_back({{"offsets", c.remove_offsets ? "remove" : "keep"}, {"shrinkage", c.shrinkage}, {"score", json_number(sc)}});
         if (sc < best) best = sc, g = c;
       }
@@ -487,9 +533,9 @@ PostureModel calibrate(const std::vector<AngleTable>& tables, const std::vector<
                         {"candidates", sel}};
     rep["offsets"] = g.remove_offsets ? "removed per recording" : "kept";
     rep["shrinkage"] = g.shrinkage;
-    GaussianStats st;
+    const GaussianStats st = shrink_stats(moments.all(g.remove_offsets), g.shrinkage);
     double scale = 1;
-    PostureModel lin = gaussian_model(base, s, g, o.min_rows, &st, &scale);
+    PostureModel lin = gaussian_model(base, s, st, &scale);
     Json syn = Json::array();
     for (const auto& c : lin.constraints) syn.push_back({{"weight", c.weight}, {"source", c.source}});
     rep["gaussian"] = {{"dofs", s.dofs.size()},
@@ -508,9 +554,10 @@ PostureModel calibrate(const std::vector<AngleTable>& tables, const std::vector<
     lin.description = "Gaussian calibration from " + label + " (" + std::to_string(all.rows.size()) + " rows, " +
                       std::to_string(s.dofs.size()) + " DOFs, shrinkage " + fmt("%g", g.shrinkage) + ")";
     m = lin;
-    fit = [&](const PostureSamples& tr) { return gaussian_model(base, tr, g, o.min_rows); };
+    fit = gaussian_fit(g);
+    fit_key = linear_key = key_of(g);
     if (o.method == "mixture") {
-      // Components: given, or chosen by the same held-out figure; kept only if no task gets
+      // Components: given, or chosen by the same held-out score; eligible only if no task gets
       // worse than with the single Gaussian.
       std::vector<int> comps;
       if (o.components) comps.push_back(o.components);
@@ -521,12 +568,10 @@ PostureModel calibrate(const std::vector<AngleTable>& tables, const std::vector<
       Json mx = Json::array();
       int chosen = 1;
       if (!select.empty() && !tasks.empty()) {
-        const TaskErrors lin_err = model_errors(s, tasks, select, fit);
+        const TaskErrors& lin_err = errors(select, linear_key, gaussian_fit(g));
         double best_mx = score(lin_err, sel_linreg);
         for (int c : comps) {
-          const TaskErrors e = model_errors(s, tasks, select, [&](const PostureSamples& tr) {
-            return mixture_model(base, tr, g, c, o.min_rows);
-          });
+          const TaskErrors& e = errors(select, "mixture " + std::to_string(c), mixture_fit(g, c));
           bool no_worse = true;
           for (size_t t = 0; t < tasks.size(); ++t) no_worse = no_worse && !(e.rms(t) > lin_err.rms(t));
           const double sc = score(e, sel_linreg);
@@ -537,11 +582,12 @@ PostureModel calibrate(const std::vector<AngleTable>& tables, const std::vector<
       Json mrep = {{"candidates", mx}, {"components", chosen}};
       if (chosen > 1) {
         int its = 0;
-        m = mixture_model(base, s, g, chosen, o.min_rows, &its);
+        m = mixture_model(base, s, g, moments.all(g.remove_offsets), chosen, &its);
         m.description = "Mixture of " + std::to_string(chosen) + " Gaussians from " + label + " (" + std::to_string(all.rows.size()) +
                         " rows, " + std::to_string(s.dofs.size()) + " DOFs)";
         mrep["em_iterations"] = its;
-        fit = [&, chosen](const PostureSamples& tr) { return mixture_model(base, tr, g, chosen, o.min_rows); };
+        fit = mixture_fit(g, chosen);
+        fit_key = "mixture " + std::to_string(chosen);
       } else {
         m.notes.push_back("mixture: no number of components beat the single Gaussian on held-out frames; the linear model is kept");
       }
@@ -554,11 +600,10 @@ PostureModel calibrate(const std::vector<AngleTable>& tables, const std::vector<
       if (splits.empty()) return;
       TaskErrors mean, linreg;
       baseline_errors(s, tasks, splits, &mean, &linreg);
-      const TaskErrors model = model_errors(s, tasks, splits, fit);
-      std::optional<TaskErrors> linear;
-      if (!m.mixture.components.empty())
-        linear = model_errors(s, tasks, splits, [&](const PostureSamples& tr) { return gaussian_model(base, tr, g, o.min_rows); });
-      extra["tasks"] = cv_json(tasks, s, model, mean, linreg, linear ? &*linear : nullptr);
+      const TaskErrors& model = errors(splits, fit_key, fit);
+      const TaskErrors* linear = nullptr;
+      if (!m.mixture.components.empty()) linear = &errors(splits, linear_key, gaussian_fit(g));
+      extra["tasks"] = cv_json(tasks, s, model, mean, linreg, linear);
       cv[name] = extra;
     };
     scheme(blocks, "blocks", {{"folds", o.folds}});

@@ -94,9 +94,10 @@ TaskErrors zeros(size_t n) { return {std::vector<double>(n, 0.0), std::vector<lo
 TaskErrors model_errors(const PostureSamples& s, const std::vector<PostureTask>& tasks, const std::vector<Split>& splits,
                         const ModelFit& fit) {
   TaskErrors e = zeros(tasks.size());
-  for (const Split& sp : splits) {
+  for (size_t k = 0; k < splits.size(); ++k) {
+    const Split& sp = splits[k];
     if (sp.test.empty() || sp.train.empty()) continue;
-    const PostureSolver solver(fit(s.rows(sp.train)));
+    const PostureSolver solver(fit(s.rows(sp.train), k));
     for (size_t t = 0; t < tasks.size(); ++t) {
       PostureInputs in;
       for (long i : sp.test) {

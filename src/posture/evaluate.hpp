@@ -34,7 +34,9 @@ struct TaskErrors {
   std::vector<long> cells;
   double rms(size_t task) const;
 };
-using ModelFit = std::function<PostureModel(const PostureSamples& train)>;
+/// A model fitted on a split's training rows; `split` is the split's index (a fit may cache
+/// what does not change between calls on the same split).
+using ModelFit = std::function<PostureModel(const PostureSamples& train, size_t split)>;
 /// The model fitted on each split's training rows, solving each held-out frame with the
 /// task's joints pinned (PostureSolver::solve: the mixture where the model has one).
 TaskErrors model_errors(const PostureSamples& s, const std::vector<PostureTask>& tasks, const std::vector<Split>& splits,

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <map>
 #include <random>
 
 #include "core/errors.hpp"
@@ -81,7 +82,17 @@ Eigen::MatrixXd shrunk(const Eigen::MatrixXd& S, double shrink) {
 }  // namespace
 
 GaussianStats gaussian_stats(const PostureSamples& s, bool remove_offsets, double shrink, long min_pair, double floor_deg) {
+  return shrink_stats(gaussian_moments(s, remove_offsets, min_pair, floor_deg), shrink, floor_deg);
+}
+
+GaussianStats shrink_stats(const GaussianStats& moments, double shrink, double floor_deg) {
   HS_CHECK(shrink >= 0 && shrink <= 1, "shrinkage must be in [0, 1]");
+  GaussianStats g = moments;
+  g.cov = floored(shrunk(moments.cov, shrink), floor_deg * floor_deg, &g.floored_eigenvalues);
+  return g;
+}
+
+GaussianStats gaussian_moments(const PostureSamples& s, bool remove_offsets, long min_pair, double floor_deg) {
   HS_CHECK(s.x.cols() <= 64, "at most 64 posture columns");
   GaussianStats g;
   const Eigen::MatrixXd z = centred(s, remove_offsets, &g.mean);
@@ -118,13 +129,13 @@ GaussianStats gaussian_stats(const PostureSamples& s, bool remove_offsets, doubl
     // Per recording (or pooled) means are re-estimated with the completed frames.
     const int groups = remove_offsets ? s.recordings : 1;
     Eigen::MatrixXd mu = Eigen::MatrixXd::Zero(groups, m);  // about the first centring
-    std::vector<std::uint64_t> order(pattern);
-    std::sort(order.begin(), order.end());
-    order.erase(std::unique(order.begin(), order.end()), order.end());
+    // The frames of each gap pattern, grouped once: the conditional regression is per pattern.
+    std::map<std::uint64_t, std::vector<Eigen::Index>> groups_of;
+    for (Eigen::Index i = 0; i < n; ++i) groups_of[pattern[i]].push_back(i);
     for (int it = 0; it < 100; ++it) {
       Eigen::MatrixXd sum = Eigen::MatrixXd::Zero(groups, m), S2 = Eigen::MatrixXd::Zero(m, m);
       Eigen::VectorXd count = Eigen::VectorXd::Zero(groups);
-      for (std::uint64_t pat : order) {
+      for (const auto& [pat, members] : groups_of) {
         if (pat == (m == 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << m) - 1)) continue;  // nothing measured
         std::vector<Eigen::Index> o, mi;
         for (Eigen::Index c = 0; c < m; ++c) ((pat >> c) & 1 ? mi : o).push_back(c);
@@ -143,8 +154,7 @@ GaussianStats gaussian_stats(const PostureSamples& s, bool remove_offsets, doubl
         }
         long rows_here = 0;
         Eigen::VectorXd xo(o.size()), xm(mi.size());
-        for (Eigen::Index i = 0; i < n; ++i) {
-          if (pattern[i] != pat) continue;
+        for (const Eigen::Index i : members) {
           const int gi = remove_offsets ? s.recording[i] : 0;
           for (size_t a = 0; a < o.size(); ++a) xo(a) = z(i, o[a]) - mu(gi, o[a]);
           xm = B * xo;
@@ -187,7 +197,7 @@ GaussianStats gaussian_stats(const PostureSamples& s, bool remove_offsets, doubl
     }
     g.mean += shift / std::max(1.0, total);
   }
-  g.cov = floored(shrunk(S, shrink), floor, &g.floored_eigenvalues);
+  g.cov = S;
   return g;
 }
 
@@ -255,15 +265,21 @@ std::vector<double> factor_precision(const Eigen::MatrixXd& cov, const Eigen::Ve
 }
 
 GaussianMixtureFit fit_mixture(const PostureSamples& s, const GaussianStats& single, bool remove_offsets, int C, double shrink,
-                               unsigned seed, int max_iterations, double floor_deg) {
+                               unsigned seed, int max_iterations, double floor_deg, long max_frames) {
   HS_CHECK(C >= 1 && C <= kMaxMixtureComponents, "mixture components out of range");
   GaussianMixtureFit f;
-  const Eigen::Index m = s.x.cols(), n = s.x.rows();
-  HS_CHECK(n >= C * (m + 1), "too few frames for the mixture");
   // Every frame complete and about the pooled mean: offsets removed as in the single fit,
   // gaps filled by the single Gaussian's conditional mean.
   Eigen::VectorXd mean;
   Eigen::MatrixXd X = centred(s, remove_offsets, &mean);
+  if (X.rows() > max_frames) {  // every k-th frame, k = ⌈n / max_frames⌉
+    const Eigen::Index k = (X.rows() + max_frames - 1) / max_frames;
+    Eigen::MatrixXd kept((X.rows() + k - 1) / k, X.cols());
+    for (Eigen::Index i = 0; i < kept.rows(); ++i) kept.row(i) = X.row(i * k);
+    X = kept;
+  }
+  const Eigen::Index m = X.cols(), n = X.rows();
+  HS_CHECK(n >= C * (m + 1), "too few frames for the mixture");
   for (Eigen::Index i = 0; i < n; ++i) {
     std::vector<Eigen::Index> have, miss;
     for (Eigen::Index c = 0; c < m; ++c) (std::isfinite(X(i, c)) ? have : miss).push_back(c);

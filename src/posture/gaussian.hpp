@@ -36,6 +36,10 @@ struct GaussianStats {
 /// common frames get covariance 0.
 GaussianStats gaussian_stats(const PostureSamples& s, bool remove_offsets, double shrink, long min_pair = 10,
                              double floor_deg = 0.25);
+/// The same in two steps: the moments (EM over the gaps; not shrunk), then the shrinkage —
+/// the moments do not depend on it, so a search over shrinkages computes them once.
+GaussianStats gaussian_moments(const PostureSamples& s, bool remove_offsets, long min_pair = 10, double floor_deg = 0.25);
+GaussianStats shrink_stats(const GaussianStats& moments, double shrink, double floor_deg = 0.25);
 
 /// The energy scale: the precision is multiplied by it so that the median spring of a measured
 /// joint is about 1 ("input per degree", as the thesis's K) — raised where needed so that
@@ -53,7 +57,9 @@ std::vector<double> factor_precision(const Eigen::MatrixXd& cov, const Eigen::Ve
 
 /// A mixture of `components` Gaussians fitted by EM (k-means++ start with a fixed seed, full
 /// covariances shrunk like the single one). Frames with gaps are completed by the single
-/// Gaussian's conditional mean first. Returns weights, means and covariances.
+/// Gaussian's conditional mean first. EM runs on at most `max_frames` of them (every k-th):
+/// a few thousand frames carry a mixture of a few components of a few dozen joints.
+/// Returns weights, means and covariances.
 struct GaussianMixtureFit {
   std::vector<double> weight;
   std::vector<Eigen::VectorXd> mean;
@@ -63,6 +69,7 @@ struct GaussianMixtureFit {
   long imputed_frames = 0;
 };
 GaussianMixtureFit fit_mixture(const PostureSamples& s, const GaussianStats& single, bool remove_offsets, int components,
-                               double shrink, unsigned seed = 1, int max_iterations = 200, double floor_deg = 0.25);
+                               double shrink, unsigned seed = 1, int max_iterations = 100, double floor_deg = 0.25,
+                               long max_frames = 5000);
 
 }  // namespace handskin
