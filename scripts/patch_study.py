@@ -51,7 +51,7 @@ def main():
         if rc:
             rows.append([h, "patches: " + out.strip().splitlines()[-1]])
             continue
-        r = json.load(open(o + "/patches/patches_report.json"))
+        r = json.load(open(o + "/patches/report.json"))
         ds, nf, t = r["data_to_surface_mm"], r["table_4_1"]["noise_floor_mm"], r["truth"]
         g1 = r["continuity"]["g1_normal_jump_deg"]
         f = {"palm_mean": ds["palm"]["mean"], "palm_max": ds["palm"]["max"], "back_mean": ds["back"]["mean"],

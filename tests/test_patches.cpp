@@ -10,7 +10,9 @@
 #include "patches/patches.hpp"
 #include "pipeline/options.hpp"
 #include "pipeline/patch_stage.hpp"
+#include "pipeline/skin_stage.hpp"
 #include "pipeline/stage_options.hpp"
+#include "register/registration.hpp"
 #include "test_util.hpp"
 
 using namespace handskin;
@@ -125,15 +127,17 @@ TEST(Patches, TheCommandWritesPatchesOnTheFixture) {
   ASSERT_EQ(test::run(kBin + " -q register --back " + kFix + "back --palm " + kFix + "palm --out " + dir, &out), 0) << out;
   const std::string cmd = kBin + " -q patches --skin-dir " + dir + " --rig " + kFix + "rig.json --truth " + kFix + "truth.json";
   ASSERT_EQ(test::run(cmd, &out), 0) << out;
-  const Json p = load_json_object(dir + "/patches.json");
+  const std::string pdir = dir + "/patches";  // the default --out: its own folder beside the run's files
+  EXPECT_FALSE(fs::exists(dir + "/report.json"));  // the run's report would be there: never overwritten
+  const Json p = load_json_object(pdir + "/patches.json");
   EXPECT_EQ(p["format"], "handskin-patches/1");
   ASSERT_EQ(p["patches"].size(), 92u);
   for (const auto& patch : p["patches"]) ASSERT_EQ(patch["control_points"].size(), 16u);
-  const std::string obj = read_file(dir + "/patches.obj");
+  const std::string obj = read_file(pdir + "/patches.obj");
   size_t surfs = 0;
   for (size_t at = obj.find("\nsurf "); at != std::string::npos; at = obj.find("\nsurf ", at + 1)) ++surfs;
   EXPECT_EQ(surfs, 92u);
-  const Json r = load_json_object(dir + "/patches_report.json");
+  const Json r = load_json_object(pdir + "/report.json");
   EXPECT_EQ(r["continuity"]["g0_gap_mm"].get<double>(), 0.0);
   EXPECT_LT(r["continuity"]["g1_normal_jump_deg"]["median"].get<double>(), 1.0);
   for (const char* side : {"palm", "back"}) {
@@ -142,14 +146,14 @@ TEST(Patches, TheCommandWritesPatchesOnTheFixture) {
   }
   EXPECT_GT(r["truth"]["truth_to_surface_mm"]["within_1mm"].get<double>(), 0.9);
   // Fingertips closed: the open rings are the palm's two ends and the five digits' roots.
-  EXPECT_EQ(mesh_health(load_mesh(dir + "/patches.ply")).boundary_edges, static_cast<size_t>(2 * 8 * 8 + 5 * 4 * 8));
+  EXPECT_EQ(mesh_health(load_mesh(pdir + "/patches.ply")).boundary_edges, static_cast<size_t>(2 * 8 * 8 + 5 * 4 * 8));
   // Same inputs, same bytes.
-  const std::string first = read_file(dir + "/patches.json");
+  const std::string first = read_file(pdir + "/patches.json");
   ASSERT_EQ(test::run(cmd, &out), 0) << out;
-  EXPECT_TRUE(first == read_file(dir + "/patches.json"));
+  EXPECT_TRUE(first == read_file(pdir + "/patches.json"));
   // The report opens in a browser with nothing else: a headless Chromium draws it (the
   // screenshot is kept with the tests' artefacts).
-  const std::string html = read_file(dir + "/patches_report.html");
+  const std::string html = read_file(pdir + "/report.html");
   EXPECT_NE(html.find("Table 4.1"), std::string::npos);
   size_t images = 0;
   for (size_t at = html.find("src=\"data:image/png;base64,"); at != std::string::npos;
@@ -162,7 +166,7 @@ TEST(Patches, TheCommandWritesPatchesOnTheFixture) {
   fs::remove(shot);
   ASSERT_EQ(test::run("command -v chromium", &out), 0) << "chromium is needed for this test (scripts/setup.sh installs it)";
   ASSERT_EQ(test::run("chromium --headless --no-sandbox --disable-gpu --hide-scrollbars --window-size=1400,2400 "
-                      "--screenshot=" + shot + " file://" + dir + "/patches_report.html",
+                      "--screenshot=" + shot + " file://" + pdir + "/report.html",
                       &out),
             0)
       << out;
@@ -171,4 +175,65 @@ TEST(Patches, TheCommandWritesPatchesOnTheFixture) {
   // Without a rig to find, a clear error.
   EXPECT_EQ(test::run(kBin + " -q patches --skin-dir " + dir + " --out " + dir + "/x", &out), 1);
   EXPECT_NE(out.find("give --rig"), std::string::npos) << out;
+}
+
+TEST(Patches, FollowThePostureAndTheirLayoutComesBack) {
+  const std::string kBin = HANDSKIN_BINARY, kFix = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
+  const std::string dir = test::temp_dir("patches-layout") + "/out";
+  std::string out;
+  ASSERT_EQ(test::run(kBin + " -q register --back " + kFix + "back --palm " + kFix + "palm --out " + dir, &out), 0) << out;
+  const std::string base = kBin + " -q patches --skin-dir " + dir + " --rig " + kFix + "rig.json";
+  ASSERT_EQ(test::run(base, &out), 0) << out;
+  // The layout given back reproduces the patches byte for byte.
+  ASSERT_EQ(test::run(base + " --layout " + dir + "/patches/patches.json --out " + dir + "/again", &out), 0) << out;
+  EXPECT_TRUE(read_file(dir + "/patches/patches.json") == read_file(dir + "/again/patches.json"));
+  // A layout of its own: the index finger 6 around × 4 along, the rest as --count gives.
+  test::write_text(dir + "/layout.json",
+                   R"({"format": "handskin-patch-layout/1", "tubes": [{"tube": "index", "around": 6, "along": 4}]})");
+  ASSERT_EQ(test::run(base + " --layout " + dir + "/layout.json --out " + dir + "/mine", &out), 0) << out;
+  const Json mine = load_json_object(dir + "/mine/patches.json");
+  EXPECT_EQ(mine["patches"].size(), 92u - 12u + 24u);
+  size_t index = 0;
+  for (const auto& p : mine["patches"]) {
+    index += p["tube"] == "index";
+    ASSERT_EQ(p["control_point_links"].size(), 16u);
+  }
+  EXPECT_EQ(index, 24u);
+  // Bad layouts: one line naming the file and the entry, nothing written.
+  test::write_text(dir + "/bad.json", R"({"format": "handskin-patch-layout/1", "tubes": [{"tube": "index", "around": 2, "along": 4}]})");
+  EXPECT_EQ(test::run(base + " --layout " + dir + "/bad.json --out " + dir + "/bad", &out), 1);
+  EXPECT_NE(out.find("bad.json: tubes[0]"), std::string::npos) << out;
+  test::write_text(dir + "/bad2.json", R"({"format": "handskin-patch-layout/1", "tubes": [{"tube": "toe", "around": 4, "along": 4}]})");
+  EXPECT_EQ(test::run(base + " --layout " + dir + "/bad2.json --out " + dir + "/bad", &out), 1);
+  EXPECT_NE(out.find("unknown tube 'toe'"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir + "/bad"));
+
+  // A posture moves the patches with their links; shared borders stay shared.
+  const Rig rig = load_palm_rig(kFix + "rig.json");
+  const MergedArrays m = merged_arrays(*load_merged(dir + "/merged.ply"));
+  const SkinResult skin = build_skin(m.points, rig, skin_options(PipelineOptions{}));
+  const PatchSkin s = fit_patch_skin(skin, m.points, m.sides, patch_options(PipelineOptions{}));
+  const Skeleton skel(rig, "rig.json");
+  Angles zero{};
+  const PatchSkin same = pose_patch_skin(s, skel, zero);
+  for (size_t p = 0; p < s.patches.size(); ++p)
+    for (int k = 0; k < 16; ++k) EXPECT_LT((same.patches[p].P[k] - s.patches[p].P[k]).norm(), 1e-9);
+  Angles bent{};
+  bent[dof_index("index.pip.flex").value()] = 60;
+  const PatchSkin posed = pose_patch_skin(s, skel, bent);
+  double index_tip = 0, palm_most = 0;
+  for (size_t p = 0; p < s.patches.size(); ++p)
+    for (int k = 0; k < 16; ++k) {
+      const std::string& b = s.bones[s.patches[p].cp_link[k]];
+      const double d = (posed.patches[p].P[k] - s.patches[p].P[k]).norm();
+      // The links that start at the index PIP (I3) and DIP (I4) move; no other.
+      if (b.rfind("index-finger-phalanx-intermediate>", 0) == 0 || b.rfind("index-finger-phalanx-distal>", 0) == 0)
+        index_tip = std::max(index_tip, d);
+      else
+        palm_most = std::max(palm_most, d);
+    }
+  EXPECT_GT(index_tip, 10.0);      // a 60° bend swings the distal phalanges by centimetres
+  EXPECT_LT(palm_most, 1e-9);      // nothing else moves
+  const TriMesh a = tessellate(s, 4), b = tessellate(posed, 4);
+  EXPECT_EQ(mesh_health(a).boundary_edges, mesh_health(b).boundary_edges);  // no crack opened
 }

@@ -128,13 +128,14 @@ void register_command(const RegisterArgs& a, const Progress& progress) {
 
 // ---------------- patches ----------------
 struct PatchesArgs {
-  std::string skin_dir, rig, out, pipeline, truth;
+  std::string skin_dir, rig, out, pipeline, truth, layout;
   std::optional<long> count;
 };
 
 void patches_command(const PatchesArgs& a, const Progress& progress) {
   namespace fs = std::filesystem;
-  const std::string out_dir = a.out.empty() ? a.skin_dir : a.out;
+  // Its own folder by default: report.json there is the patches' report, not the run's.
+  const std::string out_dir = a.out.empty() ? (fs::path(a.skin_dir) / "patches").string() : a.out;
   OutputSet out(out_dir);
   PipelineOptions po;
   if (!a.pipeline.empty()) po = load_pipeline(a.pipeline);
@@ -165,27 +166,32 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
   MergedArrays m = merged_arrays(*load_merged(merged));
   progress("patches", "rebuilding the skin's ring grid on " + rig_path);
   const SkinResult skin = build_skin(m.points, *in.rig, skin_options(po));
-  const PatchOptions opts = patch_options(po);
-  progress("patches", "fitting " + std::to_string(opts.palm_around * opts.palm_along + 5 * opts.digit_around * opts.digit_along) +
-                          " bicubic patches, correcting the parameters");
+  PatchOptions opts = patch_options(po);
+  if (!a.layout.empty()) {
+    opts.tube_spans = parse_patch_layout(load_json_object(a.layout), a.layout);
+    std::string err;
+    if (!opts.IsValid(&err)) throw InputError(a.layout, err);
+  }
+  progress("patches", std::string("fitting bicubic patches") + (a.layout.empty() ? "" : " on the layout of " + a.layout) +
+                          ", correcting the parameters");
   const PatchStageResult r =
       run_patch_stage(skin, m.points, m.sides, opts, truth ? &*truth : nullptr, static_cast<int>(po.patches.error_grid));
   Json report = to_json(r);
   report["format"] = "handskin-patches-report/1";
   report["inputs"] = {{"merged", merged}, {"rig", rig_path}, {"pipeline", a.pipeline.empty() ? "(built-in defaults)" : a.pipeline}};
   std::vector<std::string> names = patch_output_names();
-  names.push_back("patches_report.json");
+  names.push_back("report.json");
   out.retire(names);
   report["outputs"] = write_patch_outputs(out, r, *in.rig);
-  report["outputs"]["report"] = out.final_path("patches_report.json");
-  save_json(out.stage("patches_report.json"), report);
+  report["outputs"]["report"] = out.final_path("report.json");
+  save_json(out.stage("report.json"), report);
   out.commit();
   const PatchSkin& s = r.patches;
   std::printf("patches: %zu bicubic patches, %zu control points; data to surface: palm mean %.3f max %.2f mm, back mean "
               "%.3f max %.2f mm; G0 gap %.1e mm, G1 jump median %.2f deg; %zu correction rounds, %.0f ms -> %s\n",
               s.patches.size(), s.control_points, s.side[0].mean, s.side[0].max, s.side[1].mean, s.side[1].max,
               s.g0_gap_mm, s.g1_median_deg, s.max_update_per_round.size(), 1000 * s.seconds,
-              out.final_path("patches_report.json").c_str());
+              out.final_path("report.json").c_str());
   if (r.surface_to_truth)
     std::printf("against the truth: surface->truth mean %.3f p95 %.3f mm; truth->surface within 1 mm %.2f %%\n",
                 r.surface_to_truth->mean, r.surface_to_truth->p95, 100 * r.truth_to_surface->within_1mm);
@@ -239,10 +245,12 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
   auto* pc = app.add_subcommand("patches", "Bicubic Bezier patches on a skin (thesis §4.1.4; in progress: per tube, open ends)");
   pc->add_option("--skin-dir", pa->skin_dir, "Output folder of run (or of register + skin): merged.ply and the rig")->required();
   pc->add_option("--rig", pa->rig, "The skin's rig (default: rig_auto.json there, else the rig its report.json names)");
-  pc->add_option("--out", pa->out, "Output folder: patches.json, patches.obj, patches.ply, patches_report.json "
-                                   "(default: --skin-dir)");
+  pc->add_option("--out", pa->out, "Output folder: patches.json, patches.obj, patches.ply, report.json, report.html "
+                                   "(default: <skin-dir>/patches)");
   pc->add_option("--pipeline", pa->pipeline, "Pipeline parameters (slicing, skin, patches sections)");
   pc->add_option("--count", pa->count, "Patches wanted, [24, 1500] (default: patches.count, 96; the layout's nearest)");
+  pc->add_option("--layout", pa->layout,
+                 "A layout given back: a patches.json (or handskin-patch-layout/1) whose tubes' around/along replace --count's");
   pc->add_option("--truth", pa->truth, "truth.json of a synthetic pair: add the surface's distances to the true skin");
   out->push_back({pc, [pa, &progress] { patches_command(*pa, progress); }});
 }

@@ -34,6 +34,20 @@ void locate(int nu, int nv, double u, double v, int* a, int* b, double* s, doubl
 
 int net_index(int NU, int NV, int i, int j) { return ((i % NU + NU) % NU) * NV + j; }
 
+// Patch (a, b) of a tube: its 4 × 4 block of the net, with each point's link.
+BezierPatch patch_of(const TubeSurface& T, int a, int b) {
+  const int NU = 3 * T.nu, NV = 3 * T.nv + 1;
+  BezierPatch P;
+  P.tube = T.tube, P.span_u = a, P.span_v = b;
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) {
+      const int k = net_index(NU, NV, 3 * a + i, 3 * b + j);
+      P.P[4 * i + j] = T.net[k];
+      P.cp_link[4 * i + j] = T.net_link.empty() ? -1 : T.net_link[k];
+    }
+  return P;
+}
+
 double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   const Eigen::Vector3d d = b - a;
   const double t = std::clamp((p - a).dot(d) / std::max(d.squaredNorm(), 1e-12), 0.0, 1.0);
@@ -198,7 +212,33 @@ bool PatchOptions::IsValid(std::string* error) const {
   if (max_corrections < 0 || max_corrections > 100) return bad("max_corrections must be in [0, 100]");
   if (!(correction_tolerance > 0)) return bad("correction_tolerance must be > 0");
   if (tessellation < 1 || tessellation > 64) return bad("tessellation must be in [1, 64]");
+  for (const auto& [tube, sp] : tube_spans) {
+    if (tube < 0 || tube >= kSkinTubes) return bad("a layout names an unknown tube");
+    if (sp[0] < 3 || sp[0] > 64 || sp[1] < 1 || sp[1] > 64)
+      return bad(std::string("layout of the ") + skin_tube_name(tube) + " tube: around must be in [3, 64], along in [1, 64]");
+  }
   return true;
+}
+
+std::map<int, std::array<int, 2>> parse_patch_layout(const Json& j, const std::string& file) {
+  const std::string format = get_string(j, "format", file);
+  if (format != "handskin-patches/1" && format != "handskin-patch-layout/1")
+    throw InputError(file, "key 'format' must be \"handskin-patches/1\" or \"handskin-patch-layout/1\" (got \"" + format + "\")");
+  const Json& tubes = require(j, "tubes", file);
+  if (!tubes.is_array() || tubes.empty()) throw InputError(file, "key 'tubes' must be a non-empty array");
+  std::map<int, std::array<int, 2>> out;
+  for (size_t k = 0; k < tubes.size(); ++k) {
+    const std::string where = file + ": tubes[" + std::to_string(k) + "]";
+    if (!tubes[k].is_object()) throw InputError(where, "must be an object");
+    const std::string name = get_string(tubes[k], "tube", where);
+    int tube = -1;
+    for (int t = 0; t < kSkinTubes; ++t)
+      if (name == skin_tube_name(t)) tube = t;
+    if (tube < 0) throw InputError(where, "unknown tube '" + name + "' (palm, thumb, index, middle, ring, little)");
+    if (out.count(tube)) throw InputError(where, "tube '" + name + "' given twice");
+    out[tube] = {static_cast<int>(get_int(tubes[k], "around", where, 3, 64)), static_cast<int>(get_int(tubes[k], "along", where, 1, 64))};
+  }
+  return out;
 }
 
 Eigen::Vector3d BezierPatch::eval(double u, double v) const {
@@ -262,6 +302,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const std::vector<Eigen::Vector
     const bool palm = rg.tube == static_cast<int>(SkinTube::Palm);
     T.nu = palm ? o.palm_around : o.digit_around;
     T.nv = palm ? o.palm_along : o.digit_along;
+    if (const auto it = o.tube_spans.find(rg.tube); it != o.tube_spans.end()) T.nu = it->second[0], T.nv = it->second[1];
     Domain D;
     // Closing rings: a digit's tip ends at its pole (and a capped start would begin at its
     // first ring's centre, drawn in halfway). The closed row of control points is one point
@@ -393,10 +434,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const std::vector<Eigen::Vector
     out.control_points += T.net.size();
     for (int a = 0; a < T.nu; ++a)
       for (int b = 0; b < T.nv; ++b) {
-        BezierPatch P;
-        P.tube = T.tube, P.span_u = a, P.span_v = b;
-        for (int i = 0; i < 4; ++i)
-          for (int j = 0; j < 4; ++j) P.P[4 * i + j] = T.net[net_index(NU, NV, 3 * a + i, 3 * b + j)];
+        BezierPatch P = patch_of(T, a, b);
         P.link = nearest_link(P.eval(0.5, 0.5), skin.bones);
         out.patches.push_back(P);
       }
@@ -410,12 +448,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const std::vector<Eigen::Vector
     auto jump_deg = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
       return std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180 / M_PI;
     };
-    auto side_eval = [&](int a, int b, double s, double t) {  // patch (a, b)'s own evaluation
-      BezierPatch P;
-      for (int i = 0; i < 4; ++i)
-        for (int j = 0; j < 4; ++j) P.P[4 * i + j] = T.net[net_index(NU, NV, 3 * a + i, 3 * b + j)];
-      return P.eval(s, t);
-    };
+    auto side_eval = [&](int a, int b, double s, double t) { return patch_of(T, a, b).eval(s, t); };
     constexpr double kEps = 1e-6;
     for (int a = 0; a < T.nu; ++a)
       for (int b = 0; b < T.nv; ++b)
@@ -441,6 +474,34 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const std::vector<Eigen::Vector
     out.g1_max_deg = g1.back();
   }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+PatchSkin pose_patch_skin(const PatchSkin& s, const Skeleton& skeleton, const Angles& angles) {
+  // Link k of bones_from_rig runs from joints()[k + 1].parent to joint k + 1: it moves with
+  // its first joint's frame.
+  const auto frames = skeleton.frames(angles);
+  std::vector<Eigen::Isometry3d> move;
+  for (int k = 0; k + 1 < kJointCount; ++k) {
+    const int j = joints()[k + 1].parent;
+    move.push_back(frames[j] * skeleton.rest_frame(j).inverse());
+  }
+  HS_CHECK(s.bones.size() == move.size(), "patches bound to another skeleton");
+  PatchSkin out = s;
+  for (TubeSurface& T : out.tubes)
+    for (size_t k = 0; k < T.net.size(); ++k) {
+      const int l = T.net_link[k];
+      HS_CHECK(l >= 0 && l < static_cast<int>(move.size()), "a control point without its link");
+      T.net[k] = move[l] * T.net[k];
+    }
+  size_t p = 0;
+  for (const TubeSurface& T : out.tubes)
+    for (int a = 0; a < T.nu; ++a)
+      for (int b = 0; b < T.nv; ++b, ++p) {
+        const int link = out.patches[p].link;
+        out.patches[p] = patch_of(T, a, b);
+        out.patches[p].link = link;
+      }
   return out;
 }
 

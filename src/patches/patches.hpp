@@ -16,11 +16,14 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
+#include "core/json_util.hpp"
 #include "core/rig.hpp"
 #include "mesh/trimesh.hpp"
+#include "posture/skeleton.hpp"
 #include "skin/skin_mesh.hpp"
 
 namespace handskin {
@@ -34,14 +37,23 @@ struct PatchOptions {
   int max_corrections = 10;               ///< parameter-correction rounds (eqs. 4.6–4.7)
   double correction_tolerance = 0.02;     ///< stop when no parameter moves more (spans; ~0.3 mm on the palm)
   int tessellation = 8;                   ///< patches.ply: quads per patch side
+  /// A layout given back (`--layout`): spans {around, along} per tube (SkinTube index) that
+  /// replace the counts above for that tube.
+  std::map<int, std::array<int, 2>> tube_spans;
   bool IsValid(std::string* error) const;
 };
+
+/// The layout of a patches file (`handskin-patches/1`, its "tubes" with "around" and
+/// "along") or of a layout file (`handskin-patch-layout/1`, the same key): the spans per tube.
+/// Throws InputError naming `file` and the entry at fault.
+std::map<int, std::array<int, 2>> parse_patch_layout(const Json& j, const std::string& file);
 
 /// A bicubic Bézier patch: P[4 * i + j], i along u (around the tube), j along v (along it).
 struct BezierPatch {
   std::array<Eigen::Vector3d, 16> P;
   int tube = 0, span_u = 0, span_v = 0;
   int link = -1;  ///< the bone link (index into bones_from_rig) nearest to the patch's centre
+  std::array<int, 16> cp_link{};  ///< per control point: its bone link (the net's rigid binding)
   Eigen::Vector3d eval(double u, double v) const;
 };
 
@@ -96,6 +108,12 @@ struct PatchSkin {
 /// `sides`). Throws InputError when the skin has no ring grid to fit on.
 PatchSkin fit_patch_skin(const SkinResult& skin, const std::vector<Eigen::Vector3d>& points,
                          const std::vector<std::uint32_t>& sides, const PatchOptions& options);
+
+/// The patches moved to a posture: every net point moves rigidly with its bone link (the
+/// thesis's binding): the link from joint p moves by W_p(angles)·W_p(0)⁻¹ of `skeleton`,
+/// which must be the rig's the patches were fitted on. Shared borders stay shared (G0 holds in
+/// every posture); the fit's figures are kept as they were.
+PatchSkin pose_patch_skin(const PatchSkin& s, const Skeleton& skeleton, const Angles& angles);
 
 /// Every patch tessellated at `n` × `n` quads (two triangles each), each tube's shared border
 /// vertices made once: no cracks inside a tube.

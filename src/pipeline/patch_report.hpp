@@ -1,6 +1,6 @@
 #pragma once
 /// The fitting-error report of the Bézier patches (thesis Table 4.1), for people: a
-/// self-contained `patches_report.html` (pictures embedded, nothing fetched when viewed) and
+/// self-contained `report.html` (pictures embedded, nothing fetched when viewed) and
 /// the figures it shows.
 #include <optional>
 #include <string>

@@ -68,10 +68,12 @@ Json to_json(const PatchStageResult& r) {
 Json patches_to_json(const PatchSkin& s) {
   Json patches = Json::array();
   for (const auto& p : s.patches) {
-    Json cps = Json::array();
+    Json cps = Json::array(), links = Json::array();
     for (const auto& c : p.P) cps.push_back(to_json(c));
+    for (int l : p.cp_link) links.push_back(l >= 0 ? Json(s.bones[l]) : Json(nullptr));
     patches.push_back({{"tube", skin_tube_name(p.tube)}, {"span_u", p.span_u}, {"span_v", p.span_v},
-                       {"link", p.link >= 0 ? Json(s.bones[p.link]) : Json(nullptr)}, {"control_points", cps}});
+                       {"link", p.link >= 0 ? Json(s.bones[p.link]) : Json(nullptr)}, {"control_points", cps},
+                       {"control_point_links", links}});
   }
   Json tubes = Json::array();
   for (const auto& t : s.tubes) {
@@ -83,6 +85,7 @@ Json patches_to_json(const PatchSkin& s) {
           {"units", "mm"},
           {"frame", "palm"},
           {"bones", s.bones},
+          {"binding", "rigid: each control point moves with its link (control_point_links)"},
           {"tubes", tubes},
           {"patches", patches}};
 }
@@ -115,7 +118,7 @@ std::string patches_obj(const PatchSkin& s) {
 }
 
 const std::vector<std::string>& patch_output_names() {
-  static const std::vector<std::string> names = {"patches.json", "patches.obj", "patches.ply", "patches_report.html"};
+  static const std::vector<std::string> names = {"patches.json", "patches.obj", "patches.ply", "report.html"};
   return names;
 }
 
@@ -123,11 +126,11 @@ Json write_patch_outputs(OutputSet& out, const PatchStageResult& r, const Rig& r
   save_json(out.stage("patches.json"), patches_to_json(r.patches));
   write_file_atomic(out.stage("patches.obj"), patches_obj(r.patches));
   save_mesh(out.stage("patches.ply"), r.tessellation);
-  write_file_atomic(out.stage("patches_report.html"), patch_report_html(r, r.figures, rig, run_report));
+  write_file_atomic(out.stage("report.html"), patch_report_html(r, r.figures, rig, run_report));
   return {{"patches_json", out.final_path("patches.json")},
           {"patches_obj", out.final_path("patches.obj")},
           {"patches_ply", out.final_path("patches.ply")},
-          {"patches_report_html", out.final_path("patches_report.html")}};
+          {"report_html", out.final_path("report.html")}};
 }
 
 }  // namespace handskin

@@ -45,7 +45,7 @@ PatchStageResult run_patch_stage(const SkinResult& skin, const std::vector<Eigen
                                  const std::vector<std::uint32_t>& sides, const PatchOptions& options,
                                  const TruthSkin* truth, int error_grid = 100);
 
-/// The stage's figures (patches_report.json's body).
+/// The stage's figures (report.json's body).
 Json to_json(const PatchStageResult& r);
 
 /// `handskin-patches/1`: every patch's 16 control points (row-major P00…P33, the first index
@@ -56,7 +56,7 @@ Json patches_to_json(const PatchSkin& s);
 /// `deg 3 3` surface over them.
 std::string patches_obj(const PatchSkin& s);
 
-/// Stage patches.json, patches.obj, patches.ply and patches_report.html (`rig` orients its
+/// Stage patches.json, patches.obj, patches.ply and report.html (`rig` orients its
 /// pictures; `run_report` adds the run's stages to it) into `out`; returns {key: final path}.
 Json write_patch_outputs(OutputSet& out, const PatchStageResult& r, const Rig& rig, const Json& run_report = Json());
 const std::vector<std::string>& patch_output_names();

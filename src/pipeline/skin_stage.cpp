@@ -75,13 +75,12 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
   };
   std::exception_ptr build_error;
   auto build = [&](const Rig& rig) {
-    const auto t0 = std::chrono::steady_clock::now();
     try {
       R.skin = build_skin(in.points, rig, so, progress);
     } catch (...) {
       build_error = std::current_exception();
     }
-    };
+  };
   progress("building the strips (" + std::to_string(so.slicing.planes) + " planes, " +
            std::to_string(so.slicing.points_per_segment) + " points per segment)");
   if (R.automatic) {
