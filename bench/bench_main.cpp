@@ -11,6 +11,7 @@
 
 #include "posture/calibrate.hpp"
 #include "synth/angle_recording.hpp"
+#include "rigging/deform.hpp"
 #include "posture/solver.hpp"
 #include "register/registration.hpp"
 #include "skin/auto_rig.hpp"
@@ -265,6 +266,77 @@ static void BM_PatchesFixture(benchmark::State& st) {
   st.counters["back_mean_mm"] = p.side[1].mean;
 }
 BENCHMARK(BM_PatchesFixture)->Unit(benchmark::kMillisecond)->Iterations(5);
+
+// The rigged skin (issue 15): the fixture's skin bound by bone heat (outside the timing), then
+// per posture: one solve of the anatomical model from a pinned input, the link motions, and
+// the ~4000-vertex skin deformed (LBS, and DQS). Postures per second on one core.
+namespace {
+struct RiggedFixture {
+  Rig rig;
+  SkinResult skin;
+  std::vector<Eigen::Vector3d> rest;
+  SkinBinding binding;
+};
+const RiggedFixture& rigged_fixture() {
+  static const RiggedFixture f = [] {
+    RiggedFixture r;
+    r.rig = load_rig(kFix + "rig.json");
+    r.skin = build_skin(fixture_merged().points, r.rig, SkinOptions{});
+    r.rest = mesh_vertices(r.skin.mesh);
+    r.binding = bind_skin(r.skin.mesh, bones_from_rig(r.rig), BindingOptions{});
+    return r;
+  }();
+  return f;
+}
+void pose_skin(benchmark::State& st, Blend blend) {
+  const RiggedFixture& f = rigged_fixture();
+  const Skeleton skel(f.rig, "rig");
+  const PostureSolver solver(builtin_model("anatomical"));
+  PostureInputs in;
+  in.pins = {{dof_index("index.pip.flex").value(), 0.0}};
+  std::vector<Eigen::Vector3d> out;
+  double v = 0;
+  for (auto _ : st) {
+    in.pins[0].second = std::fmod(v += 0.37, 100.0);
+    deform_into(f.rest, f.binding, link_motions(skel, solver.solve(in).angles), blend, &out);
+    benchmark::DoNotOptimize(out[0]);
+  }
+  st.SetItemsProcessed(static_cast<int64_t>(st.iterations()));
+  st.counters["vertices"] = static_cast<double>(f.rest.size());
+  st.counters["triangles"] = static_cast<double>(f.skin.mesh.n_faces());
+}
+}  // namespace
+static void BM_PoseSkinLBS(benchmark::State& st) { pose_skin(st, Blend::Linear); }
+BENCHMARK(BM_PoseSkinLBS)->Unit(benchmark::kMicrosecond);
+static void BM_PoseSkinDQS(benchmark::State& st) { pose_skin(st, Blend::DualQuaternion); }
+BENCHMARK(BM_PoseSkinDQS)->Unit(benchmark::kMicrosecond);
+
+// The Bézier patches posed (rigid binding of the control points) and tessellated at 16 × 16
+// per patch (the vertices; the topology is the rest posture's). Postures per second.
+static void BM_PosePatches(benchmark::State& st) {
+  const RiggedFixture& f = rigged_fixture();
+  static const PatchSkin p = fit_patch_skin(f.skin, fixture_merged().points, fixture_merged().sides, PatchOptions{});
+  const Skeleton skel(f.rig, "rig");
+  Angles a{};
+  double v = 0;
+  std::vector<Eigen::Vector3d> verts;
+  for (auto _ : st) {
+    a[dof_index("index.pip.flex").value()] = std::fmod(v += 0.37, 100.0);
+    tessellation_vertices(pose_patch_skin(p, skel, a), 16, &verts);
+    benchmark::DoNotOptimize(verts.data());
+  }
+  st.counters["vertices"] = static_cast<double>(verts.size());
+  st.SetItemsProcessed(static_cast<int64_t>(st.iterations()));
+  st.counters["patches"] = static_cast<double>(p.patches.size());
+}
+BENCHMARK(BM_PosePatches)->Unit(benchmark::kMillisecond);
+
+// Binding the fixture's skin by bone heat (24 sparse solves with one factorisation).
+static void BM_BindSkin(benchmark::State& st) {
+  const RiggedFixture& f = rigged_fixture();
+  for (auto _ : st) benchmark::DoNotOptimize(bind_skin(f.skin.mesh, bones_from_rig(f.rig), BindingOptions{}).vertices.size());
+}
+BENCHMARK(BM_BindSkin)->Unit(benchmark::kMillisecond);
 
 // ------------------------------------------------------------------ the whole command
 // `handskin run` as a user runs it, in a child process: wall time, and the child's peak

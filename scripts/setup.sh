@@ -5,13 +5,16 @@ set -euo pipefail
 PACKAGES=(
   build-essential cmake pkg-config clang libclang-rt-14-dev
   libeigen3-dev libpcl-dev mpi-default-dev libflann-dev liblz4-dev libcgal-dev libopenmesh-dev libceres-dev
-  nlohmann-json3-dev libcli11-dev libpng-dev libgtest-dev libgmock-dev libbenchmark-dev
+  nlohmann-json3-dev libcli11-dev libpng-dev libgtest-dev libgmock-dev libbenchmark-dev libtinygltf-dev
   chromium fonts-dejavu-core
 )
 missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
+# Node.js and npm for the front-end tools (web/: the glTF validator); any install will do.
+command -v node >/dev/null 2>&1 || missing+=(nodejs)
+command -v npm >/dev/null 2>&1 || missing+=(npm)
 if [ ${#missing[@]} -eq 0 ]; then
   echo "setup: all ${#PACKAGES[@]} packages present"
   exit 0

@@ -72,7 +72,10 @@ TEST(Cli, RunOnTheFixtureWritesItsOutputs) {
   EXPECT_EQ(report["stages"][3]["name"], "patches");
   EXPECT_EQ(report["stages"][3]["continuity"]["g0_gap_mm"].get<double>(), 0.0);
   EXPECT_EQ(load_json_object(dir + "/patches.json")["patches"].size(), 92u);
-  EXPECT_EQ(report["stages"][4]["name"], "write");
+  EXPECT_EQ(report["stages"][4]["name"], "rigging");
+  EXPECT_EQ(report["stages"][4]["binding"], "smooth");
+  EXPECT_GT(fs::file_size(dir + "/skin.glb"), 100000u);
+  EXPECT_EQ(report["stages"][5]["name"], "write");
   EXPECT_EQ(report["outputs"]["report"], dir + "/report.json");
   EXPECT_EQ(load_json_object(dir + "/slices.json")["format"], "handskin-slices/1");
   // Only what the run wrote is in the folder: no staging folder left beside it.

@@ -237,3 +237,24 @@ TEST(Patches, FollowThePostureAndTheirLayoutComesBack) {
   const TriMesh a = tessellate(s, 4), b = tessellate(posed, 4);
   EXPECT_EQ(mesh_health(a).boundary_edges, mesh_health(b).boundary_edges);  // no crack opened
 }
+
+TEST(Patches, TessellationVerticesAreTheMeshVertices) {
+  const SkinResult skin = tube_skin();
+  std::vector<Eigen::Vector3d> pts;
+  std::vector<std::uint32_t> sides;
+  for (int k = 0; k < 4000; ++k) {
+    pts.push_back(on_tube(0.0017 * k * 7, 0.015 * k));
+    sides.push_back(0);
+  }
+  const PatchSkin s = fit_patch_skin(skin, pts, sides, PatchOptions{});
+  for (int n : {1, 5, 16}) {
+    const TriMesh m = tessellate(s, n);
+    std::vector<Eigen::Vector3d> v;
+    tessellation_vertices(s, n, &v);
+    ASSERT_EQ(v.size(), m.n_vertices());
+    for (const auto vh : m.vertices()) {
+      const auto& p = m.point(vh);
+      ASSERT_LT((v[vh.idx()] - Eigen::Vector3d(p[0], p[1], p[2])).norm(), 1e-9);
+    }
+  }
+}

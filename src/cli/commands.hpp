@@ -34,5 +34,6 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
 void add_posture_commands(CLI::App& app, const Progress& progress, Commands* out);   ///< solve, calibrate, model, mocap
 void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out);     ///< synth hand, synth scan
 void add_tool_commands(CLI::App& app, const Progress& progress, Commands* out);      ///< render, convert
+void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out);   ///< pose
 
 }  // namespace handskin::cli

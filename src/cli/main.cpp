@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   cli::add_posture_commands(app, progress, &commands);
   cli::add_synth_commands(app, progress, &commands);
   cli::add_tool_commands(app, progress, &commands);
+  cli::add_rigging_commands(app, progress, &commands);
 
   try {
     app.parse(argc, argv);

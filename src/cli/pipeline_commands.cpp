@@ -214,6 +214,9 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
   run->add_option("--markers", in->markers_path,
                   "Manual marker positions (handskin-markers/1) for scans whose bumps the detector misses");
   run->add_option("--truth", in->truth_path, "truth.json of a synthetic pair: add the errors against it to the report");
+  run->add_option("--posture-model", in->posture_model,
+                  "Posture model skin.glb carries (hand-posture/1 file or builtin:<name>)")
+      ->capture_default_str();
   run->add_flag("--baseline", in->baseline, "Also a Poisson reconstruction of the cloud (baseline.ply and its figures, for comparison; ~0.5 s)");
   out->push_back({run, [ra, &progress] { run_command(*ra, progress); }});
 

@@ -487,7 +487,17 @@ PatchSkin pose_patch_skin(const PatchSkin& s, const Skeleton& skeleton, const An
     move.push_back(frames[j] * skeleton.rest_frame(j).inverse());
   }
   HS_CHECK(s.bones.size() == move.size(), "patches bound to another skeleton");
-  PatchSkin out = s;
+  PatchSkin out;
+  out.tubes = s.tubes;
+  out.patches = s.patches;
+  out.bones = s.bones;
+  out.side = s.side;
+  out.max_update_per_round = s.max_update_per_round;
+  out.rms_per_round = s.rms_per_round;
+  out.g0_gap_mm = s.g0_gap_mm;
+  out.g1_median_deg = s.g1_median_deg, out.g1_p95_deg = s.g1_p95_deg, out.g1_max_deg = s.g1_max_deg;
+  out.control_points = s.control_points;
+  out.seconds = s.seconds;
   for (TubeSurface& T : out.tubes)
     for (size_t k = 0; k < T.net.size(); ++k) {
       const int l = T.net_link[k];
@@ -503,6 +513,30 @@ PatchSkin pose_patch_skin(const PatchSkin& s, const Skeleton& skeleton, const An
         out.patches[p].link = link;
       }
   return out;
+}
+
+void tessellation_vertices(const PatchSkin& s, int n, std::vector<Eigen::Vector3d>* out) {
+  HS_CHECK(n >= 1, "tessellation needs at least one quad per patch side");
+  // Every sample sits at a patch-local parameter k / n: the Bernstein values once.
+  std::vector<std::array<double, 4>> B(static_cast<size_t>(n) + 1);
+  for (int k = 0; k <= n; ++k) bernstein(static_cast<double>(k) / n, B[k].data(), nullptr);
+  out->clear();
+  for (const TubeSurface& T : s.tubes) {
+    const int NU = T.nu * n, NV = T.nv * n + 1, NU3 = 3 * T.nu, NV3 = 3 * T.nv + 1;
+    for (int i = 0; i < NU; ++i)
+      for (int j = 0; j < NV; ++j) {
+        if (i > 0 && ((j == 0 && T.closed_start) || (j == NV - 1 && T.closed_end))) continue;
+        const int a = i / n, ks = i % n;
+        const int b = std::min(j / n, T.nv - 1), kt = j - b * n;
+        Eigen::Vector3d p = Eigen::Vector3d::Zero();
+        for (int ii = 0; ii < 4; ++ii) {
+          Eigen::Vector3d row = Eigen::Vector3d::Zero();
+          for (int jj = 0; jj < 4; ++jj) row += B[kt][jj] * T.net[net_index(NU3, NV3, 3 * a + ii, 3 * b + jj)];
+          p += B[ks][ii] * row;
+        }
+        out->push_back(p);
+      }
+  }
 }
 
 TriMesh tessellate(const PatchSkin& s, int n) {

@@ -53,6 +53,7 @@ const std::vector<KeySpec>& key_table() {
       {"patches", "enabled", Kind::Bool, 0, 1, false, HS_FIELD(patches.enabled)},
       {"patches", "count", Kind::Int, 24, 1500, false, HS_FIELD(patches.count)},
       {"patches", "error_grid", Kind::Int, 2, 2000, false, HS_FIELD(patches.error_grid)},
+      {"rigging", "smooth", Kind::Bool, 0, 1, false, HS_FIELD(rigging.smooth)},
   };
   return t;
 }

@@ -48,6 +48,9 @@ struct PipelineOptions {
     long count = 96;               ///< bicubic patches, palm 48 + back 48
     long error_grid = 100;         ///< error measured against a grid of n x n surface cells
   } patches;
+  struct Rigging {                 ///< the skin bound to the skeleton, skin.glb (docs/rigging.md)
+    bool smooth = true;            ///< bone-heat weights (false: rigid, each vertex with its nearest link, as the thesis)
+  } rigging;
 
   /// False with a message naming the key when a value is out of range.
   bool IsValid(std::string* error) const;

@@ -3,7 +3,10 @@
 #include <chrono>
 
 #include "core/errors.hpp"
+#include "core/atomic_file.hpp"
 #include "core/rig.hpp"
+#include "posture/solver.hpp"
+#include "rigging/binding.hpp"
 #include "pipeline/registration_stage.hpp"
 #include "pipeline/stage_options.hpp"
 
@@ -54,6 +57,8 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   if (!in.truth_path.empty()) truth = load_truth_skin(in.truth_path);
   MarkerHints hints;
   if (!in.markers_path.empty()) hints = load_marker_hints(in.markers_path);
+  const PostureModel posture_model = load_model(in.posture_model);
+  const PostureSolver model_check(posture_model);  // refused now, not after the stages
   R.back = scan_figures(back, in.back_stem);
   R.palm = scan_figures(palm, in.palm_stem);
   R.back_cloud = dense_copy(*scan_to_organized_cloud(back));
@@ -88,12 +93,33 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
     R.patches = run_patch_stage(R.skin.skin, si.points, si.sides, patch_options(in.options), truth ? &*truth : nullptr,
                                 static_cast<int>(in.options.patches.error_grid));
   }
+
+  // --- rigging: the skin bound to the skeleton, with the posture model (docs/rigging.md) ---
+  progress(std::string("rigging: ") + (in.options.rigging.smooth ? "bone-heat weights" : "rigid binding"));
+  const StageTimer t_rig;
+  const TriMesh& mesh = R.skin.skin.mesh;
+  for (const auto v : mesh.vertices()) {
+    const auto& q = mesh.point(v);
+    R.rigged.vertices.emplace_back(q[0], q[1], q[2]);
+  }
+  for (const auto f : mesh.faces()) {
+    std::array<int, 3> t{};
+    int k = 0;
+    for (const auto v : mesh.fv_range(f)) t[k++] = v.idx();
+    R.rigged.faces.push_back(t);
+  }
+  R.rigged.rig = R.skin.rig;
+  BindingOptions bo;
+  bo.mode = in.options.rigging.smooth ? "smooth" : "rigid";
+  R.rigged.binding = bind_skin(mesh, bones_from_rig(R.skin.rig), bo);
+  R.rigged.model = posture_model;
+  R.rigging_seconds = t_rig.seconds();
   R.seconds = total.seconds();
   return R;
 }
 
 std::vector<std::string> run_output_names() {
-  std::vector<std::string> n = {"back.ply", "palm.ply", "report.json"};
+  std::vector<std::string> n = {"back.ply", "palm.ply", "report.json", "skin.glb"};
   n.insert(n.end(), registration_output_names().begin(), registration_output_names().end());
   n.insert(n.end(), skin_output_names().begin(), skin_output_names().end());
   n.insert(n.end(), patch_output_names().begin(), patch_output_names().end());
@@ -129,6 +155,21 @@ Json write_run_outputs(OutputSet& out, const RunResult& r) {
   stages.push_back(reg_stage);
   stages.push_back(to_json(r.skin));
   if (r.patches) stages.push_back(to_json(*r.patches));
+  {
+    size_t influences = 0;
+    for (const auto& w : r.rigged.binding.vertices)
+      for (int k = 0; k < kMaxInfluences; ++k) influences += w.link[k] >= 0;
+    stages.push_back({{"name", "rigging"},
+                      {"seconds", r.rigging_seconds},
+                      {"binding", r.rigged.binding.mode},
+                      {"vertices", r.rigged.vertices.size()},
+                      {"mean_influences", r.rigged.vertices.empty() ? 0.0 : static_cast<double>(influences) / r.rigged.vertices.size()},
+                      {"posture_model", in.posture_model}});
+  }
+  const std::vector<unsigned char> glb = skin_glb(r.rigged);
+  write_file_atomic(out.stage("skin.glb"), std::string(glb.begin(), glb.end()));
+  outputs["skin_glb"] = out.final_path("skin.glb");
+  report["inputs"]["posture_model"] = in.posture_model;
   report["stages"] = stages;  // the computing stages, for the patch report's page
   if (r.patches) outputs.update(write_patch_outputs(out, *r.patches, r.skin.rig, report));
   stages.push_back({{"name", "write"}, {"seconds", t_write.seconds()}});

@@ -14,6 +14,7 @@
 #include "core/output_set.hpp"
 #include "pipeline/options.hpp"
 #include "pipeline/patch_stage.hpp"
+#include "rigging/gltf.hpp"
 #include "pipeline/skin_stage.hpp"
 #include "register/registration.hpp"
 #include "scan/cloud.hpp"
@@ -30,6 +31,7 @@ struct RunInputs {
   std::string markers_path;   ///< optional handskin-markers/1 (manual marker positions)
   std::string pipeline_path;  ///< empty: built-in defaults (= pipelines/cubist.json)
   std::string truth_path;     ///< optional truth.json (synthetic pairs): errors against it in the report
+  std::string posture_model = "builtin:anatomical";  ///< the posture model skin.glb carries
   PipelineOptions options;
 };
 
@@ -52,6 +54,8 @@ struct RunResult {
   std::optional<Json> registration_truth;  ///< registration_against_truth, with --truth
   SkinStageResult skin;
   std::optional<PatchStageResult> patches;  ///< Bézier patches on the skin's ring grid (patches.enabled)
+  RiggedSkin rigged;             ///< the skin bound to the skeleton, with the posture model (skin.glb)
+  double rigging_seconds = 0;
   double seconds = 0;  ///< all stages, before any output is written
 };
 

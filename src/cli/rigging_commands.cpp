@@ -1,0 +1,103 @@
+// pose: the rigged skin (skin.glb) posed by the solver.
+#include <filesystem>
+#include <memory>
+
+#include "cli/commands.hpp"
+#include "core/atomic_file.hpp"
+#include "core/errors.hpp"
+#include "posture/angle_table.hpp"
+#include "posture/solver.hpp"
+#include "render/preview.hpp"
+#include "rigging/deform.hpp"
+#include "rigging/gltf.hpp"
+
+namespace handskin::cli {
+
+namespace {
+
+struct PoseArgs {
+  std::string model, posture, out, png, view = "back", blend = "lbs";
+  std::vector<std::string> sets, torques, targets;
+  int size = 1024;
+};
+
+TriMesh to_mesh(const std::vector<Eigen::Vector3d>& v, const std::vector<std::array<int, 3>>& faces) {
+  TriMesh m;
+  std::vector<TriMesh::VertexHandle> h;
+  for (const auto& p : v) h.push_back(m.add_vertex(TriMesh::Point(p.x(), p.y(), p.z())));
+  for (const auto& f : faces) m.add_face(h[f[0]], h[f[1]], h[f[2]]);
+  return m;
+}
+
+void pose_command(const PoseArgs& a, const Progress& progress) {
+  namespace fs = std::filesystem;
+  if (a.out.empty() && a.png.empty()) throw InputError("pose", "nothing to write: give --out and/or --png");
+  std::string ext;
+  if (!a.out.empty()) {
+    ext = fs::path(a.out).extension().string();
+    if (ext != ".ply" && ext != ".obj" && ext != ".glb")
+      throw InputError("--out", "'" + a.out + "': the posed skin is written as .ply, .obj or .glb");
+  }
+  const Blend blend = parse_blend(a.blend, "--blend");
+  const RiggedSkin skin = read_skin_glb(a.model);
+  PostureInputs in;
+  int d;
+  double v, w;
+  if (!a.posture.empty()) {
+    const AngleTable t = read_angle_table(a.posture);
+    if (t.rows.empty()) throw InputError(a.posture, "no posture row");
+    for (size_t c = 0; c < t.columns.size(); ++c)
+      if (std::isfinite(t.rows[0][c])) in.pins.emplace_back(t.columns[c], t.rows[0][c]);
+  }
+  for (const auto& s : a.sets) parse_assignment(s, "--set", &d, &v), in.pins.emplace_back(d, v);
+  for (const auto& s : a.torques) parse_assignment(s, "--torque", &d, &v), in.torques.emplace_back(d, v);
+  for (const auto& s : a.targets) parse_assignment(s, "--target", &d, &v, &w), in.targets.push_back({d, v, w});
+  const PostureSolver solver(skin.model);
+  const PostureSolution sol = solver.solve(in);
+  if (sol.clamped_inputs)
+    progress("pose", "warning: " + std::to_string(sol.clamped_inputs) + " input(s) outside the model's limits were clamped onto them");
+  const Skeleton skel(skin.rig, a.model);
+  const std::vector<Eigen::Vector3d> posed = deform(skin.vertices, skin.binding, link_motions(skel, sol.angles), blend);
+  // Everything computed; now the files, each atomically.
+  if (!a.out.empty()) {
+    if (ext == ".glb") {
+      const std::vector<unsigned char> glb = skin_glb(skin, &sol.angles);
+      write_file_atomic(a.out, std::string(glb.begin(), glb.end()));
+    } else {
+      const std::string tmp = a.out + ".tmp" + ext;
+      save_mesh(tmp, to_mesh(posed, skin.faces));
+      fs::rename(tmp, a.out);
+    }
+  }
+  if (!a.png.empty()) {
+    const TriMesh mesh = to_mesh(posed, skin.faces);
+    RenderOptions ro;
+    ro.width = ro.height = a.size;
+    ro.view = named_view(a.view) * hand_frame_from_rig(skin.rig).linear();
+    write_file_atomic(a.png, render_mesh_png({&mesh}, ro));
+  }
+  std::printf("posed %zu vertices (%s, %s binding)%s%s\n", posed.size(), a.blend.c_str(), skin.binding.mode.c_str(),
+              a.out.empty() ? "" : (" -> " + a.out).c_str(), a.png.empty() ? "" : (" -> " + a.png).c_str());
+}
+
+}  // namespace
+
+void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out) {
+  auto pa = std::make_shared<PoseArgs>();
+  auto* pc = app.add_subcommand("pose", "Pose a rigged skin (skin.glb from run): the solver's posture from a few inputs, the skin deformed");
+  pc->add_option("--model", pa->model, "skin.glb (its extras carry the rig and the posture model)")->required();
+  pc->add_option("--set", pa->sets, "Pin a DOF: name=degrees (repeatable), e.g. L2.flex=60");
+  pc->add_option("--torque", pa->torques, "Instructed input on a DOF: name=value (repeatable)");
+  pc->add_option("--target", pa->targets, "Soft target: name=degrees[@weight] (repeatable)");
+  pc->add_option("--posture", pa->posture, "Joint-angle CSV: its first row's cells are pinned");
+  pc->add_option("--blend", pa->blend, "lbs (linear blend, as glTF viewers) or dqs (dual quaternions)")
+      ->check(CLI::IsMember({"lbs", "dqs"}))
+      ->capture_default_str();
+  pc->add_option("--out", pa->out, "Posed skin: .ply or .obj (vertex order kept), or .glb (the rigged skin with the posture on its joints)");
+  pc->add_option("--png", pa->png, "Also a picture of the posed skin");
+  pc->add_option("--view", pa->view, "Picture view: back, palm or side")->check(CLI::IsMember({"back", "palm", "side"}))->capture_default_str();
+  pc->add_option("--size", pa->size, "Picture size, px")->check(CLI::Range(16, 4096))->capture_default_str();
+  out->push_back({pc, [pa, &progress] { pose_command(*pa, progress); }});
+}
+
+}  // namespace handskin::cli

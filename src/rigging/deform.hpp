@@ -1,0 +1,47 @@
+#pragma once
+/// Deforming a bound skin with the skeleton's forward kinematics (docs/rigging.md): each link
+/// moves by T_k = W_p(θ)·W_p(0)⁻¹, p its first joint; a vertex by its links' weights, blended
+/// linearly (LBS) or as dual quaternions (DQS, Kavan et al. 2008: no candy-wrapper collapse
+/// where a joint twists or bends far).
+#include <Eigen/Geometry>
+#include <array>
+#include <string>
+#include <vector>
+
+#include "posture/skeleton.hpp"
+#include "rigging/binding.hpp"
+
+namespace handskin {
+
+/// Per link of bones_from_rig (24): its motion from the rest (scan) posture to `angles`.
+std::vector<Eigen::Isometry3d> link_motions(const Skeleton& skeleton, const Angles& angles);
+
+enum class Blend { Linear, DualQuaternion };
+/// "lbs" or "dqs"; InputError otherwise.
+Blend parse_blend(const std::string& name, const std::string& where);
+
+/// The rest vertices moved. `rest` and `binding` have one entry per vertex.
+std::vector<Eigen::Vector3d> deform(const std::vector<Eigen::Vector3d>& rest, const SkinBinding& binding,
+                                    const std::vector<Eigen::Isometry3d>& motions, Blend blend);
+/// The same into `out` (resized), without allocating per call once sized: for batch posing.
+void deform_into(const std::vector<Eigen::Vector3d>& rest, const SkinBinding& binding,
+                 const std::vector<Eigen::Isometry3d>& motions, Blend blend, std::vector<Eigen::Vector3d>* out);
+
+}  // namespace handskin
+
+namespace handskin {
+
+/// How a posed skin holds up: pairs of triangles that cross (CGAL's self-intersection test;
+/// neighbours sharing a vertex or an edge do not count) and the enclosed volume.
+struct PoseQuality {
+  size_t intersecting_pairs = 0;
+  /// Of those, the pairs that fold at a joint: both faces' dominant links are one link or a
+  /// link and its parent (contacts between fingers, or a fingertip on the palm, are not).
+  size_t folding_pairs = 0;
+  double volume_mm3 = 0;
+};
+/// `binding` (optional) gives each face's dominant link (the most weight over its corners).
+PoseQuality pose_quality(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& faces,
+                         const SkinBinding* binding = nullptr);
+
+}  // namespace handskin

@@ -1,0 +1,369 @@
+#include "rigging/gltf.hpp"
+
+#include <tiny_gltf.h>
+
+#include <cmath>
+#include <cstring>
+#include <sstream>
+
+#include "core/dof.hpp"
+#include "core/errors.hpp"
+
+namespace handskin {
+
+namespace {
+
+constexpr double kMetre = 1e-3;  // mm → m
+constexpr const char* kFormat = "handskin-rigged-skin/1";
+
+tinygltf::Value to_value(const Json& j) {
+  if (j.is_null()) return tinygltf::Value();
+  if (j.is_boolean()) return tinygltf::Value(j.get<bool>());
+  if (j.is_number_integer() && std::abs(j.get<long long>()) < (1LL << 31)) return tinygltf::Value(static_cast<int>(j.get<long long>()));
+  if (j.is_number()) return tinygltf::Value(j.get<double>());
+  if (j.is_string()) return tinygltf::Value(j.get<std::string>());
+  if (j.is_array()) {
+    tinygltf::Value::Array a;
+    for (const auto& e : j) a.push_back(to_value(e));
+    return tinygltf::Value(std::move(a));
+  }
+  tinygltf::Value::Object o;
+  for (auto it = j.begin(); it != j.end(); ++it) o[it.key()] = to_value(it.value());
+  return tinygltf::Value(std::move(o));
+}
+
+Json from_value(const tinygltf::Value& v) {
+  if (v.IsBool()) return v.Get<bool>();
+  if (v.IsInt()) return v.Get<int>();
+  if (v.IsNumber()) return v.GetNumberAsDouble();
+  if (v.IsString()) return v.Get<std::string>();
+  if (v.IsArray()) {
+    Json a = Json::array();
+    for (size_t k = 0; k < v.ArrayLen(); ++k) a.push_back(from_value(v.Get(static_cast<int>(k))));
+    return a;
+  }
+  if (v.IsObject()) {
+    Json o = Json::object();
+    for (const auto& key : v.Keys()) o[key] = from_value(v.Get(key));
+    return o;
+  }
+  return nullptr;
+}
+
+// Append raw bytes to the one buffer, 4-byte aligned, as a view; returns the view's index.
+int add_view(tinygltf::Model& m, const void* data, size_t bytes, int target) {
+  auto& buf = m.buffers[0].data;
+  while (buf.size() % 4) buf.push_back(0);
+  tinygltf::BufferView v;
+  v.buffer = 0;
+  v.byteOffset = buf.size();
+  v.byteLength = bytes;
+  v.target = target;
+  const auto* p = static_cast<const unsigned char*>(data);
+  buf.insert(buf.end(), p, p + bytes);
+  m.bufferViews.push_back(v);
+  return static_cast<int>(m.bufferViews.size()) - 1;
+}
+
+int add_accessor(tinygltf::Model& m, int view, int component, int type, size_t count, std::vector<double> lo = {},
+                 std::vector<double> hi = {}) {
+  tinygltf::Accessor a;
+  a.bufferView = view;
+  a.componentType = component;
+  a.type = type;
+  a.count = count;
+  a.minValues = std::move(lo);
+  a.maxValues = std::move(hi);
+  m.accessors.push_back(a);
+  return static_cast<int>(m.accessors.size()) - 1;
+}
+
+std::vector<double> quat_xyzw(const Eigen::Matrix3d& R) {
+  Eigen::Quaterniond q(R);
+  q.normalize();
+  if (q.w() < 0) q.coeffs() *= -1;  // one sign: the same input writes the same bytes
+  return {q.x(), q.y(), q.z(), q.w()};
+}
+
+// The palm frame (Z up from the table) in glTF's Y-up frame: (x, y, z) → (x, z, −y).
+Eigen::Matrix3d palm_to_gltf() {
+  Eigen::Matrix3d R;
+  R << 1, 0, 0, 0, 0, 1, 0, -1, 0;
+  return R;
+}
+
+}  // namespace
+
+std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose) {
+  HS_CHECK(s.vertices.size() == s.binding.vertices.size(), "binding and mesh differ in size");
+  const Skeleton skel(s.rig, "rig");
+  Angles zero{};
+  const auto rest = skel.frames(zero);
+  const auto posed = skel.frames(pose ? *pose : zero);
+  tinygltf::Model m;
+  m.asset.version = "2.0";
+  m.asset.generator = "handskin";
+  m.buffers.emplace_back();
+
+  // --- mesh ---
+  const size_t n = s.vertices.size();
+  std::vector<float> pos(3 * n), nrm(3 * n, 0.0f), wts(4 * n, 0.0f);
+  std::vector<std::uint8_t> jts(4 * n, 0);
+  std::vector<double> lo(3, 1e300), hi(3, -1e300);
+  std::vector<Eigen::Vector3d> normal(n, Eigen::Vector3d::Zero());
+  for (const auto& f : s.faces) {
+    const Eigen::Vector3d a = s.vertices[f[1]] - s.vertices[f[0]], b = s.vertices[f[2]] - s.vertices[f[0]];
+    const Eigen::Vector3d fn = a.cross(b);  // area-weighted
+    for (int k : f) normal[k] += fn;
+  }
+  for (size_t i = 0; i < n; ++i) {
+    for (int c = 0; c < 3; ++c) {
+      pos[3 * i + c] = static_cast<float>(s.vertices[i](c) * kMetre);
+      lo[c] = std::min(lo[c], static_cast<double>(pos[3 * i + c]));
+      hi[c] = std::max(hi[c], static_cast<double>(pos[3 * i + c]));
+    }
+    const Eigen::Vector3d u = normal[i].norm() > 0 ? normal[i].normalized() : Eigen::Vector3d::UnitZ();
+    for (int c = 0; c < 3; ++c) nrm[3 * i + c] = static_cast<float>(u(c));
+    // A link's weight goes to its first joint; links that share it are summed.
+    std::array<std::pair<int, double>, kMaxInfluences> jw{};
+    int used = 0;
+    const VertexWeights& w = s.binding.vertices[i];
+    for (int k = 0; k < kMaxInfluences && w.link[k] >= 0; ++k) {
+      const int j = link_joint(w.link[k]);
+      int slot = 0;
+      while (slot < used && jw[slot].first != j) ++slot;
+      if (slot == used) jw[used++] = {j, 0.0};
+      jw[slot].second += w.weight[k];
+    }
+    double sum = 0;
+    for (int k = 0; k < used; ++k) sum += jw[k].second;
+    // Normalised only when they need it, so that weights read back from a glb are written
+    // unchanged (a posed glb then poses exactly as the one it came from).
+    const double scale = std::abs(sum - 1) > 1e-6 ? 1 / sum : 1.0;
+    for (int k = 0; k < used; ++k) {
+      jts[4 * i + k] = static_cast<std::uint8_t>(jw[k].first);
+      wts[4 * i + k] = static_cast<float>(jw[k].second * scale);
+    }
+  }
+  std::vector<std::uint32_t> idx;
+  for (const auto& f : s.faces)
+    for (int k : f) idx.push_back(static_cast<std::uint32_t>(k));
+  tinygltf::Primitive prim;
+  prim.mode = TINYGLTF_MODE_TRIANGLES;
+  prim.attributes["POSITION"] = add_accessor(m, add_view(m, pos.data(), pos.size() * 4, TINYGLTF_TARGET_ARRAY_BUFFER),
+                                             TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, n, lo, hi);
+  prim.attributes["NORMAL"] = add_accessor(m, add_view(m, nrm.data(), nrm.size() * 4, TINYGLTF_TARGET_ARRAY_BUFFER),
+                                           TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, n);
+  prim.attributes["JOINTS_0"] = add_accessor(m, add_view(m, jts.data(), jts.size(), TINYGLTF_TARGET_ARRAY_BUFFER),
+                                             TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_TYPE_VEC4, n);
+  prim.attributes["WEIGHTS_0"] = add_accessor(m, add_view(m, wts.data(), wts.size() * 4, TINYGLTF_TARGET_ARRAY_BUFFER),
+                                              TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC4, n);
+  prim.indices = add_accessor(m, add_view(m, idx.data(), idx.size() * 4, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER),
+                              TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, idx.size());
+  tinygltf::Material mat;
+  mat.name = "skin";
+  mat.pbrMetallicRoughness.baseColorFactor = {0.87, 0.72, 0.62, 1.0};
+  mat.pbrMetallicRoughness.metallicFactor = 0.0;
+  mat.pbrMetallicRoughness.roughnessFactor = 0.6;
+  m.materials.push_back(mat);
+  prim.material = 0;
+  tinygltf::Mesh mesh;
+  mesh.name = "skin";
+  mesh.primitives.push_back(prim);
+  m.meshes.push_back(mesh);
+
+  // --- nodes: 0 the skinned mesh, 1 "hand" (the frame turn), 2.. the 25 joints ---
+  tinygltf::Node mesh_node;
+  mesh_node.name = "skin";
+  mesh_node.mesh = 0;
+  mesh_node.skin = 0;
+  m.nodes.push_back(mesh_node);
+  tinygltf::Node hand;
+  hand.name = "hand";
+  hand.rotation = quat_xyzw(palm_to_gltf());
+  m.nodes.push_back(hand);
+  constexpr int kFirstJoint = 2;
+  for (int j = 0; j < kJointCount; ++j) {
+    tinygltf::Node node;
+    node.name = joints()[j].name;
+    const int p = joints()[j].parent;
+    const Eigen::Isometry3d local = p < 0 ? posed[j] : Eigen::Isometry3d(posed[p].inverse() * posed[j]);
+    const Eigen::Vector3d t = local.translation() * kMetre;
+    node.translation = {t.x(), t.y(), t.z()};
+    node.rotation = quat_xyzw(local.linear());
+    m.nodes.push_back(node);
+  }
+  for (int j = 0; j < kJointCount; ++j) {
+    const int p = joints()[j].parent;
+    (p < 0 ? m.nodes[1] : m.nodes[kFirstJoint + p]).children.push_back(kFirstJoint + j);
+  }
+  // --- skin ---
+  std::vector<float> ibm;
+  for (int j = 0; j < kJointCount; ++j) {
+    Eigen::Isometry3d r = rest[j];
+    r.translation() *= kMetre;
+    const Eigen::Matrix4d inv = r.inverse().matrix();
+    for (int c = 0; c < 4; ++c)  // column-major
+      for (int rr = 0; rr < 4; ++rr) ibm.push_back(static_cast<float>(inv(rr, c)));
+  }
+  tinygltf::Skin skin;
+  skin.name = "hand";
+  skin.skeleton = kFirstJoint;
+  for (int j = 0; j < kJointCount; ++j) skin.joints.push_back(kFirstJoint + j);
+  skin.inverseBindMatrices =
+      add_accessor(m, add_view(m, ibm.data(), ibm.size() * 4, -1), TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_MAT4, kJointCount);
+  m.bufferViews.back().target = 0;
+  m.skins.push_back(skin);
+
+  tinygltf::Scene scene;
+  scene.name = "handskin";
+  scene.nodes = {0, 1};
+  Json extras = {{"format", kFormat},
+                 {"units", "the rig in mm, palm frame; glTF positions in metres"},
+                 {"rig", Json::parse(rig_to_json_text(s.rig))},
+                 {"posture_model", model_to_json(s.model)},
+                 {"binding", s.binding.mode}};
+  if (pose) extras["pose_deg"] = std::vector<double>(pose->begin(), pose->end());
+  scene.extras = to_value(Json{{"handskin", extras}});
+  m.scenes.push_back(scene);
+  m.defaultScene = 0;
+
+  std::ostringstream out;
+  tinygltf::TinyGLTF gltf;
+  HS_CHECK(gltf.WriteGltfSceneToStream(&m, out, false, true), "glTF writing failed");
+  const std::string bytes = out.str();
+  return {bytes.begin(), bytes.end()};
+}
+
+RiggedSkin read_skin_glb(const std::string& file) {
+  tinygltf::Model m;
+  tinygltf::TinyGLTF gltf;
+  std::string err, warn;
+  if (!gltf.LoadBinaryFromFile(&m, &err, &warn, file)) {
+    std::string first = err.substr(0, err.find('\n'));
+    throw InputError(file, "not a readable glb: " + (first.empty() ? std::string("unknown error") : first));
+  }
+  if (m.scenes.empty()) throw InputError(file, "no scene");
+  const Json extras = from_value(m.scenes[m.defaultScene >= 0 ? m.defaultScene : 0].extras);
+  if (!extras.contains("handskin") || !extras["handskin"].is_object())
+    throw InputError(file, "no handskin extras in its scene: not a skin.glb that handskin wrote");
+  const Json& h = extras["handskin"];
+  if (!h.contains("format") || h["format"] != kFormat)
+    throw InputError(file, std::string("extras.handskin.format must be \"") + kFormat + "\"");
+  RiggedSkin s;
+  if (!h.contains("rig") || !h.contains("posture_model")) throw InputError(file, "extras.handskin lacks its rig or posture model");
+  s.rig = parse_rig(h["rig"].dump(), file + ": extras.handskin.rig");
+  s.model = parse_model(h["posture_model"], file + ": extras.handskin.posture_model");
+  s.binding.mode = h.contains("binding") && h["binding"].is_string() ? h["binding"].get<std::string>() : "smooth";
+  // The skin and its joints.
+  if (m.skins.size() != 1) throw InputError(file, "expected one skin, found " + std::to_string(m.skins.size()));
+  const tinygltf::Skin& sk = m.skins[0];
+  if (static_cast<int>(sk.joints.size()) != kJointCount)
+    throw InputError(file, "the skin has " + std::to_string(sk.joints.size()) + " joints, expected 25");
+  std::array<int, kJointCount> ours{};
+  for (int k = 0; k < kJointCount; ++k) {
+    const int node = sk.joints[k];
+    if (node < 0 || node >= static_cast<int>(m.nodes.size())) throw InputError(file, "a skin joint names no node");
+    const auto j = joint_index(m.nodes[node].name);
+    if (!j) throw InputError(file, "skin joint '" + m.nodes[node].name + "' is not one of the 25 WebXR hand joints");
+    ours[k] = *j;
+  }
+  auto accessor_floats = [&](int index, int type, const char* what) {
+    if (index < 0 || index >= static_cast<int>(m.accessors.size())) throw InputError(file, std::string(what) + ": no accessor");
+    const tinygltf::Accessor& a = m.accessors[index];
+    if (a.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT || a.type != type || a.bufferView < 0)
+      throw InputError(file, std::string(what) + ": expected float data of its type");
+    const tinygltf::BufferView& v = m.bufferViews[a.bufferView];
+    const int comps = tinygltf::GetNumComponentsInType(static_cast<std::uint32_t>(type));
+    const size_t need = a.byteOffset + a.count * comps * 4;
+    if ((v.byteStride && v.byteStride != static_cast<size_t>(comps) * 4) || need > v.byteLength ||
+        v.byteOffset + v.byteLength > m.buffers[v.buffer].data.size())
+      throw InputError(file, std::string(what) + ": accessor out of its buffer");
+    std::vector<float> out(a.count * comps);
+    std::memcpy(out.data(), m.buffers[v.buffer].data.data() + v.byteOffset + a.byteOffset, out.size() * 4);
+    for (float f : out)
+      if (!std::isfinite(f)) throw InputError(file, std::string(what) + ": a value is not finite");
+    return out;
+  };
+  // Bind matrices: finite, and the rig's rest frames (else the file was edited apart).
+  const std::vector<float> ibm = accessor_floats(sk.inverseBindMatrices, TINYGLTF_TYPE_MAT4, "inverse bind matrices");
+  if (ibm.size() != 16u * kJointCount) throw InputError(file, "inverse bind matrices: expected 25");
+  const Skeleton skel(s.rig, file + ": extras.handskin.rig");
+  for (int k = 0; k < kJointCount; ++k) {
+    Eigen::Matrix4d M;
+    for (int c = 0; c < 4; ++c)
+      for (int r = 0; r < 4; ++r) M(r, c) = ibm[16 * k + 4 * c + r];
+    Eigen::Isometry3d rest = skel.rest_frame(ours[k]);
+    rest.translation() *= kMetre;
+    if ((M - rest.inverse().matrix()).cwiseAbs().maxCoeff() > 1e-4)
+      throw InputError(file, std::string("the inverse bind matrix of ") + joints()[ours[k]].name + " does not match the rig");
+  }
+  // The mesh: the skinned node's primitive.
+  int mesh = -1;
+  for (const auto& n : m.nodes)
+    if (n.skin == 0 && n.mesh >= 0) mesh = n.mesh;
+  if (mesh < 0 || m.meshes[mesh].primitives.size() != 1) throw InputError(file, "no skinned mesh with one primitive");
+  const tinygltf::Primitive& prim = m.meshes[mesh].primitives[0];
+  auto attr = [&](const char* name) {
+    const auto it = prim.attributes.find(name);
+    if (it == prim.attributes.end()) throw InputError(file, std::string("the skin mesh has no ") + name);
+    return it->second;
+  };
+  const std::vector<float> pos = accessor_floats(attr("POSITION"), TINYGLTF_TYPE_VEC3, "POSITION");
+  const std::vector<float> wts = accessor_floats(attr("WEIGHTS_0"), TINYGLTF_TYPE_VEC4, "WEIGHTS_0");
+  const size_t n = pos.size() / 3;
+  if (wts.size() != 4 * n) throw InputError(file, "WEIGHTS_0 and POSITION differ in count");
+  const tinygltf::Accessor& ja = m.accessors[attr("JOINTS_0")];
+  if (ja.type != TINYGLTF_TYPE_VEC4 || ja.count != n || ja.bufferView < 0 ||
+      (ja.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && ja.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT))
+    throw InputError(file, "JOINTS_0 must be 4 unsigned bytes or shorts per vertex");
+  const tinygltf::BufferView& jv = m.bufferViews[ja.bufferView];
+  const size_t jsize = ja.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ? 1 : 2;
+  if (ja.byteOffset + n * 4 * jsize > jv.byteLength || jv.byteOffset + jv.byteLength > m.buffers[jv.buffer].data.size())
+    throw InputError(file, "JOINTS_0: accessor out of its buffer");
+  const unsigned char* jp = m.buffers[jv.buffer].data.data() + jv.byteOffset + ja.byteOffset;
+  // A joint's weight back to a link that moves with it (any: they move alike).
+  std::array<int, kJointCount> link_of{};
+  link_of.fill(-1);
+  for (int k = kJointCount - 2; k >= 0; --k) link_of[link_joint(k)] = k;
+  for (size_t i = 0; i < n; ++i) {
+    s.vertices.emplace_back(pos[3 * i] / kMetre, pos[3 * i + 1] / kMetre, pos[3 * i + 2] / kMetre);
+    VertexWeights w;
+    double sum = 0;
+    int used = 0;
+    for (int k = 0; k < 4; ++k) {
+      const unsigned idx = jsize == 1 ? jp[4 * i + k] : static_cast<unsigned>(jp[8 * i + 2 * k] | (jp[8 * i + 2 * k + 1] << 8));
+      const float wt = wts[4 * i + k];
+      if (wt < 0) throw InputError(file, "WEIGHTS_0: a negative weight at vertex " + std::to_string(i));
+      if (wt == 0) continue;
+      if (idx >= static_cast<unsigned>(kJointCount)) throw InputError(file, "JOINTS_0: joint index out of range at vertex " + std::to_string(i));
+      const int link = link_of[ours[idx]];
+      if (link < 0) throw InputError(file, std::string("vertex ") + std::to_string(i) + " is weighted to a fingertip joint, which moves nothing");
+      w.link[used] = link;
+      w.weight[used] = wt;
+      sum += wt;
+      ++used;
+    }
+    if (used == 0 || std::abs(sum - 1) > 1e-3)
+      throw InputError(file, "WEIGHTS_0: the weights of vertex " + std::to_string(i) + " do not sum to 1");
+    s.binding.vertices.push_back(w);
+  }
+  // Triangles.
+  if (prim.indices < 0) throw InputError(file, "the skin mesh has no indices");
+  const tinygltf::Accessor& ia = m.accessors[prim.indices];
+  if (ia.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT || ia.count % 3 || ia.bufferView < 0)
+    throw InputError(file, "indices must be unsigned ints, three per triangle");
+  const tinygltf::BufferView& iv = m.bufferViews[ia.bufferView];
+  if (ia.byteOffset + ia.count * 4 > iv.byteLength || iv.byteOffset + iv.byteLength > m.buffers[iv.buffer].data.size())
+    throw InputError(file, "indices: accessor out of its buffer");
+  std::vector<std::uint32_t> idx(ia.count);
+  std::memcpy(idx.data(), m.buffers[iv.buffer].data.data() + iv.byteOffset + ia.byteOffset, idx.size() * 4);
+  for (size_t k = 0; k < idx.size(); k += 3) {
+    for (int c = 0; c < 3; ++c)
+      if (idx[k + c] >= n) throw InputError(file, "indices: a vertex index out of range");
+    s.faces.push_back({static_cast<int>(idx[k]), static_cast<int>(idx[k + 1]), static_cast<int>(idx[k + 2])});
+  }
+  return s;
+}
+
+}  // namespace handskin

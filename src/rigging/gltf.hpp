@@ -1,0 +1,40 @@
+#pragma once
+/// The rigged skin as glTF 2.0 binary (`skin.glb`; docs/formats.md, docs/rigging.md), written
+/// and read with tinygltf (Debian's libtinygltf-dev):
+/// - the skin mesh at the scan posture (POSITION, NORMAL, indices), metres;
+/// - a skin over the 25 joints, named as WebXR names them (formats/hand-rig.md), nodes in the
+///   skeleton's hierarchy with their rest frames as local transforms, inverse bind matrices
+///   the rest frames' inverses, JOINTS_0 / WEIGHTS_0 from the binding (a link's weight goes to
+///   its first joint);
+/// - a root node "hand" turning the palm frame (Z up from the scanner's table) to glTF's Y up;
+/// - in the scene's extras, "handskin": the rig (hand-rig/1, mm), the posture model
+///   (hand-posture/1) and the binding mode — everything `pose` needs in one file.
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/rig.hpp"
+#include "posture/model.hpp"
+#include "posture/skeleton.hpp"
+#include "rigging/binding.hpp"
+
+namespace handskin {
+
+struct RiggedSkin {
+  std::vector<Eigen::Vector3d> vertices;       ///< scan posture, palm frame, mm
+  std::vector<std::array<int, 3>> faces;
+  Rig rig;
+  SkinBinding binding;
+  PostureModel model;
+};
+
+/// The glb's bytes; `pose` (if given) sets the joint nodes to that posture (the mesh and the
+/// bind matrices stay the scan posture's), so viewers show it posed.
+std::vector<unsigned char> skin_glb(const RiggedSkin& skin, const Angles* pose = nullptr);
+/// Throws InputError naming `file`: not a glb, no handskin extras or of another version, not
+/// the 25 expected joints, non-finite or inconsistent bind matrices, weights that are not
+/// weights.
+RiggedSkin read_skin_glb(const std::string& file);
+
+}  // namespace handskin
