@@ -3,7 +3,8 @@
 # web/node_modules. Idempotent: skips npm when they are already there.
 set -euo pipefail
 cd "$(dirname "$0")/../web"
-if [ -d node_modules/gltf-validator ] && [ node_modules/.package-lock.json -nt package-lock.json ]; then
+if [ -d node_modules/gltf-validator ] && [ -d node_modules/three ] && [ -d node_modules/playwright-core ] &&
+   [ node_modules/.package-lock.json -nt package-lock.json ]; then
   echo "npm: web/node_modules up to date"
   exit 0
 fi
