@@ -2,7 +2,8 @@
 # Real clients on skin.glb (web/, npm): the Khronos glTF Validator must report 0 errors and 0
 # warnings on the default fixture's skin.glb and on a posed one; three.js's GLTFLoader in
 # headless Chromium must load it, find the 25 joints and see the skin move when a joint
-# turns (its screenshot goes to <artefacts>/three_skin.png).
+# turns (its screenshot goes to <artefacts>/three_skin.png); Blender (Debian's) must import it
+# as an armature of 25 bones whose pose moves the mesh.
 # Usage: scripts/check_glb.sh <handskin-binary> [artefacts-folder]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -15,6 +16,7 @@ for m in gltf-validator three playwright-core; do
   fi
 done
 command -v chromium >/dev/null || { echo "check_glb: chromium is needed (scripts/setup.sh installs it)" >&2; exit 1; }
+command -v blender >/dev/null || { echo "check_glb: blender is needed (scripts/setup.sh installs it)" >&2; exit 1; }
 mkdir -p "$ART"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
@@ -22,3 +24,5 @@ trap 'rm -rf "$work"' EXIT
 "$BIN" -q pose --model "$work/run/skin.glb" --set L2.flex=60 --set index.pip.flex=90 --out "$work/posed.glb" >/dev/null
 node web/validate-gltf.js "$work/run/skin.glb" "$work/posed.glb"
 node web/tests/three-skin.js "$work/run/skin.glb" "$ART/three_skin.png"
+blender --background --factory-startup --python scripts/blender_import.py -- "$work/run/skin.glb" 2>&1 | grep "^blender_import:"
+test "${PIPESTATUS[0]}" -eq 0
