@@ -428,7 +428,6 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const std::vector<Eigen::Vector
   // --- patches, their links, the net's binding, continuity figures ---
   std::vector<double> g1;
   for (TubeSurface& T : out.tubes) {
-    const int NU = 3 * T.nu, NV = 3 * T.nv + 1;
     T.net_link.resize(T.net.size());
     for (size_t k = 0; k < T.net.size(); ++k) T.net_link[k] = nearest_link(T.net[k], skin.bones);
     out.control_points += T.net.size();
