@@ -12,6 +12,7 @@
 #include "posture/calibrate.hpp"
 #include "synth/angle_recording.hpp"
 #include "rigging/deform.hpp"
+#include "render/preview.hpp"
 #include "posture/solver.hpp"
 #include "register/registration.hpp"
 #include "skin/auto_rig.hpp"
@@ -330,6 +331,19 @@ static void BM_PosePatches(benchmark::State& st) {
   st.counters["patches"] = static_cast<double>(p.patches.size());
 }
 BENCHMARK(BM_PosePatches)->Unit(benchmark::kMillisecond);
+
+// A 1024 × 1024 PNG of the fixture's skin by Mesa's off-screen OpenGL (context, 2x
+// supersampled draw, downsampling, PNG encoding), after start-up.
+static void BM_RenderSkin1024(benchmark::State& st) {
+  const RiggedFixture& f = rigged_fixture();
+  RenderOptions ro;
+  ro.width = ro.height = 1024;
+  ro.view = named_view("back") * hand_frame_from_rig(f.rig).linear();
+  size_t bytes = 0;
+  for (auto _ : st) bytes = render_mesh_png({&f.skin.mesh}, ro).size();
+  st.counters["png_bytes"] = static_cast<double>(bytes);
+}
+BENCHMARK(BM_RenderSkin1024)->Unit(benchmark::kMillisecond);
 
 // Binding the fixture's skin by bone heat (24 sparse solves with one factorisation).
 static void BM_BindSkin(benchmark::State& st) {

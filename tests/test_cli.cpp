@@ -3,6 +3,7 @@
 
 #include <filesystem>
 
+#include "core/atomic_file.hpp"
 #include "core/json_util.hpp"
 #include "posture/angle_table.hpp"
 #include "core/dof.hpp"
@@ -75,6 +76,15 @@ TEST(Cli, RunOnTheFixtureWritesItsOutputs) {
   EXPECT_EQ(report["stages"][4]["name"], "rigging");
   EXPECT_EQ(report["stages"][4]["binding"], "smooth");
   EXPECT_GT(fs::file_size(dir + "/skin.glb"), 100000u);
+  {  // report.html shows the rigged skin posed: six pictures after the four of the patches
+    const std::string html = read_file(dir + "/report.html");
+    const size_t at = html.find("The rigged skin, posed");
+    ASSERT_NE(at, std::string::npos);
+    size_t pictures = 0;
+    for (size_t k = html.find("data:image/png;base64,", at); k != std::string::npos; k = html.find("data:image/png;base64,", k + 1))
+      ++pictures;
+    EXPECT_EQ(pictures, 6u);
+  }
   EXPECT_EQ(report["stages"][5]["name"], "write");
   EXPECT_EQ(report["outputs"]["report"], dir + "/report.json");
   EXPECT_EQ(load_json_object(dir + "/slices.json")["format"], "handskin-slices/1");

@@ -382,7 +382,7 @@ TEST(Contracts, RunGivesTheSameBytesOnOneThreadAndOnTwo) {
   const std::string one = test::temp_dir("t1") + "/out", two = test::temp_dir("t2") + "/out";
   ASSERT_EQ(test::run("OMP_NUM_THREADS=1 " + run_cmd(one), &out), 0) << out;
   ASSERT_EQ(test::run("OMP_NUM_THREADS=2 " + run_cmd(two), &out), 0) << out;
-  for (const char* f : {"merged.ply", "skin.ply", "skin.obj", "slices.json", "patches.json", "patches.ply"})
+  for (const char* f : {"merged.ply", "skin.ply", "skin.obj", "slices.json", "patches.json", "patches.ply", "skin.glb", "skin.png"})
     EXPECT_TRUE(read_file(one + "/" + f) == read_file(two + "/" + f)) << f;
   Json a = load_json_object(one + "/registration.json"), b = load_json_object(two + "/registration.json");
   a.erase("timings_ms"), b.erase("timings_ms");

@@ -136,7 +136,7 @@ Json to_json(const PatchReportFigures& f) {
 }
 
 std::string patch_report_html(const PatchStageResult& r, const PatchReportFigures& f, const Rig& rig,
-                              const Json& run_report) {
+                              const Json& run_report, const std::vector<ReportPicture>& posed) {
   const PatchSkin& s = r.patches;
   constexpr double kTop = 0.5;  // the colour scale's top, mm
   // Pictures: the data coloured by error, seen from the palm (palm scan) and the back (back scan).
@@ -259,6 +259,14 @@ std::string patch_report_html(const PatchStageResult& r, const PatchReportFigure
                                   {"truth → surface", *r.truth_to_surface}})
       h += row({name, fmt("%.3f", d.mean), fmt("%.3f", d.p95), fmt("%.3f", d.max), fmt("%.2f %%", 100 * d.within_1mm)});
     h += "</table>\n";
+  }
+  if (!posed.empty()) {
+    h += "<h2>The rigged skin, posed</h2>\n<p>skin.glb posed by the solver (docs/rigging.md): smooth (bone-heat) weights with "
+         "dual quaternions, and the thesis's rigid binding, which folds the skin into the finger at bent joints.</p>\n"
+         "<div class=\"pics\">";
+    for (const auto& p : posed)
+      h += "<figure>" + img(p.png, html_escape(p.caption)) + "<figcaption>" + html_escape(p.caption) + "</figcaption></figure>";
+    h += "</div>\n";
   }
   if (run_report.is_object() && run_report.contains("stages")) {
     h += "<h2>The run</h2>\n<table>\n" + row({"stage", "seconds"}, true);

@@ -15,6 +15,11 @@
 
 namespace handskin {
 
+/// A picture with its caption for the report page (e.g. the rigged skin in a posture), PNG.
+struct ReportPicture {
+  std::string caption, png;
+};
+
 struct PatchReportFigures {
   /// Table 4.1 computed the thesis's way: every patch sampled on error_grid × error_grid
   /// points, each data point's distance to the nearest sample; per side (palm, back).
@@ -58,7 +63,8 @@ std::string patches_obj(const PatchSkin& s);
 
 /// Stage patches.json, patches.obj, patches.ply and report.html (`rig` orients its
 /// pictures; `run_report` adds the run's stages to it) into `out`; returns {key: final path}.
-Json write_patch_outputs(OutputSet& out, const PatchStageResult& r, const Rig& rig, const Json& run_report = Json());
+Json write_patch_outputs(OutputSet& out, const PatchStageResult& r, const Rig& rig, const Json& run_report = Json(),
+                         const std::vector<ReportPicture>& posed = {});
 const std::vector<std::string>& patch_output_names();
 
 }  // namespace handskin

@@ -7,6 +7,8 @@
 #include "core/rig.hpp"
 #include "posture/solver.hpp"
 #include "rigging/binding.hpp"
+#include "rigging/deform.hpp"
+#include "render/preview.hpp"
 #include "pipeline/registration_stage.hpp"
 #include "pipeline/stage_options.hpp"
 
@@ -30,6 +32,44 @@ Json to_json(const ScanFigures& s) {
   const size_t total = static_cast<size_t>(s.scanlines) * s.points;
   return {{"stem", s.stem}, {"side", side_name(s.side)}, {"scanlines", s.scanlines}, {"points", s.points},
           {"returns", s.returns}, {"no_return", total - s.returns}};
+}
+}  // namespace
+
+namespace {
+// The rigged skin in the report's postures: open (the scan's), relaxed, a fist, and the
+// solver's answer to a 75° little-finger MCP alone; the last two also with the thesis's rigid
+// binding. Side views, 360 × 270.
+std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, const TriMesh& mesh) {
+  const Skeleton skel(s.rig, "rig");
+  const PostureSolver solver(s.model);
+  BindingOptions rb;
+  rb.mode = "rigid";
+  const SkinBinding rigid = bind_skin(mesh, bones_from_rig(s.rig), rb);
+  auto D = [](const std::string& n) { return dof_index(n).value(); };
+  PostureInputs fist, l2;
+  for (const char* f : {"index", "middle", "ring", "little"})
+    for (const auto& [j, a] : {std::pair{".mcp.flex", 85.0}, {".pip.flex", 100.0}, {".dip.flex", 60.0}})
+      fist.pins.emplace_back(D(std::string(f) + j), a);
+  fist.pins.emplace_back(D("thumb.mcp.flex"), 40.0);
+  fist.pins.emplace_back(D("thumb.ip.flex"), 50.0);
+  l2.pins.emplace_back(D("little.mcp.flex"), 75.0);
+  const Angles open{};
+  const Angles relaxed = solver.solve(PostureInputs{}).angles, closed = solver.solve(fist).angles, little = solver.solve(l2).angles;
+  RenderOptions ro;
+  ro.width = 360;
+  ro.height = 270;
+  ro.view = named_view("side") * hand_frame_from_rig(s.rig).linear();
+  std::vector<ReportPicture> out;
+  for (const auto& [caption, angles, binding] :
+       {std::tuple{"open (the scan posture)", &open, &s.binding}, {"relaxed", &relaxed, &s.binding},
+        {"fist", &closed, &s.binding}, {"little MCP 75° alone: the solver fills in the rest", &little, &s.binding},
+        {"fist, rigid binding (the thesis)", &closed, &rigid}, {"little MCP 75°, rigid binding (the thesis)", &little, &rigid}}) {
+    const auto v = deform(s.vertices, *binding, link_motions(skel, *angles), binding == &rigid ? Blend::Linear : Blend::DualQuaternion);
+    TriMesh m = mesh;
+    for (const auto vh : m.vertices()) m.set_point(vh, TriMesh::Point(v[vh.idx()].x(), v[vh.idx()].y(), v[vh.idx()].z()));
+    out.push_back({caption, render_mesh_png({&m}, ro)});
+  }
+  return out;
 }
 }  // namespace
 
@@ -113,6 +153,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   bo.mode = in.options.rigging.smooth ? "smooth" : "rigid";
   R.rigged.binding = bind_skin(mesh, bones_from_rig(R.skin.rig), bo);
   R.rigged.model = posture_model;
+  if (R.patches) R.posed = posed_pictures(R.rigged, mesh);  // for report.html, which the patch stage writes
   R.rigging_seconds = t_rig.seconds();
   R.seconds = total.seconds();
   return R;
@@ -171,7 +212,7 @@ Json write_run_outputs(OutputSet& out, const RunResult& r) {
   outputs["skin_glb"] = out.final_path("skin.glb");
   report["inputs"]["posture_model"] = in.posture_model;
   report["stages"] = stages;  // the computing stages, for the patch report's page
-  if (r.patches) outputs.update(write_patch_outputs(out, *r.patches, r.skin.rig, report));
+  if (r.patches) outputs.update(write_patch_outputs(out, *r.patches, r.skin.rig, report, r.posed));
   stages.push_back({{"name", "write"}, {"seconds", t_write.seconds()}});
   report["stages"] = stages;
   outputs["report"] = out.final_path("report.json");

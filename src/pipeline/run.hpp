@@ -55,6 +55,7 @@ struct RunResult {
   SkinStageResult skin;
   std::optional<PatchStageResult> patches;  ///< Bézier patches on the skin's ring grid (patches.enabled)
   RiggedSkin rigged;             ///< the skin bound to the skeleton, with the posture model (skin.glb)
+  std::vector<ReportPicture> posed;  ///< the rigged skin in a few postures, for report.html
   double rigging_seconds = 0;
   double seconds = 0;  ///< all stages, before any output is written
 };

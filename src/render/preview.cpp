@@ -101,51 +101,6 @@ class Canvas {
 
 }  // namespace
 
-std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const RenderOptions& o) {
-  std::vector<Eigen::Vector3d> vp;
-  for (const TriMesh* m : meshes)
-    for (auto v : m->vertices()) {
-      const auto& p = m->point(v);
-      vp.push_back(o.view * Eigen::Vector3d(p[0], p[1], p[2]));
-    }
-  Canvas canvas(o, vp);
-  for (const TriMesh* m : meshes) {
-    TriMesh mesh = *m;
-    mesh.request_vertex_normals();
-    mesh.request_face_normals();
-    mesh.update_normals();
-    for (auto f : mesh.faces()) {
-      Eigen::Vector3d P[3], N[3];
-      int k = 0;
-      for (auto v : mesh.fv_range(f)) {
-        const auto& p = mesh.point(v);
-        const auto& n = mesh.normal(v);
-        P[k] = canvas.to_px(o.view * Eigen::Vector3d(p[0], p[1], p[2]));
-        N[k] = o.view * Eigen::Vector3d(n[0], n[1], n[2]);
-        ++k;
-      }
-      const double area = (P[1].x() - P[0].x()) * (P[2].y() - P[0].y()) - (P[2].x() - P[0].x()) * (P[1].y() - P[0].y());
-      if (std::abs(area) < 1e-12) continue;
-      const int x0 = std::max(0, static_cast<int>(std::floor(std::min({P[0].x(), P[1].x(), P[2].x()}))));
-      const int x1 = std::min(o.width - 1, static_cast<int>(std::ceil(std::max({P[0].x(), P[1].x(), P[2].x()}))));
-      const int y0 = std::max(0, static_cast<int>(std::floor(std::min({P[0].y(), P[1].y(), P[2].y()}))));
-      const int y1 = std::min(o.height - 1, static_cast<int>(std::ceil(std::max({P[0].y(), P[1].y(), P[2].y()}))));
-      for (int y = y0; y <= y1; ++y)
-        for (int x = x0; x <= x1; ++x) {
-          const double px = x + 0.5, py = y + 0.5;
-          const double w0 = ((P[1].x() - px) * (P[2].y() - py) - (P[2].x() - px) * (P[1].y() - py)) / area;
-          const double w1 = ((P[2].x() - px) * (P[0].y() - py) - (P[0].x() - px) * (P[2].y() - py)) / area;
-          const double w2 = 1.0 - w0 - w1;
-          if (w0 < 0 || w1 < 0 || w2 < 0) continue;
-          const double z = w0 * P[0].z() + w1 * P[1].z() + w2 * P[2].z();
-          canvas.plot(x, y, z, (w0 * N[0] + w1 * N[1] + w2 * N[2]).normalized(), o.colour);
-        }
-    }
-  }
-  canvas.dots(o.points);
-  return canvas.png();
-}
-
 std::string render_points_png(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& normals,
                               const std::vector<Eigen::Vector3f>& colours, const RenderOptions& o) {
   HS_CHECK(points.size() == normals.size() && points.size() == colours.size(), "point attributes differ in length");

@@ -1,6 +1,7 @@
 #pragma once
-/// Preview pictures (PNG) for people who would rather look than read: a shaded mesh and a
-/// colour-coded range scan. A small software rasteriser, so no display or GPU is needed.
+/// Preview pictures (PNG) for people who would rather look than read: a shaded mesh (Mesa's
+/// off-screen OpenGL), and point splats, skeletons and a colour-coded range scan (a small
+/// software canvas). Neither needs a display or a GPU.
 #include <Eigen/Geometry>
 #include <string>
 #include <vector>
@@ -19,7 +20,9 @@ struct RenderOptions {
   std::vector<Eigen::Vector3d> points;          ///< optional joints/markers drawn as dots
 };
 
-/// Shaded orthographic render of one or more meshes (fit to the picture). Returns PNG bytes.
+/// Shaded orthographic render of one or more meshes (fit to the picture), by Mesa's
+/// off-screen OpenGL (gl_mesh.cpp): depth-tested, smooth-shaded, 2x supersampled. Returns
+/// PNG bytes.
 std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const RenderOptions& options);
 
 /// Shaded splats of a point cloud with normals, one colour per point (fit to the picture).
