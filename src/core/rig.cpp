@@ -1,5 +1,6 @@
 #include "core/rig.hpp"
 
+#include <algorithm>
 #include <map>
 #include <set>
 
@@ -142,6 +143,12 @@ std::vector<Bone> bones_from_rig(const Rig& rig) {
     out.push_back({p, j, rig.joints[p], rig.joints[j]});
   }
   return out;
+}
+
+double distance_to_bone(const Eigen::Vector3d& p, const Bone& bone) {
+  const Eigen::Vector3d ab = bone.b - bone.a;
+  const double t = ab.squaredNorm() > 0 ? std::clamp((p - bone.a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
+  return (p - (bone.a + t * ab)).norm();
 }
 
 }  // namespace handskin

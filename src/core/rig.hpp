@@ -47,5 +47,7 @@ struct Bone {
 };
 /// The 24 links of a rig: wrist → each metacarpal base, and every joint → its child.
 std::vector<Bone> bones_from_rig(const Rig& rig);
+/// Distance from p to the link's segment a–b (mm).
+double distance_to_bone(const Eigen::Vector3d& p, const Bone& bone);
 
 }  // namespace handskin

@@ -48,17 +48,11 @@ BezierPatch patch_of(const TubeSurface& T, int a, int b) {
   return P;
 }
 
-double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  const Eigen::Vector3d d = b - a;
-  const double t = std::clamp((p - a).dot(d) / std::max(d.squaredNorm(), 1e-12), 0.0, 1.0);
-  return (a + t * d - p).norm();
-}
-
 int nearest_link(const Eigen::Vector3d& p, const std::vector<Bone>& bones) {
   int best = -1;
   double bd = 1e300;
   for (size_t k = 0; k < bones.size(); ++k) {
-    const double d = segment_distance(p, bones[k].a, bones[k].b);
+    const double d = distance_to_bone(p, bones[k]);
     if (d < bd) bd = d, best = static_cast<int>(k);
   }
   return best;

@@ -30,12 +30,6 @@ int link_joint(int link) { return joints()[link + 1].parent; }
 
 namespace {
 
-double segment_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  const Eigen::Vector3d ab = b - a;
-  const double t = ab.squaredNorm() > 0 ? std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
-  return (p - (a + t * ab)).norm();
-}
-
 // Keep the largest kMaxInfluences weights above min_weight, normalised, largest first.
 VertexWeights top_weights(std::vector<std::pair<double, int>> w, double min_weight) {
   std::sort(w.begin(), w.end(), [](const auto& a, const auto& b) { return a.first > b.first || (a.first == b.first && a.second < b.second); });
@@ -79,7 +73,7 @@ SkinBinding bind_skin(const TriMesh& mesh, const std::vector<Bone>& bones, const
   for (int i = 0; i < n; ++i) {
     double best = 1e300;
     for (int k = 0; k < nb; ++k) {
-      const double d = segment_distance(x[i], bones[k].a, bones[k].b);
+      const double d = distance_to_bone(x[i], bones[k]);
       if (d < best) best = d, nearest[i] = k;
     }
     dist[i] = std::max(best, 1e-3);
