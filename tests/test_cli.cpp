@@ -98,6 +98,11 @@ TEST(Cli, RunOnTheFixtureWritesItsOutputs) {
   // left beside the new report it would look like part of it.
   ASSERT_EQ(test::run(run_args(dir) + " -q", &out), 0) << out;
   EXPECT_FALSE(fs::exists(dir + "/baseline.ply"));
+  // A posture model that does not load stops the run before any work, naming it.
+  const std::string bad = test::temp_dir("badmodel") + "/out";
+  EXPECT_EQ(test::run(run_args(bad) + " -q --posture-model builtin:nonesuch", &out), 1);
+  EXPECT_NE(out.find("nonesuch"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(bad));
   EXPECT_FALSE(load_json_object(dir + "/report.json")["stages"][2].contains("baseline"));
 }
 
