@@ -1,7 +1,7 @@
 #pragma once
-/// Preview pictures (PNG) for people who would rather look than read: a shaded mesh (Mesa's
-/// off-screen OpenGL), and point splats, skeletons and a colour-coded range scan (a small
-/// software canvas). Neither needs a display or a GPU.
+/// Preview pictures (PNG) for people who would rather look than read: shaded meshes, lit
+/// point splats and skeletons drawn by Mesa's off-screen OpenGL (gl_render.cpp; no display
+/// or GPU needed), and a colour-coded range image.
 #include <Eigen/Geometry>
 #include <string>
 #include <vector>
@@ -21,7 +21,7 @@ struct RenderOptions {
 };
 
 /// Shaded orthographic render of one or more meshes (fit to the picture), by Mesa's
-/// off-screen OpenGL (gl_mesh.cpp): depth-tested, smooth-shaded, 2x supersampled. Returns
+/// off-screen OpenGL (gl_render.cpp): depth-tested, smooth-shaded, 2x supersampled. Returns
 /// PNG bytes.
 std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const RenderOptions& options);
 
