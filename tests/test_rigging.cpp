@@ -2,8 +2,10 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <random>
 
 #include "core/atomic_file.hpp"
+#include "core/errors.hpp"
 #include "core/json_util.hpp"
 #include "posture/solver.hpp"
 #include "rigging/deform.hpp"
@@ -185,4 +187,37 @@ TEST(Rigging, BadGlbsAndOptionsAreRefused) {
   EXPECT_EQ(test::run(kBin + " -q pose --model " + glb + " --blend cubic --out " + dir + "/x.ply", &out), 2);
   EXPECT_EQ(test::run(kBin + " -q pose --model " + glb, &out), 1);
   EXPECT_NE(out.find("nothing to write"), std::string::npos) << out;
+}
+
+TEST(Rigging, DamagedGlbsAreRefusedNeverCrash) {
+  // A few hundred damaged copies of the fixture's skin.glb — bytes flipped in the header, the
+  // JSON chunk and the binary chunk, and cut short — each read as `pose` reads it: a clean
+  // read (the damage missed anything that matters) or one InputError, never a crash, a hang
+  // or another exception.
+  const std::string good = read_file(fixture_run() + "/skin.glb");
+  const std::string dir = test::temp_dir("glb-damage");
+  std::mt19937_64 rng(7);
+  size_t refused = 0, read = 0;
+  for (int k = 0; k < 300; ++k) {
+    std::string g = good;
+    const int kind = k % 4;
+    if (kind == 3) {
+      g.resize(std::uniform_int_distribution<size_t>(0, g.size() - 1)(rng));
+    } else {
+      const size_t span = kind == 0 ? 64 : kind == 1 ? std::min<size_t>(good.size(), 20000) : good.size();
+      for (int f = 0; f < 1 + k % 7; ++f) g[std::uniform_int_distribution<size_t>(0, span - 1)(rng)] ^= static_cast<char>(1 + rng() % 255);
+    }
+    test::write_text(dir + "/d.glb", g);
+    try {
+      const RiggedSkin s = read_skin_glb(dir + "/d.glb");
+      for (const auto& v : s.vertices) ASSERT_TRUE(v.allFinite());
+      for (const auto& f : s.faces)
+        for (int i : f) ASSERT_LT(static_cast<size_t>(i), s.vertices.size());
+      ++read;
+    } catch (const InputError&) {
+      ++refused;
+    }
+  }
+  EXPECT_GT(refused, 100u);
+  EXPECT_EQ(read + refused, 300u);
 }
