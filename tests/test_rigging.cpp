@@ -32,13 +32,6 @@ const std::string& fixture_run() {
 
 int D(const char* n) { return dof_index(n).value(); }
 
-TriMesh mesh_of(const RiggedSkin& s) {
-  TriMesh m;
-  std::vector<TriMesh::VertexHandle> h;
-  for (const auto& p : s.vertices) h.push_back(m.add_vertex(TriMesh::Point(p.x(), p.y(), p.z())));
-  for (const auto& f : s.faces) m.add_face(h[f[0]], h[f[1]], h[f[2]]);
-  return m;
-}
 }  // namespace
 
 TEST(Rigging, SkinGlbHoldsTheMeshTheSkinAndThePostureModel) {
@@ -96,7 +89,7 @@ TEST(Rigging, SmoothWeightsDoNotFoldLikeTheRigidBinding) {
   const PostureSolver solver(s.model);
   BindingOptions rb;
   rb.mode = "rigid";
-  const SkinBinding rigid = bind_skin(mesh_of(s), bones_from_rig(s.rig), rb);
+  const SkinBinding rigid = bind_skin(mesh_from_arrays(s.vertices, s.faces), bones_from_rig(s.rig), rb);
   const double rest = pose_quality(s.vertices, s.faces).volume_mm3;
   std::vector<PostureInputs> poses;
   for (const char* f : {"index", "middle", "ring", "little"}) {
@@ -104,13 +97,7 @@ TEST(Rigging, SmoothWeightsDoNotFoldLikeTheRigidBinding) {
     in.pins = {{D((std::string(f) + ".pip.flex").c_str()), 90.0}};
     poses.push_back(in);
   }
-  PostureInputs fist;
-  for (const char* f : {"index", "middle", "ring", "little"})
-    for (const auto& [j, a] : {std::pair{".mcp.flex", 85.0}, {".pip.flex", 100.0}, {".dip.flex", 60.0}})
-      fist.pins.emplace_back(D((std::string(f) + j).c_str()), a);
-  fist.pins.emplace_back(D("thumb.mcp.flex"), 40.0);
-  fist.pins.emplace_back(D("thumb.ip.flex"), 50.0);
-  poses.push_back(fist);
+  poses.push_back(fist_inputs());
   for (size_t p = 0; p < poses.size(); ++p) {
     const auto motions = link_motions(skel, solver.solve(poses[p]).angles);
     const PoseQuality smooth = pose_quality(deform(s.vertices, s.binding, motions, Blend::DualQuaternion), s.faces, &s.binding);

@@ -21,14 +21,6 @@ struct PoseArgs {
   int size = 1024;
 };
 
-TriMesh to_mesh(const std::vector<Eigen::Vector3d>& v, const std::vector<std::array<int, 3>>& faces) {
-  TriMesh m;
-  std::vector<TriMesh::VertexHandle> h;
-  for (const auto& p : v) h.push_back(m.add_vertex(TriMesh::Point(p.x(), p.y(), p.z())));
-  for (const auto& f : faces) m.add_face(h[f[0]], h[f[1]], h[f[2]]);
-  return m;
-}
-
 void pose_command(const PoseArgs& a, const Progress& progress) {
   namespace fs = std::filesystem;
   if (a.out.empty() && a.png.empty()) throw InputError("pose", "nothing to write: give --out and/or --png");
@@ -65,12 +57,12 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
       write_file_atomic(a.out, std::string(glb.begin(), glb.end()));
     } else {
       const std::string tmp = a.out + ".tmp" + ext;
-      save_mesh(tmp, to_mesh(posed, skin.faces));
+      save_mesh(tmp, mesh_from_arrays(posed, skin.faces));
       fs::rename(tmp, a.out);
     }
   }
   if (!a.png.empty()) {
-    const TriMesh mesh = to_mesh(posed, skin.faces);
+    const TriMesh mesh = mesh_from_arrays(posed, skin.faces);
     RenderOptions ro;
     ro.width = ro.height = a.size;
     ro.view = named_view(a.view) * hand_frame_from_rig(skin.rig).linear();

@@ -58,6 +58,15 @@ std::vector<std::array<int, 3>> mesh_faces(const TriMesh& mesh) {
   return f;
 }
 
+TriMesh mesh_from_arrays(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& faces) {
+  TriMesh m;
+  std::vector<TriMesh::VertexHandle> h;
+  h.reserve(vertices.size());
+  for (const auto& p : vertices) h.push_back(m.add_vertex(TriMesh::Point(p.x(), p.y(), p.z())));
+  for (const auto& f : faces) m.add_face(h[f[0]], h[f[1]], h[f[2]]);
+  return m;
+}
+
 MeshHealth mesh_health(const TriMesh& mesh) {
   MeshHealth h;
   h.vertices = mesh.n_vertices();

@@ -38,5 +38,7 @@ MeshHealth mesh_health(const TriMesh& mesh);
 /// that works on triangle soups: CGAL trees, the scanner's scene, distances.
 std::vector<Eigen::Vector3d> mesh_vertices(const TriMesh& mesh);
 std::vector<std::array<int, 3>> mesh_faces(const TriMesh& mesh);
+/// The inverse: a mesh from positions and vertex-index triples (vertex order kept).
+TriMesh mesh_from_arrays(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& faces);
 
 }  // namespace handskin

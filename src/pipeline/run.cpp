@@ -45,14 +45,9 @@ std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, const TriMesh& me
   BindingOptions rb;
   rb.mode = "rigid";
   const SkinBinding rigid = bind_skin(mesh, bones_from_rig(s.rig), rb);
-  auto D = [](const std::string& n) { return dof_index(n).value(); };
-  PostureInputs fist, l2;
-  for (const char* f : {"index", "middle", "ring", "little"})
-    for (const auto& [j, a] : {std::pair{".mcp.flex", 85.0}, {".pip.flex", 100.0}, {".dip.flex", 60.0}})
-      fist.pins.emplace_back(D(std::string(f) + j), a);
-  fist.pins.emplace_back(D("thumb.mcp.flex"), 40.0);
-  fist.pins.emplace_back(D("thumb.ip.flex"), 50.0);
-  l2.pins.emplace_back(D("little.mcp.flex"), 75.0);
+  const PostureInputs fist = fist_inputs();
+  PostureInputs l2;
+  l2.pins.emplace_back(dof_index("little.mcp.flex").value(), 75.0);
   const Angles open{};
   const Angles relaxed = solver.solve(PostureInputs{}).angles, closed = solver.solve(fist).angles, little = solver.solve(l2).angles;
   RenderOptions ro;
@@ -65,8 +60,7 @@ std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, const TriMesh& me
         {"fist", &closed, &s.binding}, {"little MCP 75° alone: the solver fills in the rest", &little, &s.binding},
         {"fist, rigid binding (the thesis)", &closed, &rigid}, {"little MCP 75°, rigid binding (the thesis)", &little, &rigid}}) {
     const auto v = deform(s.vertices, *binding, link_motions(skel, *angles), binding == &rigid ? Blend::Linear : Blend::DualQuaternion);
-    TriMesh m = mesh;
-    for (const auto vh : m.vertices()) m.set_point(vh, TriMesh::Point(v[vh.idx()].x(), v[vh.idx()].y(), v[vh.idx()].z()));
+    const TriMesh m = mesh_from_arrays(v, s.faces);
     out.push_back({caption, render_mesh_png({&m}, ro)});
   }
   return out;
@@ -138,16 +132,8 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   progress(std::string("rigging: ") + (in.options.rigging.smooth ? "bone-heat weights" : "rigid binding"));
   const StageTimer t_rig;
   const TriMesh& mesh = R.skin.skin.mesh;
-  for (const auto v : mesh.vertices()) {
-    const auto& q = mesh.point(v);
-    R.rigged.vertices.emplace_back(q[0], q[1], q[2]);
-  }
-  for (const auto f : mesh.faces()) {
-    std::array<int, 3> t{};
-    int k = 0;
-    for (const auto v : mesh.fv_range(f)) t[k++] = v.idx();
-    R.rigged.faces.push_back(t);
-  }
+  R.rigged.vertices = mesh_vertices(mesh);
+  R.rigged.faces = mesh_faces(mesh);
   R.rigged.rig = R.skin.rig;
   BindingOptions bo;
   bo.mode = in.options.rigging.smooth ? "smooth" : "rigid";

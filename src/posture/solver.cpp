@@ -403,6 +403,16 @@ double PostureSolver::half_logdet_free(std::uint64_t pinned) const {
   return v;
 }
 
+PostureInputs fist_inputs() {
+  PostureInputs in;
+  for (const char* f : {"index", "middle", "ring", "little"})
+    for (const auto& [j, a] : {std::pair{".mcp.flex", 85.0}, {".pip.flex", 100.0}, {".dip.flex", 60.0}})
+      in.pins.emplace_back(dof_index(std::string(f) + j).value(), a);
+  in.pins.emplace_back(dof_index("thumb.mcp.flex").value(), 40.0);
+  in.pins.emplace_back(dof_index("thumb.ip.flex").value(), 50.0);
+  return in;
+}
+
 void parse_assignment(const std::string& text, const std::string& option, int* dof, double* value, double* weight) {
   const size_t eq = text.find('=');
   if (eq == std::string::npos || eq == 0)

@@ -101,6 +101,10 @@ class PostureSolver {
   mutable std::unordered_map<std::uint64_t, double> logdet_cache_;
 };
 
+/// A fist as pins: finger MCP 85°, PIP 100°, DIP 60°; thumb MCP 40°, IP 50° (the report's
+/// and the folding test's fist, docs/rigging.md). The model fills in the other joints.
+PostureInputs fist_inputs();
+
 /// Parse "name=value" (a --set / --torque argument) or "name=value@weight" (a --target).
 void parse_assignment(const std::string& text, const std::string& option, int* dof, double* value,
                       double* weight = nullptr);
