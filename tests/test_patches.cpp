@@ -239,6 +239,8 @@ TEST(Patches, FollowThePostureAndTheirLayoutComesBack) {
 }
 
 TEST(Patches, TessellationVerticesAreTheMeshVertices) {
+  // The fast tessellation (Bernstein values per sample, which tessellate() builds on) against
+  // the surface evaluated independently at each sample's parameters.
   const SkinResult skin = tube_skin();
   std::vector<Eigen::Vector3d> pts;
   std::vector<std::uint32_t> sides;
@@ -252,9 +254,17 @@ TEST(Patches, TessellationVerticesAreTheMeshVertices) {
     std::vector<Eigen::Vector3d> v;
     tessellation_vertices(s, n, &v);
     ASSERT_EQ(v.size(), m.n_vertices());
+    size_t k = 0;
+    for (const TubeSurface& T : s.tubes)
+      for (int i = 0; i < T.nu * n; ++i)
+        for (int j = 0; j <= T.nv * n; ++j) {
+          if (i > 0 && ((j == 0 && T.closed_start) || (j == T.nv * n && T.closed_end))) continue;
+          ASSERT_LT((v[k++] - T.eval(static_cast<double>(i) / n, static_cast<double>(j) / n)).norm(), 1e-9);
+        }
+    EXPECT_EQ(k, v.size());
     for (const auto vh : m.vertices()) {
       const auto& p = m.point(vh);
-      ASSERT_LT((v[vh.idx()] - Eigen::Vector3d(p[0], p[1], p[2])).norm(), 1e-9);
+      ASSERT_LT((v[vh.idx()] - Eigen::Vector3d(p[0], p[1], p[2])).norm(), 1e-12);
     }
   }
 }

@@ -508,6 +508,14 @@ PatchSkin pose_patch_skin(const PatchSkin& s, const Skeleton& skeleton, const An
   return out;
 }
 
+namespace {
+// Sample (i, j) of a tube's n-per-span grid repeats sample (0, j): on a closed end's row every
+// sample is the pole, made once.
+bool repeats_pole(const TubeSurface& T, int i, int j, int NV) {
+  return i > 0 && ((j == 0 && T.closed_start) || (j == NV - 1 && T.closed_end));
+}
+}  // namespace
+
 void tessellation_vertices(const PatchSkin& s, int n, std::vector<Eigen::Vector3d>* out) {
   HS_CHECK(n >= 1, "tessellation needs at least one quad per patch side");
   // Every sample sits at a patch-local parameter k / n: the Bernstein values once.
@@ -518,7 +526,7 @@ void tessellation_vertices(const PatchSkin& s, int n, std::vector<Eigen::Vector3
     const int NU = T.nu * n, NV = T.nv * n + 1, NU3 = 3 * T.nu, NV3 = 3 * T.nv + 1;
     for (int i = 0; i < NU; ++i)
       for (int j = 0; j < NV; ++j) {
-        if (i > 0 && ((j == 0 && T.closed_start) || (j == NV - 1 && T.closed_end))) continue;
+        if (repeats_pole(T, i, j, NV)) continue;
         const int a = i / n, ks = i % n;
         const int b = std::min(j / n, T.nv - 1), kt = j - b * n;
         Eigen::Vector3d p = Eigen::Vector3d::Zero();
@@ -533,25 +541,29 @@ void tessellation_vertices(const PatchSkin& s, int n, std::vector<Eigen::Vector3
 }
 
 TriMesh tessellate(const PatchSkin& s, int n) {
-  HS_CHECK(n >= 1, "tessellation needs at least one quad per patch side");
+  std::vector<Eigen::Vector3d> points;
+  tessellation_vertices(s, n, &points);  // checks n; the vertices in the order made below
   TriMesh mesh;
+  size_t next = 0;
   for (const TubeSurface& T : s.tubes) {
     const int NU = T.nu * n, NV = T.nv * n + 1;
     std::vector<TriMesh::VertexHandle> vh(static_cast<size_t>(NU) * NV);
     for (int i = 0; i < NU; ++i)
       for (int j = 0; j < NV; ++j) {
-        // A closed end's row is one point: one vertex.
-        if (i > 0 && ((j == 0 && T.closed_start) || (j == NV - 1 && T.closed_end))) {
+        if (repeats_pole(T, i, j, NV)) {
           vh[i * NV + j] = vh[j];
           continue;
         }
-        const Eigen::Vector3d p = T.eval(static_cast<double>(i) / n, static_cast<double>(j) / n);
+        const Eigen::Vector3d& p = points[next++];
         vh[i * NV + j] = mesh.add_vertex(TriMesh::Point(p.x(), p.y(), p.z()));
       }
     // Outward: the normal at a mid-tube point against the direction from the ring's centre.
     const int jm = NV / 2;
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-    for (int i = 0; i < NU; ++i) centre += T.eval(static_cast<double>(i) / n, static_cast<double>(jm) / n);
+    for (int i = 0; i < NU; ++i) {
+      const auto& p = mesh.point(vh[i * NV + jm]);
+      centre += Eigen::Vector3d(p[0], p[1], p[2]);
+    }
     centre /= NU;
     Eigen::Vector3d S, Su, Sv;
     T.derivatives(0.5, static_cast<double>(jm) / n, &S, &Su, &Sv);
