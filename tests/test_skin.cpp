@@ -432,6 +432,77 @@ TEST(SkinSteps, RingsOfANoisyCylinderHaveItsRadiusAndSameCount) {
     for (const auto& p : ring) EXPECT_NEAR(std::hypot(p.y(), p.z()), 8.0, 0.1);
 }
 
+namespace {
+// An elliptic forearm stub (half-axes 35 x 12 mm) along +X, sawn off by the plane n . p = d,
+// as two scanners see it: no samples on the flanks steeper than 72 deg, depth noise.
+std::vector<Eigen::Vector3d> sawn_stub(const Eigen::Vector3d& n, double d, double sigma) {
+  std::vector<Eigen::Vector3d> pts;
+  Rng rng(11);
+  for (double y = -35; y <= 35; y += 0.5)
+    for (double x = 100; x <= 160; x += 0.5)
+      for (int side : {-1, 1}) {
+        const double t = y / 35;
+        if (1 - t * t <= 0) continue;
+        const double z = side * 12 * std::sqrt(1 - t * t);
+        // the surface normal's Z share: the flanks neither scanner sees are left out
+        const Eigen::Vector3d g(0, 2 * y / (35 * 35), 2 * z / (12 * 12));
+        if (std::abs(g.normalized().z()) < std::cos(72 * M_PI / 180)) continue;
+        const Eigen::Vector3d p(x, y, z + sigma * rng.normal());
+        if (n.dot(p) >= d) pts.push_back(p);
+      }
+  return pts;
+}
+}  // namespace
+
+TEST(SkinSteps, WristCutIsFittedToTheCloudsProximalRim) {
+  for (const Eigen::Vector3d& axis : {Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0, 1, 0), Eigen::Vector3d(1, 2, 3)}) {
+    const Eigen::Vector3d n = Eigen::AngleAxisd(8 * M_PI / 180, axis.normalized()) * Eigen::Vector3d::UnitX();
+    const Eigen::Vector3d on(120, 0, 0);
+    const auto pts = sawn_stub(n, n.dot(on), 0.05);
+    double x0 = 1e300;
+    for (const auto& p : pts) x0 = std::min(x0, p.x());
+    const WristCut cut = fit_wrist_cut(pts, x0);
+    ASSERT_TRUE(cut.fitted) << axis.transpose();
+    EXPECT_NEAR(cut.tilt_deg, 8.0, 0.5) << axis.transpose();
+    EXPECT_GT(cut.n.dot(n), std::cos(0.5 * M_PI / 180)) << axis.transpose();
+    // the rim's samples lie at most a grid step distal of the true cut
+    EXPECT_NEAR(cut.d, n.dot(on), 0.4) << axis.transpose();
+    EXPECT_LT(cut.rms_mm, 0.4);
+  }
+  // Sawn square: the cut is square to the axis; too few points: square at the cloud's end.
+  const auto square = sawn_stub(Eigen::Vector3d::UnitX(), 110, 0.05);
+  const WristCut sq = fit_wrist_cut(square, 110);
+  ASSERT_TRUE(sq.fitted);
+  EXPECT_LT(sq.tilt_deg, 0.3);
+  const WristCut none = fit_wrist_cut({Eigen::Vector3d(1, 2, 3)}, 1);
+  EXPECT_FALSE(none.fitted);
+  EXPECT_EQ(none.n, Eigen::Vector3d::UnitX());
+  EXPECT_EQ(none.d, 1);
+}
+
+TEST(SkinSteps, PalmPlanesStartInTheWristCutAndTurnSquareWithoutCrossing) {
+  const MergedArrays& m = fixture_merged();
+  const Rig rig = load_rig(kFixture + "rig.json");
+  const HandFrame H = to_hand_frame(m.points, rig, bones_from_rig(rig));
+  const TubePoints P = assign_points(H, 3.0);
+  const TubeBuild t = palm_planes(H, P, find_webs(H, 3.7), 3.7);
+  ASSERT_TRUE(t.cut.fitted);
+  EXPECT_NEAR(t.st.front().n.dot(t.cut.n), 1.0, 1e-9);
+  EXPECT_NEAR(t.cut.n.dot(t.st.front().o), t.cut.d, 0.01);
+  // every palm point lies distal of the first plane (up to the rim's noise) ...
+  size_t proximal = 0;
+  for (const auto& p : P.palm) proximal += t.cut.n.dot(p) < t.cut.d - 0.5;
+  EXPECT_LT(proximal, P.palm.size() / 1000);
+  // ... and neighbouring planes do not cross within the palm's breadth
+  for (size_t k = 1; k < t.st.size(); ++k) {
+    EXPECT_LE(std::acos(std::min(1.0, t.st[k].n.dot(t.st[k - 1].n))), 2.5 * M_PI / 180 + 1e-9) << k;
+    for (double y : {-45.0, 45.0}) {
+      const Eigen::Vector3d q = t.st[k].o + y * t.st[k].u;
+      EXPECT_GT(t.st[k - 1].n.dot(q - t.st[k - 1].o), 0) << k << " " << y;
+    }
+  }
+}
+
 TEST(SkinSteps, StitchJoinsCrossingTubesIntoOneClosedSurface) {
   std::vector<Eigen::Vector3d> pa, pb;
   std::vector<TubeBuild> tubes(2);

@@ -182,6 +182,7 @@ void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) 
   ssc->add_flag("--extra-bump", ss->replica.extra_bump, "Hard case: a marker-sized blob on the back of the hand");
   ssc->add_option("--max-yaw", ss->replica.max_yaw_deg, "Random yaw on the table, ± deg")->capture_default_str();
   ssc->add_option("--noise", ss->scanner.noise_sigma_mm, "Depth noise sigma before quantisation, mm")->capture_default_str();
+  ssc->add_option("--z-step", ss->scanner.z_step_mm, "Depth quantisation step, mm")->capture_default_str();
   ssc->add_option("--laser-tilt", ss->scanner.laser_tilt_deg, "Laser sheet tilt from vertical, deg")->capture_default_str();
   ssc->add_option("--max-incidence", ss->scanner.max_incidence_deg, "Steepest surface that returns, deg")
       ->capture_default_str();

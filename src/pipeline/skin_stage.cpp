@@ -53,9 +53,15 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
   const SkinOptions so = skin_options(options);  // checked by build_skin (and when the pipeline was read)
   SkinStageResult R;
   R.automatic = in.auto_rig || !in.rig;
-  // Errors of the skin steps say "rig" or "merged cloud": name the file the user gave.
+  // Errors of the skin steps say "rig" or "merged cloud": name the file the user gave, or the
+  // automatic skeleton when that is what the skin was built on (also with --rig --auto-rig).
   auto renamed = [&](const InputError& e) {
-    if (e.where() == "rig") return InputError(in.rig ? in.rig_name : "automatic skeleton", e.detail());
+    if (e.where() == "rig" && R.automatic)
+      return InputError("automatic skeleton", e.detail() + "; the automatic placement missed this hand: give its rig (--rig)");
+    if (e.where() == "rig") {  // a hint where the step gave none
+      const std::string& d = e.detail();
+      return InputError(in.rig_name, !d.empty() && d.back() == '?' ? d : d + " (a rig of another scan, or its digits swapped?)");
+    }
     if (e.where() == "merged cloud") return InputError(in.cloud_name, e.detail());
     return e;
   };
@@ -75,11 +81,13 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
   };
   std::exception_ptr build_error;
   auto build = [&](const Rig& rig) {
+    const auto tb = std::chrono::steady_clock::now();
     try {
       R.skin = build_skin(in.points, rig, so, progress);
     } catch (...) {
       build_error = std::current_exception();
     }
+    R.build_seconds = since(tb);
   };
   progress("building the strips (" + std::to_string(so.slicing.planes) + " planes, " +
            std::to_string(so.slicing.points_per_segment) + " points per segment)");
@@ -197,6 +205,9 @@ Json to_json(const SkinStageResult& r) {
                      {"measured", t.measured}, {"filled", t.filled}, {"axis_offset_mm", t.axis_offset_mm},
                      {"section_radius_mm", t.section_radius_mm}});
   j["tubes"] = tubes;
+  const WristCut& cut = skin.wrist_cut;
+  j["wrist_cut"] = {{"fitted", cut.fitted}, {"tilt_deg", cut.tilt_deg}, {"rim_points", cut.rim_points},
+                    {"rms_mm", cut.rms_mm}, {"normal_hand_frame", to_json(cut.n)}};
   Json webs = Json::array();
   for (const auto& w : skin.webs) webs.push_back(to_json(w));
   j["webs_hand_frame"] = webs;

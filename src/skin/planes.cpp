@@ -17,21 +17,97 @@ Station frame_at(const Eigen::Vector3d& o, const Eigen::Vector3d& n_in) {
   return s;
 }
 
+WristCut fit_wrist_cut(const std::vector<Eigen::Vector3d>& palm_pts, double x0, double band_mm) {
+  WristCut cut;
+  cut.d = x0;
+  std::vector<const Eigen::Vector3d*> band;
+  Eigen::Vector2d mn(1e300, 1e300), mx(-1e300, -1e300);
+  for (const auto& p : palm_pts)
+    if (p.x() < x0 + band_mm) {
+      band.push_back(&p);
+      mn = mn.cwiseMin(p.tail<2>());
+      mx = mx.cwiseMax(p.tail<2>());
+    }
+  if (band.size() < 50) return cut;
+  const Eigen::Vector2d c = 0.5 * (mn + mx);
+  constexpr int kBins = 72;
+  std::vector<const Eigen::Vector3d*> rim(kBins, nullptr);
+  for (const Eigen::Vector3d* p : band) {
+    const double a = std::atan2(p->z() - c.y(), p->y() - c.x());
+    const int b = std::clamp(static_cast<int>((a + M_PI) / (2 * M_PI) * kBins), 0, kBins - 1);
+    if (!rim[b] || p->x() < rim[b]->x()) rim[b] = p;
+  }
+  std::vector<Eigen::Vector3d> r;
+  for (const auto* p : rim)
+    if (p) r.push_back(*p);
+  cut.rim_points = static_cast<int>(r.size());
+  // x = a + b y + c z, least squares, trimmed twice at 3 robust sigmas (a bin whose nearest
+  // point lies on the flank above the rim, where the scanners saw nothing lower).
+  std::vector<char> keep(r.size(), 1);
+  Eigen::Vector3d abc(x0, 0, 0);
+  for (int round = 0; round < 3; ++round) {
+    Eigen::MatrixXd A(r.size(), 3);
+    Eigen::VectorXd y(r.size());
+    int n = 0;
+    double ylo = 1e300, yhi = -1e300;
+    for (size_t i = 0; i < r.size(); ++i) {
+      if (!keep[i]) continue;
+      A.row(n) << 1, r[i].y(), r[i].z();
+      y(n++) = r[i].x();
+      ylo = std::min(ylo, r[i].y()), yhi = std::max(yhi, r[i].y());
+    }
+    if (n < 16 || yhi - ylo < 20) return cut;
+    abc = A.topRows(n).colPivHouseholderQr().solve(y.head(n));
+    std::vector<double> res;
+    for (size_t i = 0; i < r.size(); ++i) res.push_back(std::abs(r[i].x() - abc.dot(Eigen::Vector3d(1, r[i].y(), r[i].z()))));
+    std::vector<double> sorted = res;
+    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+    const double sigma = std::max(1.4826 * sorted[sorted.size() / 2], 0.1);
+    double ss = 0;
+    int kept = 0;
+    for (size_t i = 0; i < r.size(); ++i) {
+      keep[i] = res[i] <= 3 * sigma;
+      if (keep[i]) ss += res[i] * res[i], ++kept;
+    }
+    cut.rms_mm = kept ? std::sqrt(ss / kept) : 0;
+  }
+  const Eigen::Vector3d n(1, -abc(1), -abc(2));
+  const double tilt = std::acos(1 / n.norm()) / kDeg;
+  if (!(tilt < 20)) return cut;
+  cut.n = n.normalized();
+  cut.d = abc(0) / n.norm();
+  cut.tilt_deg = tilt;
+  cut.fitted = true;
+  return cut;
+}
+
 TubeBuild palm_planes(const HandFrame& H, const TubePoints& Pts, const Webs& webs, double h) {
   const std::vector<Eigen::Vector3d>& palm_pts = Pts.palm;
-  const double x0 = H.lo.x(), x_end = webs.x_end, alpha_end = webs.alpha_end;
+  const double x_end = webs.x_end, alpha_end = webs.alpha_end;
   const Eigen::Vector2d wc = webs.centre;
   TubeBuild t;
   t.id = 0;
+  t.cut = fit_wrist_cut(palm_pts, H.lo.x());
+  const WristCut& cut = t.cut;
+  // The first station lies in the cut's plane, where it crosses the palm's mid-line.
+  const double x0 = (cut.d - cut.n.y() * wc.y()) / cut.n.x();
   const int K = std::max(3, static_cast<int>(std::ceil((x_end - x0) / h)) + 1);
   const double hp = (x_end - x0) / (K - 1);
   const int fan = std::clamp(static_cast<int>(std::ceil(std::abs(alpha_end) / (2.5 * kDeg))), 1, K - 1);
+  // From the cut's plane to square with the axis, at most 2.5 deg a plane as the fan at the
+  // end: neighbouring planes then cross only ~85 mm from the axis, beyond the palm's edge.
+  const int turn = std::min(static_cast<int>(std::ceil(cut.tilt_deg / 2.5)), std::max(0, K - 1 - fan));
   for (int k = 0; k < K; ++k) {
     const double ramp = std::clamp(static_cast<double>(k - (K - 1 - fan)) / fan, 0.0, 1.0);
     const double a = alpha_end * ramp;
-    t.st.push_back(frame_at(Eigen::Vector3d(x0 + k * hp, wc.y(), 0), Eigen::Vector3d(std::cos(a), std::sin(a), 0)));
+    Eigen::Vector3d n(std::cos(a), std::sin(a), 0);
+    if (k < turn) n = Eigen::Quaterniond::FromTwoVectors(n, cut.n).slerp(static_cast<double>(k) / turn,
+                                                                          Eigen::Quaterniond::Identity()) *
+                      n;
+    t.st.push_back(frame_at(Eigen::Vector3d(x0 + k * hp, wc.y(), 0), n));
   }
-  t.st.front().o.x() = x0 + 1e-3;  // the wrist cut: the first ring's slab is all on its distal side
+  if (turn == 0) t.st.front() = frame_at(t.st.front().o, cut.n);  // a tilt under 2.5 deg: the cut's plane alone
+  t.st.front().o += 1e-3 * t.st.front().n;  // the wrist cut: the first ring's slab is all on its distal side
   fill_slabs(&t, palm_pts, hp, false);
   // Polar centre and sampling ellipse per plane: the middle and half-extents of its points,
   // smoothed along the hand.

@@ -109,6 +109,7 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
     R.tubes.push_back(t.report);
   }
   if (!tubes[0].report.present) throw InputError("merged cloud", "no palm section could be measured");
+  R.wrist_cut = tubes[0].cut;
   // A rig that does not fit the cloud (another scan's, shifted, fingers swapped) puts a
   // digit's links beside the middle of its sections: refused rather than worked around.
   for (const auto& t : tubes) {
@@ -118,8 +119,8 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
     if (r.axis_offset_mm > allowed) {
       char buf[240];
       std::snprintf(buf, sizeof buf,
-                    "the %s's links lie %.1f mm from the middle of its sections (allowed %.1f mm): the rig does not "
-                    "fit this scan (a rig of another scan, or its fingers swapped?)",
+                    "the %s's links lie %.1f mm from the middle of its sections (allowed %.1f mm): the skeleton "
+                    "does not fit this scan",
                     skin_tube_name(t.id), r.axis_offset_mm, allowed);
       throw InputError("rig", buf);
     }

@@ -80,6 +80,18 @@ struct RingGrid {
   std::optional<Eigen::Vector3d> pole;           ///< a digit's fingertip
 };
 
+/// The wrist cut: the plane where the cast was sawn off, fitted to the cloud's proximal rim.
+/// A cast is cut square to the forearm, which need not be square to the hand's axis (the
+/// wrist slightly bent, the rig's axis a few degrees off): a cut plane taken square to the
+/// axis put the wrist's fan up to 1.6 mm off the true cut's rim (a 6.7 deg tilt on the family).
+struct WristCut {  // hand frame (the rig's axes, X toward the fingers)
+  Eigen::Vector3d n = Eigen::Vector3d::UnitX();  ///< unit normal, distal (toward the fingers)
+  double d = 0;                                  ///< the plane: n . p = d
+  bool fitted = false;                           ///< false: too few rim points, square to the axis
+  int rim_points = 0;                            ///< angular bins that gave a rim point
+  double tilt_deg = 0;                           ///< angle between n and the hand's axis
+  double rms_mm = 0;                             ///< the rim points' distance to the plane
+};
 struct SkinResult {
   TriMesh mesh;                 ///< palm frame (the rig's), mm, outward-oriented
   std::vector<int> vertex_bone; ///< per vertex: index into `bones` (nearest link, for binding)
@@ -93,6 +105,7 @@ struct SkinResult {
   bool self_intersection_checked = false;
   int pockets_removed = 0;            ///< inner shells the union enclosed between tubes, dropped
   std::vector<Eigen::Vector3d> webs;  ///< the finger webs found (palm end plane goes through them)
+  WristCut wrist_cut;                 ///< the plane the palm's first ring lies in
   std::vector<std::string> warnings;
   size_t triangles_before_decimation = 0;
   double seconds_rings = 0, seconds_union = 0, seconds_decimation = 0, seconds_checks = 0;

@@ -48,6 +48,7 @@ struct TubeBuild {
   std::vector<int> ring_station;
   std::vector<Eigen::Vector3d> ring_centre;
   std::optional<Eigen::Vector3d> pole;
+  WristCut cut;  ///< the palm: the wrist cut its first station lies in
   SkinTubeReport report;
 };
 
@@ -122,8 +123,15 @@ struct Webs {
 /// Throws InputError when the webs lie at the wrist end (a rig that does not fit).
 Webs find_webs(const HandFrame& H, double h);
 
-/// Step 4: the palm's stations (planes across the hand from the wrist cut, fanned to the end
-/// plane), their slabs, polar centres and sampling ellipses.
+/// Rim points: in each of 72 angular bins about the proximal sections' middle (the Y-Z plane),
+/// the most proximal point within `band_mm` of `x0` (the cloud's proximal end). A plane
+/// x = a + b y + c z fitted to them by least squares, twice trimmed at 3 robust sigmas; kept
+/// when at least 16 bins spread over 20 mm across the hand and it tilts less than 20 deg.
+WristCut fit_wrist_cut(const std::vector<Eigen::Vector3d>& palm_pts, double x0, double band_mm = 15.0);
+
+/// Step 4: the palm's stations (planes across the hand from the wrist cut, turned from the
+/// cut's plane to square with the axis over the first planes and fanned to the end plane),
+/// their slabs, polar centres and sampling ellipses.
 TubeBuild palm_planes(const HandFrame& H, const TubePoints& P, const Webs& webs, double h);
 /// A digit's stations (perpendicular to its links, from its root to where its tip's dome
 /// starts) and slabs, with the axis-offset figures in its report; report.present is false
