@@ -503,6 +503,31 @@ TEST(SkinSteps, PalmPlanesStartInTheWristCutAndTurnSquareWithoutCrossing) {
   }
 }
 
+TEST(SkinSteps, PartlySeenRingsCorrectTheirFillInsteadOfCopyingANeighbour) {
+  // A tube of radius 8 that tapers to 6 over its last 10 mm, where only a 120 deg arc is seen
+  // (a curled fingertip's last sections: the pad and nothing else). The partial rings keep
+  // their measured radii on the arc and scale the filled ones elsewhere: the taper shows.
+  auto radius = [](double x) { return x <= 30 ? 8.0 : 8.0 - 0.2 * (x - 30); };
+  std::vector<Eigen::Vector3d> pts;
+  Rng rng(5);
+  for (double x = -0.8; x <= 40.8; x += 0.1)
+    for (int j = 0; j < 90; ++j) {
+      const double a = 2 * M_PI * (j + rng.uniform(0, 1)) / 90;
+      if (x > 31 && a > 2 * M_PI / 3) continue;
+      const double r = radius(x) + 0.03 * rng.normal();
+      pts.emplace_back(x, r * std::cos(a), r * std::sin(a));
+    }
+  TubeBuild t;
+  for (double x = 0; x <= 40 + 1e-9; x += 2) t.st.push_back(frame_at({x, 0, 0}, Eigen::Vector3d::UnitX()));
+  fill_slabs(&t, pts, 2.0, false);
+  SkinOptions o;
+  resample_rings(&t, 20, o, false);
+  EXPECT_GE(t.report.partial, 4);
+  EXPECT_EQ(t.report.partial, t.report.filled);
+  for (size_t k = 0; k < t.rings.size(); ++k)
+    for (const auto& p : t.rings[k]) EXPECT_NEAR(std::hypot(p.y(), p.z()), radius(p.x()), 0.15) << k;
+}
+
 TEST(SkinSteps, StitchJoinsCrossingTubesIntoOneClosedSurface) {
   std::vector<Eigen::Vector3d> pa, pb;
   std::vector<TubeBuild> tubes(2);

@@ -202,7 +202,7 @@ Json to_json(const SkinStageResult& r) {
   Json tubes = Json::array();
   for (const auto& t : skin.tubes)
     tubes.push_back({{"name", t.name}, {"present", t.present}, {"points", t.points}, {"rings", t.rings},
-                     {"measured", t.measured}, {"filled", t.filled}, {"axis_offset_mm", t.axis_offset_mm},
+                     {"measured", t.measured}, {"filled", t.filled}, {"partial", t.partial}, {"axis_offset_mm", t.axis_offset_mm},
                      {"section_radius_mm", t.section_radius_mm}});
   j["tubes"] = tubes;
   const WristCut& cut = skin.wrist_cut;

@@ -14,6 +14,10 @@ using profile::segment_distance2;
 using profile::wrap;
 
 namespace {
+// A ring whose samples cover less than min_coverage_deg but at least this much of the circle
+// corrects its filled radii (resample_rings).
+constexpr double kMinPartialCoverageDeg = 60;
+
 // Real spherical harmonics to degree 2 of a unit direction (local x, y, z).
 Eigen::Matrix<double, 9, 1> sh9(const Eigen::Vector3d& d) {
   Eigen::Matrix<double, 9, 1> r;
@@ -70,6 +74,10 @@ void resample_rings(TubeBuild* t, int M, const SkinOptions& o, bool shrink_root)
   const double window = o.window_deg * kDeg, bridge = 0.2;
   std::vector<std::optional<std::vector<double>>> rho(K);
   std::vector<std::vector<double>> phi(K);
+  // Rings whose samples cover too little of the circle to stand alone (a curled fingertip's
+  // last sections, seen on the pad and the nail only) keep them: they correct the ring
+  // filled from the neighbours (below).
+  std::vector<std::optional<Profile>> partial(K);
 #pragma omp parallel for schedule(dynamic)
   for (long kk = 0; kk < static_cast<long>(K); ++kk) {
     const size_t k = static_cast<size_t>(kk);
@@ -97,7 +105,10 @@ void resample_rings(TubeBuild* t, int M, const SkinOptions& o, bool shrink_root)
       const double gap = i + 1 < P.phi.size() ? P.phi[i + 1] - P.phi[i] : P.phi.front() + kTwoPi - P.phi.back();
       if (gap > bridge) unseen += gap;
     }
-    if (kTwoPi - unseen < o.min_coverage_deg * kDeg) continue;
+    if (kTwoPi - unseen < o.min_coverage_deg * kDeg) {
+      if (kTwoPi - unseen >= kMinPartialCoverageDeg * kDeg && P.phi.size() >= 20) partial[k] = std::move(P);
+      continue;
+    }
     std::vector<double> r;
     std::vector<double> sorted_rho = P.rho;
     std::nth_element(sorted_rho.begin(), sorted_rho.begin() + sorted_rho.size() / 2, sorted_rho.end());
@@ -160,6 +171,27 @@ void resample_rings(TubeBuild* t, int M, const SkinOptions& o, bool shrink_root)
       const size_t a = *(hi - 1), b = *hi;
       const double u = static_cast<double>(k - a) / static_cast<double>(b - a);
       for (int j = 0; j < M; ++j) r[j] = (1 - u) * (*smooth[a])[j] + u * (*smooth[b])[j];
+    }
+    if (partial[k]) {
+      // Measured radii where the partial ring has samples; across its unseen arc the filled
+      // radii scaled by the median ratio of the two where both exist. Copying the last full
+      // ring instead made a curled fingertip a cylinder: 1.5 mm out where the tip tapers.
+      const Profile& P = *partial[k];
+      std::vector<double> ratio;
+      std::vector<std::optional<double>> seen(M);
+      for (int j = 0; j < M; ++j) {
+        double v = 0;
+        size_t lo = 0, hi = 0;
+        if (!P.near_estimate(wrap(phi[k][j]), window, bridge, &v, &lo, &hi) || r[j] <= 0) continue;
+        seen[j] = v;
+        ratio.push_back(v / r[j]);
+      }
+      if (ratio.size() >= 3) {
+        std::nth_element(ratio.begin(), ratio.begin() + ratio.size() / 2, ratio.end());
+        const double scale = std::clamp(ratio[ratio.size() / 2], 0.5, 1.5);
+        for (int j = 0; j < M; ++j) r[j] = seen[j] ? *seen[j] : scale * r[j];
+        ++t->report.partial;
+      }
     }
     smooth[k] = std::move(r);
   }

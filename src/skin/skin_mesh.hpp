@@ -60,6 +60,7 @@ struct SkinTubeReport {
   int rings = 0;            ///< plane rings (dome rings not counted)
   int measured = 0;         ///< rings resampled from their own slab's points
   int filled = 0;           ///< rings filled from measured neighbours (no or too few points)
+  int partial = 0;          ///< of those, rings whose own samples (too few angles to stand alone) corrected the fill
   size_t points = 0;        ///< measured points given to this tube
   bool present = true;      ///< false: no ring measured (a digit missing from the scan)
   /// A digit: median over its sections of how far the middle of the section's extent lies
