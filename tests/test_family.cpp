@@ -119,12 +119,12 @@ TEST(Family, EightPairsOfLeftCurledAndRaisedThumbHandsRegisterAndSkin) {
                   "%.2f %%",
                   fh.name, ro.marker_radius_mm, reg.marker_radius_mm, e.rotation_deg, e.mean_mm, fg.mean, fg.p95,
                   100 * fg.within);
-      // Regression bounds (issue 11 asks mean 0.10, p95 0.35, 98.5 %: met here by the relaxed
-      // hands, not yet by the curled ones, worst measured 0.137 / 0.574 / 97.65 %; docs/skin.md
-      // has the study).
-      EXPECT_LE(fg.mean, 0.15);
-      EXPECT_LE(fg.p95, 0.65);
-      EXPECT_GE(fg.within, 0.97);
+      // Issue 11 asks mean 0.10, p95 0.35, 98.5 % within 1 mm. The last is met on every pair;
+      // the first two are regression bounds, met by the relaxed hands and not yet by the
+      // curled ones (worst measured 0.121 / 0.364 / 98.97 %; docs/skin.md has the study).
+      EXPECT_LE(fg.mean, 0.13);
+      EXPECT_LE(fg.p95, 0.42);
+      EXPECT_GE(fg.within, 0.985);
       // The automatic skeleton: five digits, the hand's side, joints within 4 mm on average.
       const AutoRig a = place_skeleton(m.points, m.sides);
       EXPECT_EQ(a.side, fh.side);
@@ -135,9 +135,9 @@ TEST(Family, EightPairsOfLeftCurledAndRaisedThumbHandsRegisterAndSkin) {
       const Figures fa = against_truth(automatic, pair, markers);
       std::printf("  automatic: joints %.2f mm, mean %.3f p95 %.3f within %.2f %%\n", je.mean_mm, fa.mean, fa.p95,
                   100 * fa.within);
-      EXPECT_LE(fa.mean, 0.175);  // worst measured 0.157 / 0.573 / 97.47 % (curled)
-      EXPECT_LE(fa.p95, 0.65);
-      EXPECT_GE(fa.within, 0.97);
+      EXPECT_LE(fa.mean, 0.16);  // worst measured 0.147 / 0.509 / 98.13 % (curled)
+      EXPECT_LE(fa.p95, 0.56);
+      EXPECT_GE(fa.within, 0.975);
     }
   }
   EXPECT_EQ(pair_index, 8);

@@ -110,8 +110,8 @@ TEST(Rigging, SmoothWeightsDoNotFoldLikeTheRigidBinding) {
                 100 * (lbs.volume_mm3 / rest - 1), hard.folding_pairs, 100 * (hard.volume_mm3 / rest - 1));
     EXPECT_GT(hard.folding_pairs, 200u) << "pose " << p;  // the thesis's folding
     EXPECT_LT(smooth.folding_pairs * 10, hard.folding_pairs) << "pose " << p;
-    // Regression bounds (issue 15 asks none): 8 at the index PIP, 34 in the fist (docs/rigging.md).
-    EXPECT_LE(smooth.folding_pairs, p + 1 < poses.size() ? 10u : 60u) << "pose " << p;
+    // Regression bounds (issue 15 asks none): up to 10 at a PIP, 31 in the fist (docs/rigging.md).
+    EXPECT_LE(smooth.folding_pairs, p + 1 < poses.size() ? 12u : 60u) << "pose " << p;
     EXPECT_LT(std::abs(smooth.volume_mm3 / rest - 1), 0.05) << "pose " << p;
   }
 }

@@ -391,6 +391,42 @@ TEST(SkinSteps, WebsLieBetweenTheKnucklesAndTheMiddleJoints) {
   EXPECT_LE(std::abs(w.alpha_end), 35 * M_PI / 180 + 1e-12);
 }
 
+TEST(SkinSteps, WebsEndWhereTheSkinStopsJoiningCloseFingers) {
+  // Four fingers (cylinders of radius 8 along +X, from their MCPs at x = 0 to their PIPs at
+  // x = 45) whose sides are 1.5 mm apart, joined by webs (an 8 mm thick sheet) up to x = 15;
+  // the palm before x = 0. Seen as the two scanners see it: every surface but the flanks
+  // steeper than 72 deg, sampled every 0.5 mm. Past the webs the samples of the fingers' sides
+  // lie 1.25 mm from the mid-line, 2.5 mm apart: they are not a web (the search before took
+  // them for one).
+  const double R = 8, gap = 1.5, web_end = 15, pitch = 2 * R + gap;
+  HandFrame H;
+  for (int f = 1; f < kFingerCount; ++f) {
+    const auto c = finger_chain(static_cast<Finger>(f));
+    H.J[c[1]] = Eigen::Vector3d(0, (f - 1) * pitch, 0);
+    H.J[c[2]] = Eigen::Vector3d(45, (f - 1) * pitch, 0);
+  }
+  auto height = [&](double x, double y) {  // the top surface's height, or nothing
+    double z = -1;
+    const double k = std::round(y / pitch), dy = y - k * pitch;
+    if (k >= 0 && k <= 3 && std::abs(dy) < R * std::sin(72 * M_PI / 180)) z = std::sqrt(R * R - dy * dy);
+    const bool between = y > -R && y < 3 * pitch + R;
+    if (between && (x < 0 || (x < web_end && z < 0))) z = std::max(z, 4.0);  // the palm and the webs
+    return z;
+  };
+  for (double x = -20; x <= 60; x += 0.5)
+    for (double y = -12; y <= 3 * pitch + 12; y += 0.5) {
+      const double z = height(x, y);
+      if (z > 0) H.q.emplace_back(x, y, z), H.q.emplace_back(x, y, -z);
+    }
+  H.lo = Eigen::Vector3d(-60, -12, -8);
+  H.hi = Eigen::Vector3d(60, 3 * pitch + 12, 8);
+  const Webs w = find_webs(H, 3.0);
+  ASSERT_EQ(w.points.size(), 3u);
+  EXPECT_TRUE(w.warnings.empty());
+  for (const auto& p : w.points) EXPECT_NEAR(p.x(), web_end, 1.0) << p.transpose();
+  EXPECT_LT(w.x_end, web_end);
+}
+
 TEST(SkinSteps, DigitPlanesAreSquareToTheirLinksAndOrderedAlongThem) {
   const MergedArrays& m = fixture_merged();
   const Rig rig = load_rig(kFixture + "rig.json");

@@ -9,6 +9,13 @@
 
 namespace handskin::skin_steps {
 
+namespace {
+// The strip across the mid-line between two fingers in which the web is looked for (half
+// width), and the widest gap across it that the web's skin leaves in the samples.
+constexpr double kWebStripMm = 4.0;
+constexpr double kWebGapMm = 2.0;
+}  // namespace
+
 Webs find_webs(const HandFrame& H, double h) {
   const auto& q = H.q;
   const auto& J = H.J;
@@ -22,19 +29,36 @@ Webs find_webs(const HandFrame& H, double h) {
     dir.z() = 0;
     dir.normalize();
     const double len = 0.5 * ((J[c1[2]] - J[c1[1]]).norm() + (J[c2[2]] - J[c2[1]]).norm());
+    // Points near the mid-line as (along, across) it. The skin holds the two fingers together
+    // at s while the points in a thin strip across the mid-line there leave no gap wider than
+    // kWebGapMm across it: the web's skin crosses the line, seen from the back or the palm
+    // (its groove's steep walls leave gaps of ~1.5 mm); past the web the gap between the two
+    // fingers' sides opens (2.5 mm and more in the samples, the flanks being unseen). A point
+    // within 1.5 mm of the line, the test before, took fingers 3 mm apart for a web and ended
+    // the palm up to 10 mm beyond it, bridging the gaps between the fingers' roots.
+    const Eigen::Vector2d along = dir.head<2>(), across(-along.y(), along.x());
     std::vector<Eigen::Vector2d> near;
-    for (const auto& p : q)
-      if ((p - m0).head<2>().norm() < len + 5) near.emplace_back((p - m0).head<2>());
+    for (const auto& p : q) {
+      const Eigen::Vector2d d = (p - m0).head<2>();
+      const double a = d.dot(along), c = d.dot(across);
+      if (a > -1 && a < len + 1 && std::abs(c) < kWebStripMm) near.emplace_back(a, c);
+    }
+    std::sort(near.begin(), near.end(), [](const auto& x, const auto& y) { return x.x() < y.x(); });
     double web = -1;
+    std::vector<double> lateral;
     for (double s = 0; s <= len; s += 0.5) {
-      const Eigen::Vector2d c = s * dir.head<2>();
-      bool any = false;
-      for (const auto& p : near)
-        if ((p - c).squaredNorm() < 1.5 * 1.5) {
-          any = true;
-          break;
-        }
-      if (any) web = s;
+      lateral.clear();
+      for (auto it = std::lower_bound(near.begin(), near.end(), s - 0.75,
+                                      [](const Eigen::Vector2d& p, double v) { return p.x() < v; });
+           it != near.end() && it->x() <= s + 0.75; ++it)
+        lateral.push_back(it->y());
+      std::sort(lateral.begin(), lateral.end());
+      // Joined: samples on both sides of the line, and no gap wider than kWebGapMm between
+      // the last one left of it and the first one right of it and around them.
+      bool joined = lateral.size() >= 4 && lateral.front() < 0 && lateral.back() > 0;
+      for (size_t i = 1; joined && i < lateral.size(); ++i)
+        if (lateral[i] - lateral[i - 1] > kWebGapMm) joined = false;
+      if (joined) web = s;
       else if (s - web > 2.0) break;
     }
     if (web < 0) {
