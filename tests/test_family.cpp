@@ -129,15 +129,15 @@ TEST(Family, EightPairsOfLeftCurledAndRaisedThumbHandsRegisterAndSkin) {
       const AutoRig a = place_skeleton(m.points, m.sides);
       EXPECT_EQ(a.side, fh.side);
       const JointError je = joint_error(a.rig, pair.rig_palm);
-      EXPECT_LE(je.mean_mm, 4.0) << "worst " << je.worst_joint << " " << je.max_mm;
+      EXPECT_LE(je.mean_mm, 2.5) << "worst " << je.worst_joint << " " << je.max_mm;  // issue: 4; measured 1.2-1.9
       const SkinResult automatic = build_skin(m.points, a.rig, SkinOptions{});
       check_skin(automatic, "automatic skeleton");
       const Figures fa = against_truth(automatic, pair, markers);
       std::printf("  automatic: joints %.2f mm, mean %.3f p95 %.3f within %.2f %%\n", je.mean_mm, fa.mean, fa.p95,
                   100 * fa.within);
-      EXPECT_LE(fa.mean, 0.16);  // worst measured 0.147 / 0.509 / 98.13 % (curled)
-      EXPECT_LE(fa.p95, 0.56);
-      EXPECT_GE(fa.within, 0.975);
+      EXPECT_LE(fa.mean, 0.145);  // worst measured 0.133 / 0.438 / 98.44 % (curled)
+      EXPECT_LE(fa.p95, 0.48);
+      EXPECT_GE(fa.within, 0.98);
     }
   }
   EXPECT_EQ(pair_index, 8);

@@ -82,9 +82,12 @@ struct Grid {
 // grow fast. Empty when the fit shows no such knee (the slope must at least double).
 std::optional<double> breadth_knee(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector3d& Xh,
                                    const Eigen::Vector3d& Yh, double cut, double mcp_x, double s) {
-  // Searched from the cut (or 120 nominal mm before the MCPs) to 60 before them: the knee
-  // lies ~85 before them, and further into the palm the breadth grows slower again.
-  const double x0 = std::max(cut + 1.5, mcp_x - 120 * s), x1 = mcp_x - 60 * s;
+  // Searched from the cut (or 170 nominal mm before the MCPs) to 60 before them: the knee
+  // lies ~85 before them, and further into the palm the breadth grows slower again. The
+  // forearm stub before the knee is the hinge's flat piece: a window that began 120 mm
+  // before the MCPs lost most of it when the scale of the last round was too large (a 40 mm
+  // stub, the knee not yet found), and the knee with it.
+  const double x0 = std::max(cut + 1.5, mcp_x - 170 * s), x1 = mcp_x - 60 * s;
   const int n = static_cast<int>(x1 - x0);
   if (n < 8) return std::nullopt;
   std::vector<double> lo(n, 1e300), hi(n, -1e300);
@@ -113,6 +116,72 @@ std::optional<double> breadth_knee(const std::vector<Eigen::Vector3d>& h, const 
   return best_k;
 }
 
+}  // namespace
+
+namespace {
+// A finger's section centres carried toward the palm from its first one (at t = lateral's
+// front), through the whole cloud `h`: every 3 mm, the finger lies between the lowest points
+// of the back's profile across it (the grooves between it and its neighbours), or the gaps
+// where nothing was seen, on either side of where the centres so far put it. Stops at the
+// second section where no groove 1 mm deep bounds it on both sides or its width is not within
+// 0.6-1.5 times the measured sections' median (the knuckles flatten into the palm's back),
+// or 60 mm on. Centres are added at the front (t ascending), as (t, lateral offset, 0).
+void extend_proximally(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector2d& m2, const Eigen::Vector2d& d2,
+                       const Eigen::Vector2d& n2, std::vector<double> widths, std::vector<Eigen::Vector3d>* lateral) {
+  constexpr double kBin = 0.5, kReach = 60, kStep = 3, kGroove = 1.0;
+  std::nth_element(widths.begin(), widths.begin() + widths.size() / 2, widths.end());
+  const double wd = widths[widths.size() / 2], half = 1.5 * wd;
+  const double t_start = lateral->front().x();
+  struct Local {
+    double t, l, z;
+  };
+  std::vector<Local> near;
+  for (const auto& q : h) {
+    const Eigen::Vector2d d = q.head<2>() - m2;
+    const double t = d.dot(d2);
+    if (t < t_start - kReach - 2 || t > t_start) continue;
+    near.push_back({t, d.dot(n2), q.z()});
+  }
+  const int nb = static_cast<int>(std::ceil(2 * half / kBin)), inner = static_cast<int>(std::round(0.25 * wd / kBin));
+  if (nb < 8) return;
+  std::vector<double> top(nb);
+  int misses = 0;
+  for (double t = t_start - kStep; t > t_start - kReach && misses < 2; t -= kStep) {
+    // The line through the centres so far predicts where the finger lies.
+    double st = 0, sl = 0, stt = 0, stl = 0;
+    for (const auto& c : *lateral) st += c.x(), sl += c.y(), stt += c.x() * c.x(), stl += c.x() * c.y();
+    const double n = static_cast<double>(lateral->size()), den = n * stt - st * st;
+    const double slope = std::abs(den) > 1e-9 ? (n * stl - st * sl) / den : 0;
+    const double cp = (sl - slope * st) / n + slope * t, l0 = cp - half;
+    std::fill(top.begin(), top.end(), -1e300);  // the back's height per bin; -1e300: nothing seen
+    for (const Local& q : near) {
+      if (std::abs(q.t - t) > 1.5 || std::abs(q.l - cp) >= half) continue;
+      const int b = std::clamp(static_cast<int>((q.l - l0) / kBin), 0, nb - 1);
+      top[b] = std::max(top[b], q.z);
+    }
+    const int cb = nb / 2;
+    // The groove (or gap) on each side: the lowest bin; among empty ones, the nearest.
+    auto valley = [&](int from, int to, int step) {
+      int best = -1;
+      for (int b = from; b != to; b += step)
+        if (best < 0 || top[b] < top[best]) best = b;
+      return best;
+    };
+    const int left = valley(cb - inner, -1, -1), right = valley(cb + inner, nb, +1);
+    bool ok = left >= 0 && right >= 0;
+    double ridge = -1e300;
+    for (int b = left + 1; ok && b < right; ++b) ridge = std::max(ridge, top[b]);
+    ok = ok && ridge > -1e299 && ridge - top[left] >= kGroove && ridge - top[right] >= kGroove;
+    const double width = (right - left) * kBin;
+    ok = ok && width >= 0.6 * wd && width <= 1.5 * wd;
+    if (!ok) {
+      ++misses;
+      continue;
+    }
+    misses = 0;
+    lateral->insert(lateral->begin(), Eigen::Vector3d(t, l0 + 0.5 * (left + right + 1) * kBin, 0));
+  }
+}
 }  // namespace
 
 AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vector<std::uint32_t>& sides) {
@@ -287,6 +356,7 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     double t0 = 1e300, t1 = -1e300;
     for (const auto& q : p2) t0 = std::min(t0, (q - m2).dot(d2)), t1 = std::max(t1, (q - m2).dot(d2));
     std::vector<Eigen::Vector3d> centres;  // (t, lateral offset, z)
+    std::vector<double> widths;            // each section's width across the digit
     for (double t = t0 + 2; t < t1 - 6; t += 3) {
       double a = 1e300, b = -1e300, zl = 1e300, zh = -1e300;
       int n = 0;
@@ -299,8 +369,14 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
       }
       if (n < 20) continue;
       centres.emplace_back(t, 0.5 * (a + b), 0.5 * (zl + zh));
+      widths.push_back(b - a);
     }
     if (centres.size() < 4) throw InputError("merged cloud", "a digit is too short to find its axis; give a rig");
+    // The lateral line is fitted to these centres and to more toward the palm: the opening
+    // leaves only the distal part of fingers that lie close together, and a short line
+    // carried 40-60 mm into the palm strayed 5-10 mm sideways at the MCPs (H12).
+    std::vector<Eigen::Vector3d> lateral = centres;
+    if (&dg - digits.data() < 4) extend_proximally(h, m2, d2, n2, widths, &lateral);
     // Lateral offset and height as polynomials of t (least squares). Fingers flex, they do
     // not bend sideways between their joints: the lateral offset is a line; the height a
     // quadratic where the measured span is long enough to show a curl (a flexed digit arches
@@ -308,21 +384,22 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     // tangents (straight into the palm, straight to the tip).
     const double tm = 0.5 * (centres.front().x() + centres.back().x());
     const bool curl = centres.size() >= 6 && centres.back().x() - centres.front().x() >= 25;
-    auto fit = [&](int coordinate, bool quadratic) {  // coefficients of 1, u, u² (u = t − tm)
+    auto fit = [&](const std::vector<Eigen::Vector3d>& cs, int coordinate, bool quadratic) {
+      // coefficients of 1, u, u² (u = t − tm)
       const int n = quadratic ? 3 : 2;
-      Eigen::MatrixXd A(centres.size(), n);
-      Eigen::VectorXd b(centres.size());
-      for (size_t k = 0; k < centres.size(); ++k) {
-        const double u = centres[k].x() - tm;
+      Eigen::MatrixXd A(cs.size(), n);
+      Eigen::VectorXd b(cs.size());
+      for (size_t k = 0; k < cs.size(); ++k) {
+        const double u = cs[k].x() - tm;
         A(k, 0) = 1, A(k, 1) = u;
         if (quadratic) A(k, 2) = u * u;
-        b(k) = centres[k](coordinate);
+        b(k) = cs[k](coordinate);
       }
       Eigen::Vector3d c = Eigen::Vector3d::Zero();
       c.head(n) = A.colPivHouseholderQr().solve(b);
       return c;
     };
-    const Eigen::Vector3d cl = fit(1, false), cz = fit(2, curl);
+    const Eigen::Vector3d cl = fit(lateral, 1, false), cz = fit(centres, 2, curl);
     const double ta = centres.front().x(), tb = centres.back().x();
     auto point = [&](double t) {
       const double u = std::clamp(t, ta, tb) - tm, e = t - std::clamp(t, ta, tb);
