@@ -170,13 +170,13 @@ TEST(SkinMesh, FixtureSkinIsWatertightLabelledAndMeetsTheIssueFigures) {
   EXPECT_GE(b.within_1mm, 0.98);  // measured 0.993
 }
 
-TEST(SkinMesh, AutomaticSkeletonWithin2mmOfTheTrueRig) {
+TEST(SkinMesh, AutomaticSkeletonWithinOneAndAHalfMmOfTheTrueRig) {
   const MergedArrays& m = fixture_merged();
   const AutoRig a = place_skeleton(m.points, m.sides);
   const JointError e = joint_error(a.rig, load_rig(kFixture + "rig.json"));
   std::printf("automatic skeleton on the fixture: mean joint error %.2f mm, worst %s %.2f mm\n", e.mean_mm,
               e.worst_joint.c_str(), e.max_mm);
-  EXPECT_LE(e.mean_mm, 2.0) << "worst " << e.worst_joint << " " << e.max_mm;
+  EXPECT_LE(e.mean_mm, 1.5) << "worst " << e.worst_joint << " " << e.max_mm;  // measured 1.12
   EXPECT_LE(e.max_mm, 6.0);
   EXPECT_NEAR(a.scale, 1.0, 0.05);  // the fixture hand is the nominal one
   EXPECT_EQ(a.side, HandSide::Right);

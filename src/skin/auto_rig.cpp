@@ -371,6 +371,20 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
       centres.emplace_back(t, 0.5 * (a + b), 0.5 * (zl + zh));
       widths.push_back(b - a);
     }
+    // Sections much narrower or wider than the digit's median are not across it: the
+    // opening's remnant ends in a thin sliver along its boundary between the digits' roots,
+    // and those sections' middles drew a short digit's line 20-30 deg aside (H12's little
+    // finger: its PIP 11 mm off).
+    if (widths.size() >= 4) {
+      std::vector<double> ws = widths;
+      std::nth_element(ws.begin(), ws.begin() + ws.size() / 2, ws.end());
+      const double wm = ws[ws.size() / 2];
+      std::vector<Eigen::Vector3d> kept_c;
+      std::vector<double> kept_w;
+      for (size_t k = 0; k < widths.size(); ++k)
+        if (widths[k] >= 0.6 * wm && widths[k] <= 1.4 * wm) kept_c.push_back(centres[k]), kept_w.push_back(widths[k]);
+      if (kept_c.size() >= 4) centres.swap(kept_c), widths.swap(kept_w);
+    }
     if (centres.size() < 4) throw InputError("merged cloud", "a digit is too short to find its axis; give a rig");
     // The lateral line is fitted to these centres and to more toward the palm: the opening
     // leaves only the distal part of fingers that lie close together, and a short line
