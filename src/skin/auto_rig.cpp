@@ -116,9 +116,6 @@ std::optional<double> breadth_knee(const std::vector<Eigen::Vector3d>& h, const 
   return best_k;
 }
 
-}  // namespace
-
-namespace {
 // A finger's section centres carried toward the palm from its first one (at t = lateral's
 // front), through the whole cloud `h`: every 3 mm, the finger lies between the lowest points
 // of the back's profile across it (the grooves between it and its neighbours), or the gaps

@@ -106,7 +106,8 @@ TubeBuild palm_planes(const HandFrame& H, const TubePoints& Pts, const Webs& web
                       n;
     t.st.push_back(frame_at(Eigen::Vector3d(x0 + k * hp, wc.y(), 0), n));
   }
-  if (turn == 0) t.st.front() = frame_at(t.st.front().o, cut.n);  // a tilt under 2.5 deg: the cut's plane alone
+  // No turn (no tilt, or every plane taken by the end's fan): the first plane is the cut's alone.
+  if (turn == 0) t.st.front() = frame_at(t.st.front().o, cut.n);
   t.st.front().o += 1e-3 * t.st.front().n;  // the wrist cut: the first ring's slab is all on its distal side
   fill_slabs(&t, palm_pts, hp, false);
   // Polar centre and sampling ellipse per plane: the middle and half-extents of its points,

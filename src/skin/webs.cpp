@@ -53,8 +53,8 @@ Webs find_webs(const HandFrame& H, double h) {
            it != near.end() && it->x() <= s + 0.75; ++it)
         lateral.push_back(it->y());
       std::sort(lateral.begin(), lateral.end());
-      // Joined: samples on both sides of the line, and no gap wider than kWebGapMm between
-      // the last one left of it and the first one right of it and around them.
+      // Joined: samples on both sides of the line, and no gap wider than kWebGapMm anywhere
+      // across the strip.
       bool joined = lateral.size() >= 4 && lateral.front() < 0 && lateral.back() > 0;
       for (size_t i = 1; joined && i < lateral.size(); ++i)
         if (lateral[i] - lateral[i - 1] > kWebGapMm) joined = false;
