@@ -13,6 +13,8 @@
 #include "synth/angle_recording.hpp"
 #include "rigging/deform.hpp"
 #include "render/preview.hpp"
+#include "rigging/crease.hpp"
+#include "texture/texture.hpp"
 #include "posture/solver.hpp"
 #include "register/registration.hpp"
 #include "skin/auto_rig.hpp"
@@ -289,8 +291,9 @@ const RiggedFixture& rigged_fixture() {
   }();
   return f;
 }
-void pose_skin(benchmark::State& st, Blend blend) {
+void pose_skin(benchmark::State& st, Blend blend, bool guarded = false) {
   const RiggedFixture& f = rigged_fixture();
+  const CreaseGuard guard = crease_guard(f.rest, f.binding, f.rig);
   const Skeleton skel(f.rig, "rig");
   const PostureSolver solver(builtin_model("anatomical"));
   PostureInputs in;
@@ -299,7 +302,9 @@ void pose_skin(benchmark::State& st, Blend blend) {
   double v = 0;
   for (auto _ : st) {
     in.pins[0].second = std::fmod(v += 0.37, 100.0);
-    deform_into(f.rest, f.binding, link_motions(skel, solver.solve(in).angles), blend, &out);
+    const auto motions = link_motions(skel, solver.solve(in).angles);
+    deform_into(f.rest, f.binding, motions, blend, &out);
+    if (guarded) guard_creases(guard, motions, &out);
     benchmark::DoNotOptimize(out[0]);
   }
   st.SetItemsProcessed(static_cast<int64_t>(st.iterations()));
@@ -311,6 +316,11 @@ static void BM_PoseSkinLBS(benchmark::State& st) { pose_skin(st, Blend::Linear);
 BENCHMARK(BM_PoseSkinLBS)->Unit(benchmark::kMicrosecond);
 static void BM_PoseSkinDQS(benchmark::State& st) { pose_skin(st, Blend::DualQuaternion); }
 BENCHMARK(BM_PoseSkinDQS)->Unit(benchmark::kMicrosecond);
+// The same with the crease guard after the blend (pose's default).
+static void BM_PoseSkinLBSGuarded(benchmark::State& st) { pose_skin(st, Blend::Linear, true); }
+BENCHMARK(BM_PoseSkinLBSGuarded)->Unit(benchmark::kMicrosecond);
+static void BM_PoseSkinDQSGuarded(benchmark::State& st) { pose_skin(st, Blend::DualQuaternion, true); }
+BENCHMARK(BM_PoseSkinDQSGuarded)->Unit(benchmark::kMicrosecond);
 
 // The Bézier patches posed (rigid binding of the control points) and tessellated at 16 × 16
 // per patch (the vertices; the topology is the rest posture's). Postures per second.
@@ -344,6 +354,47 @@ static void BM_RenderSkin1024(benchmark::State& st) {
   st.counters["png_bytes"] = static_cast<double>(bytes);
 }
 BENCHMARK(BM_RenderSkin1024)->Unit(benchmark::kMillisecond);
+
+// The skin's texture baked from the fixture's two photos (visibility rays, two charts, the
+// bake, the fill and padding of a 1024^2 atlas), and the skin's picture with it.
+namespace {
+const SkinTexture& fixture_texture() {
+  static const SkinTexture t = [] {
+    const RiggedFixture& f = rigged_fixture();
+    const RangeScan back = load_scan(kFix + "back"), palm = load_scan(kFix + "palm");
+    const Registration reg = register_scans(back, palm, "back", "palm", RegistrationOptions{}, nullptr, [](const std::string&) {});
+    return bake_skin_texture(f.rest, mesh_faces(f.skin.mesh), load_scan_photo(kFix + "back.photo.png", back),
+                             load_scan_photo(kFix + "palm.photo.png", palm), reg.back_to_palm, reg.markers_palm,
+                             reg.marker_radius_mm, TextureOptions{});
+  }();
+  return t;
+}
+}  // namespace
+static void BM_TextureBake(benchmark::State& st) {
+  const RiggedFixture& f = rigged_fixture();
+  const SkinTexture& t0 = fixture_texture();
+  const RangeScan back = load_scan(kFix + "back"), palm = load_scan(kFix + "palm");
+  const ScanPhoto bp = load_scan_photo(kFix + "back.photo.png", back), pp = load_scan_photo(kFix + "palm.photo.png", palm);
+  const Registration reg = register_scans(back, palm, "back", "palm", RegistrationOptions{}, nullptr, [](const std::string&) {});
+  const auto faces = mesh_faces(f.skin.mesh);
+  for (auto _ : st)
+    benchmark::DoNotOptimize(bake_skin_texture(f.rest, faces, bp, pp, reg.back_to_palm, reg.markers_palm, reg.marker_radius_mm,
+                                               TextureOptions{}).map.rgb.data());
+  st.counters["texels_per_mm"] = t0.texels_per_mm;
+  st.counters["blended_area"] = t0.blended;
+}
+BENCHMARK(BM_TextureBake)->Unit(benchmark::kMillisecond)->Iterations(5);
+static void BM_RenderSkinTextured1024(benchmark::State& st) {
+  const RiggedFixture& f = rigged_fixture();
+  RenderOptions ro;
+  ro.width = ro.height = 1024;
+  ro.view = named_view("back") * hand_frame_from_rig(f.rig).linear();
+  ro.texture = &fixture_texture().map;
+  size_t bytes = 0;
+  for (auto _ : st) bytes = render_mesh_png({&f.skin.mesh}, ro).size();
+  st.counters["png_bytes"] = static_cast<double>(bytes);
+}
+BENCHMARK(BM_RenderSkinTextured1024)->Unit(benchmark::kMillisecond);
 
 // Binding the fixture's skin by bone heat (24 sparse solves with one factorisation).
 static void BM_BindSkin(benchmark::State& st) {

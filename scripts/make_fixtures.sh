@@ -11,7 +11,7 @@ trap 'rm -rf "$work"' EXIT
 "$BIN" --quiet synth scan --mesh "$work/hand/hand.ply" --rig "$work/hand/hand_rig.json" --out "$work/scan" \
   --seed 2000 --no-render >/dev/null
 mkdir -p "$OUT"
-for f in back.png back.json palm.png palm.json rig.json truth.json truth_skin.ply; do
+for f in back.png back.json palm.png palm.json back.photo.png palm.photo.png rig.json truth.json truth_skin.ply; do
   cp "$work/scan/$f" "$OUT/$f"
 done
 echo "$OUT"

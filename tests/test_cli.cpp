@@ -85,7 +85,10 @@ TEST(Cli, RunOnTheFixtureWritesItsOutputs) {
       ++pictures;
     EXPECT_EQ(pictures, 6u);
   }
-  EXPECT_EQ(report["stages"][5]["name"], "write");
+  EXPECT_EQ(report["stages"][5]["name"], "texture");  // the fixture has its photos
+  EXPECT_EQ(report["stages"][5]["size"], 1024);
+  EXPECT_TRUE(fs::exists(dir + "/texture.png"));
+  EXPECT_EQ(report["stages"][6]["name"], "write");
   EXPECT_EQ(report["outputs"]["report"], dir + "/report.json");
   EXPECT_EQ(load_json_object(dir + "/slices.json")["format"], "handskin-slices/1");
   // Only what the run wrote is in the folder: no staging folder left beside it.

@@ -9,6 +9,7 @@
 #include "core/errors.hpp"
 #include "core/json_util.hpp"
 #include "posture/solver.hpp"
+#include "rigging/crease.hpp"
 #include "rigging/deform.hpp"
 #include "rigging/gltf.hpp"
 #include "test_util.hpp"
@@ -80,19 +81,22 @@ TEST(Rigging, TheScanPostureMovesNothingAndABentFingerMovesOnlyItself) {
   EXPECT_LT(thumb, 1e-6);  // the thumb stays
 }
 
-TEST(Rigging, SmoothWeightsDoNotFoldLikeTheRigidBinding) {
+TEST(Rigging, SmoothWeightsWithTheCreaseGuardDoNotFoldAtBentJoints) {
   // A 90° PIP flexion of each finger and a fist (the anatomical model fills in the rest):
   // the rigid binding (the thesis's) folds the skin into the finger at every bent joint;
-  // bone-heat weights with dual quaternions keep the folds to a few triangle pairs and the
-  // volume within 5 % (docs/rigging.md gives the figures).
+  // bone-heat weights with dual quaternions fold a few triangle pairs on the flexion side;
+  // the crease guard after the blend leaves none, and the volume stays within 5 %
+  // (docs/rigging.md gives the figures).
   const RiggedSkin s = read_skin_glb(fixture_run() + "/skin.glb");
   const Skeleton skel(s.rig, "rig");
   const PostureSolver solver(s.model);
   BindingOptions rb;
   rb.mode = "rigid";
   const SkinBinding rigid = bind_skin(mesh_from_arrays(s.vertices, s.faces), bones_from_rig(s.rig), rb);
+  const CreaseGuard guard = crease_guard(s.vertices, s.binding, s.rig);
   const double rest = pose_quality(s.vertices, s.faces).volume_mm3;
   std::vector<PostureInputs> poses;
+  const char* fingers[] = {"index", "middle", "ring", "pinky"};
   for (const char* f : {"index", "middle", "ring", "little"}) {
     PostureInputs in;
     in.pins = {{D((std::string(f) + ".pip.flex").c_str()), 90.0}};
@@ -101,18 +105,41 @@ TEST(Rigging, SmoothWeightsDoNotFoldLikeTheRigidBinding) {
   poses.push_back(fist_inputs());
   for (size_t p = 0; p < poses.size(); ++p) {
     const auto motions = link_motions(skel, solver.solve(poses[p]).angles);
-    const PoseQuality smooth = pose_quality(deform(s.vertices, s.binding, motions, Blend::DualQuaternion), s.faces, &s.binding);
+    // A link of the bent finger's phalanges (their first joint is named <finger>-finger-phalanx-…).
+    const auto of_bent_finger = [&](int link) {
+      return p < 4 && std::string(joints()[link_joint(link)].name).rfind(std::string(fingers[p]) + "-finger-phalanx", 0) == 0;
+    };
+    const PoseQuality dqs = pose_quality(deform(s.vertices, s.binding, motions, Blend::DualQuaternion), s.faces, &s.binding);
     const PoseQuality hard = pose_quality(deform(s.vertices, rigid, motions, Blend::Linear), s.faces, &rigid);
-    const PoseQuality lbs = pose_quality(deform(s.vertices, s.binding, motions, Blend::Linear), s.faces, &s.binding);
-    std::printf("pose %zu folding pairs / volume change: smooth DQS %zu / %+.2f %%, smooth LBS %zu / %+.2f %%, rigid %zu / "
-                "%+.2f %%\n",
-                p, smooth.folding_pairs, 100 * (smooth.volume_mm3 / rest - 1), lbs.folding_pairs,
-                100 * (lbs.volume_mm3 / rest - 1), hard.folding_pairs, 100 * (hard.volume_mm3 / rest - 1));
+    std::vector<PoseQuality> guarded;
+    for (Blend b : {Blend::DualQuaternion, Blend::Linear}) {
+      auto v = deform(s.vertices, s.binding, motions, b);
+      guard_creases(guard, motions, &v);
+      guarded.push_back(pose_quality(v, s.faces, &s.binding));
+    }
+    std::printf("pose %zu folding pairs / volume change: guarded DQS %zu / %+.2f %%, guarded LBS %zu / %+.2f %%, DQS alone %zu / "
+                "%+.2f %%, rigid %zu / %+.2f %% (all crossing pairs, guarded DQS: %zu)\n",
+                p, guarded[0].folding_pairs, 100 * (guarded[0].volume_mm3 / rest - 1), guarded[1].folding_pairs,
+                100 * (guarded[1].volume_mm3 / rest - 1), dqs.folding_pairs, 100 * (dqs.volume_mm3 / rest - 1),
+                hard.folding_pairs, 100 * (hard.volume_mm3 / rest - 1), guarded[0].intersecting_pairs);
     EXPECT_GT(hard.folding_pairs, 200u) << "pose " << p;  // the thesis's folding
-    EXPECT_LT(smooth.folding_pairs * 10, hard.folding_pairs) << "pose " << p;
-    // Regression bounds (issue 15 asks none): up to 10 at a PIP, 31 in the fist (docs/rigging.md).
-    EXPECT_LE(smooth.folding_pairs, p + 1 < poses.size() ? 12u : 60u) << "pose " << p;
-    EXPECT_LT(std::abs(smooth.volume_mm3 / rest - 1), 0.05) << "pose " << p;
+    EXPECT_LT(dqs.folding_pairs * 10, hard.folding_pairs) << "pose " << p;
+    const PoseQuality& q = guarded[0];
+    size_t at_the_bend = 0;  // folding pairs on the bent finger (at a PIP pose)
+    for (const auto& l : q.folding_links) at_the_bend += of_bent_finger(l[0]) || of_bent_finger(l[1]);
+    size_t dqs_at_the_bend = 0;
+    for (const auto& l : dqs.folding_links) dqs_at_the_bend += of_bent_finger(l[0]) || of_bent_finger(l[1]);
+    std::printf("  on the bent finger: guarded DQS %zu, DQS alone %zu\n", at_the_bend, dqs_at_the_bend);
+    if (p < 4) {
+      // Issue 15's bar at a bent PIP: no fold there. What remains (3 pairs on the fixture) is
+      // in the web between thumb and index, which the solver's synergy moves with the finger.
+      EXPECT_EQ(at_the_bend, 0u) << "pose " << p;
+      EXPECT_LE(q.folding_pairs, 4u) << "pose " << p;
+    } else {
+      // The fist does not meet the bar yet (21 on the fixture, the same as DQS alone).
+      EXPECT_LE(q.folding_pairs, 30u);
+    }
+    EXPECT_LT(std::abs(q.volume_mm3 / rest - 1), 0.05) << "pose " << p;
   }
 }
 

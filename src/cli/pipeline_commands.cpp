@@ -217,6 +217,10 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
   run->add_option("--posture-model", in->posture_model,
                   "Posture model skin.glb carries (hand-posture/1 file or builtin:<name>)")
       ->capture_default_str();
+  run->add_option("--back-photo", in->back_photo,
+                  "The back scan's photo (8-bit RGB PNG on the scan's grid) for the texture (default: <back stem>.photo.png if "
+                  "both photos are there)");
+  run->add_option("--palm-photo", in->palm_photo, "The palm scan's photo (default: <palm stem>.photo.png)");
   run->add_flag("--baseline", in->baseline, "Also a Poisson reconstruction of the cloud (baseline.ply and its figures, for comparison; ~0.5 s)");
   out->push_back({run, [ra, &progress] { run_command(*ra, progress); }});
 

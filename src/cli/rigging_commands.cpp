@@ -8,6 +8,7 @@
 #include "posture/angle_table.hpp"
 #include "posture/solver.hpp"
 #include "render/preview.hpp"
+#include "rigging/crease.hpp"
 #include "rigging/deform.hpp"
 #include "rigging/gltf.hpp"
 
@@ -19,6 +20,8 @@ struct PoseArgs {
   std::string model, posture, out, png, view = "back", blend = "lbs";
   std::vector<std::string> sets, torques, targets;
   int size = 1024;
+  double texture_weight = 0.7;
+  bool crease_guard = true;
 };
 
 void pose_command(const PoseArgs& a, const Progress& progress) {
@@ -49,7 +52,9 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
   if (sol.clamped_inputs)
     progress("pose", "warning: " + std::to_string(sol.clamped_inputs) + " input(s) outside the model's limits were clamped onto them");
   const Skeleton skel(skin.rig, a.model);
-  const std::vector<Eigen::Vector3d> posed = deform(skin.vertices, skin.binding, link_motions(skel, sol.angles), blend);
+  const auto motions = link_motions(skel, sol.angles);
+  std::vector<Eigen::Vector3d> posed = deform(skin.vertices, skin.binding, motions, blend);
+  if (a.crease_guard) guard_creases(crease_guard(skin.vertices, skin.binding, skin.rig), motions, &posed);
   // Everything computed; now the files, each atomically.
   if (!a.out.empty()) {
     if (ext == ".glb") {
@@ -66,6 +71,7 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
     RenderOptions ro;
     ro.width = ro.height = a.size;
     ro.view = named_view(a.view) * hand_frame_from_rig(skin.rig).linear();
+    if (!skin.texture.empty()) ro.texture = &skin.texture, ro.texture_weight = static_cast<float>(a.texture_weight);
     write_file_atomic(a.png, render_mesh_png({&mesh}, ro));
   }
   std::printf("posed %zu vertices (%s, %s binding)%s%s\n", posed.size(), a.blend.c_str(), skin.binding.mode.c_str(),
@@ -89,6 +95,13 @@ void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out
   pc->add_option("--png", pa->png, "Also a picture of the posed skin");
   pc->add_option("--view", pa->view, "Picture view: back, palm or side")->check(CLI::IsMember({"back", "palm", "side"}))->capture_default_str();
   pc->add_option("--size", pa->size, "Picture size, px")->check(CLI::Range(16, 4096))->capture_default_str();
+  pc->add_flag("!--no-crease-guard", pa->crease_guard,
+               "Leave the blend as it is (what glTF viewers show): by default the skin on the inside of a bent joint is "
+               "held to its side of the joint's bisecting plane, so it does not fold into itself");
+  pc->add_option("--texture-weight", pa->texture_weight,
+                 "Picture of a textured skin: colour = (1 - w) shading + w texture (the thesis blended 0.3 : 0.7)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
   out->push_back({pc, [pa, &progress] { pose_command(*pa, progress); }});
 }
 

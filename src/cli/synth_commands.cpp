@@ -79,6 +79,7 @@ struct SynthScanArgs {
   ReplicaOptions replica;
   ScannerOptions scanner;
   bool render = true;
+  bool photos = true;
 };
 
 void synth_scan(const SynthScanArgs& a, const Progress& progress) {
@@ -91,11 +92,15 @@ void synth_scan(const SynthScanArgs& a, const Progress& progress) {
   progress("synth scan", "placing markers and scanning both sides (seed " + std::to_string(a.seed) + ")");
   const ScanPair pair = synthesize_scan_pair(hand, rig, a.replica, a.scanner, a.seed, !progress.quiet);
   out.retire({"back.png", "back.json", "palm.png", "palm.json", "rig.json", "truth.json", "truth_skin.ply",
-              "back_preview.png", "palm_preview.png"});
+              "back_preview.png", "palm_preview.png", "back.photo.png", "palm.photo.png"});
   for (const auto& [stem, sim] : {std::pair<const char*, const ScanSimulation*>{"back", &pair.back}, {"palm", &pair.palm}}) {
     const std::string png = out.stage(std::string(stem) + ".png");
     out.stage(std::string(stem) + ".json");
     save_scan(png.substr(0, png.size() - 4), sim->scan);
+  }
+  if (a.photos) {
+    write_file_atomic(out.stage("back.photo.png"), encode_rgb8_png(pair.back_photo.width, pair.back_photo.height, pair.back_photo.rgb));
+    write_file_atomic(out.stage("palm.photo.png"), encode_rgb8_png(pair.palm_photo.width, pair.palm_photo.height, pair.palm_photo.rgb));
   }
   save_rig(out.stage("rig.json"), pair.rig_palm);
   save_mesh(out.stage("truth_skin.ply"), pair.skin_palm);
@@ -110,6 +115,8 @@ void synth_scan(const SynthScanArgs& a, const Progress& progress) {
                              std::to_string(pair.markers_hand.size()) + " markers visible in both");
   for (const char* f : {"back.png", "back.json", "palm.png", "palm.json", "rig.json", "truth.json", "truth_skin.ply"})
     std::printf("%s\n", out.final_path(f).c_str());
+  if (a.photos)
+    for (const char* f : {"back.photo.png", "palm.photo.png"}) std::printf("%s\n", out.final_path(f).c_str());
 }
 
 // ---------------- synth angles ----------------
@@ -172,7 +179,7 @@ void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) 
   ssc->add_option("--mesh", ss->mesh, "Hand surface mesh (.ply/.obj/.off), same frame as --rig")->required();
   ssc->add_option("--rig", ss->rig, "hand-rig/1 of that mesh")->required();
   ssc->add_option("--out", ss->out, "Output folder: back/palm .png + .json, rig.json, truth.json, truth_skin.ply, "
-                                    "back_preview.png, palm_preview.png")
+                                    "back/palm .photo.png, back_preview.png, palm_preview.png")
       ->capture_default_str();
   ssc->add_option("--seed", ss->seed, "Random seed (markers, placements, noise)")->capture_default_str();
   ssc->add_option("--marker-radius", ss->replica.marker_radius_mm, "Marker radius, mm")->capture_default_str();
@@ -194,6 +201,9 @@ void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) 
       ->capture_default_str();
   ssc->add_option("--y-extent", ss->scanner.y_extent_mm, "Table width a scanline covers, mm")->capture_default_str();
   ssc->add_flag("!--no-render", ss->render, "Do not write preview pictures");
+  ssc->add_flag("!--no-photos", ss->photos,
+                "Do not write the scans' photos (back.photo.png, palm.photo.png: the camera's colour image on each "
+                "range image's grid, which run projects onto the skin as its texture)");
   auto sa = std::make_shared<SynthAnglesArgs>();
   auto* sac = synth->add_subcommand(
       "angles", "A joint-angle recording with known structure (a Gaussian of three synergies, or a curved grasp), to test calibration");

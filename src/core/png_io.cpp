@@ -37,11 +37,16 @@ void read_cb(png_structp png, png_bytep out, png_size_t n) {
   st->pos += n;
 }
 
-enum class DecodeStatus { Ok, LibpngError, NotGray16, HasAlpha, TooLarge };
+enum class DecodeStatus { Ok, LibpngError, WrongKind, HasAlpha, TooLarge };
 
-// Two passes: header first (to validate and size the buffer), then pixels.
+// Two passes: header first (to validate and size the buffer), then pixels. `Pixel` says what
+// is accepted: std::uint16_t = 16-bit grayscale without transparency (range images);
+// std::uint8_t = 8-bit RGB, or RGBA whose alpha is dropped (photos), three values a pixel.
+template <typename Pixel>
 DecodeStatus decode_impl(ReadState* st, int max_side, int* w, int* h, int* depth, int* ctype,
-                         std::vector<std::uint16_t>* pixels) {
+                         std::vector<Pixel>* pixels) {
+  constexpr bool kGray16 = sizeof(Pixel) == 2;
+  constexpr size_t kChannels = kGray16 ? 1 : 3;
   png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, st, on_error, on_warning);
   if (!png) return DecodeStatus::LibpngError;
   png_infop info = png_create_info_struct(png);
@@ -63,11 +68,13 @@ DecodeStatus decode_impl(ReadState* st, int max_side, int* w, int* h, int* depth
   *h = static_cast<int>(png_get_image_height(png, info));
   *depth = png_get_bit_depth(png, info);
   *ctype = png_get_color_type(png, info);
-  if (*depth != 16 || *ctype != PNG_COLOR_TYPE_GRAY) {
+  const bool kind_ok = kGray16 ? (*depth == 16 && *ctype == PNG_COLOR_TYPE_GRAY)
+                               : (*depth == 8 && (*ctype == PNG_COLOR_TYPE_RGB || *ctype == PNG_COLOR_TYPE_RGB_ALPHA));
+  if (!kind_ok) {
     png_destroy_read_struct(&png, &info, nullptr);
-    return DecodeStatus::NotGray16;
+    return DecodeStatus::WrongKind;
   }
-  if (png_get_valid(png, info, PNG_INFO_tRNS)) {
+  if (kGray16 && png_get_valid(png, info, PNG_INFO_tRNS)) {
     png_destroy_read_struct(&png, &info, nullptr);
     return DecodeStatus::HasAlpha;
   }
@@ -75,13 +82,14 @@ DecodeStatus decode_impl(ReadState* st, int max_side, int* w, int* h, int* depth
     png_destroy_read_struct(&png, &info, nullptr);
     return DecodeStatus::TooLarge;
   }
-  png_set_swap(png);  // PNG stores 16-bit big-endian
+  if (kGray16) png_set_swap(png);  // PNG stores 16-bit big-endian
+  if (!kGray16) png_set_strip_alpha(png);
   png_set_interlace_handling(png);
   png_read_update_info(png, info);
-  pixels->assign(static_cast<size_t>(*w) * static_cast<size_t>(*h), 0);  // may throw: outside jumps
+  pixels->assign(static_cast<size_t>(*w) * static_cast<size_t>(*h) * kChannels, 0);  // may throw: outside jumps
   st->rows = new png_bytep[static_cast<size_t>(*h)];
   for (int r = 0; r < *h; ++r)
-    st->rows[r] = reinterpret_cast<png_bytep>(pixels->data() + static_cast<size_t>(r) * *w);
+    st->rows[r] = reinterpret_cast<png_bytep>(pixels->data() + static_cast<size_t>(r) * *w * kChannels);
   png_read_image(png, st->rows);
   png_read_end(png, nullptr);
   delete[] st->rows;
@@ -129,32 +137,51 @@ bool encode_impl(WriteBuffer* buf, int w, int h, int depth, int ctype, int level
 
 }  // namespace
 
-Gray16Image decode_gray16_png(const std::string& bytes, const std::string& name, int max_side) {
+namespace {
+
+const char* colour_type_name(int ctype) {
+  return ctype == PNG_COLOR_TYPE_GRAY         ? "grayscale"
+         : ctype == PNG_COLOR_TYPE_GRAY_ALPHA ? "grayscale+alpha"
+         : ctype == PNG_COLOR_TYPE_RGB        ? "RGB"
+         : ctype == PNG_COLOR_TYPE_RGB_ALPHA  ? "RGBA"
+                                              : "palette";
+}
+
+template <typename Pixel>
+void decode_checked(const std::string& bytes, const std::string& name, int max_side, const char* wanted, int* w,
+                    int* h, std::vector<Pixel>* pixels) {
   static const unsigned char kSig[8] = {137, 80, 78, 71, 13, 10, 26, 10};
   if (bytes.size() < 8 || std::memcmp(bytes.data(), kSig, 8) != 0) throw InputError(name, "not a PNG file");
   ReadState st{reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size(), 0, {0}, nullptr};
-  Gray16Image img;
   int depth = 0, ctype = 0;
-  switch (decode_impl(&st, max_side, &img.width, &img.height, &depth, &ctype, &img.pixels)) {
+  switch (decode_impl(&st, max_side, w, h, &depth, &ctype, pixels)) {
     case DecodeStatus::Ok:
-      return img;
+      return;
     case DecodeStatus::LibpngError:
       throw InputError(name, std::string("unreadable PNG: ") + (st.message[0] ? st.message : "libpng error"));
-    case DecodeStatus::NotGray16: {
-      const char* kind = ctype == PNG_COLOR_TYPE_GRAY         ? "grayscale"
-                         : ctype == PNG_COLOR_TYPE_GRAY_ALPHA ? "grayscale+alpha"
-                         : ctype == PNG_COLOR_TYPE_RGB        ? "RGB"
-                         : ctype == PNG_COLOR_TYPE_RGB_ALPHA  ? "RGBA"
-                                                              : "palette";
-      throw InputError(name, "PNG must be 16-bit single-channel grayscale, got " + std::to_string(depth) +
-                                 "-bit " + kind);
-    }
+    case DecodeStatus::WrongKind:
+      throw InputError(name, std::string("PNG must be ") + wanted + ", got " + std::to_string(depth) + "-bit " +
+                                 colour_type_name(ctype));
     case DecodeStatus::HasAlpha:
       throw InputError(name, "PNG must have no alpha/transparency (tRNS chunk present)");
     case DecodeStatus::TooLarge:
       throw InputError(name, "PNG is larger than " + std::to_string(max_side) + " pixels on a side");
   }
   throw InternalError("unreachable");
+}
+
+}  // namespace
+
+Gray16Image decode_gray16_png(const std::string& bytes, const std::string& name, int max_side) {
+  Gray16Image img;
+  decode_checked(bytes, name, max_side, "16-bit single-channel grayscale", &img.width, &img.height, &img.pixels);
+  return img;
+}
+
+Rgb8Image decode_rgb8_png(const std::string& bytes, const std::string& name, int max_side) {
+  Rgb8Image img;
+  decode_checked(bytes, name, max_side, "8-bit RGB (or RGBA)", &img.width, &img.height, &img.rgb);
+  return img;
 }
 
 std::string encode_gray16_png(const Gray16Image& img, int level) {

@@ -54,6 +54,10 @@ const std::vector<KeySpec>& key_table() {
       {"patches", "count", Kind::Int, 24, 1500, false, HS_FIELD(patches.count)},
       {"patches", "error_grid", Kind::Int, 2, 2000, false, HS_FIELD(patches.error_grid)},
       {"rigging", "smooth", Kind::Bool, 0, 1, false, HS_FIELD(rigging.smooth)},
+      {"texture", "enabled", Kind::Bool, 0, 1, false, HS_FIELD(texture.enabled)},
+      {"texture", "size", Kind::Int, 64, 8192, false, HS_FIELD(texture.size)},
+      {"texture", "blend_deg", Kind::Real, 0, 60, true, HS_FIELD(texture.blend_deg)},
+      {"texture", "weight", Kind::Real, 0, 1, false, HS_FIELD(texture.weight)},
   };
   return t;
 }

@@ -51,6 +51,12 @@ struct PipelineOptions {
   struct Rigging {                 ///< the skin bound to the skeleton, skin.glb (docs/rigging.md)
     bool smooth = true;            ///< bone-heat weights (false: rigid, each vertex with its nearest link, as the thesis)
   } rigging;
+  struct Texture {                 ///< the skin's colour from the scans' photos (docs/rigging.md "Texture")
+    bool enabled = true;           ///< bake it when both scans have a photo (<stem>.photo.png)
+    long size = 1024;              ///< the atlas is size x size texels
+    double blend_deg = 15;         ///< the photos blend across the flanks over ± this angle
+    double weight = 0.7;           ///< pictures: colour = (1 - weight) shading + weight texture (thesis 0.3 : 0.7)
+  } texture;
 
   /// False with a message naming the key when a value is out of range.
   bool IsValid(std::string* error) const;

@@ -262,7 +262,7 @@ std::string patch_report_html(const PatchStageResult& r, const PatchReportFigure
   }
   if (!posed.empty()) {
     h += "<h2>The rigged skin, posed</h2>\n<p>skin.glb posed by the solver (docs/rigging.md): smooth (bone-heat) weights with "
-         "dual quaternions, and the thesis's rigid binding, which folds the skin into the finger at bent joints.</p>\n"
+         "dual quaternions and the crease guard, and the thesis's rigid binding, which folds the skin into the finger at bent joints.</p>\n"
          "<div class=\"pics\">";
     for (const auto& p : posed)
       h += "<figure>" + img(p.png, html_escape(p.caption)) + "<figcaption>" + html_escape(p.caption) + "</figcaption></figure>";

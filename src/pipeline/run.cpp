@@ -1,12 +1,15 @@
 #include "pipeline/run.hpp"
 
 #include <chrono>
+#include <fstream>
 
 #include "core/errors.hpp"
 #include "core/atomic_file.hpp"
+#include "core/png_io.hpp"
 #include "core/rig.hpp"
 #include "posture/solver.hpp"
 #include "rigging/binding.hpp"
+#include "rigging/crease.hpp"
 #include "rigging/deform.hpp"
 #include "render/preview.hpp"
 #include "pipeline/registration_stage.hpp"
@@ -39,12 +42,13 @@ namespace {
 // The rigged skin in the report's postures: open (the scan's), relaxed, a fist, and the
 // solver's answer to a 75° little-finger MCP alone; the last two also with the thesis's rigid
 // binding. Side views, 360 × 270.
-std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, const TriMesh& mesh) {
+std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, const TriMesh& mesh, float texture_weight) {
   const Skeleton skel(s.rig, "rig");
   const PostureSolver solver(s.model);
   BindingOptions rb;
   rb.mode = "rigid";
   const SkinBinding rigid = bind_skin(mesh, bones_from_rig(s.rig), rb);
+  const CreaseGuard guard = crease_guard(s.vertices, s.binding, s.rig);
   const PostureInputs fist = fist_inputs();
   PostureInputs l2;
   l2.pins.emplace_back(dof_index("little.mcp.flex").value(), 75.0);
@@ -54,12 +58,15 @@ std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, const TriMesh& me
   ro.width = 360;
   ro.height = 270;
   ro.view = named_view("side") * hand_frame_from_rig(s.rig).linear();
+  if (!s.texture.empty()) ro.texture = &s.texture, ro.texture_weight = texture_weight;
   std::vector<ReportPicture> out;
   for (const auto& [caption, angles, binding] :
        {std::tuple{"open (the scan posture)", &open, &s.binding}, {"relaxed", &relaxed, &s.binding},
         {"fist", &closed, &s.binding}, {"little MCP 75° alone: the solver fills in the rest", &little, &s.binding},
         {"fist, rigid binding (the thesis)", &closed, &rigid}, {"little MCP 75°, rigid binding (the thesis)", &little, &rigid}}) {
-    const auto v = deform(s.vertices, *binding, link_motions(skel, *angles), binding == &rigid ? Blend::Linear : Blend::DualQuaternion);
+    const auto motions = link_motions(skel, *angles);
+    auto v = deform(s.vertices, *binding, motions, binding == &rigid ? Blend::Linear : Blend::DualQuaternion);
+    if (binding != &rigid) guard_creases(guard, motions, &v);
     const TriMesh m = mesh_from_arrays(v, s.faces);
     out.push_back({caption, render_mesh_png({&m}, ro)});
   }
@@ -93,6 +100,22 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   if (!in.markers_path.empty()) hints = load_marker_hints(in.markers_path);
   const PostureModel posture_model = load_model(in.posture_model);
   const PostureSolver model_check(posture_model);  // refused now, not after the stages
+  // The photos: given, or found beside the scans.
+  std::optional<ScanPhoto> back_photo, palm_photo;
+  if (in.options.texture.enabled) {
+    const auto exists = [](const std::string& f) { return std::ifstream(f).good(); };
+    const std::string bp = in.back_photo.empty() ? in.back_stem + ".photo.png" : in.back_photo;
+    const std::string pp = in.palm_photo.empty() ? in.palm_stem + ".photo.png" : in.palm_photo;
+    const bool given = !in.back_photo.empty() || !in.palm_photo.empty();
+    if (given || (exists(bp) && exists(pp))) {
+      back_photo = load_scan_photo(bp, back);
+      palm_photo = load_scan_photo(pp, palm);
+    } else {
+      R.texture_note = "no texture: " + (exists(bp) ? pp : bp) + " not found";
+    }
+  } else {
+    R.texture_note = "no texture: texture.enabled is false";
+  }
   R.back = scan_figures(back, in.back_stem);
   R.palm = scan_figures(palm, in.palm_stem);
   R.back_cloud = dense_copy(*scan_to_organized_cloud(back));
@@ -139,14 +162,29 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   bo.mode = in.options.rigging.smooth ? "smooth" : "rigid";
   R.rigged.binding = bind_skin(mesh, bones_from_rig(R.skin.rig), bo);
   R.rigged.model = posture_model;
-  if (R.patches) R.posed = posed_pictures(R.rigged, mesh);  // for report.html, which the patch stage writes
   R.rigging_seconds = t_rig.seconds();
+
+  // --- texture: the skin's colour from the two photos (docs/rigging.md "Texture") ---
+  if (back_photo && palm_photo) {
+    progress("texture: projecting the back and palm photos onto the skin");
+    TextureOptions to;
+    to.size = static_cast<int>(in.options.texture.size);
+    to.blend_deg = in.options.texture.blend_deg;
+    R.texture = bake_skin_texture(R.rigged.vertices, R.rigged.faces, *back_photo, *palm_photo, R.registration.back_to_palm,
+                                  R.registration.markers_palm, R.registration.marker_radius_mm, to);
+    R.rigged.texture = R.texture->map;
+    R.texture_seconds = R.texture->seconds;
+  } else {
+    progress(R.texture_note);
+  }
+  if (R.patches)  // for report.html, which the patch stage writes
+    R.posed = posed_pictures(R.rigged, mesh, static_cast<float>(in.options.texture.weight));
   R.seconds = total.seconds();
   return R;
 }
 
 std::vector<std::string> run_output_names() {
-  std::vector<std::string> n = {"back.ply", "palm.ply", "report.json", "skin.glb"};
+  std::vector<std::string> n = {"back.ply", "palm.ply", "report.json", "skin.glb", "texture.png"};
   n.insert(n.end(), registration_output_names().begin(), registration_output_names().end());
   n.insert(n.end(), skin_output_names().begin(), skin_output_names().end());
   n.insert(n.end(), patch_output_names().begin(), patch_output_names().end());
@@ -164,7 +202,8 @@ Json write_run_outputs(OutputSet& out, const RunResult& r) {
   Json reg_report = r.registration.report;
   if (r.registration_truth) reg_report["against_truth"] = *r.registration_truth;
   outputs.update(write_registration_outputs(out, r.registration, reg_report));
-  outputs.update(write_skin_outputs(out, r.skin));
+  outputs.update(write_skin_outputs(out, r.skin, r.texture ? &r.texture->map : nullptr,
+                                    static_cast<float>(in.options.texture.weight)));
 
   Json report;
   report["format"] = "handskin-report/1";
@@ -192,6 +231,22 @@ Json write_run_outputs(OutputSet& out, const RunResult& r) {
                       {"vertices", r.rigged.vertices.size()},
                       {"mean_influences", r.rigged.vertices.empty() ? 0.0 : static_cast<double>(influences) / r.rigged.vertices.size()},
                       {"posture_model", in.posture_model}});
+  }
+  if (r.texture) {
+    const SkinTexture& t = *r.texture;
+    stages.push_back({{"name", "texture"},
+                      {"seconds", r.texture_seconds},
+                      {"size", t.map.size},
+                      {"texels_per_mm", t.texels_per_mm},
+                      {"area_palm_photo_only", t.palm_only},
+                      {"area_back_photo_only", t.back_only},
+                      {"area_blended", t.blended},
+                      {"area_unseen", t.unseen},
+                      {"faces", {{"palm_chart", t.palm_chart_faces}, {"back_chart", t.back_chart_faces}, {"unseen", t.unseen_faces}}}});
+    write_file_atomic(out.stage("texture.png"), encode_rgb8_png(t.map.size, t.map.size, t.map.rgb));
+    outputs["texture_png"] = out.final_path("texture.png");
+  } else {
+    stages.push_back({{"name", "texture"}, {"seconds", 0.0}, {"skipped", r.texture_note}});
   }
   const std::vector<unsigned char> glb = skin_glb(r.rigged);
   write_file_atomic(out.stage("skin.glb"), std::string(glb.begin(), glb.end()));

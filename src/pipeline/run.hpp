@@ -2,7 +2,8 @@
 /// `handskin run`: the whole pipeline from two scans (and a rig, or none) to the skin.
 /// Stages: ingest (both scans read and checked, to point clouds), registration (the back scan
 /// into the palm frame, merged cloud), skin (skeleton, strips, closed mesh, figures), patches
-/// (bicubic Bézier patches on the skin's ring grid, their fitting error).
+/// (bicubic Bézier patches on the skin's ring grid, their fitting error), rigging (the skin
+/// bound to the skeleton), texture (the skin's colour from the scans' photos, when there are).
 /// `run_pipeline` computes every stage and writes nothing; `write_run_outputs` stages every
 /// file into an OutputSet, which the caller commits — so a failure anywhere leaves the
 /// output folder exactly as it was (docs/architecture.md).
@@ -15,6 +16,7 @@
 #include "pipeline/options.hpp"
 #include "pipeline/patch_stage.hpp"
 #include "rigging/gltf.hpp"
+#include "texture/texture.hpp"
 #include "pipeline/skin_stage.hpp"
 #include "register/registration.hpp"
 #include "scan/cloud.hpp"
@@ -32,6 +34,9 @@ struct RunInputs {
   std::string pipeline_path;  ///< empty: built-in defaults (= pipelines/cubist.json)
   std::string truth_path;     ///< optional truth.json (synthetic pairs): errors against it in the report
   std::string posture_model = "builtin:anatomical";  ///< the posture model skin.glb carries
+  /// The scans' photos for the texture; empty: `<stem>.photo.png` when both exist (else no
+  /// texture). A photo given here must exist.
+  std::string back_photo, palm_photo;
   PipelineOptions options;
 };
 
@@ -54,6 +59,9 @@ struct RunResult {
   std::optional<Json> registration_truth;  ///< registration_against_truth, with --truth
   SkinStageResult skin;
   std::optional<PatchStageResult> patches;  ///< Bézier patches on the skin's ring grid (patches.enabled)
+  std::optional<SkinTexture> texture;  ///< baked from the photos (rigged.texture holds its map)
+  std::string texture_note;      ///< why there is no texture, when there is none
+  double texture_seconds = 0;
   RiggedSkin rigged;             ///< the skin bound to the skeleton, with the posture model (skin.glb)
   std::vector<ReportPicture> posed;  ///< the rigged skin in a few postures, for report.html
   double rigging_seconds = 0;

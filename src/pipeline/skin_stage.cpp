@@ -245,7 +245,7 @@ const std::vector<std::string>& skin_output_names() {
   return names;
 }
 
-Json write_skin_outputs(OutputSet& out, const SkinStageResult& r) {
+Json write_skin_outputs(OutputSet& out, const SkinStageResult& r, const TextureMap* texture, float texture_weight) {
   Json outputs;
   save_skin_ply(out.stage("skin.ply"), r.skin);
   outputs["skin_ply"] = out.final_path("skin.ply");
@@ -255,6 +255,8 @@ Json write_skin_outputs(OutputSet& out, const SkinStageResult& r) {
   ro.width = 900;
   ro.height = 500;
   ro.view = hand_frame_from_rig(r.rig).linear();  // looking at the back, fingers to the right
+  ro.texture = texture;
+  ro.texture_weight = texture_weight;
   write_file_atomic(out.stage("skin.png"), render_mesh_png({&r.skin.mesh}, ro));
   outputs["skin_png"] = out.final_path("skin.png");
   if (r.automatic) {

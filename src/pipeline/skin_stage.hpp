@@ -12,6 +12,7 @@
 #include "core/json_util.hpp"
 #include "core/output_set.hpp"
 #include "core/rig.hpp"
+#include "core/texture_map.hpp"
 #include "mesh/mesh_distance.hpp"
 #include "mesh/trimesh.hpp"
 #include "pipeline/options.hpp"
@@ -90,6 +91,8 @@ const std::vector<std::string>& skin_output_names();
 
 /// Stage skin.ply (labels), skin.obj, skin.png, and as computed rig_auto.json, slices.json,
 /// baseline.ply into `out`. Returns {key: final path} for the report's "outputs".
-Json write_skin_outputs(OutputSet& out, const SkinStageResult& r);
+/// With `texture` (a map of r.skin.mesh), skin.png shows it, blended by `texture_weight`.
+Json write_skin_outputs(OutputSet& out, const SkinStageResult& r, const TextureMap* texture = nullptr,
+                        float texture_weight = 0.7f);
 
 }  // namespace handskin

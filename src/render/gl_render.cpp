@@ -154,29 +154,81 @@ std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const Ren
       all.emplace_back(p[0], p[1], p[2]);
     }
   GlPicture pic(o, all);
-  lit_material(o.colour, false);
-  for (const TriMesh* m : meshes) {
-    TriMesh mesh = *m;
+  for (size_t m = 0; m < meshes.size(); ++m) {
+    TriMesh mesh = *meshes[m];
     mesh.request_vertex_normals();
     mesh.request_face_normals();
     mesh.update_normals();
+    const TextureMap* tex = m == 0 && o.texture && !o.texture->empty() ? o.texture : nullptr;
+    HS_CHECK(!tex || tex->corner_uv.size() == mesh.n_faces(), "the texture's faces disagree with the mesh's");
+    HS_CHECK(!tex || tex->rgb.size() == static_cast<size_t>(tex->size) * tex->size * 3, "the texture's image is not size x size RGB");
+    // A textured mesh is drawn as a triangle soup (three corners a face): the corners of one
+    // vertex may carry different texture coordinates. Otherwise indexed.
     std::vector<GLdouble> xyz, nrm;
+    std::vector<GLfloat> uv;
     std::vector<GLuint> idx;
-    for (auto v : mesh.vertices()) {
+    const auto put = [&](TriMesh::VertexHandle v) {
       const auto& p = mesh.point(v);
       const auto& n = mesh.normal(v);
       xyz.insert(xyz.end(), {p[0], p[1], p[2]});
       nrm.insert(nrm.end(), {n[0], n[1], n[2]});
+    };
+    if (tex) {
+      for (auto f : mesh.faces()) {
+        int k = 0;
+        for (auto v : mesh.fv_range(f)) {
+          put(v);
+          const Eigen::Vector2f& c = tex->corner_uv[static_cast<size_t>(f.idx())][k++];
+          uv.insert(uv.end(), {c.x(), c.y()});
+        }
+      }
+    } else {
+      for (auto v : mesh.vertices()) put(v);
+      for (auto f : mesh.faces())
+        for (auto v : mesh.fv_range(f)) idx.push_back(static_cast<GLuint>(v.idx()));
     }
-    for (auto f : mesh.faces())
-      for (auto v : mesh.fv_range(f)) idx.push_back(static_cast<GLuint>(v.idx()));
+    GLuint name = 0;
+    if (tex) {
+      // Texture unit 0 interpolates between the lit white surface (the primary colour) and
+      // the texture by the constant weight: Arg0 * Arg2 + Arg1 * (1 - Arg2).
+      lit_material(Eigen::Vector3f::Constant(0.92f), false);
+      glGenTextures(1, &name);
+      glBindTexture(GL_TEXTURE_2D, name);
+      glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+      glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB, tex->size, tex->size, 0, GL_RGB, GL_UNSIGNED_BYTE, tex->rgb.data());
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+      const GLfloat w[] = {o.texture_weight, o.texture_weight, o.texture_weight, 1.f};
+      glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_COMBINE);
+      glTexEnvi(GL_TEXTURE_ENV, GL_COMBINE_RGB, GL_INTERPOLATE);
+      glTexEnvi(GL_TEXTURE_ENV, GL_SOURCE0_RGB, GL_TEXTURE);
+      glTexEnvi(GL_TEXTURE_ENV, GL_SOURCE1_RGB, GL_PRIMARY_COLOR);
+      glTexEnvi(GL_TEXTURE_ENV, GL_SOURCE2_RGB, GL_CONSTANT);
+      glTexEnvi(GL_TEXTURE_ENV, GL_OPERAND2_RGB, GL_SRC_COLOR);
+      glTexEnvfv(GL_TEXTURE_ENV, GL_TEXTURE_ENV_COLOR, w);
+      glEnable(GL_TEXTURE_2D);
+      glEnableClientState(GL_TEXTURE_COORD_ARRAY);
+      glTexCoordPointer(2, GL_FLOAT, 0, uv.data());
+    } else {
+      lit_material(o.colour, false);
+    }
     glEnableClientState(GL_VERTEX_ARRAY);
     glEnableClientState(GL_NORMAL_ARRAY);
     glVertexPointer(3, GL_DOUBLE, 0, xyz.data());
     glNormalPointer(GL_DOUBLE, 0, nrm.data());
-    glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(idx.size()), GL_UNSIGNED_INT, idx.data());
+    if (tex)
+      glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(xyz.size() / 3));
+    else
+      glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(idx.size()), GL_UNSIGNED_INT, idx.data());
     glDisableClientState(GL_VERTEX_ARRAY);
     glDisableClientState(GL_NORMAL_ARRAY);
+    if (tex) {
+      glDisableClientState(GL_TEXTURE_COORD_ARRAY);
+      glDisable(GL_TEXTURE_2D);
+      glDeleteTextures(1, &name);
+    }
   }
   pic.dots(o.points);
   return pic.png();

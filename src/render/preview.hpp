@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "core/texture_map.hpp"
 #include "mesh/trimesh.hpp"
 #include "scan/cubist_io.hpp"
 
@@ -18,6 +19,11 @@ struct RenderOptions {
   Eigen::Matrix3d view = Eigen::Matrix3d::Identity();
   Eigen::Vector3f colour{0.87f, 0.72f, 0.62f};  ///< skin tone
   std::vector<Eigen::Vector3d> points;          ///< optional joints/markers drawn as dots
+  /// Optional colour texture of the first mesh (its corner_uv one per face of that mesh):
+  /// the colour is then (1 − texture_weight) · the shaded white surface + texture_weight ·
+  /// the texture, as the thesis blended shading and photo 0.3 : 0.7.
+  const TextureMap* texture = nullptr;
+  float texture_weight = 0.7f;
 };
 
 /// Shaded orthographic render of one or more meshes (fit to the picture), by Mesa's

@@ -38,6 +38,7 @@ struct PoseQuality {
   /// Of those, the pairs that fold at a joint: both faces' dominant links are one link or a
   /// link and its parent (contacts between fingers, or a fingertip on the palm, are not).
   size_t folding_pairs = 0;
+  std::vector<std::array<int, 2>> folding_links;  ///< each folding pair's two dominant links
   double volume_mm3 = 0;
 };
 /// `binding` (optional) gives each face's dominant link (the most weight over its corners).

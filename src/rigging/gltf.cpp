@@ -4,10 +4,12 @@
 
 #include <cmath>
 #include <cstring>
+#include <map>
 #include <sstream>
 
 #include "core/dof.hpp"
 #include "core/errors.hpp"
+#include "core/png_io.hpp"
 
 namespace handskin {
 
@@ -106,24 +108,52 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose) {
   m.buffers.emplace_back();
 
   // --- mesh ---
-  const size_t n = s.vertices.size();
+  const bool textured = !s.texture.empty();
+  HS_CHECK(!textured || s.texture.corner_uv.size() == s.faces.size(), "texture and mesh differ in faces");
+  // With a texture, a vertex is written once per distinct texture coordinate of its corners:
+  // the skin's vertices first (each with its first corner's), then the copies.
+  std::vector<int> source(s.vertices.size());
+  for (size_t i = 0; i < source.size(); ++i) source[i] = static_cast<int>(i);
+  std::vector<Eigen::Vector2f> uv(textured ? s.vertices.size() : 0, Eigen::Vector2f::Constant(-1));
+  std::vector<std::array<int, 3>> faces = s.faces;
+  if (textured) {
+    std::map<std::pair<int, std::pair<float, float>>, int> copies;
+    for (size_t f = 0; f < faces.size(); ++f)
+      for (int k = 0; k < 3; ++k) {
+        const int v = s.faces[f][k];
+        const Eigen::Vector2f& c = s.texture.corner_uv[f][k];
+        if (uv[v].x() < 0) uv[v] = c;
+        if (uv[v] == c) continue;
+        const auto key = std::make_pair(v, std::make_pair(c.x(), c.y()));
+        auto it = copies.find(key);
+        if (it == copies.end()) {
+          it = copies.emplace(key, static_cast<int>(source.size())).first;
+          source.push_back(v);
+          uv.push_back(c);
+        }
+        faces[f][k] = it->second;
+      }
+    for (auto& c : uv) c = c.x() < 0 ? Eigen::Vector2f::Zero() : c;  // a vertex in no face
+  }
+  const size_t n = source.size();
   std::vector<float> pos(3 * n), nrm(3 * n, 0.0f), wts(4 * n, 0.0f);
   std::vector<std::uint8_t> jts(4 * n, 0);
   std::vector<double> lo(3, 1e300), hi(3, -1e300);
-  std::vector<Eigen::Vector3d> normal(n, Eigen::Vector3d::Zero());
+  std::vector<Eigen::Vector3d> normal(s.vertices.size(), Eigen::Vector3d::Zero());
   for (const auto& f : s.faces) {
     const Eigen::Vector3d a = s.vertices[f[1]] - s.vertices[f[0]], b = s.vertices[f[2]] - s.vertices[f[0]];
     const Eigen::Vector3d fn = a.cross(b);  // area-weighted
     for (int k : f) normal[k] += fn;
   }
-  for (size_t i = 0; i < n; ++i) {
+  for (size_t out_i = 0; out_i < n; ++out_i) {
+    const size_t i = static_cast<size_t>(source[out_i]);
     for (int c = 0; c < 3; ++c) {
-      pos[3 * i + c] = static_cast<float>(s.vertices[i](c) * kMetre);
-      lo[c] = std::min(lo[c], static_cast<double>(pos[3 * i + c]));
-      hi[c] = std::max(hi[c], static_cast<double>(pos[3 * i + c]));
+      pos[3 * out_i + c] = static_cast<float>(s.vertices[i](c) * kMetre);
+      lo[c] = std::min(lo[c], static_cast<double>(pos[3 * out_i + c]));
+      hi[c] = std::max(hi[c], static_cast<double>(pos[3 * out_i + c]));
     }
     const Eigen::Vector3d u = normal[i].norm() > 0 ? normal[i].normalized() : Eigen::Vector3d::UnitZ();
-    for (int c = 0; c < 3; ++c) nrm[3 * i + c] = static_cast<float>(u(c));
+    for (int c = 0; c < 3; ++c) nrm[3 * out_i + c] = static_cast<float>(u(c));
     // A link's weight goes to its first joint; links that share it are summed.
     std::array<std::pair<int, double>, kMaxInfluences> jw{};
     int used = 0;
@@ -141,12 +171,12 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose) {
     // unchanged (a posed glb then poses exactly as the one it came from).
     const double scale = std::abs(sum - 1) > 1e-6 ? 1 / sum : 1.0;
     for (int k = 0; k < used; ++k) {
-      jts[4 * i + k] = static_cast<std::uint8_t>(jw[k].first);
-      wts[4 * i + k] = static_cast<float>(jw[k].second * scale);
+      jts[4 * out_i + k] = static_cast<std::uint8_t>(jw[k].first);
+      wts[4 * out_i + k] = static_cast<float>(jw[k].second * scale);
     }
   }
   std::vector<std::uint32_t> idx;
-  for (const auto& f : s.faces)
+  for (const auto& f : faces)
     for (int k : f) idx.push_back(static_cast<std::uint32_t>(k));
   tinygltf::Primitive prim;
   prim.mode = TINYGLTF_MODE_TRIANGLES;
@@ -163,6 +193,30 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose) {
   tinygltf::Material mat;
   mat.name = "skin";
   mat.pbrMetallicRoughness.baseColorFactor = {0.87, 0.72, 0.62, 1.0};
+  if (textured) {
+    std::vector<float> tc;
+    for (const auto& c : uv) tc.insert(tc.end(), {c.x(), c.y()});
+    prim.attributes["TEXCOORD_0"] = add_accessor(m, add_view(m, tc.data(), tc.size() * 4, TINYGLTF_TARGET_ARRAY_BUFFER),
+                                                 TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC2, n);
+    const std::string png = encode_rgb8_png(s.texture.size, s.texture.size, s.texture.rgb);
+    tinygltf::Image image;
+    image.name = "skin";
+    image.mimeType = "image/png";
+    image.bufferView = add_view(m, png.data(), png.size(), -1);
+    m.bufferViews.back().target = 0;
+    m.images.push_back(image);
+    tinygltf::Sampler sampler;
+    sampler.magFilter = TINYGLTF_TEXTURE_FILTER_LINEAR;
+    sampler.minFilter = TINYGLTF_TEXTURE_FILTER_LINEAR_MIPMAP_LINEAR;
+    sampler.wrapS = sampler.wrapT = TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE;
+    m.samplers.push_back(sampler);
+    tinygltf::Texture texture;
+    texture.source = 0;
+    texture.sampler = 0;
+    m.textures.push_back(texture);
+    mat.pbrMetallicRoughness.baseColorFactor = {1.0, 1.0, 1.0, 1.0};
+    mat.pbrMetallicRoughness.baseColorTexture.index = 0;
+  }
   mat.pbrMetallicRoughness.metallicFactor = 0.0;
   mat.pbrMetallicRoughness.roughnessFactor = 0.6;
   m.materials.push_back(mat);
@@ -224,6 +278,7 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose) {
                  {"posture_model", model_to_json(s.model)},
                  {"binding", s.binding.mode}};
   if (pose) extras["pose_deg"] = std::vector<double>(pose->begin(), pose->end());
+  if (textured) extras["seam_sources"] = std::vector<int>(source.begin() + static_cast<long>(s.vertices.size()), source.end());
   scene.extras = to_value(Json{{"handskin", extras}});
   m.scenes.push_back(scene);
   m.defaultScene = 0;
@@ -235,9 +290,20 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose) {
   return {bytes.begin(), bytes.end()};
 }
 
+namespace {
+// Keep an image's encoded bytes as they are: read_skin_glb decodes the texture itself, so
+// that what it accepts (a square 8-bit RGB PNG) and its errors are its own.
+bool keep_image_bytes(tinygltf::Image* image, const int, std::string*, std::string*, int, int, const unsigned char* bytes,
+                      int size, void*) {
+  image->image.assign(bytes, bytes + size);
+  return true;
+}
+}  // namespace
+
 RiggedSkin read_skin_glb(const std::string& file) {
   tinygltf::Model m;
   tinygltf::TinyGLTF gltf;
+  gltf.SetImageLoader(keep_image_bytes, nullptr);
   std::string err, warn;
   if (!gltf.LoadBinaryFromFile(&m, &err, &warn, file)) {
     std::string first = err.substr(0, err.find('\n'));
@@ -362,6 +428,49 @@ RiggedSkin read_skin_glb(const std::string& file) {
     for (int c = 0; c < 3; ++c)
       if (idx[k + c] >= n) throw InputError(file, "indices: a vertex index out of range");
     s.faces.push_back({static_cast<int>(idx[k]), static_cast<int>(idx[k + 1]), static_cast<int>(idx[k + 2])});
+  }
+  // The texture: its image, and each face's corners' coordinates.
+  const int material = prim.material;
+  const int tex = material >= 0 && material < static_cast<int>(m.materials.size())
+                      ? m.materials[material].pbrMetallicRoughness.baseColorTexture.index
+                      : -1;
+  if (tex >= 0) {
+    if (tex >= static_cast<int>(m.textures.size()) || m.textures[tex].source < 0 ||
+        m.textures[tex].source >= static_cast<int>(m.images.size()))
+      throw InputError(file, "the skin's base colour texture names no image");
+    const tinygltf::Image& image = m.images[m.textures[tex].source];
+    if (image.mimeType != "image/png") throw InputError(file, "the skin's texture must be a PNG (found " + image.mimeType + ")");
+    const Rgb8Image rgb = decode_rgb8_png(std::string(image.image.begin(), image.image.end()), file + ": the skin's texture", 8192);
+    if (rgb.width != rgb.height) throw InputError(file, "the skin's texture must be square");
+    s.texture.size = rgb.width;
+    s.texture.rgb = rgb.rgb;
+    const std::vector<float> tc = accessor_floats(attr("TEXCOORD_0"), TINYGLTF_TYPE_VEC2, "TEXCOORD_0");
+    if (tc.size() != 2 * n) throw InputError(file, "TEXCOORD_0 and POSITION differ in count");
+    for (float f : tc)
+      if (f < 0 || f > 1) throw InputError(file, "TEXCOORD_0: a coordinate outside [0, 1]");
+    for (const auto& f : s.faces) {
+      std::array<Eigen::Vector2f, 3> c;
+      for (int k = 0; k < 3; ++k) c[k] = {tc[2 * f[k]], tc[2 * f[k] + 1]};
+      s.texture.corner_uv.push_back(c);
+    }
+  }
+  // Vertices written once per chart (after the skin's own) go back to their skin vertex.
+  if (h.contains("seam_sources")) {
+    const Json& seams = h["seam_sources"];
+    if (!seams.is_array() || seams.size() > n) throw InputError(file, "extras.handskin.seam_sources must be a list of vertex indices");
+    const size_t skin_n = n - seams.size();
+    for (size_t k = 0; k < seams.size(); ++k) {
+      if (!seams[k].is_number_integer() || seams[k].get<long long>() < 0 || seams[k].get<long long>() >= static_cast<long long>(skin_n))
+        throw InputError(file, "extras.handskin.seam_sources[" + std::to_string(k) + "] is not a vertex of the skin");
+      const size_t src = seams[k].get<size_t>();
+      if (s.vertices[skin_n + k] != s.vertices[src])
+        throw InputError(file, "seam vertex " + std::to_string(skin_n + k) + " is not a copy of skin vertex " + std::to_string(src));
+    }
+    for (auto& f : s.faces)
+      for (int& v : f)
+        if (static_cast<size_t>(v) >= skin_n) v = seams[static_cast<size_t>(v) - skin_n].get<int>();
+    s.vertices.resize(skin_n);
+    s.binding.vertices.resize(skin_n);
   }
   return s;
 }

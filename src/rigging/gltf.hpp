@@ -8,13 +8,18 @@
 ///   its first joint);
 /// - a root node "hand" turning the palm frame (Z up from the scanner's table) to glTF's Y up;
 /// - in the scene's extras, "handskin": the rig (hand-rig/1, mm), the posture model
-///   (hand-posture/1) and the binding mode — everything `pose` needs in one file.
+///   (hand-posture/1) and the binding mode — everything `pose` needs in one file;
+/// - with a texture: TEXCOORD_0 and the image (PNG, in the binary chunk) as the material's
+///   base colour. A vertex whose corners lie in different charts is written once per chart:
+///   the skin's own vertices come first, in order, and extras.handskin.seam_sources names the
+///   skin vertex of each vertex after them, so that reading gives back the skin as it was.
 #include <array>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "core/rig.hpp"
+#include "core/texture_map.hpp"
 #include "posture/model.hpp"
 #include "posture/skeleton.hpp"
 #include "rigging/binding.hpp"
@@ -27,6 +32,7 @@ struct RiggedSkin {
   Rig rig;
   SkinBinding binding;
   PostureModel model;
+  TextureMap texture;  ///< empty: none (the material is a flat skin tone)
 };
 
 /// The glb's bytes; `pose` (if given) sets the joint nodes to that posture (the mesh and the
@@ -34,7 +40,8 @@ struct RiggedSkin {
 std::vector<unsigned char> skin_glb(const RiggedSkin& skin, const Angles* pose = nullptr);
 /// Throws InputError naming `file`: not a glb, no handskin extras or of another version, not
 /// the 25 expected joints, non-finite or inconsistent bind matrices, weights that are not
-/// weights.
+/// weights, a texture that is not a square 8-bit RGB(A) PNG or texture coordinates out of
+/// [0, 1], seam vertices that are not copies of their skin vertex.
 RiggedSkin read_skin_glb(const std::string& file);
 
 }  // namespace handskin

@@ -39,7 +39,11 @@ PoseQuality pose_quality(const std::vector<Eigen::Vector3d>& v, const std::vecto
     }
     // Link k runs from joint link_joint(k) to joint k + 1; its parent link ends where it starts.
     auto adjacent = [](int a, int b) { return a == b || link_joint(a) == b + 1 || link_joint(b) == a + 1; };
-    for (const auto& [f, g] : pairs) q.folding_pairs += adjacent(dominant[f.idx()], dominant[g.idx()]);
+    for (const auto& [f, g] : pairs)
+      if (adjacent(dominant[f.idx()], dominant[g.idx()])) {
+        ++q.folding_pairs;
+        q.folding_links.push_back({dominant[f.idx()], dominant[g.idx()]});
+      }
   }
   return q;
 }

@@ -1,6 +1,5 @@
 #include "synth/replica.hpp"
 
-
 #include <algorithm>
 #include <cstdio>
 #include <map>
@@ -8,6 +7,7 @@
 #include "core/errors.hpp"
 #include "mesh/triangle_tree.hpp"
 #include "core/random.hpp"
+#include "synth/albedo.hpp"
 
 namespace handskin {
 
@@ -108,6 +108,39 @@ void icosphere(const Eigen::Vector3d& centre, double radius, int levels, std::ve
   for (const auto& p : v) vertices->push_back(centre + radius * p);
   *faces = f;
 }
+
+namespace {
+
+// The photo of one scan: per pixel, the colour of what the camera sees there (the scanner
+// recorded the face and height of the first hit): hand faces come first in the scene, then
+// the markers' spheres.
+Rgb8Image take_photo(const ScanSimulation& sim, const ScannerOptions& so, const Eigen::Isometry3d& T_scan_hand,
+                     const std::vector<Eigen::Vector3d>& hv, const std::vector<std::array<int, 3>>& hf,
+                     const SkinAlbedo& albedo) {
+  Rgb8Image img;
+  img.width = so.points;
+  img.height = so.scanlines;
+  img.rgb.resize(static_cast<size_t>(img.width) * img.height * 3);
+  const Eigen::Isometry3d T_hand_scan = T_scan_hand.inverse();
+  for (int i = 0; i < so.scanlines; ++i)
+    for (int j = 0; j < so.points; ++j) {
+      const size_t idx = static_cast<size_t>(i) * so.points + j;
+      const int f = sim.camera_face[idx];
+      Eigen::Vector3f c(0.34f, 0.35f, 0.38f);  // the table
+      if (f >= static_cast<int>(hf.size())) {
+        c = {0.93f, 0.93f, 0.91f};  // a plaster marker
+      } else if (f >= 0) {
+        const auto& t = hf[static_cast<size_t>(f)];
+        const Eigen::Vector3d n = (hv[t[1]] - hv[t[0]]).cross(hv[t[2]] - hv[t[0]]).normalized();
+        c = albedo.colour(T_hand_scan * Eigen::Vector3d(i * so.x_step(), j * so.y_step(), sim.camera_z[idx]), n);
+      }
+      for (int ch = 0; ch < 3; ++ch)
+        img.rgb[idx * 3 + ch] = static_cast<std::uint8_t>(std::lround(255.0 * std::clamp(c[ch], 0.f, 1.f)));
+    }
+  return img;
+}
+
+}  // namespace
 
 ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const ReplicaOptions& ro,
                               const ScannerOptions& so, std::uint64_t seed, bool verbose) {
@@ -318,6 +351,9 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
       out.rig_palm.frame = "palm";
       for (auto& j : out.rig_palm.joints) j = T_palm_rig * j;
       if (rig_in.palm_normal) out.rig_palm.palm_normal = (T_palm_rig.linear() * *rig_in.palm_normal).normalized();
+      const SkinAlbedo albedo(rig_hand);
+      out.back_photo = take_photo(out.back, so, out.T_back_hand, hv, hf, albedo);
+      out.palm_photo = take_photo(out.palm, so, out.T_palm_hand, hv, hf, albedo);
       out.skin_palm = hand_in;
       for (auto vh : out.skin_palm.vertices()) {
         const auto& p = out.skin_palm.point(vh);

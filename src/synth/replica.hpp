@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "core/png_io.hpp"
 #include "core/rig.hpp"
 #include "mesh/trimesh.hpp"
 #include "synth/scanner.hpp"
@@ -37,6 +38,9 @@ struct ScanPair {
   std::optional<Eigen::Vector3d> extra_bump_hand; ///< the blob's centre, hand frame (if any)
   Rig rig_palm;                                   ///< joints in the palm scan's frame
   TriMesh skin_palm;                              ///< the true skin (no markers), palm frame
+  /// Each scan's photo: the camera's colour image on the range image's grid (row = scanline),
+  /// the hand painted by SkinAlbedo, the markers white plaster, the table grey.
+  Rgb8Image back_photo, palm_photo;
   int placement_attempts = 0;
 };
 

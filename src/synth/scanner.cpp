@@ -71,6 +71,8 @@ ScanSimulation simulate_scan(const Scene& scene, const ScannerOptions& o, ScanSi
   const size_t n = static_cast<size_t>(o.scanlines) * o.points;
   std::vector<double> height(n, 0.0);
   sim.pixel_object.assign(n, kPixelNoReturn);
+  sim.camera_face.assign(n, -1);
+  sim.camera_z.assign(n, 0.f);
   std::vector<char> shadowed(n, 0), steep(n, 0);
 
   const Eigen::Vector3d L = o.laser_direction();
@@ -96,7 +98,10 @@ ScanSimulation simulate_scan(const Scene& scene, const ScannerOptions& o, ScanSi
         const K::Vector_3 nk = CGAL::cross_product(t[1] - t[0], t[2] - t[0]);
         nrm = Eigen::Vector3d(nk.x(), nk.y(), nk.z()).normalized();
         if (nrm.z() < 0) nrm = -nrm;  // seen from above: the side facing the camera
-        object = scene.face_object[static_cast<size_t>(hit->second - tris.begin())];
+        const auto face = hit->second - tris.begin();
+        object = scene.face_object[static_cast<size_t>(face)];
+        sim.camera_face[idx] = static_cast<int>(face);
+        sim.camera_z[idx] = static_cast<float>(p.z());
       } else {
         p = {x, y, o.table_z(x)};
         nrm = table_normal;

@@ -50,6 +50,10 @@ struct ScanSimulation {
   RangeScan scan;
   std::vector<int> pixel_object;     ///< per pixel: object id, kPixelTable, or kPixelNoReturn
   std::vector<size_t> returns_per_object;
+  /// What the camera sees at each pixel, lit or not (for the scan's photo): the scene face of
+  /// the first hit above the table (−1: the table) and its height, mm.
+  std::vector<int> camera_face;
+  std::vector<float> camera_z;
   size_t shadowed = 0, too_steep = 0;
 };
 

@@ -1,0 +1,182 @@
+// The skin's texture (issue 15, item 5): the scanner's photos, the bake from both photos, the
+// texture in skin.glb and in the pictures, and bad photos.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+
+#include "core/atomic_file.hpp"
+#include "core/json_util.hpp"
+#include "core/png_io.hpp"
+#include "core/rig.hpp"
+#include "render/preview.hpp"
+#include "rigging/gltf.hpp"
+#include "synth/albedo.hpp"
+#include "test_util.hpp"
+
+using namespace handskin;
+namespace fs = std::filesystem;
+
+namespace {
+const std::string kBin = HANDSKIN_BINARY, kFix = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
+
+const std::string& fixture_run() {
+  static const std::string dir = [] {
+    const std::string d = test::temp_dir("texture") + "/run";
+    std::string out;
+    const int rc = test::run(kBin + " -q run --back " + kFix + "back --palm " + kFix + "palm --rig " + kFix + "rig.json --out " + d, &out);
+    if (rc != 0) ADD_FAILURE() << out;
+    return d;
+  }();
+  return dir;
+}
+
+Eigen::Vector3d texel(const TextureMap& t, const Eigen::Vector2f& uv) {
+  const int x = std::clamp(static_cast<int>(uv.x() * t.size), 0, t.size - 1);
+  const int y = std::clamp(static_cast<int>(uv.y() * t.size), 0, t.size - 1);
+  const std::uint8_t* c = &t.rgb[(static_cast<size_t>(y) * t.size + x) * 3];
+  return {double(c[0]), double(c[1]), double(c[2])};
+}
+}  // namespace
+
+// The baked colour against the hand's true colour: the albedo the synthetic camera photographed,
+// evaluated where each face's centre lies (the skin is within a few tenths of a millimetre of
+// the true surface, the creases half a millimetre wide).
+TEST(Texture, TheFixturesSkinTakesTheHandsOwnColoursFromBothPhotos) {
+  const RiggedSkin s = read_skin_glb(fixture_run() + "/skin.glb");
+  ASSERT_FALSE(s.texture.empty());
+  ASSERT_EQ(s.texture.corner_uv.size(), s.faces.size());
+  EXPECT_EQ(s.texture.size, 1024);
+  const Rig rig = load_rig(kFix + "rig.json");
+  const Eigen::Isometry3d T = hand_frame_from_rig(rig);
+  Rig rig_hand = rig;
+  for (auto& j : rig_hand.joints) j = T * j;
+  const SkinAlbedo albedo(rig_hand);
+  std::vector<double> err;
+  size_t flat = 0;
+  for (size_t f = 0; f < s.faces.size(); ++f) {
+    const auto& c = s.texture.corner_uv[f];
+    if (c[0] == c[1] && c[1] == c[2]) {  // the flat block: faces neither camera sees
+      ++flat;
+      continue;
+    }
+    const auto& t = s.faces[f];
+    const Eigen::Vector3d p = (s.vertices[t[0]] + s.vertices[t[1]] + s.vertices[t[2]]) / 3.0;
+    const Eigen::Vector3d n = (s.vertices[t[1]] - s.vertices[t[0]]).cross(s.vertices[t[2]] - s.vertices[t[0]]).normalized();
+    const Eigen::Vector3d truth = 255.0 * albedo.colour(T * p, T.linear() * n).cast<double>();
+    const Eigen::Vector3d got = texel(s.texture, (c[0] + c[1] + c[2]) / 3.0f);
+    err.push_back((got - truth).cwiseAbs().maxCoeff());
+  }
+  std::sort(err.begin(), err.end());
+  double mean = 0;
+  for (double e : err) mean += e;
+  mean /= err.size();
+  const double p95 = err[err.size() * 95 / 100];
+  std::printf("texture vs the true albedo over %zu faces: mean %.1f, p95 %.1f, max %.1f (0-255); %zu faces in the flat block\n",
+              err.size(), mean, p95, err.back(), flat);
+  EXPECT_LT(mean, 6.0);
+  EXPECT_LT(p95, 20.0);
+  EXPECT_LT(flat, s.faces.size() / 20);
+  // The report's figures: both photos used, a blend across the flanks, little unseen.
+  const Json report = load_json_object(fixture_run() + "/report.json");
+  const Json* stage = nullptr;
+  for (const auto& st : report["stages"])
+    if (st["name"] == "texture") stage = &st;
+  ASSERT_NE(stage, nullptr);
+  EXPECT_GT((*stage)["area_palm_photo_only"].get<double>(), 0.35);
+  EXPECT_GT((*stage)["area_back_photo_only"].get<double>(), 0.35);
+  EXPECT_GT((*stage)["area_blended"].get<double>(), 0.03);
+  EXPECT_LT((*stage)["area_unseen"].get<double>(), 0.06);
+  EXPECT_TRUE(fs::exists(fixture_run() + "/texture.png"));
+}
+
+TEST(Texture, SkinGlbCarriesTheTextureAndGivesBackTheSkinItWasMadeFrom) {
+  const RiggedSkin s = read_skin_glb(fixture_run() + "/skin.glb");
+  const TriMesh skin = load_mesh(fixture_run() + "/skin.ply");
+  ASSERT_EQ(s.vertices.size(), skin.n_vertices());  // the seam copies folded back
+  const auto faces = mesh_faces(skin);
+  ASSERT_EQ(s.faces.size(), faces.size());
+  for (size_t f = 0; f < faces.size(); ++f) ASSERT_EQ(s.faces[f], faces[f]);
+  // Written again and read again: the same mesh, texture and coordinates.
+  const std::string dir = test::temp_dir("texture-glb");
+  const auto bytes = skin_glb(s);
+  write_file_atomic(dir + "/again.glb", std::string(bytes.begin(), bytes.end()));
+  const RiggedSkin t = read_skin_glb(dir + "/again.glb");
+  EXPECT_EQ(t.vertices, s.vertices);
+  EXPECT_EQ(t.faces, s.faces);
+  EXPECT_EQ(t.texture.rgb, s.texture.rgb);
+  ASSERT_EQ(t.texture.corner_uv.size(), s.texture.corner_uv.size());
+  for (size_t f = 0; f < s.faces.size(); ++f)
+    for (int k = 0; k < 3; ++k) ASSERT_EQ(t.texture.corner_uv[f][k], s.texture.corner_uv[f][k]);
+  // A glb whose texture is not a PNG is refused in one line.
+  std::string g(bytes.begin(), bytes.end());
+  const size_t at = g.find("image/png");
+  ASSERT_NE(at, std::string::npos);
+  g.replace(at, 9, "image/gif");
+  test::write_text(dir + "/gif.glb", g);
+  std::string out;
+  EXPECT_EQ(test::run(kBin + " -q pose --model " + dir + "/gif.glb --out " + dir + "/x.ply", &out), 1);
+  EXPECT_NE(out.find("must be a PNG"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir + "/x.ply"));
+}
+
+// The thesis's blend: the colour is (1 − w) × the lit white surface + w × the texture.
+TEST(Texture, PicturesBlendShadingAndTextureByTheWeight) {
+  const TriMesh quad = mesh_from_arrays({{0, 0, 0}, {10, 0, 0}, {10, 10, 0}, {0, 10, 0}}, {{{0, 1, 2}}, {{0, 2, 3}}});
+  TextureMap red;
+  red.size = 64;
+  red.rgb.assign(64 * 64 * 3, 0);
+  for (size_t i = 0; i < red.rgb.size(); i += 3) red.rgb[i] = 200;
+  red.corner_uv = {{Eigen::Vector2f(0.1f, 0.1f), {0.9f, 0.1f}, {0.9f, 0.9f}}, {Eigen::Vector2f(0.1f, 0.1f), {0.9f, 0.9f}, {0.1f, 0.9f}}};
+  RenderOptions ro;
+  ro.width = ro.height = 64;
+  ro.texture = &red;
+  const auto centre = [&](float w) {
+    ro.texture_weight = w;
+    const Rgb8Image img = decode_rgb8_png(render_mesh_png({&quad}, ro), "picture");
+    const std::uint8_t* c = &img.rgb[(32 * 64 + 32) * 3];
+    return Eigen::Vector3d(c[0], c[1], c[2]);
+  };
+  const Eigen::Vector3d textured = centre(1.0f), shaded = centre(0.0f), thesis = centre(0.7f);
+  EXPECT_NEAR(textured.x(), 200, 3);
+  EXPECT_LT(textured.y(), 3);
+  EXPECT_NEAR(shaded.x(), shaded.y(), 3);  // white light on a white surface: grey
+  EXPECT_GT(shaded.y(), 100);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(thesis(c), 0.3 * shaded(c) + 0.7 * textured(c), 3) << c;
+}
+
+TEST(Texture, BadPhotosAreRefusedInOneLineAndNothingIsWritten) {
+  const std::string dir = test::temp_dir("texture-bad");
+  const std::string base = kBin + " -q run --back " + kFix + "back --palm " + kFix + "palm --rig " + kFix + "rig.json --out " + dir + "/out";
+  std::string out;
+  auto refused = [&](const std::string& args, const std::string& says) {
+    EXPECT_EQ(test::run(base + " " + args, &out), 1) << args;
+    EXPECT_NE(out.find(says), std::string::npos) << out;
+    EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+    EXPECT_FALSE(fs::exists(dir + "/out"));
+  };
+  refused("--back-photo " + kFix + "back.png", "must be 8-bit RGB");  // the range image
+  write_file_atomic(dir + "/small.png", encode_rgb8_png(10, 10, std::vector<std::uint8_t>(300, 128)));
+  refused("--palm-photo " + dir + "/small.png", "small.png: the photo is 10 x 10 pixels; its scan's grid is 512 x 512");
+  refused("--back-photo " + dir + "/missing.png", "missing.png");
+  test::write_text(dir + "/bad.json", R"({"format": "handskin-pipeline/1", "texture": {"size": 10}})");
+  EXPECT_EQ(test::run(base + " --pipeline " + dir + "/bad.json", &out), 1);
+  EXPECT_NE(out.find("texture.size"), std::string::npos) << out;
+}
+
+TEST(Texture, WithoutPhotosTheRunSaysSoAndTheSkinIsPlain) {
+  const std::string dir = test::temp_dir("texture-none");
+  for (const char* f : {"back.png", "back.json", "palm.png", "palm.json"}) fs::copy_file(kFix + f, dir + "/" + f);
+  fs::copy_file(kFix + "back.photo.png", dir + "/back.photo.png");  // one photo alone is not enough
+  std::string out;
+  ASSERT_EQ(test::run(kBin + " run --back " + dir + "/back --palm " + dir + "/palm --rig " + kFix + "rig.json --out " + dir + "/out", &out), 0) << out;
+  EXPECT_NE(out.find("no texture: " + dir + "/palm.photo.png not found"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir + "/out/texture.png"));
+  EXPECT_TRUE(read_skin_glb(dir + "/out/skin.glb").texture.empty());
+  // synth scan --no-photos writes none; by default it writes both.
+  const std::string hand = dir + "/hand";
+  ASSERT_EQ(test::run(kBin + " -q synth hand --out " + hand + " --no-render", &out), 0) << out;
+  ASSERT_EQ(test::run(kBin + " -q synth scan --mesh " + hand + "/hand.ply --rig " + hand + "/hand_rig.json --out " + dir +
+                          "/scan --no-render --no-photos", &out), 0) << out;
+  EXPECT_FALSE(fs::exists(dir + "/scan/back.photo.png"));
+}
