@@ -20,17 +20,7 @@ namespace fs = std::filesystem;
 namespace {
 const std::string kBin = HANDSKIN_BINARY, kFix = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
 
-// The default fixture run once for every test here: its folder.
-const std::string& fixture_run() {
-  static const std::string dir = [] {
-    const std::string d = test::temp_dir("rigging") + "/run";
-    std::string out;
-    const int rc = test::run(kBin + " -q run --back " + kFix + "back --palm " + kFix + "palm --rig " + kFix + "rig.json --out " + d, &out);
-    if (rc != 0) ADD_FAILURE() << out;
-    return d;
-  }();
-  return dir;
-}
+const std::string& fixture_run() { return test::default_fixture_run(); }
 
 int D(const char* n) { return dof_index(n).value(); }
 

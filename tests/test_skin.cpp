@@ -446,6 +446,62 @@ TEST(SkinSteps, DigitPlanesAreSquareToTheirLinksAndOrderedAlongThem) {
   }
 }
 
+TEST(SkinSteps, CurledFingerPlanesDoNotCrossInsideTheFinger) {
+  // A thick middle finger (radius 9 mm) curled 40 deg at the PIP and 30 deg at the DIP. The
+  // planes through a bent joint must turn gradually enough that none crosses the next one
+  // inside the finger: no sample lies ahead of one plane and behind the next (such samples
+  // fell into the wrong slab on the inside of a curled finger's bends).
+  HandFrame H;
+  for (auto& j : H.J) j = Eigen::Vector3d(-100, 0, 0);
+  const auto c = finger_chain(Finger::Middle);
+  const double flex[] = {0, 0, 40, 30};  // at the metacarpal base, MCP, PIP, DIP
+  const double len[] = {60, 45, 28, 24};
+  Eigen::Vector3d p(0, 0, 0), d = Eigen::Vector3d::UnitX();
+  H.J[c[0]] = p;
+  for (size_t k = 1; k < c.size(); ++k) {
+    d = Eigen::AngleAxisd(-flex[k - 1] * M_PI / 180, Eigen::Vector3d::UnitY()) * d;  // curl toward -Z (palmar)
+    p += len[k - 1] * d;
+    H.J[c[k]] = p;
+  }
+  TubePoints P;
+  P.tube.resize(kSkinTubes);
+  Rng rng(3);
+  const double r = 9.0;
+  for (size_t k = 1; k + 1 < c.size(); ++k) {  // capsules along the finger's links
+    const Eigen::Vector3d a = H.J[c[k]], b = H.J[c[k + 1]], ax = (b - a).normalized();
+    const Eigen::Vector3d u = ax.cross(Eigen::Vector3d::UnitY()).normalized(), v = ax.cross(u);
+    for (int n = 0; n < 12000; ++n) {
+      const double t = rng.uniform(0, (b - a).norm()), ang = rng.uniform(0, 2 * M_PI);
+      const Eigen::Vector3d q = a + t * ax + r * (std::cos(ang) * u + std::sin(ang) * v);
+      bool inside_other = false;  // keep the outer surface of the union only
+      for (size_t m = 1; m + 1 < c.size(); ++m) {
+        if (m == k) continue;
+        const Eigen::Vector3d a2 = H.J[c[m]], b2 = H.J[c[m + 1]];
+        const double s = std::clamp((q - a2).dot(b2 - a2) / (b2 - a2).squaredNorm(), 0.0, 1.0);
+        inside_other |= (q - (a2 + s * (b2 - a2))).norm() < r - 1e-6;
+      }
+      if (!inside_other) P.tube[1 + static_cast<int>(Finger::Middle)].push_back(q);
+    }
+  }
+  const TubeBuild t = digit_planes(H, P, static_cast<int>(Finger::Middle), 2.5);
+  ASSERT_TRUE(t.report.present);
+  const auto crossings = [&](const std::vector<Station>& st) {
+    size_t n = 0;
+    for (const auto& q : P.tube[1 + static_cast<int>(Finger::Middle)])
+      for (size_t k = 0; k + 1 < st.size(); ++k) n += st[k].n.dot(q - st[k].o) < 0 && st[k + 1].n.dot(q - st[k + 1].o) > 0;
+    return n;
+  };
+  EXPECT_EQ(crossings(t.st), 0u);
+  // The same stations turning through each joint within one station's spacing do cross.
+  std::vector<Eigen::Vector3d> axis;
+  for (size_t k = 1; k < c.size(); ++k) axis.push_back(H.J[c[k]]);
+  const Polyline pl(axis);
+  const double hs = (t.st[1].o - t.st[0].o).norm();
+  std::vector<Station> abrupt;
+  for (size_t k = 0; k < t.st.size(); ++k) abrupt.push_back(frame_at(pl.at(k * hs), pl.tangent(k * hs, hs)));
+  EXPECT_GT(crossings(abrupt), 50u);  // 86 of the samples
+}
+
 TEST(SkinSteps, RingsOfANoisyCylinderHaveItsRadiusAndSameCount) {
   std::vector<Eigen::Vector3d> pts;
   TubeBuild t = cylinder_tube(40, 8.0, 2.0, 0.05, &pts);

@@ -20,16 +20,7 @@ namespace fs = std::filesystem;
 namespace {
 const std::string kBin = HANDSKIN_BINARY, kFix = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
 
-const std::string& fixture_run() {
-  static const std::string dir = [] {
-    const std::string d = test::temp_dir("texture") + "/run";
-    std::string out;
-    const int rc = test::run(kBin + " -q run --back " + kFix + "back --palm " + kFix + "palm --rig " + kFix + "rig.json --out " + d, &out);
-    if (rc != 0) ADD_FAILURE() << out;
-    return d;
-  }();
-  return dir;
-}
+const std::string& fixture_run() { return test::default_fixture_run(); }
 
 Eigen::Vector3d texel(const TextureMap& t, const Eigen::Vector2f& uv) {
   const int x = std::clamp(static_cast<int>(uv.x() * t.size), 0, t.size - 1);

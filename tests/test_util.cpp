@@ -1,5 +1,7 @@
 #include "test_util.hpp"
 
+#include <gtest/gtest.h>
+
 #include "synth/replica.hpp"
 
 #include <zlib.h>
@@ -97,6 +99,20 @@ void add_sphere(Scene* s, const Eigen::Vector3d& centre, double radius, int obje
   std::vector<std::array<int, 3>> f;
   icosphere(centre, radius, 5, &v, &f);
   s->add(v, f, object);
+}
+
+const std::string& default_fixture_run() {
+  static const std::string dir = [] {
+    const std::string fix = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
+    const std::string d = temp_dir("fixture-run") + "/run";
+    std::string out;
+    const int rc = run(std::string(HANDSKIN_BINARY) + " -q run --back " + fix + "back --palm " + fix + "palm --rig " + fix +
+                           "rig.json --out " + d,
+                       &out);
+    if (rc != 0) ADD_FAILURE() << out;
+    return d;
+  }();
+  return dir;
 }
 
 }  // namespace handskin::test

@@ -16,6 +16,9 @@ std::string temp_dir(const std::string& tag);
 std::string make_png(int w, int h, int depth, int colour_type, const std::vector<std::uint8_t>& raw_rows_no_filter);
 /// Run a shell command; returns exit code, stdout+stderr in *output.
 int run(const std::string& cmd, std::string* output);
+/// `handskin run` on the default fixture (scans, photos, rig), once per test process: its
+/// output folder. A failed run is reported as a test failure.
+const std::string& default_fixture_run();
 /// Generalised winding number of point p w.r.t. a closed triangle mesh (≈1 inside, ≈0 outside).
 double winding_number(const TriMesh& mesh, const Eigen::Vector3d& p);
 void write_text(const std::string& path, const std::string& text);
