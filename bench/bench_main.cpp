@@ -15,6 +15,9 @@
 #include "render/preview.hpp"
 #include "rigging/crease.hpp"
 #include "texture/texture.hpp"
+#include "rigging/gltf.hpp"
+#include "studio/api.hpp"
+#include "studio/server.hpp"
 #include "posture/solver.hpp"
 #include "register/registration.hpp"
 #include "skin/auto_rig.hpp"
@@ -29,6 +32,11 @@
 #include "synth/hand_mesher.hpp"
 #include "synth/hand_model.hpp"
 #include "synth/replica.hpp"
+
+#include <httplib.h>  // after Eigen's headers (see studio/server.cpp)
+
+#include <atomic>
+#include <thread>
 
 using namespace handskin;
 static const std::string kFix = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
@@ -395,6 +403,74 @@ static void BM_RenderSkinTextured1024(benchmark::State& st) {
   st.counters["png_bytes"] = static_cast<double>(bytes);
 }
 BENCHMARK(BM_RenderSkinTextured1024)->Unit(benchmark::kMillisecond);
+
+// The studio (issue 16): a solve through the API in process (JSON in, angles and joint
+// transforms out), and 10 000 solve requests over loopback HTTP from one client (keep-alive),
+// with their latency percentiles and errors.
+namespace {
+const std::string& studio_glb() {
+  static const std::string path = [] {
+    const RiggedFixture& f = rigged_fixture();
+    RiggedSkin s;
+    s.vertices = f.rest;
+    s.faces = mesh_faces(f.skin.mesh);
+    s.rig = f.rig;
+    s.binding = f.binding;
+    s.model = builtin_model("anatomical");
+    const auto bytes = skin_glb(s);
+    const std::string p = (std::filesystem::temp_directory_path() / "handskin-bench-studio.glb").string();
+    write_file_atomic(p, std::string(bytes.begin(), bytes.end()));
+    return p;
+  }();
+  return path;
+}
+}  // namespace
+static void BM_StudioApiSolve(benchmark::State& st) {
+  const StudioModel m(read_skin_glb(studio_glb()));
+  double v = 0;
+  for (auto _ : st) {
+    v = std::fmod(v + 0.37, 90.0);
+    benchmark::DoNotOptimize(m.solve("{\"inputs\": {\"L2.flex\": " + std::to_string(v) + "}}").body.size());
+  }
+}
+BENCHMARK(BM_StudioApiSolve)->Unit(benchmark::kMicrosecond);
+static void BM_StudioLoadTest10k(benchmark::State& st) {
+  const std::string web = (std::filesystem::temp_directory_path() / "handskin-bench-studio-web").string();
+  std::filesystem::create_directories(web);
+  write_file_atomic(web + "/index.html", "<!doctype html><title>bench</title>");
+  StudioOptions o;
+  o.model = studio_glb();
+  o.port = 0;
+  o.web_dir = web;
+  StudioServer server(o);
+  std::atomic<int> port{-1};
+  std::thread t([&] { server.run([&](int p) { port = p; }); });
+  while (port < 0) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  std::vector<double> ms;
+  int errors = 0;
+  for (auto _ : st) {
+    httplib::Client c("127.0.0.1", port);
+    c.set_keep_alive(true);
+    c.set_tcp_nodelay(true);  // as browsers do; without it Nagle and delayed ACKs add ~40 ms a request
+    ms.clear();
+    errors = 0;
+    for (int k = 0; k < 10000; ++k) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const auto r = c.Post("/api/solve", "{\"inputs\": {\"L2.flex\": " + std::to_string(k % 90) + "}}", "application/json");
+      ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      errors += !r || r->status != 200;
+    }
+  }
+  server.stop();
+  t.join();
+  std::sort(ms.begin(), ms.end());
+  st.counters["p50_ms"] = ms[ms.size() / 2];
+  st.counters["p99_ms"] = ms[ms.size() * 99 / 100];
+  st.counters["max_ms"] = ms.back();
+  st.counters["errors"] = errors;
+  st.counters["requests"] = static_cast<double>(ms.size());
+}
+BENCHMARK(BM_StudioLoadTest10k)->Unit(benchmark::kSecond)->Iterations(1);
 
 // Binding the fixture's skin by bone heat (24 sparse solves with one factorisation).
 static void BM_BindSkin(benchmark::State& st) {

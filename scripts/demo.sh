@@ -3,6 +3,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
+bash scripts/npm.sh    # three.js and esbuild for the studio page (handskin studio)
 bash scripts/build.sh
 OUT=${OUT:-out/default}
 ./build/handskin run --back fixtures/default/back --palm fixtures/default/palm \

@@ -10,6 +10,7 @@
 #include "render/preview.hpp"
 #include "rigging/crease.hpp"
 #include "rigging/deform.hpp"
+#include "studio/server.hpp"
 #include "rigging/gltf.hpp"
 
 namespace handskin::cli {
@@ -78,6 +79,15 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
               a.out.empty() ? "" : (" -> " + a.out).c_str(), a.png.empty() ? "" : (" -> " + a.png).c_str());
 }
 
+void studio_command(const StudioOptions& o, const Progress& progress) {
+  StudioServer server(o);  // the model and the page load, or a one-line error, before listening
+  server.run([&](int port) {
+    progress("studio", "serving " + o.model + " on http://" + o.address + ":" + std::to_string(port) + "/ (Ctrl-C stops)");
+    std::printf("http://%s:%d/\n", o.address.c_str(), port);
+    std::fflush(stdout);
+  });
+}
+
 }  // namespace
 
 void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out) {
@@ -103,6 +113,15 @@ void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
   out->push_back({pc, [pa, &progress] { pose_command(*pa, progress); }});
+
+  auto so = std::make_shared<StudioOptions>();
+  so->web_dir = HANDSKIN_STUDIO_WEB;
+  auto* sc = app.add_subcommand("studio", "The hand studio: a local web page that poses the skin live with the solver (docs/studio.md)");
+  sc->add_option("--model", so->model, "skin.glb (from run)")->required();
+  sc->add_option("--port", so->port, "Port to listen on (0: any free one, printed)")->check(CLI::Range(0, 65535))->capture_default_str();
+  sc->add_option("--address", so->address, "Address to listen on (loopback unless given)")->capture_default_str();
+  sc->add_option("--web", so->web_dir, "The built page's folder")->capture_default_str();
+  out->push_back({sc, [so, &progress] { studio_command(*so, progress); }});
 }
 
 }  // namespace handskin::cli

@@ -96,12 +96,26 @@ Eigen::Matrix3d palm_to_gltf() {
 
 }  // namespace
 
+std::array<JointNode, kJointCount> joint_nodes(const Skeleton& skel, const Angles& angles) {
+  const auto posed = skel.frames(angles);
+  std::array<JointNode, kJointCount> out;
+  for (int j = 0; j < kJointCount; ++j) {
+    const int p = joints()[j].parent;
+    const Eigen::Isometry3d local = p < 0 ? posed[j] : Eigen::Isometry3d(posed[p].inverse() * posed[j]);
+    const Eigen::Vector3d t = local.translation() * kMetre;
+    const std::vector<double> q = quat_xyzw(local.linear());
+    out[j].translation = {t.x(), t.y(), t.z()};
+    out[j].rotation = {q[0], q[1], q[2], q[3]};
+  }
+  return out;
+}
+
 std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose) {
   HS_CHECK(s.vertices.size() == s.binding.vertices.size(), "binding and mesh differ in size");
   const Skeleton skel(s.rig, "rig");
   Angles zero{};
   const auto rest = skel.frames(zero);
-  const auto posed = skel.frames(pose ? *pose : zero);
+  const auto nodes = joint_nodes(skel, pose ? *pose : zero);
   tinygltf::Model m;
   m.asset.version = "2.0";
   m.asset.generator = "handskin";
@@ -240,11 +254,8 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose) {
   for (int j = 0; j < kJointCount; ++j) {
     tinygltf::Node node;
     node.name = joints()[j].name;
-    const int p = joints()[j].parent;
-    const Eigen::Isometry3d local = p < 0 ? posed[j] : Eigen::Isometry3d(posed[p].inverse() * posed[j]);
-    const Eigen::Vector3d t = local.translation() * kMetre;
-    node.translation = {t.x(), t.y(), t.z()};
-    node.rotation = quat_xyzw(local.linear());
+    node.translation.assign(nodes[j].translation.begin(), nodes[j].translation.end());
+    node.rotation.assign(nodes[j].rotation.begin(), nodes[j].rotation.end());
     m.nodes.push_back(node);
   }
   for (int j = 0; j < kJointCount; ++j) {

@@ -35,6 +35,15 @@ struct RiggedSkin {
   TextureMap texture;  ///< empty: none (the material is a flat skin tone)
 };
 
+/// A joint node's local transform in skin.glb at a posture: relative to its parent joint (the
+/// wrist: to the "hand" node), metres, unit quaternion (x, y, z, w) with w ≥ 0. What viewers
+/// (and the studio page) set on the joints to pose the skin.
+struct JointNode {
+  std::array<double, 3> translation{};
+  std::array<double, 4> rotation{0, 0, 0, 1};
+};
+std::array<JointNode, kJointCount> joint_nodes(const Skeleton& skeleton, const Angles& angles);
+
 /// The glb's bytes; `pose` (if given) sets the joint nodes to that posture (the mesh and the
 /// bind matrices stay the scan posture's), so viewers show it posed.
 std::vector<unsigned char> skin_glb(const RiggedSkin& skin, const Angles* pose = nullptr);

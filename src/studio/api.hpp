@@ -1,0 +1,47 @@
+#pragma once
+/// The hand studio's JSON API (docs/studio.md), as plain functions from a request to a
+/// response, so that the HTTP server (server.cpp) only routes and the API is tested without a
+/// socket:
+/// - `GET /api/dofs`: every DOF with its joint, limits, relaxed value and unit, and the
+///   parameter set (the posture model skin.glb carries);
+/// - `POST /api/solve` with `{"inputs": {"L2.flex": 60}, "torques": {...}, "targets":
+///   {"I3.flex": 40 | {"deg": 40, "weight": 2}}}`: every DOF's angle, the potential, and the
+///   joint nodes' local transforms (what the page sets on skin.glb's joints).
+/// Bad requests get a 4xx status and `{"error": "<one line>"}`: a body over kMaxBodyBytes
+/// (413), JSON that does not parse or nests deeper than kMaxDepth, a key of the wrong type, an
+/// unknown DOF, a value that is not a finite number (400), a pinned value beyond the DOF's
+/// limits (422).
+#include <mutex>
+#include <string>
+
+#include "posture/skeleton.hpp"
+#include "posture/solver.hpp"
+#include "rigging/gltf.hpp"
+
+namespace handskin {
+
+constexpr size_t kMaxBodyBytes = 64 * 1024;
+constexpr int kMaxDepth = 8;
+
+struct ApiResponse {
+  int status = 200;
+  std::string body;  ///< JSON
+};
+
+/// The studio's model: skin.glb as read, its solver and skeleton. The solver's caches are not
+/// thread-safe, so solves take the lock.
+class StudioModel {
+ public:
+  explicit StudioModel(RiggedSkin skin);
+  const RiggedSkin& skin() const { return skin_; }
+  ApiResponse dofs() const;
+  ApiResponse solve(const std::string& body) const;
+
+ private:
+  RiggedSkin skin_;
+  PostureSolver solver_;
+  Skeleton skeleton_;
+  mutable std::mutex mutex_;
+};
+
+}  // namespace handskin

@@ -1,0 +1,130 @@
+// The hand studio's API and server (issue 16, first part): every malformed request gets a 4xx
+// and one line, the server serves only its own files and keeps serving.
+#include <gtest/gtest.h>
+
+#include <thread>
+
+#include "core/json_util.hpp"
+#include "studio/api.hpp"
+#include "studio/server.hpp"
+#include "test_util.hpp"
+
+#include <httplib.h>  // after Eigen's headers (see studio/server.cpp)
+
+using namespace handskin;
+
+namespace {
+const std::string kBin = HANDSKIN_BINARY;
+
+const StudioModel& model() {
+  static const StudioModel m(read_skin_glb(test::default_fixture_run() + "/skin.glb"));
+  return m;
+}
+
+void expect_refused(const std::string& body, int status, const std::string& says) {
+  const ApiResponse r = model().solve(body);
+  EXPECT_EQ(r.status, status) << body.substr(0, 80);
+  const Json j = Json::parse(r.body);
+  ASSERT_TRUE(j.contains("error")) << r.body;
+  const std::string e = j["error"];
+  EXPECT_NE(e.find(says), std::string::npos) << e;
+  EXPECT_EQ(e.find('\n'), std::string::npos) << e;
+}
+}  // namespace
+
+TEST(Studio, DofsListsAllThirtyFiveWithTheirLimits) {
+  const ApiResponse r = model().dofs();
+  ASSERT_EQ(r.status, 200);
+  const Json j = Json::parse(r.body);
+  ASSERT_EQ(j["dofs"].size(), 35u);
+  EXPECT_EQ(j["parameter_set"], "anatomical");
+  for (const auto& d : j["dofs"]) {
+    EXPECT_LE(d["min"].get<double>(), d["relaxed"].get<double>()) << d;
+    EXPECT_LE(d["relaxed"].get<double>(), d["max"].get<double>()) << d;
+  }
+}
+
+TEST(Studio, SolveAnswersEveryDofAndTheJointsAndAnInputMovesTheOtherFingers) {
+  const Json relaxed = Json::parse(model().solve("{}").body);
+  const ApiResponse r = model().solve(R"({"inputs": {"L2.flex": 80}, "targets": {"I3.flex": {"deg": 30, "weight": 2}}})");
+  ASSERT_EQ(r.status, 200) << r.body;
+  const Json j = Json::parse(r.body);
+  EXPECT_EQ(j["angles"].size(), 35u);
+  EXPECT_EQ(j["joints"].size(), 25u);
+  EXPECT_DOUBLE_EQ(j["angles"]["little.mcp.flex"].get<double>(), 80.0);
+  EXPECT_GT(std::abs(j["angles"]["ring.mcp.flex"].get<double>() - relaxed["angles"]["ring.mcp.flex"].get<double>()), 5.0);
+  for (const auto& [name, n] : j["joints"].items()) {
+    ASSERT_EQ(n["q"].size(), 4u) << name;
+    double norm = 0;
+    for (const auto& q : n["q"]) norm += q.get<double>() * q.get<double>();
+    EXPECT_NEAR(norm, 1.0, 1e-9) << name;
+  }
+}
+
+TEST(Studio, MalformedRequestsGetAFourHundredAndOneLine) {
+  expect_refused("{\"inputs\":", 400, "not JSON");
+  expect_refused("[1, 2]", 400, "must be a JSON object");
+  expect_refused(R"({"inputs": {"Q9.flex": 10}})", 400, "unknown DOF 'Q9.flex'");
+  expect_refused(R"({"inputs": {"L2.flex": "ten"}})", 400, "inputs.L2.flex must be a number");
+  expect_refused(R"({"inputs": {"L2.flex": null}})", 400, "must be a number");
+  expect_refused(R"({"inputs": {"L2.flex": 500}})", 422, "outside its limits");
+  expect_refused(R"({"inputs": {"L2.flex": 1e400}})", 400, "not JSON");  // not a double: the parser refuses it
+  expect_refused(R"({"inputs": [1]})", 400, "\"inputs\" must be an object");
+  expect_refused(R"({"torques": {"L2.flex": 1e9}})", 422, "beyond");
+  expect_refused(R"({"targets": {"L2.flex": {"deg": 10, "spin": 1}}})", 400, "unknown key \"spin\"");
+  expect_refused(R"({"targets": {"L2.flex": {"weight": 1}}})", 400, "needs \"deg\"");
+  expect_refused(R"({"pins": {}})", 400, "unknown key \"pins\"");
+  expect_refused(std::string(200, '[') + std::string(200, ']'), 400, "nests deeper than 8");
+  expect_refused("{\"inputs\": {\"L2.flex\": 1" + std::string(kMaxBodyBytes, ' ') + "}}", 413, "at most 65536");
+}
+
+TEST(Studio, ServerServesOnlyItsOwnFilesAndKeepsServing) {
+  const std::string web = test::temp_dir("studio-web");
+  test::write_text(web + "/index.html", "<!doctype html><title>t</title>");
+  test::write_text(web + "/studio.js", "console.log(1)");
+  StudioOptions o;
+  o.model = test::default_fixture_run() + "/skin.glb";
+  o.port = 0;
+  o.web_dir = web;
+  StudioServer server(o);
+  int port = -1;
+  std::thread t([&] { server.run([&](int p) { port = p; }); });
+  for (int k = 0; k < 500 && port < 0; ++k) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_GT(port, 0);
+  httplib::Client c("127.0.0.1", port);
+  EXPECT_EQ(c.Get("/")->status, 200);
+  EXPECT_EQ(c.Get("/studio.js")->status, 200);
+  EXPECT_EQ(c.Get("/model.glb")->body.size(), std::filesystem::file_size(o.model));
+  for (const char* path : {"/../../../etc/passwd", "/%2e%2e/%2e%2e/etc/passwd", "/..%2f..%2fetc%2fpasswd", "/index.html/../../x",
+                           "/api/../../etc/hostname", "//etc/passwd"}) {
+    const auto r = c.Get(path);
+    ASSERT_TRUE(r) << path;
+    EXPECT_EQ(r->status, 404) << path;
+    EXPECT_EQ(r->body.find("root:"), std::string::npos) << path;
+  }
+  const auto big = c.Post("/api/solve", std::string(kMaxBodyBytes + 10, ' '), "application/json");
+  ASSERT_TRUE(big);
+  EXPECT_EQ(big->status, 413);
+  EXPECT_NE(big->body.find("over 65536"), std::string::npos) << big->body;
+  const auto bad = c.Post("/api/solve", "{nope", "application/json");
+  ASSERT_TRUE(bad);
+  EXPECT_EQ(bad->status, 400);
+  const auto good = c.Post("/api/solve", R"({"inputs": {"L2.flex": 60}})", "application/json");  // still serving
+  ASSERT_TRUE(good);
+  EXPECT_EQ(good->status, 200);
+  EXPECT_EQ(c.Get("/api/dofs")->status, 200);
+  server.stop();
+  t.join();
+}
+
+TEST(Studio, AModelThatDoesNotLoadStopsTheStudioBeforeItListens) {
+  std::string out;
+  const std::string dir = test::temp_dir("studio-bad");
+  test::write_text(dir + "/x.glb", "not a glb");
+  EXPECT_EQ(test::run(kBin + " -q studio --model " + dir + "/x.glb --port 0", &out), 1);
+  EXPECT_NE(out.find("not a readable glb"), std::string::npos) << out;
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+  EXPECT_EQ(test::run(kBin + " -q studio --model " + test::default_fixture_run() + "/skin.glb --port 0 --web " + dir, &out), 1);
+  EXPECT_NE(out.find("the studio page is not built here"), std::string::npos) << out;
+  EXPECT_EQ(test::run(kBin + " -q studio --model " + test::default_fixture_run() + "/skin.glb --port 70000", &out), 2);
+}

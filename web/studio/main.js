@@ -1,0 +1,153 @@
+// The hand studio page: skin.glb from the server, a slider per DOF, the posture solver behind
+// `POST /api/solve` (docs/studio.md). Bundled with three.js by esbuild at build time.
+import * as THREE from 'three';
+import { GLTFLoader } from 'three/examples/jsm/loaders/GLTFLoader.js';
+import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
+
+const view = document.getElementById('view');
+const status = document.getElementById('status');
+const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+renderer.setPixelRatio(window.devicePixelRatio);
+view.appendChild(renderer.domElement);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0xf4f4f6);
+scene.add(new THREE.HemisphereLight(0xffffff, 0x888888, 1.6));
+const camera = new THREE.PerspectiveCamera(30, 1, 0.01, 10);
+// The key light moves with the camera (upper left of the view), so every view is lit.
+const key = new THREE.DirectionalLight(0xffffff, 2.2);
+key.position.set(-0.4, 0.5, 1);
+camera.add(key);
+scene.add(camera);
+const controls = new OrbitControls(camera, renderer.domElement);
+
+function resize() {
+  const w = view.clientWidth, h = view.clientHeight;
+  renderer.setSize(w, h);
+  camera.aspect = w / h;
+  camera.updateProjectionMatrix();
+}
+window.addEventListener('resize', resize);
+
+const state = { dofs: [], values: {}, mode: {}, bones: {}, centre: new THREE.Vector3(), radius: 0.15, pending: null, busy: false };
+window.studio = state;  // for tests and the console
+
+async function api(path, body) {
+  const r = await fetch(path, body ? { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify(body) } : {});
+  const j = await r.json();
+  if (!r.ok) throw new Error(j.error || ('HTTP ' + r.status));
+  return j;
+}
+
+function setView(name) {
+  // The glb's root turns the palm frame (Z out of the palm scan's table) to glTF's Y up.
+  const d = { back: [0, -1, 0], palm: [0, 1, 0], side: [0, 0, 1] }[name];
+  camera.position.copy(state.centre).add(new THREE.Vector3(...d).multiplyScalar(state.radius * 4.2));
+  camera.up.set(name === 'side' ? 0 : 0, name === 'side' ? 1 : 0, name === 'side' ? 0 : -1);
+  controls.target.copy(state.centre);
+  controls.update();
+}
+
+function applyJoints(joints) {
+  for (const [name, n] of Object.entries(joints)) {
+    const b = state.bones[name];
+    if (!b) continue;
+    b.position.set(...n.t);
+    b.quaternion.set(...n.q);
+  }
+}
+
+// The solver's angles on the sliders, except those the user holds (inputs, and sliders moved):
+// a reply to an older request must not undo a newer move.
+function showValues(angles, all = false) {
+  for (const d of state.dofs) {
+    if (!all && (state.mode[d.name] === 'input' || state.touched?.has(d.name))) continue;
+    state.values[d.name] = angles[d.name];
+    const row = document.getElementById('dof-' + d.name);
+    row.querySelector('input').value = angles[d.name];
+    row.querySelector('output').value = angles[d.name].toFixed(1);
+  }
+}
+
+// One solve at a time; while one runs, the latest request waits (sliders move faster than 30 ms).
+async function solve() {
+  if (state.busy) { state.pending = true; return; }
+  state.busy = true;
+  const inputs = {};
+  const anyInput = state.dofs.some(d => state.mode[d.name] === 'input');
+  for (const d of state.dofs)
+    if (!anyInput || state.mode[d.name] === 'input' || state.touched?.has(d.name)) inputs[d.name] = state.values[d.name];
+  const t0 = performance.now();
+  try {
+    const r = await api('/api/solve', { inputs });
+    applyJoints(r.joints);
+    showValues(r.angles);
+    state.lastSolveMs = performance.now() - t0;
+    status.textContent = `solved in ${state.lastSolveMs.toFixed(1)} ms, potential ${r.energy.toFixed(2)}`;
+  } catch (e) {
+    status.textContent = 'error: ' + e.message;
+  }
+  state.busy = false;
+  if (state.pending) { state.pending = false; solve(); }
+}
+
+function buildSliders() {
+  const side = document.getElementById('side');
+  const groups = {};
+  for (const d of state.dofs) {
+    const g = d.name.split('.')[0];
+    if (!groups[g]) {
+      const fs = document.createElement('fieldset');
+      const lg = document.createElement('legend');
+      lg.textContent = g;
+      fs.appendChild(lg);
+      side.appendChild(fs);
+      groups[g] = fs;
+    }
+    const row = document.createElement('div');
+    row.className = 'dof';
+    row.id = 'dof-' + d.name;
+    const id = 'slider-' + d.name.replace(/\./g, '-');
+    row.innerHTML = `<label for="${id}" title="${d.name}${d.alias ? ' (' + d.alias + ')' : ''}">${d.name.split('.').slice(1).join('.')}${d.alias ? ' ' + d.alias : ''}</label>` +
+      `<input type="range" id="${id}" min="${d.min}" max="${d.max}" step="0.5" value="${d.relaxed}" aria-label="${d.name} (${d.unit})">` +
+      `<output for="${id}">${d.relaxed.toFixed(1)}</output>` +
+      `<select aria-label="${d.name} mode"><option value="free">free</option><option value="input">input</option></select>`;
+    const slider = row.querySelector('input'), mode = row.querySelector('select');
+    slider.addEventListener('input', () => {
+      state.values[d.name] = parseFloat(slider.value);
+      row.querySelector('output').value = parseFloat(slider.value).toFixed(1);
+      (state.touched ??= new Set()).add(d.name);
+      solve();
+    });
+    mode.addEventListener('change', () => {
+      state.mode[d.name] = mode.value;
+      row.classList.toggle('input', mode.value === 'input');
+      solve();
+    });
+    groups[g].appendChild(row);
+    state.mode[d.name] = 'free';
+  }
+}
+
+async function main() {
+  resize();
+  const info = await api('/api/dofs');
+  state.dofs = info.dofs;
+  for (const d of state.dofs) state.values[d.name] = d.relaxed;
+  buildSliders();
+  const gltf = await new GLTFLoader().loadAsync('/model.glb');
+  scene.add(gltf.scene);
+  gltf.scene.traverse(o => { if (o.isBone) state.bones[o.name] = o; });
+  const box = new THREE.Box3().setFromObject(gltf.scene);
+  box.getCenter(state.centre);
+  state.radius = box.getSize(new THREE.Vector3()).length() / 2;
+  setView('back');
+  for (const v of ['back', 'palm', 'side']) document.getElementById('v-' + v).onclick = () => setView(v);
+  document.getElementById('relaxed').onclick = () => { state.touched = new Set(); for (const d of state.dofs) { state.mode[d.name] = 'free'; document.querySelector(`#dof-${CSS.escape(d.name)} select`).value = 'free'; document.getElementById('dof-' + d.name).classList.remove('input'); } api('/api/solve', { inputs: {} }).then(r => { applyJoints(r.joints); showValues(r.angles, true); }); };
+  document.getElementById('scan').onclick = () => { const inputs = {}; for (const d of state.dofs) inputs[d.name] = 0; state.touched = new Set(state.dofs.map(d => d.name)); api('/api/solve', { inputs }).then(r => { applyJoints(r.joints); showValues(r.angles, true); }); };
+  const help = document.getElementById('help'), hb = document.getElementById('help-button');
+  hb.onclick = () => { const open = help.style.display !== 'block'; help.style.display = open ? 'block' : 'none'; hb.setAttribute('aria-expanded', String(open)); };
+  await solve();
+  state.ready = true;
+  renderer.setAnimationLoop(() => { controls.update(); renderer.render(scene, camera); });
+}
+main().catch(e => { status.textContent = 'error: ' + e.message; });
