@@ -1,5 +1,6 @@
 #include "mesh/mesh_distance.hpp"
 
+#include <Eigen/Geometry>  // cross(): only declared by <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <vector>

@@ -3,6 +3,7 @@
 #include <OpenMesh/Core/IO/MeshIO.hh>
 #include <OpenMesh/Core/System/omstream.hh>
 
+#include <Eigen/Geometry>  // cross(): only declared by <Eigen/Core>
 #include <cmath>
 #include <filesystem>
 #include <vector>
@@ -100,6 +101,16 @@ MeshHealth mesh_health(const TriMesh& mesh) {
     h.area_mm2 += 0.5 * OpenMesh::cross(b - a, c - a).norm();
   }
   return h;
+}
+
+std::vector<Eigen::Vector3d> vertex_normals(const std::vector<Eigen::Vector3d>& v, const std::vector<std::array<int, 3>>& faces) {
+  std::vector<Eigen::Vector3d> n(v.size(), Eigen::Vector3d::Zero());
+  for (const auto& f : faces) {
+    const Eigen::Vector3d a = (v[f[1]] - v[f[0]]).cross(v[f[2]] - v[f[0]]);
+    for (int k : f) n[k] += a;
+  }
+  for (auto& u : n) u = u.norm() > 0 ? u.normalized() : Eigen::Vector3d::UnitZ();
+  return n;
 }
 
 }  // namespace handskin

@@ -40,5 +40,9 @@ std::vector<Eigen::Vector3d> mesh_vertices(const TriMesh& mesh);
 std::vector<std::array<int, 3>> mesh_faces(const TriMesh& mesh);
 /// The inverse: a mesh from positions and vertex-index triples (vertex order kept).
 TriMesh mesh_from_arrays(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& faces);
+/// Unit vertex normals of a triangle soup, area-weighted (the sum of the faces' cross
+/// products); +Z for a vertex in no face or whose faces cancel.
+std::vector<Eigen::Vector3d> vertex_normals(const std::vector<Eigen::Vector3d>& vertices,
+                                            const std::vector<std::array<int, 3>>& faces);
 
 }  // namespace handskin

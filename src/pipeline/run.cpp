@@ -1,7 +1,7 @@
 #include "pipeline/run.hpp"
 
 #include <chrono>
-#include <fstream>
+#include <filesystem>
 
 #include "core/errors.hpp"
 #include "core/atomic_file.hpp"
@@ -103,7 +103,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   // The photos: given, or found beside the scans.
   std::optional<ScanPhoto> back_photo, palm_photo;
   if (in.options.texture.enabled) {
-    const auto exists = [](const std::string& f) { return std::ifstream(f).good(); };
+    const auto exists = [](const std::string& f) { return std::filesystem::exists(f); };
     const std::string bp = in.back_photo.empty() ? in.back_stem + ".photo.png" : in.back_photo;
     const std::string pp = in.palm_photo.empty() ? in.palm_stem + ".photo.png" : in.palm_photo;
     const bool given = !in.back_photo.empty() || !in.palm_photo.empty();
@@ -172,8 +172,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
     to.blend_deg = in.options.texture.blend_deg;
     R.texture = bake_skin_texture(R.rigged.vertices, R.rigged.faces, *back_photo, *palm_photo, R.registration.back_to_palm,
                                   R.registration.markers_palm, R.registration.marker_radius_mm, to);
-    R.rigged.texture = R.texture->map;
-    R.texture_seconds = R.texture->seconds;
+    R.rigged.texture = std::move(R.texture->map);
   } else {
     progress(R.texture_note);
   }
@@ -202,7 +201,7 @@ Json write_run_outputs(OutputSet& out, const RunResult& r) {
   Json reg_report = r.registration.report;
   if (r.registration_truth) reg_report["against_truth"] = *r.registration_truth;
   outputs.update(write_registration_outputs(out, r.registration, reg_report));
-  outputs.update(write_skin_outputs(out, r.skin, r.texture ? &r.texture->map : nullptr,
+  outputs.update(write_skin_outputs(out, r.skin, r.texture ? &r.rigged.texture : nullptr,
                                     static_cast<float>(in.options.texture.weight)));
 
   Json report;
@@ -235,15 +234,16 @@ Json write_run_outputs(OutputSet& out, const RunResult& r) {
   if (r.texture) {
     const SkinTexture& t = *r.texture;
     stages.push_back({{"name", "texture"},
-                      {"seconds", r.texture_seconds},
-                      {"size", t.map.size},
+                      {"seconds", t.seconds},
+                      {"size", r.rigged.texture.size},
                       {"texels_per_mm", t.texels_per_mm},
                       {"area_palm_photo_only", t.palm_only},
                       {"area_back_photo_only", t.back_only},
                       {"area_blended", t.blended},
                       {"area_unseen", t.unseen},
                       {"faces", {{"palm_chart", t.palm_chart_faces}, {"back_chart", t.back_chart_faces}, {"unseen", t.unseen_faces}}}});
-    write_file_atomic(out.stage("texture.png"), encode_rgb8_png(t.map.size, t.map.size, t.map.rgb));
+    const TextureMap& map = r.rigged.texture;
+    write_file_atomic(out.stage("texture.png"), encode_rgb8_png(map.size, map.size, map.rgb));
     outputs["texture_png"] = out.final_path("texture.png");
   } else {
     stages.push_back({{"name", "texture"}, {"seconds", 0.0}, {"skipped", r.texture_note}});

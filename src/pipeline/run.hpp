@@ -59,9 +59,8 @@ struct RunResult {
   std::optional<Json> registration_truth;  ///< registration_against_truth, with --truth
   SkinStageResult skin;
   std::optional<PatchStageResult> patches;  ///< Bézier patches on the skin's ring grid (patches.enabled)
-  std::optional<SkinTexture> texture;  ///< baked from the photos (rigged.texture holds its map)
+  std::optional<SkinTexture> texture;  ///< the bake's figures; its map is moved into rigged.texture
   std::string texture_note;      ///< why there is no texture, when there is none
-  double texture_seconds = 0;
   RiggedSkin rigged;             ///< the skin bound to the skeleton, with the posture model (skin.glb)
   std::vector<ReportPicture> posed;  ///< the rigged skin in a few postures, for report.html
   double rigging_seconds = 0;

@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "core/errors.hpp"
 #include "core/png_io.hpp"
@@ -144,6 +145,45 @@ void lit_material(const Eigen::Vector3f& colour, bool per_vertex_colour) {
   glMaterialf(GL_FRONT_AND_BACK, GL_SHININESS, 24.f);
 }
 
+// A texture bound for one draw, as the thesis blended photo and shading: texture unit 0
+// interpolates between the lit white surface (the primary colour) and the texture by the
+// constant weight, Arg0 * Arg2 + Arg1 * (1 - Arg2). `uv` (two per drawn vertex) must outlive it.
+class BlendedTexture {
+ public:
+  BlendedTexture(const TextureMap& t, float weight, const std::vector<GLfloat>& uv) {
+    lit_material(Eigen::Vector3f::Constant(0.92f), false);
+    glGenTextures(1, &name_);
+    glBindTexture(GL_TEXTURE_2D, name_);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB, t.size, t.size, 0, GL_RGB, GL_UNSIGNED_BYTE, t.rgb.data());
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    const GLfloat w[] = {weight, weight, weight, 1.f};
+    glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_COMBINE);
+    glTexEnvi(GL_TEXTURE_ENV, GL_COMBINE_RGB, GL_INTERPOLATE);
+    glTexEnvi(GL_TEXTURE_ENV, GL_SOURCE0_RGB, GL_TEXTURE);
+    glTexEnvi(GL_TEXTURE_ENV, GL_SOURCE1_RGB, GL_PRIMARY_COLOR);
+    glTexEnvi(GL_TEXTURE_ENV, GL_SOURCE2_RGB, GL_CONSTANT);
+    glTexEnvi(GL_TEXTURE_ENV, GL_OPERAND2_RGB, GL_SRC_COLOR);
+    glTexEnvfv(GL_TEXTURE_ENV, GL_TEXTURE_ENV_COLOR, w);
+    glEnable(GL_TEXTURE_2D);
+    glEnableClientState(GL_TEXTURE_COORD_ARRAY);
+    glTexCoordPointer(2, GL_FLOAT, 0, uv.data());
+  }
+  ~BlendedTexture() {
+    glDisableClientState(GL_TEXTURE_COORD_ARRAY);
+    glDisable(GL_TEXTURE_2D);
+    glDeleteTextures(1, &name_);
+  }
+  BlendedTexture(const BlendedTexture&) = delete;
+  BlendedTexture& operator=(const BlendedTexture&) = delete;
+
+ private:
+  GLuint name_ = 0;
+};
+
 }  // namespace
 
 std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const RenderOptions& o) {
@@ -187,33 +227,11 @@ std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const Ren
       for (auto f : mesh.faces())
         for (auto v : mesh.fv_range(f)) idx.push_back(static_cast<GLuint>(v.idx()));
     }
-    GLuint name = 0;
-    if (tex) {
-      // Texture unit 0 interpolates between the lit white surface (the primary colour) and
-      // the texture by the constant weight: Arg0 * Arg2 + Arg1 * (1 - Arg2).
-      lit_material(Eigen::Vector3f::Constant(0.92f), false);
-      glGenTextures(1, &name);
-      glBindTexture(GL_TEXTURE_2D, name);
-      glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
-      glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB, tex->size, tex->size, 0, GL_RGB, GL_UNSIGNED_BYTE, tex->rgb.data());
-      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-      glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-      const GLfloat w[] = {o.texture_weight, o.texture_weight, o.texture_weight, 1.f};
-      glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_COMBINE);
-      glTexEnvi(GL_TEXTURE_ENV, GL_COMBINE_RGB, GL_INTERPOLATE);
-      glTexEnvi(GL_TEXTURE_ENV, GL_SOURCE0_RGB, GL_TEXTURE);
-      glTexEnvi(GL_TEXTURE_ENV, GL_SOURCE1_RGB, GL_PRIMARY_COLOR);
-      glTexEnvi(GL_TEXTURE_ENV, GL_SOURCE2_RGB, GL_CONSTANT);
-      glTexEnvi(GL_TEXTURE_ENV, GL_OPERAND2_RGB, GL_SRC_COLOR);
-      glTexEnvfv(GL_TEXTURE_ENV, GL_TEXTURE_ENV_COLOR, w);
-      glEnable(GL_TEXTURE_2D);
-      glEnableClientState(GL_TEXTURE_COORD_ARRAY);
-      glTexCoordPointer(2, GL_FLOAT, 0, uv.data());
-    } else {
+    std::optional<BlendedTexture> blended;
+    if (tex)
+      blended.emplace(*tex, o.texture_weight, uv);
+    else
       lit_material(o.colour, false);
-    }
     glEnableClientState(GL_VERTEX_ARRAY);
     glEnableClientState(GL_NORMAL_ARRAY);
     glVertexPointer(3, GL_DOUBLE, 0, xyz.data());
@@ -224,11 +242,6 @@ std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const Ren
       glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(idx.size()), GL_UNSIGNED_INT, idx.data());
     glDisableClientState(GL_VERTEX_ARRAY);
     glDisableClientState(GL_NORMAL_ARRAY);
-    if (tex) {
-      glDisableClientState(GL_TEXTURE_COORD_ARRAY);
-      glDisable(GL_TEXTURE_2D);
-      glDeleteTextures(1, &name);
-    }
   }
   pic.dots(o.points);
   return pic.png();

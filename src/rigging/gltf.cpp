@@ -94,6 +94,14 @@ Eigen::Matrix3d palm_to_gltf() {
   return R;
 }
 
+// Keep an image's encoded bytes as they are: read_skin_glb decodes the texture itself, so
+// that what it accepts (a square 8-bit RGB PNG) and its errors are its own.
+bool keep_image_bytes(tinygltf::Image* image, const int, std::string*, std::string*, int, int, const unsigned char* bytes,
+                      int size, void*) {
+  image->image.assign(bytes, bytes + size);
+  return true;
+}
+
 }  // namespace
 
 std::array<JointNode, kJointCount> joint_nodes(const Skeleton& skel, const Angles& angles) {
@@ -153,12 +161,7 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose) {
   std::vector<float> pos(3 * n), nrm(3 * n, 0.0f), wts(4 * n, 0.0f);
   std::vector<std::uint8_t> jts(4 * n, 0);
   std::vector<double> lo(3, 1e300), hi(3, -1e300);
-  std::vector<Eigen::Vector3d> normal(s.vertices.size(), Eigen::Vector3d::Zero());
-  for (const auto& f : s.faces) {
-    const Eigen::Vector3d a = s.vertices[f[1]] - s.vertices[f[0]], b = s.vertices[f[2]] - s.vertices[f[0]];
-    const Eigen::Vector3d fn = a.cross(b);  // area-weighted
-    for (int k : f) normal[k] += fn;
-  }
+  const std::vector<Eigen::Vector3d> normal = vertex_normals(s.vertices, s.faces);
   for (size_t out_i = 0; out_i < n; ++out_i) {
     const size_t i = static_cast<size_t>(source[out_i]);
     for (int c = 0; c < 3; ++c) {
@@ -166,8 +169,7 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose) {
       lo[c] = std::min(lo[c], static_cast<double>(pos[3 * out_i + c]));
       hi[c] = std::max(hi[c], static_cast<double>(pos[3 * out_i + c]));
     }
-    const Eigen::Vector3d u = normal[i].norm() > 0 ? normal[i].normalized() : Eigen::Vector3d::UnitZ();
-    for (int c = 0; c < 3; ++c) nrm[3 * out_i + c] = static_cast<float>(u(c));
+    for (int c = 0; c < 3; ++c) nrm[3 * out_i + c] = static_cast<float>(normal[i](c));
     // A link's weight goes to its first joint; links that share it are summed.
     std::array<std::pair<int, double>, kMaxInfluences> jw{};
     int used = 0;
@@ -300,16 +302,6 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose) {
   const std::string bytes = out.str();
   return {bytes.begin(), bytes.end()};
 }
-
-namespace {
-// Keep an image's encoded bytes as they are: read_skin_glb decodes the texture itself, so
-// that what it accepts (a square 8-bit RGB PNG) and its errors are its own.
-bool keep_image_bytes(tinygltf::Image* image, const int, std::string*, std::string*, int, int, const unsigned char* bytes,
-                      int size, void*) {
-  image->image.assign(bytes, bytes + size);
-  return true;
-}
-}  // namespace
 
 RiggedSkin read_skin_glb(const std::string& file) {
   tinygltf::Model m;

@@ -1,7 +1,6 @@
 #include "studio/api.hpp"
 
 #include <cmath>
-#include <cstdio>
 
 #include "core/dof.hpp"
 #include "core/errors.hpp"
@@ -12,12 +11,6 @@ namespace handskin {
 namespace {
 
 ApiResponse error(int status, const std::string& message) { return {status, Json{{"error", message}}.dump()}; }
-
-std::string num_text(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%g", v);
-  return b;
-}
 
 // A request's failure: its status and one line.
 struct BadRequest {
@@ -77,6 +70,13 @@ ApiResponse StudioModel::solve(const std::string& text) const {
   if (too_deep) return error(400, "the request nests deeper than " + std::to_string(kMaxDepth) + " levels");
   if (body.is_discarded()) return error(400, "the request body is not JSON");
   if (!body.is_object()) return error(400, "the request body must be a JSON object");
+  // A pinned or target angle beyond the DOF's limits is refused (pose clamps; a page should not).
+  const auto within_limits = [&](int d, double v, const std::string& where) {
+    const DofParams& p = skin_.model.dof[d];
+    if (v < p.lo || v > p.hi)
+      throw BadRequest{422, where + " = " + number_text(v) + " is outside its limits [" + number_text(p.lo) + ", " +
+                                number_text(p.hi) + "]"};
+  };
   try {
     for (auto it = body.begin(); it != body.end(); ++it)
       if (it.key() != "inputs" && it.key() != "torques" && it.key() != "targets")
@@ -86,17 +86,14 @@ ApiResponse StudioModel::solve(const std::string& text) const {
       for (auto it = m->begin(); it != m->end(); ++it) {
         const int d = dof_of(it.key(), "inputs");
         const double v = finite_number(it.value(), "inputs." + it.key());
-        const DofParams& p = skin_.model.dof[d];
-        if (v < p.lo || v > p.hi)
-          throw BadRequest{422, "inputs." + it.key() + " = " + num_text(v) + " is outside its limits [" + num_text(p.lo) +
-                                    ", " + num_text(p.hi) + "]"};
+        within_limits(d, v, "inputs." + it.key());
         in.pins.emplace_back(d, v);
       }
     if (const Json* m = object_member(body, "torques"))
       for (auto it = m->begin(); it != m->end(); ++it) {
         const int d = dof_of(it.key(), "torques");
         const double v = finite_number(it.value(), "torques." + it.key());
-        if (std::abs(v) > 1e4) throw BadRequest{422, "torques." + it.key() + " = " + num_text(v) + " is beyond ±10000"};
+        if (std::abs(v) > 1e4) throw BadRequest{422, "torques." + it.key() + " = " + number_text(v) + " is beyond ±10000"};
         in.torques.emplace_back(d, v);
       }
     if (const Json* m = object_member(body, "targets"))
@@ -113,10 +110,7 @@ ApiResponse StudioModel::solve(const std::string& text) const {
         } else {
           deg = finite_number(it.value(), "targets." + it.key());
         }
-        const DofParams& p = skin_.model.dof[d];
-        if (deg < p.lo || deg > p.hi)
-          throw BadRequest{422, "targets." + it.key() + " = " + num_text(deg) + " is outside its limits [" +
-                                    num_text(p.lo) + ", " + num_text(p.hi) + "]"};
+        within_limits(d, deg, "targets." + it.key());
         if (weight < 0 || weight > 1e4) throw BadRequest{422, "targets." + it.key() + ".weight must be in [0, 10000]"};
         in.targets.push_back({d, deg, weight});
       }

@@ -12,6 +12,7 @@
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
 #include "mesh/triangle_tree.hpp"
+#include "mesh/trimesh.hpp"
 
 namespace handskin {
 
@@ -111,12 +112,7 @@ SkinTexture bake_skin_texture(const std::vector<Eigen::Vector3d>& V, const std::
 
   // Vertex normals (area-weighted) and, per view, whether the camera sees the vertex: a ray
   // toward the camera that meets no other part of the skin.
-  std::vector<Eigen::Vector3d> N(V.size(), Eigen::Vector3d::Zero());
-  for (const auto& f : F) {
-    const Eigen::Vector3d a = (V[f[1]] - V[f[0]]).cross(V[f[2]] - V[f[0]]);
-    for (int k : f) N[k] += a;
-  }
-  for (auto& n : N) n = n.squaredNorm() > 0 ? n.normalized() : Eigen::Vector3d::UnitZ();
+  const std::vector<Eigen::Vector3d> N = vertex_normals(V, F);
   const cgal::TriangleTree tree(V, F);
   std::array<std::vector<double>, 2> seen;
   for (int c = 0; c < 2; ++c) {
@@ -274,20 +270,10 @@ SkinTexture bake_skin_texture(const std::vector<Eigen::Vector3d>& V, const std::
   while (!pending.empty() && grow(pending)) {
   }
   for (size_t i : pending) colour[i] = mean, state[i] = 2;  // a chart island no photo reached
-  for (int pass = 0; pass < kPadTexels; ++pass) {
-    std::vector<size_t> ring;
-    for (size_t i = 0; i < state.size(); ++i) {
-      if (state[i] == 2) continue;
-      const int x = static_cast<int>(i % S), y = static_cast<int>(i / S);
-      bool near = false;
-      for (int dy = -1; dy <= 1 && !near; ++dy)
-        for (int dx = -1; dx <= 1 && !near; ++dx) {
-          const int xx = x + dx, yy = y + dy;
-          near = xx >= 0 && yy >= 0 && xx < S && yy < S && state[static_cast<size_t>(yy) * S + xx] == 2;
-        }
-      if (near) ring.push_back(i);
-    }
-    if (ring.empty() || !grow(ring)) break;
+  std::vector<size_t> outside;  // every texel not coloured now: grow takes, each pass, those beside a coloured one
+  for (size_t i = 0; i < state.size(); ++i)
+    if (state[i] != 2) outside.push_back(i);
+  for (int pass = 0; pass < kPadTexels && grow(outside); ++pass) {
   }
   out.map.size = S;
   out.map.rgb.resize(static_cast<size_t>(S) * S * 3);
