@@ -71,8 +71,8 @@ TEST(Cli, RunOnTheFixtureWritesItsOutputs) {
   for (const char* f : {"skin.ply", "skin.obj", "skin.png", "slices.json", "baseline.ply"})
     EXPECT_TRUE(fs::exists(dir + "/" + f)) << f;
   EXPECT_EQ(report["stages"][3]["name"], "patches");
-  EXPECT_EQ(report["stages"][3]["continuity"]["g0_gap_mm"].get<double>(), 0.0);
-  EXPECT_EQ(load_json_object(dir + "/patches.json")["patches"].size(), 92u);
+  EXPECT_LT(report["stages"][3]["continuity"]["g0_gap_mm"].get<double>(), 1e-9);
+  EXPECT_EQ(load_json_object(dir + "/patches.json")["patches"].size(), 98u);
   EXPECT_EQ(report["stages"][4]["name"], "rigging");
   EXPECT_EQ(report["stages"][4]["binding"], "smooth");
   EXPECT_GT(fs::file_size(dir + "/skin.glb"), 100000u);

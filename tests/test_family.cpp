@@ -9,6 +9,7 @@
 
 #include "test_util.hpp"
 
+#include "patches/patches.hpp"
 #include "register/registration.hpp"
 #include "skin/auto_rig.hpp"
 #include "skin/skin_mesh.hpp"
@@ -119,6 +120,20 @@ TEST(Family, EightPairsOfLeftCurledAndRaisedThumbHandsRegisterAndSkin) {
                   "%.2f %%",
                   fh.name, ro.marker_radius_mm, reg.marker_radius_mm, e.rotation_deg, e.mean_mm, fg.mean, fg.p95,
                   100 * fg.within);
+      // The Bézier patches (issue 13) over this skin: one closed surface of 98 patches.
+      const PatchSkin patches = fit_patch_skin(given, pair.rig_palm, m.points, m.sides, PatchOptions{});
+      EXPECT_EQ(patches.patches.size(), 98u);
+      EXPECT_LT(patches.g0_gap_mm, 1e-9);
+      EXPECT_LT(patches.g1_median_deg, 1.0);
+      const MeshHealth ph = mesh_health(tessellate(patches, 4));
+      EXPECT_TRUE(ph.closed() && ph.manifold() && ph.components == 1 && ph.volume_mm3 > 0);
+      {
+        const MeshDistance to_patches(tessellate(patches, 8));
+        const OneWayDistance d = one_way_distance(sample_surface(pair.skin_palm, 2.0), to_patches, markers, 7.0);
+        std::printf("  patches: data %.3f / %.3f mm, truth within 1 mm %.2f %%", patches.side[0].mean,
+                    patches.side[1].mean, 100 * d.within_1mm);
+        EXPECT_GE(d.within_1mm, 0.985);  // issue 13: 98.5 %; measured 99.1-99.8 %
+      }
       // Issue 11 asks mean 0.10, p95 0.35, 98.5 % within 1 mm. The last is met on every pair;
       // the first two are regression bounds, met by the relaxed hands and not yet by the
       // curled ones (worst measured 0.121 / 0.364 / 98.97 %; docs/skin.md has the study).

@@ -164,18 +164,16 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
   if (!a.truth.empty()) truth = load_truth_skin(a.truth);
   progress("patches", "reading " + merged);
   MergedArrays m = merged_arrays(*load_merged(merged));
-  progress("patches", "rebuilding the skin's ring grid on " + rig_path);
+  progress("patches", "rebuilding the skin on " + rig_path);
   const SkinResult skin = build_skin(m.points, *in.rig, skin_options(po));
   PatchOptions opts = patch_options(po);
   if (!a.layout.empty()) {
-    opts.tube_spans = parse_patch_layout(load_json_object(a.layout), a.layout);
-    std::string err;
-    if (!opts.IsValid(&err)) throw InputError(a.layout, err);
+    opts.layout = parse_patch_layout(load_json_object(a.layout), a.layout);
   }
   progress("patches", std::string("fitting bicubic patches") + (a.layout.empty() ? "" : " on the layout of " + a.layout) +
                           ", correcting the parameters");
   const PatchStageResult r =
-      run_patch_stage(skin, m.points, m.sides, opts, truth ? &*truth : nullptr, static_cast<int>(po.patches.error_grid));
+      run_patch_stage(skin, *in.rig, m.points, m.sides, opts, truth ? &*truth : nullptr, static_cast<int>(po.patches.error_grid));
   Json report = to_json(r);
   report["format"] = "handskin-patches-report/1";
   report["inputs"] = {{"merged", merged}, {"rig", rig_path}, {"pipeline", a.pipeline.empty() ? "(built-in defaults)" : a.pipeline}};
@@ -249,15 +247,15 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
   out->push_back({skinc, [sk, &progress] { skin_command(*sk, progress); }});
 
   auto pa = std::make_shared<PatchesArgs>();
-  auto* pc = app.add_subcommand("patches", "Bicubic Bezier patches on a skin (thesis §4.1.4; in progress: per tube, open ends)");
+  auto* pc = app.add_subcommand("patches", "Bicubic Bezier patches over a closed quad layout of the whole skin, and the fitting-error report (thesis §4.1.4)");
   pc->add_option("--skin-dir", pa->skin_dir, "Output folder of run (or of register + skin): merged.ply and the rig")->required();
   pc->add_option("--rig", pa->rig, "The skin's rig (default: rig_auto.json there, else the rig its report.json names)");
   pc->add_option("--out", pa->out, "Output folder: patches.json, patches.obj, patches.ply, report.json, report.html "
                                    "(default: <skin-dir>/patches)");
   pc->add_option("--pipeline", pa->pipeline, "Pipeline parameters (slicing, skin, patches sections)");
-  pc->add_option("--count", pa->count, "Patches wanted, [24, 1500] (default: patches.count, 96; the layout's nearest)");
+  pc->add_option("--count", pa->count, "Patches wanted, [24, 1500] (default: patches.count, 96); the hand's layout has 98, split k x k: 98 k^2 nearest");
   pc->add_option("--layout", pa->layout,
-                 "A layout given back: a patches.json (or handskin-patch-layout/1) whose tubes' around/along replace --count's");
+                 "A layout given back: a patches.json (or handskin-patch-layout/1) whose 'layout' (corners, four-sided faces) is fitted on instead of the hand's; --count is then ignored");
   pc->add_option("--truth", pa->truth, "truth.json of a synthetic pair: add the surface's distances to the true skin");
   out->push_back({pc, [pa, &progress] { patches_command(*pa, progress); }});
 }

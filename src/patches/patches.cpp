@@ -2,13 +2,15 @@
 
 #include <Eigen/Dense>
 #include <Eigen/Sparse>
-#include <Eigen/SparseCholesky>
+#include <Eigen/CholmodSupport>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <tuple>
 
 #include "core/errors.hpp"
+#include "mesh/mesh_distance.hpp"
 #include "mesh/point_grid.hpp"
 
 namespace handskin {
@@ -21,33 +23,6 @@ void bernstein(double t, double B[4], double D[4]) {
   if (D) D[0] = -3 * s * s, D[1] = 3 * s * s - 6 * t * s, D[2] = 6 * t * s - 3 * t * t, D[3] = 3 * t * t;
 }
 
-// Patch (a, b) and local (s, t) of (u, v): u wraps around the tube, v is clamped to [0, nv].
-void locate(int nu, int nv, double u, double v, int* a, int* b, double* s, double* t) {
-  u = std::fmod(u, static_cast<double>(nu));
-  if (u < 0) u += nu;
-  v = std::clamp(v, 0.0, static_cast<double>(nv));
-  *a = std::min(static_cast<int>(u), nu - 1);
-  *b = std::min(static_cast<int>(v), nv - 1);
-  *s = u - *a;
-  *t = v - *b;
-}
-
-int net_index(int NU, int NV, int i, int j) { return ((i % NU + NU) % NU) * NV + j; }
-
-// Patch (a, b) of a tube: its 4 × 4 block of the net, with each point's link.
-BezierPatch patch_of(const TubeSurface& T, int a, int b) {
-  const int NU = 3 * T.nu, NV = 3 * T.nv + 1;
-  BezierPatch P;
-  P.tube = T.tube, P.span_u = a, P.span_v = b;
-  for (int i = 0; i < 4; ++i)
-    for (int j = 0; j < 4; ++j) {
-      const int k = net_index(NU, NV, 3 * a + i, 3 * b + j);
-      P.P[4 * i + j] = T.net[k];
-      P.cp_link[4 * i + j] = T.net_link.empty() ? -1 : T.net_link[k];
-    }
-  return P;
-}
-
 int nearest_link(const Eigen::Vector3d& p, const std::vector<Bone>& bones) {
   int best = -1;
   double bd = 1e300;
@@ -58,121 +33,143 @@ int nearest_link(const Eigen::Vector3d& p, const std::vector<Bone>& bones) {
   return best;
 }
 
-struct Datum {
-  Eigen::Vector3d p;
-  double u = 0, v = 0, w = 1;
-  int side = -1;  ///< 0 palm, 1 back; -1 a ring point (weak data, parameters fixed)
+// The control net of a layout: one control point per corner, two per edge, four inside each
+// face. Patch f's P(i, j) (i along corner 0 → 1, j along corner 0 → 3) is ids[f][4 i + j].
+struct Net {
+  std::vector<std::array<int, 16>> ids;
+  int count = 0;
 };
 
-// Least squares for the tube's net (eq. 4.5): data, C1 across borders, fairness. The normal
-// equations are assembled from per-patch blocks into a sparse matrix.
-void fit_net(TubeSurface* T, const std::vector<Datum>& data, const PatchOptions& o) {
-  const int NU = 3 * T->nu, NV = 3 * T->nv + 1;
-  // Unknowns: one per net point, except that a closed end's row is one point.
-  std::vector<int> unknown(static_cast<size_t>(NU) * NV);
-  int n = 0;
-  for (int i = 0; i < NU; ++i)
-    for (int j = 0; j < NV; ++j) {
-      const bool tied = (j == 0 && T->closed_start) || (j == NV - 1 && T->closed_end);
-      unknown[net_index(NU, NV, i, j)] = tied && i > 0 ? unknown[net_index(NU, NV, 0, j)] : n++;
-    }
-  auto id = [&](int i, int j) { return unknown[net_index(NU, NV, i, j)]; };
-  // Each patch's 16 × 16 block of the normal equations is one product C·Cᵀ of its data's
-  // basis values (columns scaled by √w), then scattered into the tube's matrix once.
-  const int patches = T->nu * T->nv;
-  std::vector<std::vector<int>> of_patch(patches);
-  std::vector<Eigen::Matrix<double, 16, 1>> basis(data.size());
-  double wsum = 0;
-  for (size_t k = 0; k < data.size(); ++k) {
-    const Datum& d = data[k];
-    int a, b;
-    double s, t, Bu[4], Bv[4];
-    locate(T->nu, T->nv, d.u, d.v, &a, &b, &s, &t);
-    bernstein(s, Bu, nullptr);
-    bernstein(t, Bv, nullptr);
-    const double sw = std::sqrt(d.w);
-    for (int i = 0; i < 4; ++i)
-      for (int j = 0; j < 4; ++j) basis[k](4 * i + j) = sw * Bu[i] * Bv[j];
-    of_patch[a * T->nv + b].push_back(static_cast<int>(k));
-    wsum += d.w;
-  }
-  std::vector<Eigen::Matrix<double, 16, 16>> block(patches);
-  std::vector<Eigen::Matrix<double, 16, 3>> rhs(patches);
-#pragma omp parallel for schedule(dynamic) if (patches > 8)
-  for (int k = 0; k < patches; ++k) {
-    const std::vector<int>& ids = of_patch[k];
-    Eigen::Matrix<double, 16, Eigen::Dynamic> C(16, ids.size());
-    Eigen::Matrix<double, Eigen::Dynamic, 3> Y(ids.size(), 3);
-    for (size_t q = 0; q < ids.size(); ++q) {
-      C.col(q) = basis[ids[q]];
-      Y.row(q) = std::sqrt(data[ids[q]].w) * data[ids[q]].p.transpose();
-    }
-    block[k].noalias() = C * C.transpose();
-    rhs[k].noalias() = C * Y;
-  }
-  std::vector<Eigen::Triplet<double>> A;
-  A.reserve(static_cast<size_t>(patches) * 256 + unknown.size() * 18);
-  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(n, 3);
-  for (int a = 0; a < T->nu; ++a)
-    for (int b = 0; b < T->nv; ++b) {
-      int idx[16];
-      for (int i = 0; i < 4; ++i)
-        for (int j = 0; j < 4; ++j) idx[4 * i + j] = id(3 * a + i, 3 * b + j);
-      const int k = a * T->nv + b;
-      for (int x = 0; x < 16; ++x) {
-        for (int y = 0; y < 16; ++y) A.emplace_back(idx[x], idx[y], block[k](x, y));
-        R.row(idx[x]) += rhs[k].row(x);
-      }
-    }
-  // Second differences of the net (fairness everywhere, C1 at the borders): rows e_a − 2e_b + e_c.
-  const double per_point = wsum / n;
-  auto triple = [&](int i0, int i1, int i2, double w) {
-    const int id[3] = {i0, i1, i2};
-    const double c[3] = {1, -2, 1};
-    for (int x = 0; x < 3; ++x)
-      for (int y = 0; y < 3; ++y) A.emplace_back(id[x], id[y], w * c[x] * c[y]);
+Net build_net(const PatchLayout& L) {
+  Net N;
+  N.count = static_cast<int>(L.vertices.size());
+  std::map<std::pair<int, int>, int> edge_base;
+  auto edge = [&](int a, int b, int near) {
+    const auto key = std::make_pair(std::min(a, b), std::max(a, b));
+    auto it = edge_base.find(key);
+    if (it == edge_base.end()) it = edge_base.emplace(key, N.count).first, N.count += 2;
+    return it->second + (near == key.first ? 0 : 1);
   };
-  for (int i = 0; i < NU; ++i)
-    for (int j = 0; j < NV; ++j) {
-      const bool border_u = i % 3 == 0, border_v = j % 3 == 0 && j > 0 && j < NV - 1;
-      triple(id(i - 1, j), id(i, j), id(i + 1, j), per_point * (o.fairness + (border_u ? o.c1_weight : 0)));
-      if (j > 0 && j < NV - 1)
-        triple(id(i, j - 1), id(i, j), id(i, j + 1), per_point * (o.fairness + (border_v ? o.c1_weight : 0)));
-    }
-  // The normal matrix is banded (each net point couples with its patches' 4 × 4 blocks):
-  // sparse Cholesky (LDLᵀ), never an inverse.
-  Eigen::SparseMatrix<double> As(n, n);
-  As.setFromTriplets(A.begin(), A.end());  // duplicates are summed
-  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(As);
-  HS_CHECK(ldlt.info() == Eigen::Success, "patch fit: the normal equations could not be factored");
-  const Eigen::MatrixXd X = ldlt.solve(R);
-  T->net.resize(unknown.size());
-  for (size_t k = 0; k < unknown.size(); ++k) T->net[k] = X.row(unknown[k]).transpose();
+  for (const auto& c : L.faces) {
+    std::array<int, 16> id{};
+    auto P = [&](int i, int j) -> int& { return id[4 * i + j]; };
+    P(0, 0) = c[0], P(3, 0) = c[1], P(3, 3) = c[2], P(0, 3) = c[3];
+    P(1, 0) = edge(c[0], c[1], c[0]), P(2, 0) = edge(c[0], c[1], c[1]);
+    P(3, 1) = edge(c[1], c[2], c[1]), P(3, 2) = edge(c[1], c[2], c[2]);
+    P(2, 3) = edge(c[2], c[3], c[2]), P(1, 3) = edge(c[2], c[3], c[3]);
+    P(0, 2) = edge(c[3], c[0], c[3]), P(0, 1) = edge(c[3], c[0], c[0]);
+    P(1, 1) = N.count++, P(2, 1) = N.count++, P(1, 2) = N.count++, P(2, 2) = N.count++;
+    N.ids.push_back(id);
+  }
+  return N;
 }
 
-// Newton (Gauss–Newton) foot point of d.p on the surface from (d.u, d.v), at most `iterations`
-// steps; returns how far the parameters moved (in spans).
-double foot_point(const TubeSurface& T, Datum* d, int iterations, double* residual2 = nullptr) {
-  double moved = 0;
+// Side s of a patch (from its corner s to corner s + 1): the border's control points in that
+// order, as (i, j), and each one's inner neighbour.
+void border(int s, std::array<std::array<int, 2>, 4>* on, std::array<std::array<int, 2>, 4>* in) {
+  for (int k = 0; k < 4; ++k) {
+    switch (s) {
+      case 0: (*on)[k] = {k, 0}, (*in)[k] = {k, 1}; break;
+      case 1: (*on)[k] = {3, k}, (*in)[k] = {2, k}; break;
+      case 2: (*on)[k] = {3 - k, 3}, (*in)[k] = {3 - k, 2}; break;
+      default: (*on)[k] = {0, 3 - k}, (*in)[k] = {1, 3 - k}; break;
+    }
+  }
+}
+// The parameters of the point a fraction q along side s.
+Eigen::Vector2d on_side(int s, double q) {
+  switch (s) {
+    case 0: return {q, 0};
+    case 1: return {1, q};
+    case 2: return {1 - q, 1};
+    default: return {0, 1 - q};
+  }
+}
+
+struct Datum {
+  Eigen::Vector3d p;
+  double w = 1;
+  int side = -1;  ///< 0 palm, 1 back; -1 a sample of the polygon skin (weak data)
+  bool fit = true;  ///< in the least squares (the measured points are thinned for it)
+  int patch = -1;
+  double s = 0.5, t = 0.5;
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();  ///< the surface's unit normal at the foot point (after the first fit)
+};
+
+// Newton (Gauss–Newton) foot point of d.p on the surface from (d.patch, d.s, d.t), at most
+// `iterations` steps. A step that leaves the patch goes on in the patch across the side it
+// crossed, from the point where it crossed (at most 4 such crossings, so that a point between
+// two patches that both pull it back cannot cycle). Returns true when it ends pushing out of
+// its patch still (a corner, or the crossings spent): then it is looked for on the whole
+// surface.
+bool foot_point(const std::vector<BezierPatch>& P, const LayoutTopology& T, Datum* d, int iterations) {
+  int crossings = 0;
   for (int it = 0; it < iterations; ++it) {
     Eigen::Vector3d S, Su, Sv;
-    T.derivatives(d->u, d->v, &S, &Su, &Sv);
+    P[d->patch].derivatives(d->s, d->t, &S, &Su, &Sv);
     const Eigen::Vector3d r = d->p - S;
-    if (residual2) *residual2 = r.squaredNorm();  // at the parameters before this step
     Eigen::Matrix2d J;
     J << Su.dot(Su), Su.dot(Sv), Su.dot(Sv), Sv.dot(Sv);
     const Eigen::Vector2d g(Su.dot(r), Sv.dot(r));
     if (std::abs(J.determinant()) < 1e-12) break;
     Eigen::Vector2d step = J.ldlt().solve(g);
     const double len = step.norm();
-    if (len > 0.5) step *= 0.5 / len;  // at most half a span per step
-    const double v0 = d->v;
-    d->u += step(0);
-    d->v = std::clamp(d->v + step(1), 0.0, static_cast<double>(T.nv));
-    moved += std::hypot(step(0), d->v - v0);
-    if (step.norm() < 1e-7) break;
+    if (len > 0.5) step *= 0.5 / len;  // at most half a patch per step
+    const double s = d->s + step(0), t = d->t + step(1);
+    // The side crossed first along the step, if any.
+    int side = -1;
+    double first = 2;
+    auto consider = [&](int k, double at) {
+      if (at >= 0 && at < first) first = at, side = k;
+    };
+    if (t < 0) consider(0, d->t / (d->t - t));
+    if (s > 1) consider(1, (1 - d->s) / (s - d->s));
+    if (t > 1) consider(2, (1 - d->t) / (t - d->t));
+    if (s < 0) consider(3, d->s / (d->s - s));
+    if (side < 0) {
+      d->s = s, d->t = t;
+      if (step.norm() < 1e-7) return false;
+      continue;
+    }
+    const double cs = std::clamp(d->s + first * step(0), 0.0, 1.0), ct = std::clamp(d->t + first * step(1), 0.0, 1.0);
+    const int g2 = T.neighbour[d->patch][side];
+    if (g2 < 0 || crossings == 4) {
+      d->s = cs, d->t = ct;
+      return true;
+    }
+    ++crossings;
+    // Where along the side (from its corner `side` to the next) the step crossed; the
+    // neighbour runs the side the other way.
+    const double q = side == 0 ? cs : side == 1 ? ct : side == 2 ? 1 - cs : 1 - ct;
+    const Eigen::Vector2d at = on_side(T.neighbour_side[d->patch][side], 1 - q);
+    d->patch = g2, d->s = at.x(), d->t = at.y();
   }
-  return moved;
+  return false;
+}
+
+// The whole surface sampled on an m × m grid per patch, for the nearest-point search that
+// (re)assigns a point to its patch.
+struct SurfaceSamples {
+  std::vector<Eigen::Vector3d> p;
+  std::vector<std::array<float, 3>> at;  ///< patch, s, t
+  SurfaceSamples(const std::vector<BezierPatch>& P, int m) {
+    for (size_t f = 0; f < P.size(); ++f)
+      for (int i = 0; i <= m; ++i)
+        for (int j = 0; j <= m; ++j) {
+          const double s = static_cast<double>(i) / m, t = static_cast<double>(j) / m;
+          p.push_back(P[f].eval(s, t));
+          at.push_back({static_cast<float>(f), static_cast<float>(s), static_cast<float>(t)});
+        }
+  }
+};
+
+// Place d on the surface: the nearest sample, then Newton in its patch.
+void locate_globally(const std::vector<BezierPatch>& P, const LayoutTopology& T, const SurfaceSamples& S,
+                     const PointGrid& grid, Datum* d) {
+  const int k = grid.nearest(d->p, 1e3);
+  HS_CHECK(k >= 0, "patch fit: no surface sample near a point");
+  d->patch = static_cast<int>(S.at[k][0]), d->s = S.at[k][1], d->t = S.at[k][2];
+  foot_point(P, T, d, 8);
 }
 
 DistanceFigures figures_of(std::vector<double> r) {
@@ -189,285 +186,464 @@ DistanceFigures figures_of(std::vector<double> r) {
   return f;
 }
 
+// The control point on the layout edge (v, w) next to corner v.
+int net_edge_near(const PatchSkin& s, int v, int w) {
+  const auto& faces = s.layout.faces;
+  for (size_t f = 0; f < faces.size(); ++f)
+    for (int k = 0; k < 4; ++k)
+      if (faces[f][k] == v && faces[f][(k + 1) % 4] == w) {
+        std::array<std::array<int, 2>, 4> on, in;
+        border(k, &on, &in);
+        return s.patch_control[f][4 * on[1][0] + on[1][1]];
+      }
+  HS_CHECK(false, "patch net: no face runs an edge of the layout");
+  return -1;
+}
+
+void rebuild_patches(PatchSkin* s) {
+  for (size_t f = 0; f < s->patches.size(); ++f)
+    for (int k = 0; k < 16; ++k) {
+      const int id = s->patch_control[f][k];
+      s->patches[f].P[k] = s->control[id];
+      s->patches[f].cp_link[k] = s->control_link.empty() ? -1 : s->control_link[id];
+    }
+}
+
+// Least squares for every control point at once (eq. 4.5): the data, C1 across every border
+// (but not into a corner where other than four patches meet: there it would flatten the
+// corner's tangents), fairness inside each patch. The normal equations are assembled from
+// per-patch blocks.
+//
+// Once the points have foot points with normals, each point's error is measured the way
+// squared-distance minimisation does (Wang, Pottmann & Liu 2006): its distance along the
+// surface's normal there in full, its offset along the surface at kTangentWeight. The
+// thesis's point-to-point error (eq. 4.5 with the parameters held) makes the fit drag the
+// surface along with the points' old parameters: the parameter correction then creeps (on an
+// ellipsoid the RMS still fell by a third from the tenth round to the thirtieth); with the
+// normal error the correction settles in a few rounds. The normal term couples x, y and z,
+// so the system has three unknowns per control point.
+constexpr double kTangentWeight = 0.005;
+constexpr double kSettledRms = 0.005;  // a round that takes less off the RMS ends the correction
+constexpr size_t kFitPoints = 15000;  // measured points in the least squares (at least 16 per control point)
+struct NetSolver {
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
+  bool analysed = false;
+};
+void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& data, const PatchOptions& o,
+             NetSolver* solver) {
+  const int n = static_cast<int>(out->control.size());
+  const int patches = static_cast<int>(out->patches.size());
+  std::vector<std::vector<int>> of_patch(patches);
+  double wsum = 0;
+  for (size_t k = 0; k < data.size(); ++k)
+    if (data[k].fit) of_patch[data[k].patch].push_back(static_cast<int>(k)), wsum += data[k].w;
+  // Per patch: the point term's 16 × 16 block (the same for x, y, z) and the normal term's
+  // 48 × 48 block, each one product C·Cᵀ of its data's columns.
+  std::vector<Eigen::Matrix<double, 16, 16>> block(patches);
+  std::vector<Eigen::Matrix<double, 16, 3>> rhs(patches);
+  std::vector<Eigen::Matrix<double, 48, 48>> nblock(patches);
+  std::vector<Eigen::Matrix<double, 48, 1>> nrhs(patches);
+#pragma omp parallel for schedule(dynamic)
+  for (int f = 0; f < patches; ++f) {
+    const std::vector<int>& ids = of_patch[f];
+    Eigen::Matrix<double, 16, Eigen::Dynamic> C(16, ids.size());
+    Eigen::Matrix<double, Eigen::Dynamic, 3> Y(ids.size(), 3);
+    Eigen::Matrix<double, 48, Eigen::Dynamic> Cn = Eigen::Matrix<double, 48, Eigen::Dynamic>::Zero(48, ids.size());
+    Eigen::Matrix<double, Eigen::Dynamic, 1> Yn = Eigen::Matrix<double, Eigen::Dynamic, 1>::Zero(ids.size());
+    for (size_t q = 0; q < ids.size(); ++q) {
+      const Datum& d = data[ids[q]];
+      double Bu[4], Bv[4];
+      bernstein(d.s, Bu, nullptr);
+      bernstein(d.t, Bv, nullptr);
+      const bool with_normal = d.n.squaredNorm() > 0.5;
+      const double sp = std::sqrt(d.w * (with_normal ? kTangentWeight : 1.0)), sn = std::sqrt(d.w);
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) {
+          const double b = Bu[i] * Bv[j];
+          C(4 * i + j, q) = sp * b;
+          if (with_normal) Cn.block<3, 1>(3 * (4 * i + j), q) = sn * b * d.n;
+        }
+      Y.row(q) = sp * d.p.transpose();
+      if (with_normal) Yn(q) = sn * d.n.dot(d.p);
+    }
+    block[f].noalias() = C * C.transpose();
+    rhs[f].noalias() = C * Y;
+    nblock[f].noalias() = Cn * Cn.transpose();
+    nrhs[f].noalias() = Cn * Yn;
+  }
+  std::vector<Eigen::Triplet<double>> A;
+  A.reserve(static_cast<size_t>(patches) * (256 * 3 + 2304 + 24 * 27) + T.edges * 4 * 27);
+  Eigen::VectorXd R = Eigen::VectorXd::Zero(3 * n);
+  for (int f = 0; f < patches; ++f) {
+    const auto& idx = out->patch_control[f];
+    for (int x = 0; x < 16; ++x) {
+      for (int y = 0; y < 16; ++y) {
+        for (int c = 0; c < 3; ++c) A.emplace_back(3 * idx[x] + c, 3 * idx[y] + c, block[f](x, y));
+        for (int c = 0; c < 3; ++c)
+          for (int e = 0; e < 3; ++e) A.emplace_back(3 * idx[x] + c, 3 * idx[y] + e, nblock[f](3 * x + c, 3 * y + e));
+      }
+      for (int c = 0; c < 3; ++c) R(3 * idx[x] + c) += rhs[f](x, c) + nrhs[f](3 * x + c);
+    }
+  }
+  const double per_point = wsum / n;
+  // A penalty row Σ w_k e_k on control points (the same for x, y and z): its normal-equation entries.
+  auto penalty = [&](std::initializer_list<int> ids, std::initializer_list<double> coef, double w) {
+    const int* id = ids.begin();
+    const double* cf = coef.begin();
+    const size_t m = ids.size();
+    for (size_t x = 0; x < m; ++x)
+      for (size_t y = 0; y < m; ++y)
+        for (int c = 0; c < 3; ++c) A.emplace_back(3 * id[x] + c, 3 * id[y] + c, w * cf[x] * cf[y]);
+  };
+  auto triple = [&](int i0, int i1, int i2, double w) { penalty({i0, i1, i2}, {1, -2, 1}, w); };
+  // Fairness: second differences along both directions inside each patch.
+  for (int f = 0; f < patches; ++f) {
+    const auto& id = out->patch_control[f];
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 2; ++b) {
+        triple(id[4 * a + b], id[4 * a + b + 1], id[4 * a + b + 2], per_point * o.fairness);
+        triple(id[4 * b + a], id[4 * (b + 1) + a], id[4 * (b + 2) + a], per_point * o.fairness);
+      }
+  }
+  // C1: each border's control points midway between their inner neighbours on either side.
+  const auto& faces = out->layout.faces;
+  for (int f = 0; f < patches; ++f)
+    for (int s = 0; s < 4; ++s) {
+      const int g = T.neighbour[f][s], gs = T.neighbour_side[f][s];
+      if (g < f || (g == f && gs < s)) continue;  // each border once
+      std::array<std::array<int, 2>, 4> on_f, in_f, on_g, in_g;
+      border(s, &on_f, &in_f);
+      border(gs, &on_g, &in_g);
+      const auto& idf = out->patch_control[f];
+      const auto& idg = out->patch_control[g];
+      for (int k = 0; k < 4; ++k) {
+        const auto& b = on_f[k];
+        const auto& a = in_f[k];
+        const auto& c = in_g[3 - k];  // g runs the border the other way
+        HS_CHECK(idf[4 * b[0] + b[1]] == idg[4 * on_g[3 - k][0] + on_g[3 - k][1]], "patch net: a border not shared");
+        if (out->layout.is_crease(faces[f][s], faces[f][(s + 1) % 4])) break;
+        if (k == 0 && !T.regular(faces[f][s])) continue;
+        if (k == 3 && !T.regular(faces[f][(s + 1) % 4])) continue;
+        triple(idf[4 * a[0] + a[1]], idf[4 * b[0] + b[1]], idg[4 * c[0] + c[1]], per_point * (o.c1_weight + o.fairness));
+      }
+    }
+  // Where other than four patches meet, the control points next to the corner along its
+  // edges, taken in turn round it (v_i = e_i − corner), are held to an affine image of a
+  // regular n-gon: v_{i−1} + v_{i+1} = 2 cos(2π/n) v_i. They then lie in one plane — one
+  // tangent plane for all the patches there (G1 at the corner) — and the condition is linear
+  // and the same for x, y and z (for n = 4 it is the C1 condition above). Corners on a crease
+  // are left free.
+  for (size_t v = 0; v < T.valence.size(); ++v) {
+    if (T.regular(static_cast<int>(v)) || T.around[v].empty()) continue;
+    bool on_crease = false;
+    for (int w : T.around[v]) on_crease = on_crease || out->layout.is_crease(static_cast<int>(v), w);
+    if (on_crease) continue;
+    const int m = static_cast<int>(T.around[v].size());
+    const double c = std::cos(2 * M_PI / m);
+    std::vector<int> e(m);
+    for (int i = 0; i < m; ++i) e[i] = net_edge_near(*out, static_cast<int>(v), T.around[v][i]);
+    for (int i = 0; i < m; ++i) {
+      penalty({e[(i + m - 1) % m], e[(i + 1) % m], e[i], static_cast<int>(v)}, {1, 1, -2 * c, -2 * (1 - c)},
+              per_point * o.corner_weight);
+    }
+  }
+  // Sparse Cholesky (LDLᵀ) of the normal equations; never an inverse.
+  Eigen::SparseMatrix<double> As(3 * n, 3 * n);
+  As.setFromTriplets(A.begin(), A.end());  // duplicates are summed
+  // The pattern is the same every round (the same net and penalties): its ordering and
+  // symbolic analysis are made once. CHOLMOD's supernodal Cholesky (SuiteSparse, through
+  // Eigen): 6–8 times faster here than Eigen's simplicial LDLᵀ, whose factorisation took most
+  // of the fit's time.
+  if (!solver->analysed) solver->llt.analyzePattern(As), solver->analysed = true;
+  solver->llt.factorize(As);
+  HS_CHECK(solver->llt.info() == Eigen::Success, "patch fit: the normal equations could not be factored");
+  const Eigen::VectorXd X = solver->llt.solve(R);
+  for (int k = 0; k < n; ++k) out->control[k] = X.segment<3>(3 * k);
+  rebuild_patches(out);
+}
+
 }  // namespace
+
+Eigen::Vector3d BezierPatch::eval(double u, double v) const {
+  double Bu[4], Bv[4];
+  bernstein(u, Bu, nullptr);
+  bernstein(v, Bv, nullptr);
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) p += Bu[i] * Bv[j] * P[4 * i + j];
+  return p;
+}
+
+void BezierPatch::derivatives(double u, double v, Eigen::Vector3d* S, Eigen::Vector3d* Su, Eigen::Vector3d* Sv) const {
+  double Bu[4], Du[4], Bv[4], Dv[4];
+  bernstein(u, Bu, Du);
+  bernstein(v, Bv, Dv);
+  S->setZero(), Su->setZero(), Sv->setZero();
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) {
+      const Eigen::Vector3d& c = P[4 * i + j];
+      *S += Bu[i] * Bv[j] * c;
+      *Su += Du[i] * Bv[j] * c;
+      *Sv += Bu[i] * Dv[j] * c;
+    }
+}
 
 bool PatchOptions::IsValid(std::string* error) const {
   auto bad = [&](const std::string& m) {
     if (error) *error = m;
     return false;
   };
-  if (palm_around < 3 || palm_around > 64 || digit_around < 3 || digit_around > 64)
-    return bad("patches around a tube must be in [3, 64]");
-  if (palm_along < 1 || palm_along > 64 || digit_along < 1 || digit_along > 64)
-    return bad("patches along a tube must be in [1, 64]");
+  if (subdivision < 1 || subdivision > 8) return bad("subdivision must be in [1, 8]");
   if (!(fairness >= 0 && fairness <= 10)) return bad("fairness must be in [0, 10]");
   if (!(c1_weight >= 0 && c1_weight <= 1e4)) return bad("c1_weight must be in [0, 1e4]");
-  if (!(ring_weight > 0 && ring_weight <= 10)) return bad("ring_weight must be in (0, 10]");
+  if (!(corner_weight >= 0 && corner_weight <= 1e4)) return bad("corner_weight must be in [0, 1e4]");
+  if (!(skin_weight > 0 && skin_weight <= 10)) return bad("skin_weight must be in (0, 10]");
   if (max_corrections < 0 || max_corrections > 100) return bad("max_corrections must be in [0, 100]");
   if (!(correction_tolerance > 0)) return bad("correction_tolerance must be > 0");
   if (tessellation < 1 || tessellation > 64) return bad("tessellation must be in [1, 64]");
-  for (const auto& [tube, sp] : tube_spans) {
-    if (tube < 0 || tube >= kSkinTubes) return bad("a layout names an unknown tube");
-    if (sp[0] < 3 || sp[0] > 64 || sp[1] < 1 || sp[1] > 64)
-      return bad(std::string("layout of the ") + skin_tube_name(tube) + " tube: around must be in [3, 64], along in [1, 64]");
-  }
   return true;
 }
 
-std::map<int, std::array<int, 2>> parse_patch_layout(const Json& j, const std::string& file) {
+PatchLayout parse_patch_layout(const Json& j, const std::string& file) {
   const std::string format = get_string(j, "format", file);
   if (format != "handskin-patches/1" && format != "handskin-patch-layout/1")
     throw InputError(file, "key 'format' must be \"handskin-patches/1\" or \"handskin-patch-layout/1\" (got \"" + format + "\")");
-  const Json& tubes = require(j, "tubes", file);
-  if (!tubes.is_array() || tubes.empty()) throw InputError(file, "key 'tubes' must be a non-empty array");
-  std::map<int, std::array<int, 2>> out;
-  for (size_t k = 0; k < tubes.size(); ++k) {
-    const std::string where = file + ": tubes[" + std::to_string(k) + "]";
-    if (!tubes[k].is_object()) throw InputError(where, "must be an object");
-    const std::string name = get_string(tubes[k], "tube", where);
-    int tube = -1;
-    for (int t = 0; t < kSkinTubes; ++t)
-      if (name == skin_tube_name(t)) tube = t;
-    if (tube < 0) throw InputError(where, "unknown tube '" + name + "' (palm, thumb, index, middle, ring, little)");
-    if (out.count(tube)) throw InputError(where, "tube '" + name + "' given twice");
-    out[tube] = {static_cast<int>(get_int(tubes[k], "around", where, 3, 64)), static_cast<int>(get_int(tubes[k], "along", where, 1, 64))};
-  }
-  return out;
+  const Json& layout = require(j, "layout", file);
+  if (!layout.is_object()) throw InputError(file, "key 'layout' must be an object");
+  return layout_from_json(layout, file + ": layout");
 }
 
-Eigen::Vector3d BezierPatch::eval(double u, double v) const {
-  double Bu[4], Bv[4];
-  bernstein(u, Bu, nullptr);
-  bernstein(v, Bv, nullptr);
-  Eigen::Vector3d s = Eigen::Vector3d::Zero();
-  for (int i = 0; i < 4; ++i)
-    for (int j = 0; j < 4; ++j) s += Bu[i] * Bv[j] * P[4 * i + j];
-  return s;
-}
-
-const Eigen::Vector3d& TubeSurface::net_at(int i, int j) const { return net[net_index(3 * nu, 3 * nv + 1, i, j)]; }
-
-void TubeSurface::derivatives(double u, double v, Eigen::Vector3d* S, Eigen::Vector3d* Su, Eigen::Vector3d* Sv) const {
-  int a, b;
-  double s, t, Bu[4], Du[4], Bv[4], Dv[4];
-  locate(nu, nv, u, v, &a, &b, &s, &t);
-  bernstein(s, Bu, Du);
-  bernstein(t, Bv, Dv);
-  *S = *Su = *Sv = Eigen::Vector3d::Zero();
-  for (int i = 0; i < 4; ++i)
-    for (int j = 0; j < 4; ++j) {
-      const Eigen::Vector3d& p = net_at(3 * a + i, 3 * b + j);
-      *S += Bu[i] * Bv[j] * p;
-      *Su += Du[i] * Bv[j] * p;
-      *Sv += Bu[i] * Dv[j] * p;
-    }
-}
-
-Eigen::Vector3d TubeSurface::eval(double u, double v) const {
-  Eigen::Vector3d S, Su, Sv;
-  derivatives(u, v, &S, &Su, &Sv);
-  return S;
-}
-
-PatchSkin fit_patch_skin(const SkinResult& skin, const std::vector<Eigen::Vector3d>& points,
-                         const std::vector<std::uint32_t>& sides, const PatchOptions& o) {
+PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector3d>& points,
+                      const std::vector<std::uint32_t>& sides, const std::vector<Eigen::Vector3d>& support,
+                      const std::vector<Bone>& bones, const PatchOptions& o) {
   std::string err;
   if (!o.IsValid(&err)) throw InputError("patch options", err);
   HS_CHECK(points.size() == sides.size(), "points and sides differ in length");
   const auto t0 = std::chrono::steady_clock::now();
   PatchSkin out;
-  for (const auto& b : skin.bones) out.bones.push_back(b.name());
+  out.layout = layout;
+  const LayoutTopology T = layout_topology(layout, "patch layout");
+  for (const auto& b : bones) out.bones.push_back(b.name());
+  for (int v : T.valence) out.irregular_corners += v != 4;
 
-  // --- the tubes' parameter domains: chord length along and around the rings ---
-  struct Domain {
-    std::vector<std::vector<Eigen::Vector3d>> rings;  ///< the tube's rings, with the closing ones
-    std::vector<char> closing;                        ///< per ring: added to close an end (weak data)
-    std::vector<double> u_of_point, v_of_ring;
-  };
-  std::vector<Domain> domains;
-  std::vector<Eigen::Vector3d> nodes;
-  std::vector<std::array<int, 3>> node_of;  // tube slot, ring, point
-  for (size_t g = 0; g < skin.grid.size(); ++g) {
-    const RingGrid& rg = skin.grid[g];
-    if (!rg.present || rg.rings.size() < 2) continue;
-    const size_t m = rg.rings[0].size();
-    TubeSurface T;
-    T.tube = rg.tube;
-    const bool palm = rg.tube == static_cast<int>(SkinTube::Palm);
-    T.nu = palm ? o.palm_around : o.digit_around;
-    T.nv = palm ? o.palm_along : o.digit_along;
-    if (const auto it = o.tube_spans.find(rg.tube); it != o.tube_spans.end()) T.nu = it->second[0], T.nv = it->second[1];
-    Domain D;
-    // Closing rings: a digit's tip ends at its pole (and a capped start would begin at its
-    // first ring's centre, drawn in halfway). The closed row of control points is one point
-    // (tied in fit_net): the end is closed by patches with one edge collapsed.
-    auto centroid = [&](const std::vector<Eigen::Vector3d>& r) {
-      Eigen::Vector3d c = Eigen::Vector3d::Zero();
-      for (const auto& p : r) c += p;
-      return Eigen::Vector3d(c / static_cast<double>(r.size()));
-    };
-    // The wrist end stays open: capping it (a cone of patches to the first ring's centre) took
-    // the fixture's surface → truth mean from 0.54 to 0.69 mm (docs/patches.md).
-    T.closed_start = false;
-    T.closed_end = !palm && rg.pole.has_value();
-    if (T.closed_start) {
-      const Eigen::Vector3d c = centroid(rg.rings.front());
-      std::vector<Eigen::Vector3d> half;
-      for (const auto& p : rg.rings.front()) half.push_back(0.5 * (p + c));
-      D.rings.push_back(std::vector<Eigen::Vector3d>(m, c));
-      D.rings.push_back(half);
-      D.closing = {1, 1};
-    }
-    for (const auto& ring : rg.rings) D.rings.push_back(ring), D.closing.push_back(0);
-    if (T.closed_end) D.rings.push_back(std::vector<Eigen::Vector3d>(m, *rg.pole)), D.closing.push_back(1);
-    std::vector<double> around(m + 1, 0.0);
-    for (const auto& ring : rg.rings)
-      for (size_t j = 0; j < m; ++j) around[j + 1] += (ring[(j + 1) % m] - ring[j]).norm();
-    for (size_t j = 1; j <= m; ++j) around[j] += around[j - 1];
-    for (size_t j = 0; j < m; ++j) D.u_of_point.push_back(T.nu * around[j] / around[m]);
-    // Along: the mean distance between corresponding points of consecutive rings (along the
-    // tube this is the rings' spacing; over a cap, its radius).
-    std::vector<double> along(1, 0.0);
-    for (size_t r = 1; r < D.rings.size(); ++r) {
-      double d = 0;
-      for (size_t j = 0; j < m; ++j) d += (D.rings[r][j] - D.rings[r - 1][j]).norm();
-      along.push_back(along.back() + d / static_cast<double>(m));
-    }
-    for (double a : along) D.v_of_ring.push_back(T.nv * a / std::max(along.back(), 1e-9));
-    for (size_t r = 0; r < D.rings.size(); ++r)
-      for (size_t j = 0; j < m; ++j) {
-        nodes.push_back(D.rings[r][j]);
-        node_of.push_back({static_cast<int>(out.tubes.size()), static_cast<int>(r), static_cast<int>(j)});
+  // --- the net, started on the layout's bilinear faces ---
+  const Net net = build_net(layout);
+  out.patch_control = net.ids;
+  out.control.assign(net.count, Eigen::Vector3d::Zero());
+  out.patches.resize(layout.faces.size());
+  for (size_t f = 0; f < layout.faces.size(); ++f) {
+    const auto& c = layout.faces[f];
+    const auto& V = layout.vertices;
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) {
+        const double s = i / 3.0, t = j / 3.0;
+        out.control[net.ids[f][4 * i + j]] =
+            (1 - s) * (1 - t) * V[c[0]] + s * (1 - t) * V[c[1]] + s * t * V[c[2]] + (1 - s) * t * V[c[3]];
       }
-    out.tubes.push_back(T);
-    domains.push_back(std::move(D));
+    out.patches[f].name = f < layout.names.size() ? layout.names[f] : "face" + std::to_string(f);
   }
-  if (out.tubes.empty()) throw InputError("skin", "no ring grid to fit patches on");
+  rebuild_patches(&out);
 
-  // --- data: each measured point to the tube of its nearest ring point, parameters from it;
-  //     the ring points themselves as weak data (they bridge what the scans did not see) ---
-  std::vector<std::vector<Datum>> data(out.tubes.size());
-  constexpr double kFarMm = 5.0;  // farther from every ring: not the skin (a stray sample)
-  const PointGrid grid(nodes, 2.0);  // exact nearest ring point within kFarMm
-  std::vector<int> nearest(points.size(), -1);
+  // --- data: the measured points near the skin, and samples of the polygon skin as weak data ---
+  // The least squares and the correction rounds take every `stride`-th measured point (each
+  // weighing `stride`): some 16 per control point are plenty for 16 unknowns a patch, and the
+  // fit's time goes with them. Every measured point is placed and measured at the end.
+  std::vector<Datum> data;
+  std::vector<int> in_fit(points.size(), -2);  // per point: its datum, -1 measured at the end only, -2 stray
+  {
+    constexpr double kFarMm = 5.0;  // farther from the skin's every sample: not the skin (a stray sample)
+    const PointGrid near_skin(support, 2.0);
+    std::vector<char> keep(points.size(), 1);
+    if (!support.empty()) {
 #pragma omp parallel for schedule(static)
-  for (long k = 0; k < static_cast<long>(points.size()); ++k) nearest[k] = grid.nearest(points[k], kFarMm);
-  for (size_t k = 0; k < points.size(); ++k) {
-    if (nearest[k] < 0) continue;
-    const auto& [t, r, j] = node_of[nearest[k]];
-    data[t].push_back({points[k], domains[t].u_of_point[j], domains[t].v_of_ring[r], 1.0, static_cast<int>(sides[k])});
+      for (long k = 0; k < static_cast<long>(points.size()); ++k) keep[k] = near_skin.nearest(points[k], kFarMm) >= 0;
+    }
+    const size_t measured = static_cast<size_t>(std::count(keep.begin(), keep.end(), 1));
+    const size_t wanted = std::max<size_t>(kFitPoints, 16 * static_cast<size_t>(net.count));
+    const size_t stride = std::max<size_t>(1, measured / wanted);
+    size_t m = 0;
+    for (size_t k = 0; k < points.size(); ++k) {
+      if (!keep[k]) continue;
+      if (m++ % stride == 0) {
+        in_fit[k] = static_cast<int>(data.size());
+        data.push_back({points[k], static_cast<double>(stride), sides[k] == 1 ? 1 : 0});
+      } else {
+        in_fit[k] = -1;
+      }
+    }
+    for (const auto& p : support) data.push_back({p, o.skin_weight, -1});
   }
-  for (size_t t = 0; t < out.tubes.size(); ++t) {
-    const Domain& D = domains[t];
-    for (size_t r = 0; r < D.rings.size(); ++r)
-      for (size_t j = 0; j < D.rings[r].size(); ++j)
-        data[t].push_back({D.rings[r][j], D.u_of_point[j], D.v_of_ring[r], o.ring_weight, -1});
+  if (data.size() < 16 * out.patches.size())
+    throw InputError("patches", "too few points (" + std::to_string(data.size()) + ") for " +
+                                    std::to_string(out.patches.size()) + " patches");
+  {
+    const SurfaceSamples S(out.patches, 8);
+    const PointGrid grid(S.p, 2.0);
+#pragma omp parallel for schedule(dynamic, 256)
+    for (long k = 0; k < static_cast<long>(data.size()); ++k) locate_globally(out.patches, T, S, grid, &data[k]);
   }
+  NetSolver solver;
+  fit_net(&out, T, data, o, &solver);
 
-  // --- fit, then correct the parameters (eqs. 4.6–4.7) until they settle ---
-  // Each round: foot points on the current surface (their residuals give the round's RMS),
-  // then the refit. The tubes are independent: fitted in parallel.
-  auto fit_all = [&] {
-#pragma omp parallel for schedule(dynamic)
-    for (long t = 0; t < static_cast<long>(out.tubes.size()); ++t) fit_net(&out.tubes[t], data[t], o);
-  };
-  fit_all();
+  // --- parameter correction (eqs. 4.6–4.7): foot points on the current surface, refit ---
+  // A point whose Newton step leaves its patch goes on in its neighbour (or is looked for
+  // again on the whole surface). The round's update is how far the foot points moved on the
+  // surface; a point whose foot point went to a patch that does not touch its last one
+  // (between two sheets of skin: a web, the thumb over the palm) is counted as reassigned
+  // rather than moved. The rounds stop when 99.9 % of the points moved less than the
+  // tolerance: the few largest moves are points the surface does not reach (a web's fold, a
+  // knuckle's crease at 98 patches), which slide on from round to round.
+  std::vector<std::vector<char>> touches(out.patches.size(), std::vector<char>(out.patches.size(), 0));
+  {
+    std::vector<std::vector<int>> at_corner(layout.vertices.size());
+    for (size_t f = 0; f < layout.faces.size(); ++f)
+      for (int c : layout.faces[f]) at_corner[c].push_back(static_cast<int>(f));
+    for (const auto& fs : at_corner)
+      for (int f : fs)
+        for (int g : fs) touches[f][g] = 1;
+  }
+  std::vector<double> moved(data.size(), -1);
   for (int round = 0; round <= o.max_corrections; ++round) {
-    double max_update = 0, sum2 = 0;
-    long count = 0;
-    for (size_t t = 0; t < out.tubes.size(); ++t) {
-      std::vector<Datum>& D = data[t];
-#pragma omp parallel for reduction(max : max_update) reduction(+ : sum2, count) schedule(static)
-      for (long k = 0; k < static_cast<long>(D.size()); ++k)
-        if (D[k].side >= 0) {
-          double r2 = 0;
-          max_update = std::max(max_update, foot_point(out.tubes[t], &D[k], 1, &r2));
-          sum2 += r2;
-          ++count;
-        }
+    const SurfaceSamples S(out.patches, 8);
+    const PointGrid grid(S.p, 2.0);
+    double sum2 = 0;
+    long count = 0, reassigned = 0;
+#pragma omp parallel for reduction(+ : sum2, count, reassigned) schedule(dynamic, 256)
+    for (long k = 0; k < static_cast<long>(data.size()); ++k) {
+      Datum& d = data[k];
+      const int was = d.patch;
+      const Eigen::Vector3d before = out.patches[d.patch].eval(d.s, d.t);
+      if (foot_point(out.patches, T, &d, 3)) locate_globally(out.patches, T, S, grid, &d);
+      Eigen::Vector3d Sp, Su, Sv;
+      out.patches[d.patch].derivatives(d.s, d.t, &Sp, &Su, &Sv);
+      const Eigen::Vector3d nn = Su.cross(Sv);
+      d.n = nn.norm() > 1e-12 ? Eigen::Vector3d(nn.normalized()) : Eigen::Vector3d::Zero();
+      moved[k] = -1;
+      if (d.side < 0) continue;
+      if (touches[was][d.patch]) moved[k] = (Sp - before).norm();
+      else ++reassigned;
+      sum2 += (d.p - Sp).squaredNorm();
+      ++count;
     }
     out.rms_per_round.push_back(std::sqrt(sum2 / std::max(count, 1L)));
     if (round == o.max_corrections) break;
-    out.max_update_per_round.push_back(max_update);
-    fit_all();
-    if (max_update < o.correction_tolerance) break;
+    std::vector<double> m;
+    for (double x : moved)
+      if (x >= 0) m.push_back(x);
+    double p999 = 0, largest = 0;
+    if (!m.empty()) {
+      const size_t q = static_cast<size_t>(0.999 * (m.size() - 1));
+      std::nth_element(m.begin(), m.begin() + q, m.end());
+      p999 = m[q];
+      largest = *std::max_element(m.begin(), m.end());
+    }
+    out.max_update_per_round.push_back(largest);
+    out.update_p999_per_round.push_back(p999);
+    out.reassigned_per_round.push_back(static_cast<size_t>(reassigned));
+    // Settled: 99.9 % of the points moved less than the tolerance, or the round took less than
+    // 0.5 % off the RMS (the points still moving are sliding along a surface that no longer
+    // comes nearer them).
+    const size_t nr = out.rms_per_round.size();
+    const bool settled = p999 < o.correction_tolerance ||
+                         (nr >= 2 && out.rms_per_round[nr - 1] > (1 - kSettledRms) * out.rms_per_round[nr - 2]);
+    if (settled) break;  // this round's foot points are the final surface's
+    fit_net(&out, T, data, o, &solver);
   }
-  // Final foot points on the final surface: the exact data → surface distances.
-  std::vector<double> residual[2];
-  for (size_t t = 0; t < out.tubes.size(); ++t) {
-    std::vector<Datum>& D = data[t];
-    std::vector<double> r(D.size(), -1);
-#pragma omp parallel for schedule(static)
-    for (long k = 0; k < static_cast<long>(D.size()); ++k)
-      if (D[k].side >= 0) {
-        foot_point(out.tubes[t], &D[k], 8);
-        r[k] = (out.tubes[t].eval(D[k].u, D[k].v) - D[k].p).norm();
-      }
-    // Patches are numbered tube by tube, around-major (as built below).
-    size_t first_patch = 0;
-    for (size_t q = 0; q < t; ++q) first_patch += static_cast<size_t>(out.tubes[q].nu) * out.tubes[q].nv;
-    for (size_t k = 0; k < D.size(); ++k)
-      if (D[k].side >= 0) {
-        residual[D[k].side == 1 ? 1 : 0].push_back(r[k]);
-        int a, b;
-        double ls, lt;
-        locate(out.tubes[t].nu, out.tubes[t].nv, D[k].u, D[k].v, &a, &b, &ls, &lt);
-        out.samples.push_back({D[k].p, static_cast<float>(r[k]), static_cast<std::uint8_t>(D[k].side == 1 ? 1 : 0),
-                               static_cast<int>(first_patch) + a * out.tubes[t].nv + b, static_cast<float>(ls),
-                               static_cast<float>(lt)});
-      }
-  }
-  out.side = {figures_of(residual[0]), figures_of(residual[1])};
 
-  // --- patches, their links, the net's binding, continuity figures ---
-  std::vector<double> g1;
-  for (TubeSurface& T : out.tubes) {
-    T.net_link.resize(T.net.size());
-    for (size_t k = 0; k < T.net.size(); ++k) T.net_link[k] = nearest_link(T.net[k], skin.bones);
-    out.control_points += T.net.size();
-    for (int a = 0; a < T.nu; ++a)
-      for (int b = 0; b < T.nv; ++b) {
-        BezierPatch P = patch_of(T, a, b);
-        P.link = nearest_link(P.eval(0.5, 0.5), skin.bones);
-        out.patches.push_back(P);
-      }
-    // Shared borders: the same curve from both sides (G0), and the angle between the two
-    // sides' normals along it (G1), 9 samples per border.
-    auto normal = [&](double u, double v) {
-      Eigen::Vector3d S, Su, Sv;
-      T.derivatives(u, v, &S, &Su, &Sv);
-      return Eigen::Vector3d(Su.cross(Sv).normalized());
-    };
-    auto jump_deg = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-      return std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180 / M_PI;
-    };
-    auto side_eval = [&](int a, int b, double s, double t) { return patch_of(T, a, b).eval(s, t); };
-    constexpr double kEps = 1e-6;
-    for (int a = 0; a < T.nu; ++a)
-      for (int b = 0; b < T.nv; ++b)
-        for (int q = 1; q <= 9; ++q) {
-          const double s = q / 10.0;
-          // the border between (a, b) and (a + 1, b): u = a + 1
-          out.g0_gap_mm = std::max(out.g0_gap_mm, (side_eval(a, b, 1, s) - side_eval((a + 1) % T.nu, b, 0, s)).norm());
-          {
-            const double j = jump_deg(normal(a + 1 - kEps, b + s), normal(a + 1 + kEps, b + s));
-            if (std::isfinite(j)) g1.push_back(j);  // not at a closed end's collapsed point
-          }
-          if (b + 1 < T.nv) {
-            out.g0_gap_mm = std::max(out.g0_gap_mm, (side_eval(a, b, s, 1) - side_eval(a, b + 1, s, 0)).norm());
-            const double j = jump_deg(normal(a + s, b + 1 - kEps), normal(a + s, b + 1 + kEps));
-            if (std::isfinite(j)) g1.push_back(j);
-          }
+  // --- every measured point's foot point on the final surface: the exact distances ---
+  {
+    const SurfaceSamples S(out.patches, 8);
+    const PointGrid grid(S.p, 2.0);
+    std::vector<Datum> all(points.size());
+    std::vector<double> r(points.size(), -1);
+#pragma omp parallel for schedule(dynamic, 256)
+    for (long k = 0; k < static_cast<long>(points.size()); ++k) {
+      if (in_fit[k] == -2) continue;
+      Datum& d = all[k];
+      if (in_fit[k] >= 0) {
+        d = data[in_fit[k]];
+        if (foot_point(out.patches, T, &d, 8)) locate_globally(out.patches, T, S, grid, &d);
+      } else {
+        // From the foot point of the fitted point before it in scan order (its neighbour on
+        // the range image's row), else from the whole surface.
+        long from = k - 1;
+        while (from >= 0 && in_fit[from] < 0) --from;
+        if (from >= 0 && k - from < 64 && (data[in_fit[from]].p - points[k]).norm() < 3) {
+          d = data[in_fit[from]];
+          d.p = points[k], d.side = sides[k] == 1 ? 1 : 0;
+          if (foot_point(out.patches, T, &d, 6)) locate_globally(out.patches, T, S, grid, &d);
+        } else {
+          d.p = points[k], d.side = sides[k] == 1 ? 1 : 0;
+          locate_globally(out.patches, T, S, grid, &d);
         }
+      }
+      r[k] = (out.patches[d.patch].eval(d.s, d.t) - d.p).norm();
+    }
+    std::vector<double> residual[2];
+    double worst[2] = {-1, -1};
+    for (size_t k = 0; k < points.size(); ++k) {
+      if (in_fit[k] == -2) continue;
+      const Datum& d = all[k];
+      if (r[k] > worst[d.side]) worst[d.side] = r[k], out.worst_patch[d.side] = out.patches[d.patch].name;
+      residual[d.side].push_back(r[k]);
+      out.samples.push_back({d.p, static_cast<float>(r[k]), static_cast<std::uint8_t>(d.side), d.patch,
+                             static_cast<float>(d.s), static_cast<float>(d.t)});
+    }
+    out.side = {figures_of(residual[0]), figures_of(residual[1])};
   }
+
+  // --- the binding, the patches' links, continuity figures ---
+  out.control_link.resize(out.control.size());
+  for (size_t k = 0; k < out.control.size(); ++k) out.control_link[k] = nearest_link(out.control[k], bones);
+  rebuild_patches(&out);
+  for (auto& P : out.patches) P.link = nearest_link(P.eval(0.5, 0.5), bones);
+  out.control_points = out.control.size();
+  std::vector<double> g1, g1_near;
+  double worst_jump = -1;
+  for (size_t f = 0; f < out.patches.size(); ++f)
+    for (int s = 0; s < 4; ++s) {
+      const int g = T.neighbour[f][s], gs = T.neighbour_side[f][s];
+      if (g < static_cast<int>(f) || (g == static_cast<int>(f) && gs < s)) continue;
+      if (layout.is_crease(layout.faces[f][s], layout.faces[f][(s + 1) % 4])) continue;
+      const bool irregular_start = !T.regular(layout.faces[f][s]), irregular_end = !T.regular(layout.faces[f][(s + 1) % 4]);
+      for (int q = 1; q <= 9; ++q) {
+        const Eigen::Vector2d a = on_side(s, q / 10.0), b = on_side(gs, 1 - q / 10.0);
+        Eigen::Vector3d Sa, Sau, Sav, Sb, Sbu, Sbv;
+        out.patches[f].derivatives(a.x(), a.y(), &Sa, &Sau, &Sav);
+        out.patches[g].derivatives(b.x(), b.y(), &Sb, &Sbu, &Sbv);
+        out.g0_gap_mm = std::max(out.g0_gap_mm, (Sa - Sb).norm());
+        const Eigen::Vector3d na = Sau.cross(Sav), nb = Sbu.cross(Sbv);
+        if (na.norm() < 1e-12 || nb.norm() < 1e-12) continue;
+        const double jump = std::acos(std::clamp(na.normalized().dot(nb.normalized()), -1.0, 1.0)) * 180 / M_PI;
+        const bool near = (q <= 2 && irregular_start) || (q >= 8 && irregular_end);
+        (near ? g1_near : g1).push_back(jump);
+        if (!near && jump > worst_jump) worst_jump = jump, out.g1_max_where = out.patches[f].name + " | " + out.patches[g].name;
+      }
+    }
+  auto median_of = [](std::vector<double>& v) { return v.empty() ? 0.0 : v[v.size() / 2]; };
+  std::sort(g1.begin(), g1.end());
+  std::sort(g1_near.begin(), g1_near.end());
   if (!g1.empty()) {
-    std::sort(g1.begin(), g1.end());
-    out.g1_median_deg = g1[g1.size() / 2];
+    out.g1_median_deg = median_of(g1);
     out.g1_p95_deg = g1[static_cast<size_t>(0.95 * (g1.size() - 1))];
     out.g1_max_deg = g1.back();
   }
+  if (!g1_near.empty()) out.g1_near_median_deg = median_of(g1_near), out.g1_near_max_deg = g1_near.back();
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
+}
+
+PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
+                         const std::vector<std::uint32_t>& sides, const PatchOptions& o) {
+  std::string err;
+  if (!o.IsValid(&err)) throw InputError("patch options", err);
+  const auto t0 = std::chrono::steady_clock::now();
+  const PatchLayout layout = o.layout ? *o.layout : subdivide_layout(hand_patch_layout(skin, rig, points, sides), o.subdivision);
+  // The skin as weak data, one sample per 2 mm², so that it holds the surface where the scans saw
+  // nothing (the flanks between the fingers, the wrist cut) and nowhere outweighs them.
+  PatchSkin s = fit_patches(layout, points, sides, sample_surface(skin.mesh, 0.5), skin.bones, o);
+  s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return s;
 }
 
 PatchSkin pose_patch_skin(const PatchSkin& s, const Skeleton& skeleton, const Angles& angles) {
@@ -480,103 +656,81 @@ PatchSkin pose_patch_skin(const PatchSkin& s, const Skeleton& skeleton, const An
     move.push_back(frames[j] * skeleton.rest_frame(j).inverse());
   }
   HS_CHECK(s.bones.size() == move.size(), "patches bound to another skeleton");
-  PatchSkin out;
-  out.tubes = s.tubes;
-  out.patches = s.patches;
-  out.bones = s.bones;
-  out.side = s.side;
-  out.max_update_per_round = s.max_update_per_round;
-  out.rms_per_round = s.rms_per_round;
-  out.g0_gap_mm = s.g0_gap_mm;
-  out.g1_median_deg = s.g1_median_deg, out.g1_p95_deg = s.g1_p95_deg, out.g1_max_deg = s.g1_max_deg;
-  out.control_points = s.control_points;
-  out.seconds = s.seconds;
-  for (TubeSurface& T : out.tubes)
-    for (size_t k = 0; k < T.net.size(); ++k) {
-      const int l = T.net_link[k];
-      HS_CHECK(l >= 0 && l < static_cast<int>(move.size()), "a control point without its link");
-      T.net[k] = move[l] * T.net[k];
-    }
-  size_t p = 0;
-  for (const TubeSurface& T : out.tubes)
-    for (int a = 0; a < T.nu; ++a)
-      for (int b = 0; b < T.nv; ++b, ++p) {
-        const int link = out.patches[p].link;
-        out.patches[p] = patch_of(T, a, b);
-        out.patches[p].link = link;
-      }
+  PatchSkin out = s;
+  out.samples.clear();
+  for (size_t k = 0; k < out.control.size(); ++k) {
+    const int l = out.control_link[k];
+    HS_CHECK(l >= 0 && l < static_cast<int>(move.size()), "a control point without its link");
+    out.control[k] = move[l] * out.control[k];
+  }
+  rebuild_patches(&out);
   return out;
 }
 
 namespace {
-// Sample (i, j) of a tube's n-per-span grid repeats sample (0, j): on a closed end's row every
-// sample is the pole, made once.
-bool repeats_pole(const TubeSurface& T, int i, int j, int NV) {
-  return i > 0 && ((j == 0 && T.closed_start) || (j == NV - 1 && T.closed_end));
+// The tessellation's vertex of each patch's (n + 1)² grid point: a layout corner's and a
+// shared border's points are one vertex for every patch on them.
+std::vector<std::vector<int>> tessellation_index(const PatchSkin& s, int n, std::vector<std::array<int, 3>>* made) {
+  HS_CHECK(n >= 1, "tessellation needs at least one quad per patch side");
+  std::vector<std::vector<int>> index(s.patches.size(), std::vector<int>(static_cast<size_t>(n + 1) * (n + 1), -1));
+  std::vector<int> corner(s.layout.vertices.size(), -1);
+  std::map<std::tuple<int, int, int>, int> on_edge;
+  made->clear();
+  for (size_t f = 0; f < s.patches.size(); ++f) {
+    const auto& c = s.layout.faces[f];
+    for (int i = 0; i <= n; ++i)
+      for (int j = 0; j <= n; ++j) {
+        int* slot = nullptr;
+        if ((i == 0 || i == n) && (j == 0 || j == n)) {
+          slot = &corner[c[i == 0 ? (j == 0 ? 0 : 3) : (j == 0 ? 1 : 2)]];
+        } else if (i == 0 || i == n || j == 0 || j == n) {
+          int a, b, step;
+          if (j == 0) a = c[0], b = c[1], step = i;
+          else if (i == n) a = c[1], b = c[2], step = j;
+          else if (j == n) a = c[3], b = c[2], step = i;
+          else a = c[0], b = c[3], step = j;
+          if (a > b) std::swap(a, b), step = n - step;
+          slot = &on_edge.emplace(std::make_tuple(a, b, step), -1).first->second;
+        }
+        int id;
+        if (slot && *slot >= 0) {
+          id = *slot;
+        } else {
+          id = static_cast<int>(made->size());
+          made->push_back({static_cast<int>(f), i, j});
+          if (slot) *slot = id;
+        }
+        index[f][i * (n + 1) + j] = id;
+      }
+  }
+  return index;
 }
 }  // namespace
 
 void tessellation_vertices(const PatchSkin& s, int n, std::vector<Eigen::Vector3d>* out) {
-  HS_CHECK(n >= 1, "tessellation needs at least one quad per patch side");
-  // Every sample sits at a patch-local parameter k / n: the Bernstein values once.
-  std::vector<std::array<double, 4>> B(static_cast<size_t>(n) + 1);
-  for (int k = 0; k <= n; ++k) bernstein(static_cast<double>(k) / n, B[k].data(), nullptr);
-  out->clear();
-  for (const TubeSurface& T : s.tubes) {
-    const int NU = T.nu * n, NV = T.nv * n + 1, NU3 = 3 * T.nu, NV3 = 3 * T.nv + 1;
-    for (int i = 0; i < NU; ++i)
-      for (int j = 0; j < NV; ++j) {
-        if (repeats_pole(T, i, j, NV)) continue;
-        const int a = i / n, ks = i % n;
-        const int b = std::min(j / n, T.nv - 1), kt = j - b * n;
-        Eigen::Vector3d p = Eigen::Vector3d::Zero();
-        for (int ii = 0; ii < 4; ++ii) {
-          Eigen::Vector3d row = Eigen::Vector3d::Zero();
-          for (int jj = 0; jj < 4; ++jj) row += B[kt][jj] * T.net[net_index(NU3, NV3, 3 * a + ii, 3 * b + jj)];
-          p += B[ks][ii] * row;
-        }
-        out->push_back(p);
-      }
-  }
+  std::vector<std::array<int, 3>> made;
+  tessellation_index(s, n, &made);
+  out->resize(made.size());
+  for (size_t k = 0; k < made.size(); ++k)
+    (*out)[k] = s.patches[made[k][0]].eval(static_cast<double>(made[k][1]) / n, static_cast<double>(made[k][2]) / n);
 }
 
 TriMesh tessellate(const PatchSkin& s, int n) {
+  std::vector<std::array<int, 3>> made;
+  const auto index = tessellation_index(s, n, &made);
   std::vector<Eigen::Vector3d> points;
-  tessellation_vertices(s, n, &points);  // checks n; the vertices in the order made below
-  TriMesh mesh;
-  size_t next = 0;
-  for (const TubeSurface& T : s.tubes) {
-    const int NU = T.nu * n, NV = T.nv * n + 1;
-    std::vector<TriMesh::VertexHandle> vh(static_cast<size_t>(NU) * NV);
-    for (int i = 0; i < NU; ++i)
-      for (int j = 0; j < NV; ++j) {
-        if (repeats_pole(T, i, j, NV)) {
-          vh[i * NV + j] = vh[j];
-          continue;
-        }
-        const Eigen::Vector3d& p = points[next++];
-        vh[i * NV + j] = mesh.add_vertex(TriMesh::Point(p.x(), p.y(), p.z()));
+  tessellation_vertices(s, n, &points);
+  std::vector<std::array<int, 3>> tris;
+  for (size_t f = 0; f < s.patches.size(); ++f)
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j) {
+        const int a = index[f][i * (n + 1) + j], b = index[f][(i + 1) * (n + 1) + j];
+        const int c = index[f][(i + 1) * (n + 1) + j + 1], d = index[f][i * (n + 1) + j + 1];
+        // (u, v) counter-clockwise: Su × Sv points out of the hand.
+        tris.push_back({a, b, c});
+        tris.push_back({a, c, d});
       }
-    // Outward: the normal at a mid-tube point against the direction from the ring's centre.
-    const int jm = NV / 2;
-    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-    for (int i = 0; i < NU; ++i) {
-      const auto& p = mesh.point(vh[i * NV + jm]);
-      centre += Eigen::Vector3d(p[0], p[1], p[2]);
-    }
-    centre /= NU;
-    Eigen::Vector3d S, Su, Sv;
-    T.derivatives(0.5, static_cast<double>(jm) / n, &S, &Su, &Sv);
-    const bool flip = Su.cross(Sv).dot(S - centre) < 0;
-    for (int i = 0; i < NU; ++i)
-      for (int j = 0; j + 1 < NV; ++j) {
-        auto a = vh[i * NV + j], b = vh[((i + 1) % NU) * NV + j], c = vh[((i + 1) % NU) * NV + j + 1], d = vh[i * NV + j + 1];
-        if (flip) std::swap(b, d);
-        if (a != b && b != c && a != c) mesh.add_face(a, b, c);
-        if (a != c && c != d && a != d) mesh.add_face(a, c, d);
-      }
-  }
-  return mesh;
+  return mesh_from_arrays(points, tris);
 }
 
 }  // namespace handskin

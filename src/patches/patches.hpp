@@ -1,75 +1,60 @@
 #pragma once
-/// Bézier patch skin (thesis §4.1.4, eqs. 4.5–4.7; docs/patches.md). Each tube of the skin's
-/// ring grid (palm, thumb, four fingers) carries a grid of bicubic Bézier patches — periodic
-/// around the tube, open along it — whose control points form one net per tube: neighbouring
-/// patches share their border control points by construction (G0 exactly, whatever the fit
-/// does). The net is fitted to the measured points by linear least squares (eq. 4.5; every
-/// control point of the tube in one system, solved by Cholesky), with a C1 penalty on the
-/// control points either side of each border (so G1 holds up to the penalty), a small fairness
-/// term, and the skin's rings as weak data where the scans saw nothing. The points'
-/// parameters start at chord length along and around the rings and are corrected by Newton
-/// foot-point projection (eqs. 4.6–4.7) until the largest update falls below a tolerance.
-///
-/// Not yet: the tubes are not joined into one surface (finger roots overlap the palm tube as
-/// the strip skin's tubes do before their union) and the wrist is left open (issue 13 is
-/// open; docs/patches.md says what is missing).
+/// Bézier patch skin (thesis §4.1.4, eqs. 4.5–4.7; docs/patches.md). One bicubic Bézier patch
+/// per face of a closed quad layout over the whole hand (patches/layout.hpp: palm, back,
+/// flanks, digits, fingertips, the wrist cut). Neighbouring patches share their border's
+/// control points — one control point per layout corner, two per layout edge, four inside
+/// each face — so G0 holds exactly whatever the fit does. All control points are fitted to
+/// the measured points in one sparse least-squares system (eq. 4.5, Cholesky), with a C1
+/// penalty on the control points either side of every border (G1 up to the penalty, except
+/// where three, five or six patches meet), a small fairness term, and the polygon skin's
+/// vertices as weak data where the scans saw nothing. The points' parameters start at their
+/// nearest point on the layout's bilinear faces and are corrected by Newton foot-point
+/// projection on the current surface (eqs. 4.6–4.7; a point whose foot point leaves its patch
+/// is found again on the whole surface) until the largest correction falls below a tolerance.
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "core/json_util.hpp"
 #include "core/rig.hpp"
 #include "mesh/trimesh.hpp"
+#include "patches/layout.hpp"
 #include "posture/skeleton.hpp"
 #include "skin/skin_mesh.hpp"
 
 namespace handskin {
 
 struct PatchOptions {
-  int palm_around = 8, palm_along = 4;    ///< palm tube: spans (patches) around and along
-  int digit_around = 4, digit_along = 3;  ///< each digit
-  double fairness = 1e-3;                 ///< second differences of the net, relative to the data's weight
+  int subdivision = 1;                    ///< each face of the hand's layout split k × k (98 k² patches)
+  double fairness = 1e-3;                 ///< second differences inside each patch, relative to the data's weight
   double c1_weight = 10;                  ///< C1 penalty across borders, relative to the data's weight
-  double ring_weight = 0.05;              ///< the skin's ring points as data, relative to a measured point
+  double corner_weight = 0.1;             ///< one tangent plane where 3, 5 or 6 patches meet, relative to the data's weight
+  double skin_weight = 0.05;              ///< the polygon skin's vertices as data, relative to a measured point
   int max_corrections = 10;               ///< parameter-correction rounds (eqs. 4.6–4.7)
-  double correction_tolerance = 0.02;     ///< stop when no parameter moves more (spans; ~0.3 mm on the palm)
+  double correction_tolerance = 0.05;     ///< stop when 99.9 % of the foot points move less (mm, on the surface)
   int tessellation = 8;                   ///< patches.ply: quads per patch side
-  /// A layout given back (`--layout`): spans {around, along} per tube (SkinTube index) that
-  /// replace the counts above for that tube.
-  std::map<int, std::array<int, 2>> tube_spans;
+  /// A layout given back (`--layout`): used as it is (no subdivision) instead of the hand's.
+  std::optional<PatchLayout> layout;
   bool IsValid(std::string* error) const;
 };
 
-/// The layout of a patches file (`handskin-patches/1`, its "tubes" with "around" and
-/// "along") or of a layout file (`handskin-patch-layout/1`, the same key): the spans per tube.
-/// Throws InputError naming `file` and the entry at fault.
-std::map<int, std::array<int, 2>> parse_patch_layout(const Json& j, const std::string& file);
+/// The layout of a patches file (`handskin-patches/1`, its "layout") or of a layout file
+/// (`handskin-patch-layout/1`, the same key). Throws InputError naming `file` and the entry.
+PatchLayout parse_patch_layout(const Json& j, const std::string& file);
 
-/// A bicubic Bézier patch: P[4 * i + j], i along u (around the tube), j along v (along it).
+/// A bicubic Bézier patch: P[4 * i + j], i along u (the face's corner 0 → 1), j along v
+/// (corner 0 → 3); (u, v) in [0, 1]², the normal Su × Sv pointing out of the hand.
 struct BezierPatch {
   std::array<Eigen::Vector3d, 16> P;
-  int tube = 0, span_u = 0, span_v = 0;
-  int link = -1;  ///< the bone link (index into bones_from_rig) nearest to the patch's centre
-  std::array<int, 16> cp_link{};  ///< per control point: its bone link (the net's rigid binding)
+  std::string name;  ///< the layout face's name
+  int link = -1;     ///< the bone link (index into bones_from_rig) nearest to the patch's centre
+  std::array<int, 16> cp_link{};  ///< per control point: its bone link (rigid binding)
   Eigen::Vector3d eval(double u, double v) const;
-};
-
-struct TubeSurface {
-  int tube = 0;
-  int nu = 0, nv = 0;  ///< spans around (periodic) and along
-  /// The start (the palm's wrist end) or the end (a digit's tip) is closed: that row of the
-  /// net is one point, so its patches have one edge collapsed there.
-  bool closed_start = false, closed_end = false;
-  /// The Bézier net: 3·nu × (3·nv + 1) points, periodic in the first index; patch (a, b) is
-  /// the 4 × 4 block at (3a, 3b). Shared borders are shared entries.
-  std::vector<Eigen::Vector3d> net;
-  std::vector<int> net_link;  ///< per net point: its bone link (rigid binding, as the thesis)
-  Eigen::Vector3d eval(double u, double v) const;            ///< u in [0, nu) (wraps), v in [0, nv]
   void derivatives(double u, double v, Eigen::Vector3d* S, Eigen::Vector3d* Su, Eigen::Vector3d* Sv) const;
-  const Eigen::Vector3d& net_at(int i, int j) const;  ///< i wraps
 };
 
 struct DistanceFigures {
@@ -78,13 +63,16 @@ struct DistanceFigures {
 };
 
 struct PatchSkin {
-  std::vector<TubeSurface> tubes;   ///< the present tubes
+  PatchLayout layout;                      ///< the faces fitted on, one patch each
+  std::vector<Eigen::Vector3d> control;    ///< every control point once (shared borders shared)
+  std::vector<int> control_link;           ///< per control point: its bone link (rigid binding, as the thesis)
+  std::vector<std::array<int, 16>> patch_control;  ///< per patch: its 16 control points (P00…P33)
   std::vector<BezierPatch> patches;
   std::vector<std::string> bones;   ///< link names (BezierPatch::link)
   /// Data → surface by foot points, per side of the merged cloud (0 palm scan, 1 back scan).
   std::array<DistanceFigures, 2> side;
-  /// Every measured point that was fitted, with its scan side and its foot-point distance (mm)
-  /// and foot point's (tube, u, v): for the report's pictures and its cell-grid error.
+  /// Every measured point that was fitted, with its scan side, its foot-point distance (mm)
+  /// and its foot point's patch and parameters: for the report's pictures and cell-grid error.
   struct Sample {
     Eigen::Vector3d p;
     float error = 0;
@@ -93,20 +81,35 @@ struct PatchSkin {
     float s = 0, t = 0;      ///< the foot point's parameters in that patch, [0, 1]
   };
   std::vector<Sample> samples;
-  std::vector<double> max_update_per_round;  ///< largest parameter update of each correction round
-  /// Data → surface RMS at the start of each round (round 0: on the chord-length fit), by
-  /// the residuals of that round's foot-point search.
+  std::vector<double> max_update_per_round;  ///< largest foot-point move of each correction round (mm)
+  std::vector<double> update_p999_per_round;  ///< the move 99.9 % of the points stayed under (the stopping test)
+  std::vector<size_t> reassigned_per_round;  ///< points whose foot point went to a patch not touching its last
+  /// Data → surface RMS at the start of each round (round 0: on the first fit), by the
+  /// residuals of that round's foot-point search.
   std::vector<double> rms_per_round;
   double g0_gap_mm = 0;                      ///< largest gap between neighbours' shared borders
-  /// G1: angle between the two patches' normals along every shared border (deg), sampled.
+  /// G1: angle between the two patches' normals along every shared border (deg), 9 samples
+  /// per border; "away" leaves out the two samples nearest a corner where 3, 5 or 6 patches
+  /// meet, which the `near` figures take.
   double g1_median_deg = 0, g1_p95_deg = 0, g1_max_deg = 0;
+  double g1_near_median_deg = 0, g1_near_max_deg = 0;
+  std::string g1_max_where;                  ///< the two patches whose border has the largest jump (away)
+  std::array<std::string, 2> worst_patch;    ///< per side: the patch of the farthest point's foot point
+  int irregular_corners = 0;                 ///< layout corners where other than 4 patches meet
   size_t control_points = 0;
   double seconds = 0;
 };
 
-/// Fit the patches on a skin's ring grid and the merged cloud (`points`, rig frame, with
-/// `sides`). Throws InputError when the skin has no ring grid to fit on.
-PatchSkin fit_patch_skin(const SkinResult& skin, const std::vector<Eigen::Vector3d>& points,
+/// Fit one patch per face of `layout` to the measured `points` (palm frame, with their scan
+/// `sides`), with `support` (the polygon skin's vertices) as weak data; `bones` bind the
+/// control points.
+PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector3d>& points,
+                      const std::vector<std::uint32_t>& sides, const std::vector<Eigen::Vector3d>& support,
+                      const std::vector<Bone>& bones, const PatchOptions& options);
+
+/// The hand's patches: the layout given in `options`, else the hand's (hand_patch_layout on
+/// the skin and its rig, subdivided), fitted to the merged cloud with the skin as support.
+PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
                          const std::vector<std::uint32_t>& sides, const PatchOptions& options);
 
 /// The patches moved to a posture: every net point moves rigidly with its bone link (the
@@ -116,8 +119,8 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const std::vector<Eigen::Vector
 /// are not carried over.
 PatchSkin pose_patch_skin(const PatchSkin& s, const Skeleton& skeleton, const Angles& angles);
 
-/// Every patch tessellated at `n` × `n` quads (two triangles each), each tube's shared border
-/// vertices made once: no cracks inside a tube.
+/// Every patch tessellated at `n` × `n` quads (two triangles each), the vertices on shared
+/// borders and corners made once: a closed mesh without cracks.
 TriMesh tessellate(const PatchSkin& s, int n);
 /// The vertices `tessellate(s, n)` makes, in its order, without building the mesh: posed
 /// patches keep the rest posture's topology, so an animation needs only these (16 × 16 per

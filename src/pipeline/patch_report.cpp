@@ -158,20 +158,29 @@ std::string patch_report_html(const PatchStageResult& r, const PatchReportFigure
     std::vector<Eigen::Vector3f> c;
     const Eigen::Matrix3d V = named_view(view) * hand;
     constexpr int kPerSpan = 36;  // samples per patch side: dense enough for the splats to close
-    for (const auto& t : s.tubes)
-      for (int i = 0; i < kPerSpan * t.nu; ++i)
-        for (int j = 0; j <= kPerSpan * t.nv; ++j) {
-          const double u = static_cast<double>(i) / kPerSpan, v = static_cast<double>(j) / kPerSpan;
+    // Neighbouring patches in different colours: a greedy colouring over the layout's edges.
+    const LayoutTopology T = layout_topology(s.layout, "patch layout");
+    std::vector<int> colour(s.patches.size(), -1);
+    for (size_t f = 0; f < s.patches.size(); ++f) {
+      int used = 0;
+      for (int g : T.neighbour[f])
+        if (colour[g] >= 0) used |= 1 << colour[g];
+      colour[f] = 0;
+      while (used >> colour[f] & 1) ++colour[f];
+    }
+    static const Eigen::Vector3f palette[5] = {{0.85f, 0.62f, 0.48f}, {0.55f, 0.68f, 0.85f}, {0.62f, 0.80f, 0.55f},
+                                                {0.85f, 0.80f, 0.50f}, {0.75f, 0.60f, 0.82f}};
+    for (size_t f = 0; f < s.patches.size(); ++f)
+      for (int i = 0; i <= kPerSpan; ++i)
+        for (int j = 0; j <= kPerSpan; ++j) {
           Eigen::Vector3d S, Su, Sv;
-          t.derivatives(u, v, &S, &Su, &Sv);
+          s.patches[f].derivatives(static_cast<double>(i) / kPerSpan, static_cast<double>(j) / kPerSpan, &S, &Su, &Sv);
           Eigen::Vector3d nn = Su.cross(Sv);
           if (nn.norm() < 1e-12) continue;
           nn.normalize();
           if ((V * nn).z() < 0) nn = -nn;  // facing the viewer, for the shading
-          const int a = std::min(static_cast<int>(u), t.nu - 1), b = std::min(static_cast<int>(v), t.nv - 1);
-          const bool odd = (a + b + t.tube) % 2;
           p.push_back(S), n.push_back(nn);
-          c.push_back(odd ? Eigen::Vector3f(0.85f, 0.62f, 0.48f) : Eigen::Vector3f(0.55f, 0.68f, 0.85f));
+          c.push_back(palette[std::min(colour[f], 4)]);
         }
     RenderOptions ro;
     ro.width = 720;
@@ -215,7 +224,7 @@ std::string patch_report_html(const PatchStageResult& r, const PatchReportFigure
        ".ticks{display:flex;justify-content:space-between;width:360px;font-size:.85em}</style></head><body>\n";
   h += "<h1>Bézier patch fitting error</h1>\n";
   h += "<p>" + std::to_string(s.patches.size()) + " bicubic patches, " + std::to_string(s.control_points) +
-       " control points (thesis §4.1.4, Table 4.1). Distances in mm, from the measured points to the surface.</p>\n";
+       " control points over the whole closed hand, neighbours sharing their borders' control points (thesis §4.1.4, Table 4.1). Distances in mm, from the measured points to the surface.</p>\n";
   h += "<h2>Table 4.1: fitting error per side</h2>\n<table>\n";
   h += row({"side", "points", "mean (foot points)", "max (foot points)",
             "mean (" + std::to_string(f.error_grid) + "×" + std::to_string(f.error_grid) + " cells)", "max (cells)",
@@ -243,15 +252,21 @@ std::string patch_report_html(const PatchStageResult& r, const PatchReportFigure
        "<figcaption>back</figcaption></figure><figure>" + img(pics[3], "patch layout, palm view") +
        "<figcaption>palm</figcaption></figure></div>\n";
   h += "<h2>Error histogram</h2>\n<p>Blue: palm scan; orange: back scan; bins of 0.025 mm.</p>\n" + svg + "\n";
-  h += "<h2>Parameter correction</h2>\n<table>\n" + row({"round", "largest parameter update (spans)", "RMS (mm)"}, true);
+  h += "<h2>Parameter correction</h2>\n<p>Each round: every point's foot point on the current surface (Newton), then the "
+       "refit, until 99.9 % of the points move less than " + fmt("%.3f", r.options.correction_tolerance) + " mm. Round 0 starts on the first fit; the RMS is the fitted points' distance at that round's foot points.</p>\n<table>\n" + row({"round", "largest foot-point move (mm)", "99.9 % moved less than (mm)", "points reassigned", "RMS (mm)"}, true);
   for (size_t k = 0; k < s.rms_per_round.size(); ++k)
-    h += row({std::to_string(k), k == 0 ? std::string("chord length") : fmt("%.4f", s.max_update_per_round[k - 1]),
+    h += row({std::to_string(k), k < s.max_update_per_round.size() ? fmt("%.4f", s.max_update_per_round[k]) : "–",
+              k < s.update_p999_per_round.size() ? fmt("%.4f", s.update_p999_per_round[k]) : "–",
+              k < s.reassigned_per_round.size() ? std::to_string(s.reassigned_per_round[k]) : "–",
               fmt("%.4f", s.rms_per_round[k])});
   h += "</table>\n<h2>Continuity</h2>\n<table>\n" + row({"figure", "value"}, true);
   h += row({"G0 gap on shared borders (mm)", fmt("%.2g", s.g0_gap_mm)});
   h += row({"G1 normal jump, median (deg)", fmt("%.3f", s.g1_median_deg)});
   h += row({"G1 normal jump, p95 (deg)", fmt("%.3f", s.g1_p95_deg)});
   h += row({"G1 normal jump, max (deg)", fmt("%.3f", s.g1_max_deg)});
+  h += row({"corners where 3, 5 or 6 patches meet", std::to_string(s.irregular_corners)});
+  h += row({"G1 jump next to those corners, median / max (deg)",
+            fmt("%.2f", s.g1_near_median_deg) + " / " + fmt("%.2f", s.g1_near_max_deg)});
   h += "</table>\n";
   if (r.surface_to_truth) {
     h += "<h2>Against the true skin</h2>\n<table>\n" + row({"direction", "mean", "p95", "max", "within 1 mm"}, true);

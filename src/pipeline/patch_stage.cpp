@@ -18,13 +18,13 @@ Json figures_json(const DistanceFigures& f) {
 }
 }  // namespace
 
-PatchStageResult run_patch_stage(const SkinResult& skin, const std::vector<Eigen::Vector3d>& points,
+PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
                                  const std::vector<std::uint32_t>& sides, const PatchOptions& options,
                                  const TruthSkin* truth, int error_grid) {
   const auto t0 = std::chrono::steady_clock::now();
   PatchStageResult r;
   r.options = options;
-  r.patches = fit_patch_skin(skin, points, sides, options);
+  r.patches = fit_patch_skin(skin, rig, points, sides, options);
   r.tessellation = tessellate(r.patches, options.tessellation);
   if (truth) {
     const MeshDistance to_truth(truth->skin), to_surface(r.tessellation);
@@ -39,25 +39,28 @@ PatchStageResult run_patch_stage(const SkinResult& skin, const std::vector<Eigen
 
 Json to_json(const PatchStageResult& r) {
   const PatchSkin& s = r.patches;
-  Json tubes = Json::array();
-  for (const auto& t : s.tubes)
-    tubes.push_back({{"tube", skin_tube_name(t.tube)}, {"around", t.nu}, {"along", t.nv}, {"control_points", t.net.size()}});
   Json j = {{"name", "patches"},
             {"seconds", r.seconds},
             {"fit_seconds", s.seconds},
             {"patches", s.patches.size()},
             {"control_points", s.control_points},
-            {"layout", tubes},
+            {"layout", {{"faces", s.layout.faces.size()}, {"corners", s.layout.vertices.size()},
+                        {"irregular_corners", s.irregular_corners}, {"subdivision", r.options.subdivision},
+                        {"given", r.options.layout.has_value()}}},
             {"data_to_surface_mm", {{"palm", figures_json(s.side[0])}, {"back", figures_json(s.side[1])}}},
+            {"farthest_point_patch", {{"palm", s.worst_patch[0]}, {"back", s.worst_patch[1]}}},
             {"correction", {{"rounds", s.max_update_per_round.size()},
-                            {"max_update_spans", s.max_update_per_round},
+                            {"max_update_mm", s.max_update_per_round},
+                            {"update_p999_mm", s.update_p999_per_round},
+                            {"reassigned_points", s.reassigned_per_round},
                             {"rms_mm", s.rms_per_round},
-                            {"tolerance_spans", r.options.correction_tolerance}}},
+                            {"tolerance_mm", r.options.correction_tolerance}}},
             {"continuity", {{"g0_gap_mm", s.g0_gap_mm},
-                            {"g1_normal_jump_deg", {{"median", s.g1_median_deg}, {"p95", s.g1_p95_deg}, {"max", s.g1_max_deg}}}}},
+                            {"g1_normal_jump_deg", {{"median", s.g1_median_deg}, {"p95", s.g1_p95_deg}, {"max", s.g1_max_deg}, {"max_where", s.g1_max_where}}},
+                            {"g1_near_irregular_corners_deg", {{"median", s.g1_near_median_deg}, {"max", s.g1_near_max_deg}}}}},
             {"table_4_1", to_json(r.figures)},
             {"options", {{"fairness", r.options.fairness}, {"c1_weight", r.options.c1_weight},
-                         {"ring_weight", r.options.ring_weight}, {"tessellation", r.options.tessellation}}}};
+                         {"skin_weight", r.options.skin_weight}, {"tessellation", r.options.tessellation}}}};
   if (r.surface_to_truth)
     j["truth"] = {{"file", r.truth_file},
                   {"surface_to_truth_mm", distance_json(*r.surface_to_truth)},
@@ -66,53 +69,49 @@ Json to_json(const PatchStageResult& r) {
 }
 
 Json patches_to_json(const PatchSkin& s) {
+  // Per patch: the points whose foot point lies on it, by scan.
+  std::vector<std::array<size_t, 2>> count(s.patches.size(), {0, 0});
+  std::vector<double> sum(s.patches.size(), 0), worst(s.patches.size(), 0);
+  for (const auto& q : s.samples) {
+    ++count[q.patch][q.side];
+    sum[q.patch] += q.error;
+    worst[q.patch] = std::max(worst[q.patch], static_cast<double>(q.error));
+  }
   Json patches = Json::array();
-  for (const auto& p : s.patches) {
+  for (size_t f = 0; f < s.patches.size(); ++f) {
+    const BezierPatch& p = s.patches[f];
     Json cps = Json::array(), links = Json::array();
     for (const auto& c : p.P) cps.push_back(to_json(c));
     for (int l : p.cp_link) links.push_back(l >= 0 ? Json(s.bones[l]) : Json(nullptr));
-    patches.push_back({{"tube", skin_tube_name(p.tube)}, {"span_u", p.span_u}, {"span_v", p.span_v},
+    const size_t n = count[f][0] + count[f][1];
+    const char* side = n == 0 ? "none" : count[f][1] > count[f][0] ? "back" : "palm";
+    patches.push_back({{"name", p.name}, {"side", side},
                        {"link", p.link >= 0 ? Json(s.bones[p.link]) : Json(nullptr)}, {"control_points", cps},
-                       {"control_point_links", links}});
-  }
-  Json tubes = Json::array();
-  for (const auto& t : s.tubes) {
-    Json links = Json::array();
-    for (int l : t.net_link) links.push_back(l);
-    tubes.push_back({{"tube", skin_tube_name(t.tube)}, {"around", t.nu}, {"along", t.nv}, {"net_links", links}});
+                       {"control_point_ids", s.patch_control[f]}, {"control_point_links", links},
+                       {"fit", {{"points", n}, {"palm_points", count[f][0]}, {"back_points", count[f][1]},
+                                {"mean_mm", n ? sum[f] / n : 0.0}, {"max_mm", worst[f]}}}});
   }
   return {{"format", "handskin-patches/1"},
           {"units", "mm"},
           {"frame", "palm"},
           {"bones", s.bones},
           {"binding", "rigid: each control point moves with its link (control_point_links)"},
-          {"tubes", tubes},
+          {"layout", layout_to_json(s.layout)},
           {"patches", patches}};
 }
 
 std::string patches_obj(const PatchSkin& s) {
-  std::string out = "# handskin Bezier patches (bicubic), palm frame, mm\n";
+  std::string out = "# handskin Bezier patches (bicubic), palm frame, mm; shared control points listed once\n";
   char buf[160];
-  size_t base = 1;
-  for (const auto& t : s.tubes) {
-    const int NU = 3 * t.nu, NV = 3 * t.nv + 1;
-    std::snprintf(buf, sizeof buf, "g %s\n", skin_tube_name(t.tube));
+  for (const auto& p : s.control) {
+    std::snprintf(buf, sizeof buf, "v %.6f %.6f %.6f\n", p.x(), p.y(), p.z());
     out += buf;
-    for (const auto& p : t.net) {
-      std::snprintf(buf, sizeof buf, "v %.6f %.6f %.6f\n", p.x(), p.y(), p.z());
-      out += buf;
-    }
-    for (int a = 0; a < t.nu; ++a)
-      for (int b = 0; b < t.nv; ++b) {
-        out += "cstype bezier\ndeg 3 3\nsurf 0 1 0 1";
-        for (int j = 0; j < 4; ++j)  // OBJ lists a surface's control points u fastest
-          for (int i = 0; i < 4; ++i) {
-            const int ii = ((3 * a + i) % NU + NU) % NU;
-            out += " " + std::to_string(base + static_cast<size_t>(ii * NV + 3 * b + j));
-          }
-        out += "\nparm u 0 1\nparm v 0 1\nend\n";
-      }
-    base += t.net.size();
+  }
+  for (size_t f = 0; f < s.patches.size(); ++f) {
+    out += "g " + s.patches[f].name + "\ncstype bezier\ndeg 3 3\nsurf 0 1 0 1";
+    for (int j = 0; j < 4; ++j)  // OBJ lists a surface's control points u fastest
+      for (int i = 0; i < 4; ++i) out += " " + std::to_string(s.patch_control[f][4 * i + j] + 1);
+    out += "\nparm u 0 1\nparm v 0 1\nend\n";
   }
   return out;
 }

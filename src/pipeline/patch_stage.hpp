@@ -46,7 +46,7 @@ struct PatchStageResult {
 };
 
 /// Fit the patches, tessellate them, and with a truth measure the surface against it.
-PatchStageResult run_patch_stage(const SkinResult& skin, const std::vector<Eigen::Vector3d>& points,
+PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
                                  const std::vector<std::uint32_t>& sides, const PatchOptions& options,
                                  const TruthSkin* truth, int error_grid = 100);
 

@@ -144,10 +144,10 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   si.truth = truth;
   R.skin = run_skin_stage(si, in.options, [&](const std::string& m) { progress("skin: " + m); });
 
-  // --- patches: bicubic Bézier patches on the skin's ring grid (docs/patches.md) ---
+  // --- patches: bicubic Bézier patches over the whole skin (docs/patches.md) ---
   if (in.options.patches.enabled) {
     progress("patches: fitting and correcting the parameters");
-    R.patches = run_patch_stage(R.skin.skin, si.points, si.sides, patch_options(in.options), truth ? &*truth : nullptr,
+    R.patches = run_patch_stage(R.skin.skin, R.skin.rig, si.points, si.sides, patch_options(in.options), truth ? &*truth : nullptr,
                                 static_cast<int>(in.options.patches.error_grid));
   }
 

@@ -38,14 +38,9 @@ SkinOptions skin_options(const PipelineOptions& o) {
 }
 
 PatchOptions patch_options(const PipelineOptions& o) {
-  // The layout scales as k²: palm 8k × 4k, each digit 4k × 3k, 92k² patches in all.
-  const double k = std::sqrt(static_cast<double>(o.patches.count) / 92.0);
-  auto spans = [&](double base, int lo) { return std::max(lo, static_cast<int>(std::lround(base * k))); };
+  // The hand's layout has 98 faces; split k × k it has 98 k²: the k nearest the count.
   PatchOptions p;
-  p.palm_around = std::min(spans(8, 3), 64);
-  p.palm_along = std::min(spans(4, 1), 64);
-  p.digit_around = std::min(spans(4, 3), 64);
-  p.digit_along = std::min(spans(3, 1), 64);
+  p.subdivision = std::clamp(static_cast<int>(std::lround(std::sqrt(static_cast<double>(o.patches.count) / 98.0))), 1, 8);
   return p;
 }
 

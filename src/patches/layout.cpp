@@ -1,0 +1,549 @@
+#include "patches/layout.hpp"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <optional>
+#include <tuple>
+
+#include "core/errors.hpp"
+#include "mesh/triangle_tree.hpp"
+#include "posture/skeleton.hpp"
+
+namespace handskin {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kCapTilt = 1.0;  // tan of the fingertip rays' tilt toward the tip (45°)
+
+using EdgeKey = std::pair<int, int>;
+
+// Ray casting on the skin (CGAL AABB tree): the corners are put where rays from inside a
+// digit or the palm leave the skin.
+class SkinCaster {
+ public:
+  explicit SkinCaster(const TriMesh& mesh) : tt_(mesh_vertices(mesh), mesh_faces(mesh)) {}
+  /// Where the ray from `o` along `d` first meets the skin; with no hit (an origin outside
+  /// the skin), the skin's point nearest to o + 8 d.
+  Eigen::Vector3d cast(const Eigen::Vector3d& o, const Eigen::Vector3d& d) const {
+    const auto hit = tt_.tree.first_intersection(cgal::K::Ray_3(cgal::point(o), cgal::K::Vector_3(d.x(), d.y(), d.z())));
+    if (hit)
+      if (const auto* p = boost::get<cgal::K::Point_3>(&hit->first)) return {p->x(), p->y(), p->z()};
+    return nearest(o + 8 * d.normalized());
+  }
+  Eigen::Vector3d nearest(const Eigen::Vector3d& q) const {
+    const auto p = tt_.tree.closest_point(cgal::point(q));
+    return {p.x(), p.y(), p.z()};
+  }
+  /// Inside the closed skin: a ray crosses it an odd number of times (a direction no face
+  /// edge of a scan-aligned mesh is likely to graze).
+  bool inside(const Eigen::Vector3d& o) const {
+    const cgal::K::Ray_3 ray(cgal::point(o), cgal::K::Vector_3(0.5773, 0.5774, 0.5775));
+    return tt_.tree.number_of_intersected_primitives(ray) % 2 == 1;
+  }
+
+ private:
+  cgal::TriangleTree tt_;
+};
+
+Eigen::Vector3d orthonormal_to(const Eigen::Vector3d& v, const Eigen::Vector3d& axis) {
+  return (v - v.dot(axis) * axis).normalized();
+}
+
+// Newell's normal of a closed loop (its orientation: counter-clockwise about the normal).
+Eigen::Vector3d newell(const std::array<Eigen::Vector3d, 4>& loop) {
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();
+  for (int i = 0; i < 4; ++i) n += loop[i].cross(loop[(i + 1) % 4]);
+  return n;
+}
+
+// The hand's digits and their frames from the rig's skeleton.
+class DigitFrames {
+ public:
+  DigitFrames(const Rig& rig, const Eigen::Vector3d& radial) : skeleton_(rig, "rig"), radial_(radial) {
+    const Angles zero{};
+    rest_ = skeleton_.positions(zero);
+  }
+  const Eigen::Vector3d& joint(int j) const { return rest_[j]; }
+  /// The link from joint j to its child c: where flexing j moves c (toward the palm),
+  /// square to the link; the dorsal direction is its opposite.
+  Eigen::Vector3d dorsal(int j, int c) const {
+    std::optional<int> flex;
+    for (size_t k = 0; k < dofs().size(); ++k)
+      if (dofs()[k].joint == j && dofs()[k].kind == DofKind::Flexion) flex = static_cast<int>(k);
+    HS_CHECK(flex.has_value(), "a digit joint without flexion");
+    Angles a{};
+    a[*flex] = 5;
+    const Eigen::Vector3d moved = skeleton_.positions(a)[c] - rest_[c];
+    const Eigen::Vector3d axis = (rest_[c] - rest_[j]).normalized();
+    return -orthonormal_to(moved, axis);
+  }
+  /// A ring of 4 directions square to `axis` at ±45° from `dorsal`: back-radial, back-ulnar,
+  /// palm-ulnar, palm-radial (radial: toward the index side of the hand; for the thumb any
+  /// side — its rings are matched to their neighbours').
+  std::array<Eigen::Vector3d, 4> ring_directions(const Eigen::Vector3d& axis, const Eigen::Vector3d& dorsal_dir) const {
+    const Eigen::Vector3d d = orthonormal_to(dorsal_dir, axis);
+    Eigen::Vector3d s = axis.cross(d).normalized();
+    if (s.dot(radial_) < 0) s = -s;
+    return {(d + s).normalized(), (d - s).normalized(), (-d - s).normalized(), (-d + s).normalized()};
+  }
+
+ private:
+  Skeleton skeleton_;
+  Eigen::Vector3d radial_;
+  std::array<Eigen::Vector3d, kJointCount> rest_;
+};
+
+// `next` reordered to run round its tube the way `prev` does (their Newell normals both along
+// the tube, from prev toward next), starting at the corner that puts the four pairs nearest.
+std::array<int, 4> match_ring(const std::vector<Eigen::Vector3d>& V, const std::array<int, 4>& prev,
+                              std::array<int, 4> next) {
+  auto pos = [&](const std::array<int, 4>& r) {
+    std::array<Eigen::Vector3d, 4> p;
+    for (int i = 0; i < 4; ++i) p[i] = V[r[i]];
+    return p;
+  };
+  const auto P = pos(prev), N = pos(next);
+  const Eigen::Vector3d along = (N[0] + N[1] + N[2] + N[3] - P[0] - P[1] - P[2] - P[3]) / 4;
+  if ((newell(P).dot(along) > 0) != (newell(N).dot(along) > 0)) std::swap(next[1], next[3]);
+  int best = 0;
+  double bd = 1e300;
+  for (int rot = 0; rot < 4; ++rot) {
+    double d = 0;
+    for (int i = 0; i < 4; ++i) d += (V[prev[i]] - V[next[(i + rot) % 4]]).squaredNorm();
+    if (d < bd) bd = d, best = rot;
+  }
+  std::array<int, 4> out;
+  for (int i = 0; i < 4; ++i) out[i] = next[(i + best) % 4];
+  return out;
+}
+
+}  // namespace
+
+bool PatchLayout::is_crease(int a, int b) const {
+  for (const auto& c : creases)
+    if ((c[0] == a && c[1] == b) || (c[0] == b && c[1] == a)) return true;
+  return false;
+}
+
+LayoutTopology layout_topology(const PatchLayout& L, const std::string& what) {
+  LayoutTopology T;
+  const int nf = static_cast<int>(L.faces.size());
+  T.neighbour.assign(nf, {-1, -1, -1, -1});
+  T.neighbour_side.assign(nf, {-1, -1, -1, -1});
+  T.valence.assign(L.vertices.size(), 0);
+  std::map<EdgeKey, std::pair<int, int>> directed;
+  for (int f = 0; f < nf; ++f) {
+    const auto& c = L.faces[f];
+    for (int s = 0; s < 4; ++s) {
+      if (c[s] < 0 || c[s] >= static_cast<int>(L.vertices.size()))
+        throw InputError(what, "face " + std::to_string(f) + " names vertex " + std::to_string(c[s]) + ", not in the layout");
+      for (int t = s + 1; t < 4; ++t)
+        if (c[s] == c[t]) throw InputError(what, "face " + std::to_string(f) + " repeats its corner " + std::to_string(c[s]));
+      ++T.valence[c[s]];
+      if (!directed.emplace(EdgeKey{c[s], c[(s + 1) % 4]}, std::make_pair(f, s)).second)
+        throw InputError(what, "edge " + std::to_string(c[s]) + "-" + std::to_string(c[(s + 1) % 4]) +
+                                   " is run the same way by two faces (faces not oriented alike, or more than two faces on it)");
+    }
+  }
+  for (const auto& [e, fs] : directed) {
+    const auto it = directed.find({e.second, e.first});
+    if (it == directed.end())
+      throw InputError(what, "edge " + std::to_string(e.first) + "-" + std::to_string(e.second) +
+                                 " has one face only: the layout is not closed");
+    T.neighbour[fs.first][fs.second] = it->second.first;
+    T.neighbour_side[fs.first][fs.second] = it->second.second;
+  }
+  T.edges = directed.size() / 2;
+  // Round each corner: from a face with the corner at k, its edge (v, c[k + 1]); the face
+  // across its other edge (c[k − 1], v) comes next.
+  T.around.assign(L.vertices.size(), {});
+  std::vector<std::pair<int, int>> first(L.vertices.size(), {-1, -1});
+  for (int f = 0; f < nf; ++f)
+    for (int k = 0; k < 4; ++k)
+      if (first[L.faces[f][k]].first < 0) first[L.faces[f][k]] = {f, k};
+  for (size_t v = 0; v < L.vertices.size(); ++v) {
+    auto [f, k] = first[v];
+    if (f < 0) continue;
+    for (int step = 0; step < T.valence[v]; ++step) {
+      T.around[v].push_back(L.faces[f][(k + 1) % 4]);
+      const int g = T.neighbour[f][(k + 3) % 4];
+      int kg = -1;
+      for (int q = 0; q < 4; ++q)
+        if (L.faces[g][q] == static_cast<int>(v)) kg = q;
+      f = g, k = kg;
+    }
+    if (f != first[v].first)
+      throw InputError(what, "the faces round vertex " + std::to_string(v) + " do not close into one fan");
+  }
+  for (size_t v = 0; v < T.valence.size(); ++v)
+    if (T.valence[v] == 0) throw InputError(what, "vertex " + std::to_string(v) + " is in no face");
+  return T;
+}
+
+void orient_layout(PatchLayout* L, const std::string& what) {
+  const int nf = static_cast<int>(L->faces.size());
+  if (nf == 0) throw InputError(what, "the layout has no faces");
+  // Undirected edge → faces on it; then a breadth-first walk turning each face to run every
+  // shared edge the other way from the face it was reached from.
+  std::map<EdgeKey, std::vector<std::pair<int, int>>> on_edge;
+  for (int f = 0; f < nf; ++f)
+    for (int s = 0; s < 4; ++s) {
+      const int a = L->faces[f][s], b = L->faces[f][(s + 1) % 4];
+      on_edge[{std::min(a, b), std::max(a, b)}].push_back({f, s});
+    }
+  for (const auto& [e, fs] : on_edge)
+    if (fs.size() != 2)
+      throw InputError(what, "edge " + std::to_string(e.first) + "-" + std::to_string(e.second) + " has " +
+                                 std::to_string(fs.size()) + " faces, not 2: the layout is not a closed surface");
+  auto runs = [&](int f, int a, int b) {
+    for (int s = 0; s < 4; ++s)
+      if (L->faces[f][s] == a && L->faces[f][(s + 1) % 4] == b) return true;
+    return false;
+  };
+  std::vector<char> done(nf, 0);
+  std::vector<int> queue;
+  for (int seed = 0; seed < nf; ++seed) {
+    if (done[seed]) continue;
+    done[seed] = 1;
+    queue.assign(1, seed);
+    for (size_t q = 0; q < queue.size(); ++q) {
+      const int f = queue[q];
+      for (int s = 0; s < 4; ++s) {
+        const int a = L->faces[f][s], b = L->faces[f][(s + 1) % 4];
+        for (const auto& [g, gs] : on_edge[{std::min(a, b), std::max(a, b)}]) {
+          if (g == f) continue;
+          const bool same_way = runs(g, a, b);
+          if (done[g]) {
+            if (same_way) throw InputError(what, "the layout cannot be oriented (a one-sided surface)");
+            continue;
+          }
+          if (same_way) std::reverse(L->faces[g].begin(), L->faces[g].end());
+          done[g] = 1;
+          queue.push_back(g);
+        }
+      }
+    }
+  }
+  // Outward: the enclosed volume (each quad as two triangles) positive.
+  double volume = 0;
+  for (const auto& c : L->faces) {
+    const auto& V = L->vertices;
+    volume += V[c[0]].dot(V[c[1]].cross(V[c[2]])) + V[c[0]].dot(V[c[2]].cross(V[c[3]]));
+  }
+  if (volume < 0)
+    for (auto& c : L->faces) std::reverse(c.begin(), c.end());
+}
+
+PatchLayout subdivide_layout(const PatchLayout& L, int k) {
+  HS_CHECK(k >= 1, "subdivision must be at least 1");
+  if (k == 1) return L;
+  PatchLayout out;
+  out.vertices = L.vertices;
+  std::map<std::tuple<int, int, int>, int> edge_point;  // (lower corner, higher corner, steps from the lower)
+  auto at = [&](const std::array<int, 4>& c, int i, int j) -> int {
+    // Grid point (i, j) of a face, i along corner 0 → 1, j along corner 0 → 3.
+    if ((i == 0 || i == k) && (j == 0 || j == k)) return c[i == 0 ? (j == 0 ? 0 : 3) : (j == 0 ? 1 : 2)];
+    const auto& V = L.vertices;
+    const double s = static_cast<double>(i) / k, t = static_cast<double>(j) / k;
+    const Eigen::Vector3d p = (1 - s) * (1 - t) * V[c[0]] + s * (1 - t) * V[c[1]] + s * t * V[c[2]] + (1 - s) * t * V[c[3]];
+    int a = -1, b = -1, step = 0;
+    if (j == 0) a = c[0], b = c[1], step = i;
+    else if (i == k) a = c[1], b = c[2], step = j;
+    else if (j == k) a = c[3], b = c[2], step = i;
+    else if (i == 0) a = c[0], b = c[3], step = j;
+    if (a < 0) {
+      out.vertices.push_back(p);
+      return static_cast<int>(out.vertices.size()) - 1;
+    }
+    if (a > b) std::swap(a, b), step = k - step;
+    const auto [it, fresh] = edge_point.emplace(std::make_tuple(a, b, step), static_cast<int>(out.vertices.size()));
+    if (fresh) out.vertices.push_back(p);
+    return it->second;
+  };
+  auto edge_vertex = [&](int a, int b, int step) {  // step k / k along a → b
+    if (step == 0) return a;
+    if (step == k) return b;
+    if (a > b) std::swap(a, b), step = k - step;
+    return edge_point.at(std::make_tuple(a, b, step));
+  };
+  for (size_t f = 0; f < L.faces.size(); ++f) {
+    std::vector<int> g(static_cast<size_t>(k + 1) * (k + 1));
+    for (int i = 0; i <= k; ++i)
+      for (int j = 0; j <= k; ++j) g[i * (k + 1) + j] = at(L.faces[f], i, j);
+    for (int i = 0; i < k; ++i)
+      for (int j = 0; j < k; ++j) {
+        out.faces.push_back({g[i * (k + 1) + j], g[(i + 1) * (k + 1) + j], g[(i + 1) * (k + 1) + j + 1], g[i * (k + 1) + j + 1]});
+        out.names.push_back((f < L.names.size() ? L.names[f] : "face" + std::to_string(f)) + "." + std::to_string(i) +
+                            std::to_string(j));
+      }
+  }
+  for (const auto& e : L.creases)
+    for (int step = 0; step < k; ++step) out.creases.push_back({edge_vertex(e[0], e[1], step), edge_vertex(e[0], e[1], step + 1)});
+  return out;
+}
+
+PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
+                              const std::vector<std::uint32_t>& sides) {
+  for (int t = 0; t < kSkinTubes; ++t)
+    if (t >= static_cast<int>(skin.tubes.size()) || !skin.tubes[t].present)
+      throw InputError("patches", std::string("the ") + skin_tube_name(t) +
+                                      " is missing from the skin; the patch layout needs the palm and all five digits");
+  const RingGrid& palm = skin.grid.at(static_cast<int>(SkinTube::Palm));
+  if (palm.rings.size() < 4 || skin.webs.size() != 3)
+    throw InputError("patches", "the skin has too few palm rings or webs to lay patches on");
+  const SkinCaster caster(skin.mesh);
+  // The hand's axes: distal (toward the middle finger), radial (toward the index) and dorsal
+  // (out of the back: the back scan's points lie that way from the palm scan's).
+  const Eigen::Isometry3d hand = hand_frame_from_rig(rig);
+  const Eigen::Vector3d x = hand.linear().row(0).transpose();
+  Eigen::Vector3d n = hand.linear().row(2).transpose();
+  {
+    double back = 0, palm_side = 0;
+    size_t nb = 0, np = 0;
+    for (size_t k = 0; k < points.size(); ++k)
+      (sides[k] == 1 ? back : palm_side) += points[k].dot(n), ++(sides[k] == 1 ? nb : np);
+    if (nb > 0 && np > 0 && back / nb < palm_side / np) n = -n;
+  }
+  const auto J = [&](Finger f, int level) { return finger_chain(f)[level]; };
+  const Eigen::Vector3d radial = orthonormal_to(rig.joints[J(Finger::Index, 1)] - rig.joints[J(Finger::Little, 1)], x);
+  const DigitFrames frames(rig, radial);
+  const Eigen::Isometry3d to_rig = hand.inverse();
+
+  PatchLayout L;
+  auto add = [&](const Eigen::Vector3d& p) {
+    L.vertices.push_back(p);
+    return static_cast<int>(L.vertices.size()) - 1;
+  };
+  // A digit's ring of four corners at `o` (square to `axis`, ±45° from `dorsal`).
+  auto digit_ring = [&](const Eigen::Vector3d& o, const Eigen::Vector3d& axis, const Eigen::Vector3d& dorsal) {
+    std::array<int, 4> r;
+    const auto dirs = frames.ring_directions(axis, dorsal);
+    for (int i = 0; i < 4; ++i) r[i] = add(caster.cast(o, dirs[i]));
+    return r;
+  };
+
+  // --- the webs between the fingers: a corner on the back and one on the palm ---
+  const Finger fingers[4] = {Finger::Index, Finger::Middle, Finger::Ring, Finger::Little};
+  std::array<int, 5> web_b{}, web_p{};
+  for (int k = 1; k <= 3; ++k) {
+    const Finger f1 = fingers[k - 1], f2 = fingers[k];
+    const Eigen::Vector3d w = to_rig * skin.webs[k - 1];
+    const Eigen::Vector3d u =
+        ((frames.joint(J(f1, 2)) - frames.joint(J(f1, 1))).normalized() + (frames.joint(J(f2, 2)) - frames.joint(J(f2, 1))).normalized())
+            .normalized();
+    const Eigen::Vector3d d = orthonormal_to(frames.dorsal(J(f1, 1), J(f1, 2)) + frames.dorsal(J(f2, 1), J(f2, 2)), u);
+    // From inside the web's flesh, a little proximal of where the web ends.
+    Eigen::Vector3d o = w - 3 * u;
+    for (double back = 3; back <= 15 && !caster.inside(o); back += 3) o = w - back * u;
+    web_b[k] = add(caster.cast(o, d));
+    web_p[k] = add(caster.cast(o, -d));
+  }
+  // The index's radial flank and the little finger's ulnar flank at their webs' level.
+  auto flank = [&](Finger f, const Eigen::Vector3d& web, bool radial_side, int* b, int* p) {
+    const Eigen::Vector3d a = frames.joint(J(f, 1)), c = frames.joint(J(f, 2));
+    const Eigen::Vector3d u = (c - a).normalized();
+    const double t = std::clamp((web - a).dot(u) / (c - a).norm(), 0.0, 0.9);
+    const auto dirs = frames.ring_directions(u, frames.dorsal(J(f, 1), J(f, 2)));
+    const Eigen::Vector3d o = a + t * (c - a);
+    *b = add(caster.cast(o, radial_side ? dirs[0] : dirs[1]));
+    *p = add(caster.cast(o, radial_side ? dirs[3] : dirs[2]));
+  };
+  flank(Finger::Index, to_rig * skin.webs[0], true, &web_b[0], &web_p[0]);
+  flank(Finger::Little, to_rig * skin.webs[2], false, &web_b[4], &web_p[4]);
+
+  // --- the palm's rings: the wrist rim, two between, the webs' ring ---
+  // On a ring of the palm's grid, a corner at angle θ of the section scaled to a unit circle
+  // (0 radial, 90° dorsal, ±180° ulnar): the lanes run from the wrist's even spread to the
+  // webs' corners.
+  std::array<std::array<int, 5>, 4> pb{}, pp{};
+  pb[3] = web_b, pp[3] = web_p;
+  auto section = [&](const std::vector<Eigen::Vector3d>& ring, Eigen::Vector3d* c, double* A, double* B) {
+    *c = Eigen::Vector3d::Zero();
+    for (const auto& p : ring) *c += p;
+    *c /= static_cast<double>(ring.size());
+    *A = *B = 1e-9;
+    for (const auto& p : ring) *A = std::max(*A, std::abs((p - *c).dot(radial))), *B = std::max(*B, std::abs((p - *c).dot(n)));
+  };
+  auto angle_of = [&](const Eigen::Vector3d& p, const Eigen::Vector3d& c, double A, double B) {
+    return std::atan2((p - c).dot(n) / B, (p - c).dot(radial) / A);
+  };
+  std::array<double, 5> top_b, top_p;
+  {
+    Eigen::Vector3d c;
+    double A, B;
+    section(palm.rings.back(), &c, &A, &B);
+    for (int k = 0; k < 5; ++k) top_b[k] = angle_of(L.vertices[web_b[k]], c, A, B), top_p[k] = angle_of(L.vertices[web_p[k]], c, A, B);
+  }
+  const size_t nr = palm.rings.size();
+  for (int level = 0; level < 3; ++level) {
+    const auto& ring = palm.rings[level == 0 ? 0 : level * (nr - 1) / 3];
+    Eigen::Vector3d c;
+    double A, B;
+    section(ring, &c, &A, &B);
+    std::vector<double> th(ring.size());
+    for (size_t i = 0; i < ring.size(); ++i) th[i] = angle_of(ring[i], c, A, B);
+    const double f = level / 3.0;
+    std::array<double, 5> tb, tp;
+    for (int k = 0; k < 5; ++k) {
+      const double even = (45 + 22.5 * k) * kPi / 180;
+      tb[k] = std::clamp(even + f * std::remainder(top_b[k] - even, 2 * kPi), 5 * kPi / 180, 175 * kPi / 180);
+      tp[k] = std::clamp(-even + f * std::remainder(top_p[k] + even, 2 * kPi), -175 * kPi / 180, -5 * kPi / 180);
+    }
+    std::sort(tb.begin(), tb.end());
+    std::sort(tp.begin(), tp.end(), std::greater<double>());
+    // Round the loop b0…b4 p4…p0 the angles increase: each lane takes the ring point nearest
+    // its angle among those no earlier lane took, so that no two corners coincide however the
+    // section is shaped.
+    std::vector<char> taken(ring.size(), 0);
+    auto at_angle = [&](double target) {
+      size_t best = 0;
+      double bd = 1e300;
+      for (size_t i = 0; i < ring.size(); ++i) {
+        const double d = std::abs(std::remainder(th[i] - target, 2 * kPi));
+        if (!taken[i] && d < bd) bd = d, best = i;
+      }
+      taken[best] = 1;
+      return add(caster.nearest(ring[best]));
+    };
+    for (int k = 0; k < 5; ++k) pb[level][k] = at_angle(tb[k]);
+    for (int k = 4; k >= 0; --k) pp[level][k] = at_angle(tp[k]);
+  }
+  // Palm faces: 10 columns round the loop b0…b4 p4…p0, 3 rows; the thumb grows from the
+  // radial flank's middle row.
+  const char* column_name[10] = {"back0", "back1", "back2", "back3", "ulnar", "palm3", "palm2", "palm1", "palm0", "radial"};
+  auto loop = [&](int level) {
+    std::array<int, 10> l;
+    for (int k = 0; k < 5; ++k) l[k] = pb[level][k], l[9 - k] = pp[level][k];
+    return l;
+  };
+  for (int level = 0; level < 3; ++level) {
+    const auto lo = loop(level), hi = loop(level + 1);
+    for (int c = 0; c < 10; ++c) {
+      if (level == 1 && c == 9) continue;
+      L.faces.push_back({lo[c], lo[(c + 1) % 10], hi[(c + 1) % 10], hi[c]});
+      L.names.push_back("palm." + std::to_string(level) + "." + column_name[c]);
+    }
+  }
+  for (int k = 0; k < 4; ++k) {
+    L.faces.push_back({pb[0][k], pb[0][k + 1], pp[0][k + 1], pp[0][k]});
+    L.names.push_back("wrist." + std::to_string(k));
+  }
+  // The cut is sawn square across the cast: its rim is a sharp edge, not a smooth join.
+  {
+    const auto rim = loop(0);
+    for (int c = 0; c < 10; ++c) L.creases.push_back({rim[c], rim[(c + 1) % 10]});
+  }
+  // --- the digits: a base ring, rings at the joints and one on the distal link, a cap ---
+  const char* side_name[4] = {"back", "ulnar", "palm", "radial"};
+  auto digit = [&](Finger f, std::array<int, 4> base) {
+    const auto chain = finger_chain(f);
+    const int tip = chain.back(), distal = chain[chain.size() - 2];
+    std::vector<std::array<int, 4>> rings = {base};
+    // The joints past the base: MCP (the thumb), PIP and DIP (fingers; the thumb's IP).
+    const size_t first = f == Finger::Thumb ? 1 : 2;
+    for (size_t i = first; i + 1 < chain.size(); ++i) {
+      const int j = chain[i];
+      const Eigen::Vector3d in = (frames.joint(j) - frames.joint(chain[i - 1])).normalized();
+      const Eigen::Vector3d out = (frames.joint(chain[i + 1]) - frames.joint(j)).normalized();
+      const Eigen::Vector3d axis = (in + out).normalized();
+      const Eigen::Vector3d d = frames.dorsal(chain[i - 1], j) + frames.dorsal(j, chain[i + 1]);
+      rings.push_back(match_ring(L.vertices, rings.back(), digit_ring(frames.joint(j), axis, d)));
+    }
+    // The fingertip's ring is drawn forward over the dome (rays 45° toward the tip), so that
+    // the cap and the last row's patches meet at about 120° each at its corners, as three
+    // patches round a point of a smooth surface should (a ring square to the axis would
+    // leave the cap a straight angle at each corner and no normal there).
+    const Eigen::Vector3d a = frames.joint(distal), b = frames.joint(tip);
+    const Eigen::Vector3d axis = (b - a).normalized();
+    std::array<int, 4> cap;
+    {
+      const auto dirs = frames.ring_directions(axis, frames.dorsal(distal, tip));
+      const Eigen::Vector3d o = a + 0.5 * (b - a);
+      for (int i = 0; i < 4; ++i) cap[i] = add(caster.cast(o, (dirs[i] + kCapTilt * axis).normalized()));
+    }
+    rings.push_back(match_ring(L.vertices, rings.back(), cap));
+    const std::string name = finger_dof_name(f);
+    for (size_t r = 0; r + 1 < rings.size(); ++r)
+      for (int i = 0; i < 4; ++i) {
+        L.faces.push_back({rings[r][i], rings[r][(i + 1) % 4], rings[r + 1][(i + 1) % 4], rings[r + 1][i]});
+        L.names.push_back(name + "." + std::to_string(r) + "." + side_name[i]);
+      }
+    L.faces.push_back(rings.back());
+    L.names.push_back(name + ".tip");
+  };
+  digit(Finger::Thumb, {pb[1][0], pb[2][0], pp[2][0], pp[1][0]});
+  for (int k = 0; k < 4; ++k) digit(fingers[k], {web_b[k], web_b[k + 1], web_p[k + 1], web_p[k]});
+
+  // Corners that coincide (two rays meeting the skin at one place) would leave a face with no
+  // area: refused rather than fitted.
+  for (size_t f = 0; f < L.faces.size(); ++f)
+    for (int s = 0; s < 4; ++s)
+      if ((L.vertices[L.faces[f][s]] - L.vertices[L.faces[f][(s + 1) % 4]]).norm() < 0.5)
+        throw InputError("patches", "the patch layout's face " + L.names[f] +
+                                        " has two corners within 0.5 mm of each other; the rig may not fit this skin");
+  orient_layout(&L, "patch layout");
+  return L;
+}
+
+Json layout_to_json(const PatchLayout& L) {
+  Json v = Json::array(), f = Json::array();
+  for (const auto& p : L.vertices) v.push_back(to_json(p));
+  for (const auto& c : L.faces) f.push_back({c[0], c[1], c[2], c[3]});
+  Json c = Json::array();
+  for (const auto& e : L.creases) c.push_back({e[0], e[1]});
+  return {{"vertices", v}, {"faces", f}, {"names", L.names}, {"creases", c}};
+}
+
+PatchLayout layout_from_json(const Json& j, const std::string& file) {
+  PatchLayout L;
+  const Json& v = require(j, "vertices", file);
+  const Json& f = require(j, "faces", file);
+  if (!v.is_array() || v.size() < 8 || v.size() > 200000)
+    throw InputError(file, "key 'vertices' must be an array of 8 to 200000 points");
+  if (!f.is_array() || f.size() < 6 || f.size() > 200000) throw InputError(file, "key 'faces' must be an array of 6 to 200000 faces");
+  for (size_t k = 0; k < v.size(); ++k) L.vertices.push_back(to_vec3(v[k], "vertices[" + std::to_string(k) + "]", file));
+  for (size_t k = 0; k < f.size(); ++k) {
+    const std::string where = "faces[" + std::to_string(k) + "]";
+    if (!f[k].is_array() || f[k].size() != 4) throw InputError(file, where + " must be 4 vertex indices");
+    std::array<int, 4> c;
+    for (int s = 0; s < 4; ++s) {
+      if (!f[k][s].is_number_integer() || f[k][s].get<long>() < 0 || f[k][s].get<long>() >= static_cast<long>(v.size()))
+        throw InputError(file, where + " must hold vertex indices in [0, " + std::to_string(v.size() - 1) + "]");
+      c[s] = static_cast<int>(f[k][s].get<long>());
+    }
+    L.faces.push_back(c);
+  }
+  if (j.contains("names")) {
+    const Json& n = j["names"];
+    if (!n.is_array() || n.size() != f.size()) throw InputError(file, "key 'names' must name every face");
+    for (const auto& s : n) {
+      if (!s.is_string()) throw InputError(file, "key 'names' must hold strings");
+      L.names.push_back(s.get<std::string>());
+    }
+  } else {
+    for (size_t k = 0; k < f.size(); ++k) L.names.push_back("face" + std::to_string(k));
+  }
+  if (j.contains("creases")) {
+    const Json& c = j["creases"];
+    if (!c.is_array()) throw InputError(file, "key 'creases' must be an array of corner pairs");
+    for (size_t k = 0; k < c.size(); ++k) {
+      const std::string where = "creases[" + std::to_string(k) + "]";
+      if (!c[k].is_array() || c[k].size() != 2) throw InputError(file, where + " must be 2 vertex indices");
+      std::array<int, 2> e;
+      for (int s = 0; s < 2; ++s) {
+        if (!c[k][s].is_number_integer() || c[k][s].get<long>() < 0 || c[k][s].get<long>() >= static_cast<long>(v.size()))
+          throw InputError(file, where + " must hold vertex indices in [0, " + std::to_string(v.size() - 1) + "]");
+        e[s] = static_cast<int>(c[k][s].get<long>());
+      }
+      L.creases.push_back(e);
+    }
+  }
+  layout_topology(L, file);  // closed and oriented alike, or an error naming the edge
+  return L;
+}
+
+}  // namespace handskin

@@ -1,0 +1,72 @@
+#pragma once
+/// The patch layout (issue 13, docs/patches.md): a closed quad cage over the whole hand, one
+/// bicubic Bézier patch per face. Neighbouring faces share an edge, so their patches share
+/// that border's control points (G0 by construction); faces meet edge to edge everywhere (no
+/// T-junctions). The hand's layout is built from the skin and its rig:
+///
+///   palm    10 columns around (4 back, the ulnar flank, 4 palm, the radial flank) × 3 rows
+///           from the wrist cut to the finger webs, less the face the thumb grows from: 29
+///   wrist   the cut's 10-sided rim closed by a strip of 4 faces
+///   fingers 4 columns (back, ulnar, palm, radial) × 3 rows (web–PIP, PIP–DIP, DIP–tip ring)
+///           and a cap over the fingertip: 13 each; neighbouring fingers share the edge that
+///           runs through their web
+///   thumb   the same 13 on the palm's radial flank (its middle row)
+///
+/// 98 faces in all: the nearest a closed hand of four-sided faces comes to the thesis's 96
+/// (docs/patches.md says why). Where three (wrist corners, fingertip caps), five (the thumb's
+/// base) or six (the webs) faces meet, the corner is extraordinary: G1 is not enforced there.
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/json_util.hpp"
+#include "core/rig.hpp"
+#include "skin/skin_mesh.hpp"
+
+namespace handskin {
+
+struct PatchLayout {
+  std::vector<Eigen::Vector3d> vertices;    ///< the faces' corners (palm frame, mm), on the skin
+  std::vector<std::array<int, 4>> faces;    ///< corners in order, counter-clockwise seen from outside
+  std::vector<std::string> names;           ///< per face, e.g. "index.2.back", "palm.1.radial", "wrist.0"
+  /// Edges (corner pairs) where the surface may fold sharply, e.g. the wrist cut's rim: no G1
+  /// is asked across them.
+  std::vector<std::array<int, 2>> creases;
+  bool is_crease(int a, int b) const;
+};
+
+/// Edge-to-edge structure of a layout. Side s of a face runs from its corner s to corner s + 1.
+struct LayoutTopology {
+  std::vector<std::array<int, 4>> neighbour;       ///< per face side: the face across it
+  std::vector<std::array<int, 4>> neighbour_side;  ///< and which of its sides that is
+  std::vector<int> valence;                        ///< per vertex: the faces meeting there
+  std::vector<std::vector<int>> around;            ///< per vertex: its edges' other ends, in turn round it
+  size_t edges = 0;
+  bool regular(int vertex) const { return valence[vertex] == 4; }
+};
+
+/// The topology of a closed, consistently oriented quad layout. Throws InputError (naming
+/// `what`) when an edge has other than two faces, two faces run an edge the same way, a face
+/// repeats a corner, or a vertex is in no face.
+LayoutTopology layout_topology(const PatchLayout& layout, const std::string& what);
+
+/// The hand's layout on `skin` (built on `rig`; `points`/`sides` tell the back from the palm).
+/// Throws InputError when a digit is missing from the skin or a corner cannot be placed.
+PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
+                              const std::vector<std::uint32_t>& sides);
+
+/// Every face split into k × k (bilinear in its corners): k² times the patches, same corners.
+PatchLayout subdivide_layout(const PatchLayout& layout, int k);
+
+/// Faces turned so that every edge is run both ways and the enclosed volume is positive.
+/// Throws InputError (naming `what`) when the faces cannot be oriented (not a closed surface).
+void orient_layout(PatchLayout* layout, const std::string& what);
+
+/// `{"vertices": [[x, y, z]…], "faces": [[a, b, c, d]…], "names": […], "creases": [[a, b]…]}`.
+Json layout_to_json(const PatchLayout& layout);
+/// The inverse; every error names `file` and the entry. The layout must be closed (checked).
+PatchLayout layout_from_json(const Json& j, const std::string& file);
+
+}  // namespace handskin
