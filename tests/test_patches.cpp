@@ -246,6 +246,11 @@ TEST(Patches, FollowThePostureAndTheirLayoutComesBack) {
   test::write_text(dir + "/bad2.json", R"({"format": "handskin-patch-layout/1", "tubes": []})");
   EXPECT_EQ(test::run(base + " --layout " + dir + "/bad2.json --out " + dir + "/bad", &out), 1);
   EXPECT_NE(out.find("bad2.json: missing key 'layout'"), std::string::npos) << out;
+  Json far = layout;
+  far["layout"]["vertices"][5] = {500, 0, 0};
+  save_json(dir + "/bad3.json", far);
+  EXPECT_EQ(test::run(base + " --layout " + dir + "/bad3.json --out " + dir + "/bad", &out), 1);
+  EXPECT_NE(out.find("corner 5 lies more than 20 mm from the skin"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(dir + "/bad"));
 
   // A posture moves the patches with their links; shared borders stay shared.
@@ -304,4 +309,54 @@ TEST(Patches, TessellationVerticesAreTheMeshVertices) {
       ASSERT_LT((v[vh.idx()] - Eigen::Vector3d(p[0], p[1], p[2])).norm(), 1e-12);
     }
   }
+}
+
+TEST(Patches, RandomLayoutsAreRefusedInOneLineOrFitted) {
+  // Malformed layouts of every kind (indices out of range, repeated corners, open or
+  // non-manifold edges, faces run the same way, creases off the layout): each one is an
+  // InputError or a closed, oriented layout whose topology is consistent; never a crash.
+  std::mt19937_64 rng(11);
+  const PatchLayout cube = cube_layout(1);
+  size_t accepted = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    Json j = layout_to_json(cube);
+    std::uniform_int_distribution<int> pick(0, 9);
+    const int edits = 1 + pick(rng) % 3;
+    for (int e = 0; e < edits; ++e) {
+      if (j["faces"].empty()) break;
+      const int f = static_cast<int>(rng() % j["faces"].size());
+      if (!j["faces"][f].is_array() || j["faces"][f].size() != 4) continue;
+      switch (pick(rng)) {
+        case 0: j["faces"][f][rng() % 4] = static_cast<int>(rng() % 12) - 2; break;
+        case 1: j["faces"][f] = {0, 1, 2}; break;
+        case 2:
+          j["faces"].erase(f);
+          if (j["names"].size() > static_cast<size_t>(f)) j["names"].erase(f);
+          break;
+        case 3: j["faces"].push_back(j["faces"][f]), j["names"].push_back("copy"); break;
+        case 4: std::swap(j["faces"][f][0], j["faces"][f][1]); break;
+        case 5: j["creases"].push_back({static_cast<int>(rng() % 10) - 1, static_cast<int>(rng() % 10) - 1}); break;
+        case 6: j["vertices"][rng() % 8] = {1e308, -1e308, 0}; break;
+        case 7: j["faces"][f][0] = 1.5; break;
+        case 8: j["names"] = Json::array(); break;
+        default: j["faces"][f] = {j["faces"][f][3], j["faces"][f][2], j["faces"][f][1], j["faces"][f][0]}; break;
+      }
+    }
+    try {
+      const PatchLayout L = layout_from_json(j, "random.json");
+      const LayoutTopology T = layout_topology(L, "random.json");
+      for (size_t f = 0; f < L.faces.size(); ++f)
+        for (int s = 0; s < 4; ++s) {
+          const int g = T.neighbour[f][s], gs = T.neighbour_side[f][s];
+          ASSERT_GE(g, 0);
+          ASSERT_EQ(T.neighbour[g][gs], static_cast<int>(f));
+        }
+      ++accepted;
+    } catch (const InputError& e) {
+      const std::string m = e.what();
+      ASSERT_NE(m.find("random.json"), std::string::npos) << m;
+      ASSERT_EQ(m.find('\n'), std::string::npos) << m;
+    }
+  }
+  EXPECT_GT(accepted, 0u);  // some edits keep a closed layout (a crease on an edge, a cube turned inside out)
 }

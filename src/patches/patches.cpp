@@ -592,6 +592,9 @@ PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector
     out.side = {figures_of(residual[0]), figures_of(residual[1])};
   }
 
+  for (const auto& c : out.control)
+    if (!c.allFinite())
+      throw InputError("patches", "the fit gave non-finite control points; the layout does not fit these points");
   // --- the binding, the patches' links, continuity figures ---
   out.control_link.resize(out.control.size());
   for (size_t k = 0; k < out.control.size(); ++k) out.control_link[k] = nearest_link(out.control[k], bones);
@@ -639,6 +642,14 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
   if (!o.IsValid(&err)) throw InputError("patch options", err);
   const auto t0 = std::chrono::steady_clock::now();
   const PatchLayout layout = o.layout ? *o.layout : subdivide_layout(hand_patch_layout(skin, rig, points, sides), o.subdivision);
+  if (o.layout) {  // a layout given back must lie on this skin: every corner within 20 mm of it
+    const std::vector<Eigen::Vector3d> v = mesh_vertices(skin.mesh);
+    const PointGrid grid(v, 4.0);
+    for (size_t k = 0; k < layout.vertices.size(); ++k)
+      if (!layout.vertices[k].allFinite() || grid.nearest(layout.vertices[k], 20.0) < 0)
+        throw InputError("patch layout", "corner " + std::to_string(k) +
+                                             " lies more than 20 mm from the skin; is the layout from this skin?");
+  }
   // The skin as weak data, one sample per 2 mm², so that it holds the surface where the scans saw
   // nothing (the flanks between the fingers, the wrist cut) and nowhere outweighs them.
   PatchSkin s = fit_patches(layout, points, sides, sample_surface(skin.mesh, 0.5), skin.bones, o);
