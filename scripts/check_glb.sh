@@ -3,7 +3,9 @@
 # warnings on the default fixture's skin.glb and on a posed one; three.js's GLTFLoader in
 # headless Chromium must load it, find the 25 joints and see the skin move when a joint
 # turns (its screenshot goes to <artefacts>/three_skin.png); Blender (Debian's) must import it
-# as an armature of 25 bones whose pose moves the mesh.
+# as an armature of 25 bones whose pose moves the mesh. An animation from `handskin animate`
+# must pass the validator too, and Blender must import it with an action whose keyframes move
+# the skin.
 # Usage: scripts/check_glb.sh <handskin-binary> [artefacts-folder]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -22,7 +24,11 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 "$BIN" -q run --back fixtures/default/back --palm fixtures/default/palm --rig fixtures/default/rig.json --out "$work/run" >/dev/null
 "$BIN" -q pose --model "$work/run/skin.glb" --set L2.flex=60 --set index.pip.flex=90 --out "$work/posed.glb" >/dev/null
-node web/validate-gltf.js "$work/run/skin.glb" "$work/posed.glb"
+printf 'time,L2.flex,I2.flex\n0,0,0\n1,60,0\n2,60,60\n' > "$work/keys.csv"
+"$BIN" -q animate --model "$work/run/skin.glb" --keys "$work/keys.csv" --inputs-only --fps 30 --out "$work/anim.glb" >/dev/null
+node web/validate-gltf.js "$work/run/skin.glb" "$work/posed.glb" "$work/anim.glb"
 node web/tests/three-skin.js "$work/run/skin.glb" "$ART/three_skin.png"
 blender --background --factory-startup --python scripts/blender_import.py -- "$work/run/skin.glb" 2>&1 | grep "^blender_import:"
+test "${PIPESTATUS[0]}" -eq 0
+blender --background --factory-startup --python scripts/blender_animation.py -- "$work/anim.glb" 2>&1 | grep "^blender_animation:"
 test "${PIPESTATUS[0]}" -eq 0

@@ -1,13 +1,15 @@
-// pose: the rigged skin (skin.glb) posed by the solver.
+// pose, animate, studio: the rigged skin (skin.glb) posed and animated by the solver.
 #include <filesystem>
 #include <memory>
 
 #include "cli/commands.hpp"
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
+#include "core/json_util.hpp"
 #include "posture/angle_table.hpp"
 #include "posture/solver.hpp"
 #include "render/preview.hpp"
+#include "rigging/animation.hpp"
 #include "rigging/crease.hpp"
 #include "rigging/deform.hpp"
 #include "studio/server.hpp"
@@ -79,6 +81,34 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
               a.out.empty() ? "" : (" -> " + a.out).c_str(), a.png.empty() ? "" : (" -> " + a.png).c_str());
 }
 
+struct AnimateArgs {
+  std::string model, keys, out, csv;
+  double fps = 30;
+  bool inputs_only = false;
+};
+
+void animate_command(const AnimateArgs& a, const Progress& progress) {
+  namespace fs = std::filesystem;
+  if (fs::path(a.out).extension() != ".glb") throw InputError("--out", "'" + a.out + "': the animation is written as a .glb");
+  if (!a.csv.empty() && fs::path(a.csv).extension() != ".csv")
+    throw InputError("--csv", "'" + a.csv + "': the frames are written as a .csv");
+  const RiggedSkin skin = read_skin_glb(a.model);
+  const KeyFrames keys = read_keyframes(a.keys);
+  const PostureSolver solver(skin.model);
+  progress("animate", std::to_string(keys.times.size()) + " keys over " + number_text(keys.times.back() - keys.times.front()) +
+                          " s, " + (a.inputs_only ? "the inputs interpolated and the solver filling in every frame"
+                                                  : "every DOF interpolated between the solved keys"));
+  const PostureAnimation anim = animate(solver, keys, a.fps, a.inputs_only, a.keys);
+  if (anim.clamped)
+    progress("animate", "warning: " + std::to_string(anim.clamped) + " value(s) outside the model's limits were moved onto them");
+  const std::vector<unsigned char> glb = skin_glb(skin, nullptr, &anim);
+  // Everything computed; now the files, each atomically.
+  write_file_atomic(a.out, std::string(glb.begin(), glb.end()));
+  if (!a.csv.empty()) write_file_atomic(a.csv, animation_csv(anim));
+  std::printf("animated %zu frames over %s s at %s fps -> %s%s\n", anim.frames.size(), number_text(anim.times.back()).c_str(),
+              number_text(a.fps).c_str(), a.out.c_str(), a.csv.empty() ? "" : (", " + a.csv).c_str());
+}
+
 void studio_command(const StudioOptions& o, const Progress& progress) {
   StudioServer server(o);  // the model and the page load, or a one-line error, before listening
   server.run([&](int port) {
@@ -113,6 +143,24 @@ void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
   out->push_back({pc, [pa, &progress] { pose_command(*pa, progress); }});
+
+  auto aa = std::make_shared<AnimateArgs>();
+  auto* ac = app.add_subcommand("animate",
+                                "Animate a rigged skin (skin.glb from run) from keyframes: a glTF animation that three.js, Blender "
+                                "and WebXR play, and the frames as a joint-angle CSV (docs/studio.md)");
+  ac->add_option("--model", aa->model, "skin.glb (its extras carry the rig and the posture model)")->required();
+  ac->add_option("--keys", aa->keys,
+                 "Keys: a joint-angle CSV, one key a row, with a 'time' column in seconds (without one, keys are 1 s apart); "
+                 "empty cells are not given")
+      ->required();
+  ac->add_flag("--inputs-only", aa->inputs_only,
+               "Constrained animation: interpolate only the keys' DOFs (each key must give them all) and let the solver "
+               "produce the whole hand at every frame; without it each key is solved into a whole posture and every DOF "
+               "is interpolated (cubic Bezier in time)");
+  ac->add_option("--fps", aa->fps, "Frames per second, [1, 240]")->check(CLI::Range(1.0, 240.0))->capture_default_str();
+  ac->add_option("--out", aa->out, "The animated skin: .glb (the rigged skin with an animation 'handskin')")->required();
+  ac->add_option("--csv", aa->csv, "Also the frames: time and every DOF per row (.csv)");
+  out->push_back({ac, [aa, &progress] { animate_command(*aa, progress); }});
 
   auto so = std::make_shared<StudioOptions>();
   so->web_dir = HANDSKIN_STUDIO_WEB;

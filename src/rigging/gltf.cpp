@@ -118,7 +118,7 @@ std::array<JointNode, kJointCount> joint_nodes(const Skeleton& skel, const Angle
   return out;
 }
 
-std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose) {
+std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose, const PostureAnimation* animation) {
   HS_CHECK(s.vertices.size() == s.binding.vertices.size(), "binding and mesh differ in size");
   const Skeleton skel(s.rig, "rig");
   Angles zero{};
@@ -281,6 +281,57 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose) {
       add_accessor(m, add_view(m, ibm.data(), ibm.size() * 4, -1), TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_MAT4, kJointCount);
   m.bufferViews.back().target = 0;
   m.skins.push_back(skin);
+
+  // --- animation ---
+  if (animation && !animation->frames.empty()) {
+    HS_CHECK(animation->times.size() == animation->frames.size(), "animation: times and frames differ");
+    const size_t nf = animation->frames.size();
+    std::vector<std::array<JointNode, kJointCount>> at;
+    for (const Angles& f : animation->frames) at.push_back(joint_nodes(skel, f));
+    std::vector<float> times;
+    for (double t : animation->times) times.push_back(static_cast<float>(t));
+    tinygltf::Animation an;
+    an.name = "handskin";
+    const int input = add_accessor(m, add_view(m, times.data(), times.size() * 4, 0), TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                   TINYGLTF_TYPE_SCALAR, nf, {times.front()}, {times.back()});
+    auto channel = [&](const std::vector<float>& values, int type, int node, const char* path) {
+      tinygltf::AnimationSampler sampler;
+      sampler.input = input;
+      sampler.output = add_accessor(m, add_view(m, values.data(), values.size() * 4, 0), TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                    type, nf);
+      sampler.interpolation = "LINEAR";
+      an.samplers.push_back(sampler);
+      tinygltf::AnimationChannel c;
+      c.sampler = static_cast<int>(an.samplers.size()) - 1;
+      c.target_node = node;
+      c.target_path = path;
+      an.channels.push_back(c);
+    };
+    for (int j = 0; j < kJointCount; ++j) {
+      std::vector<float> q;
+      std::array<double, 4> prev = at[0][j].rotation;
+      bool varies = false;
+      for (size_t f = 0; f < nf; ++f) {
+        std::array<double, 4> r = at[f][j].rotation;
+        double dot = 0;
+        for (int c = 0; c < 4; ++c) dot += r[c] * prev[c];
+        if (dot < 0)
+          for (double& c : r) c = -c;
+        // A channel wherever a frame differs from the node's own rotation (the rest, or `pose`).
+        double to_node = 0;
+        for (int c = 0; c < 4; ++c) to_node += r[c] * nodes[j].rotation[c];
+        varies = varies || std::abs(std::abs(to_node) - 1) > 1e-12;
+        for (double c : r) q.push_back(static_cast<float>(c));
+        prev = r;
+      }
+      if (varies || j == 0) channel(q, TINYGLTF_TYPE_VEC4, kFirstJoint + j, "rotation");
+    }
+    std::vector<float> wrist;
+    for (size_t f = 0; f < nf; ++f)
+      for (double c : at[f][0].translation) wrist.push_back(static_cast<float>(c));
+    channel(wrist, TINYGLTF_TYPE_VEC3, kFirstJoint, "translation");
+    m.animations.push_back(an);
+  }
 
   tinygltf::Scene scene;
   scene.name = "handskin";

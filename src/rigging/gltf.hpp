@@ -22,6 +22,7 @@
 #include "core/texture_map.hpp"
 #include "posture/model.hpp"
 #include "posture/skeleton.hpp"
+#include "rigging/animation.hpp"
 #include "rigging/binding.hpp"
 
 namespace handskin {
@@ -45,8 +46,13 @@ struct JointNode {
 std::array<JointNode, kJointCount> joint_nodes(const Skeleton& skeleton, const Angles& angles);
 
 /// The glb's bytes; `pose` (if given) sets the joint nodes to that posture (the mesh and the
-/// bind matrices stay the scan posture's), so viewers show it posed.
-std::vector<unsigned char> skin_glb(const RiggedSkin& skin, const Angles* pose = nullptr);
+/// bind matrices stay the scan posture's), so viewers show it posed. `animation` (if given)
+/// is written as a glTF animation "handskin": per joint whose rotation changes, a LINEAR
+/// rotation sampler over the frames' times (quaternions kept on one hemisphere from frame to
+/// frame, so that per-component curves — Blender's — do not flip), and the wrist's
+/// translation.
+std::vector<unsigned char> skin_glb(const RiggedSkin& skin, const Angles* pose = nullptr,
+                                    const PostureAnimation* animation = nullptr);
 /// Throws InputError naming `file`: not a glb, no handskin extras or of another version, not
 /// the 25 expected joints, non-finite or inconsistent bind matrices, weights that are not
 /// weights, a texture that is not a square 8-bit RGB(A) PNG or texture coordinates out of
