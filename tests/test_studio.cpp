@@ -2,6 +2,7 @@
 // and one line, the server serves only its own files and keeps serving.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <thread>
 
 #include "core/json_util.hpp"
@@ -29,6 +30,15 @@ void expect_refused(const std::string& body, int status, const std::string& says
   const std::string e = j["error"];
   EXPECT_NE(e.find(says), std::string::npos) << e;
   EXPECT_EQ(e.find('\n'), std::string::npos) << e;
+}
+
+void expect_animate_refused(const std::string& body, int status, const std::string& says) {
+  const ApiResponse r = model().animate(body);
+  EXPECT_EQ(r.status, status) << body.substr(0, 80) << " -> " << r.body;
+  const Json j = Json::parse(r.body, nullptr, false);
+  ASSERT_TRUE(j.is_object() && j.contains("error")) << r.body;
+  EXPECT_NE(j["error"].get<std::string>().find(says), std::string::npos) << j["error"];
+  EXPECT_EQ(j["error"].get<std::string>().find('\n'), std::string::npos);
 }
 }  // namespace
 
@@ -76,6 +86,44 @@ TEST(Studio, MalformedRequestsGetAFourHundredAndOneLine) {
   expect_refused(R"({"pins": {}})", 400, "unknown key \"pins\"");
   expect_refused(std::string(200, '[') + std::string(200, ']'), 400, "nests deeper than 8");
   expect_refused("{\"inputs\": {\"L2.flex\": 1" + std::string(kMaxBodyBytes, ' ') + "}}", 413, "at most 65536");
+}
+
+TEST(Studio, AnimateGivesFramesAGlbOrACsvAndRefusesBadKeys) {
+  const std::string keys = R"("keys": [{"time": 0, "angles": {"L2.flex": 0}}, {"time": 1, "angles": {"L2.flex": 80}}])";
+  const ApiResponse f = model().animate("{" + keys + R"(, "fps": 10, "inputs_only": true})");
+  ASSERT_EQ(f.status, 200) << f.body;
+  const Json j = Json::parse(f.body);
+  ASSERT_EQ(j["frames"].size(), 11u);
+  EXPECT_EQ(j["times"].back().get<double>(), 1.0);
+  EXPECT_EQ(j["joint_names"].size(), 25u);
+  EXPECT_EQ(j["frames"][0]["joints"].size(), 25u);
+  const int l2 = dof_index("little.mcp.flex").value(), r2 = dof_index("ring.mcp.flex").value();
+  EXPECT_NEAR(j["frames"].back()["angles"][l2].get<double>(), 80, 1e-9);
+  EXPECT_GT(j["frames"].back()["angles"][r2].get<double>(), j["frames"][0]["angles"][r2].get<double>() + 5);  // the solver filled in
+  const ApiResponse g = model().animate("{" + keys + R"(, "format": "glb"})");
+  ASSERT_EQ(g.status, 200);
+  EXPECT_EQ(g.content_type, "model/gltf-binary");
+  EXPECT_EQ(g.body.substr(0, 4), "glTF");
+  EXPECT_NE(g.body.find("\"animations\""), std::string::npos);
+  const ApiResponse c = model().animate("{" + keys + R"(, "format": "csv", "fps": 2})");
+  ASSERT_EQ(c.status, 200);
+  EXPECT_EQ(c.body.substr(0, 14), "time,wrist.tx,");
+  EXPECT_EQ(std::count(c.body.begin(), c.body.end(), '\n'), 4);
+  // Bad keys: a 4xx and one line; the server's state is untouched.
+  expect_animate_refused(R"({"keys": 3})", 400, "\"keys\" must be an array");
+  expect_animate_refused(R"({"keys": [{"time": 0}]})", 422, "2 to 500 keys");
+  expect_animate_refused(R"({"keys": [{"time": 1}, {"time": 1}]})", 422, "keys[1].time must be after");
+  expect_animate_refused(R"({"keys": [{"time": 0, "angles": {"toe": 1}}, {"time": 1}]})", 400, "unknown DOF 'toe'");
+  expect_animate_refused(R"({"keys": [{"time": 0, "angles": {"L2.flex": 500}}, {"time": 1}]})", 422, "outside its limits");
+  expect_animate_refused(R"({"keys": [{"time": 0, "angles": {"L2.flex": "x"}}, {"time": 1}]})", 400, "must be a number");
+  expect_animate_refused(R"({"keys": [{"time": 0}, {"time": 1e300}]})", 422, "[0, 3600]");
+  expect_animate_refused(R"({"keys": [{"time": 0}, {"time": 3000}], "fps": 60})", 422, "more than 3600 frames");
+  expect_animate_refused("{" + keys + R"(, "fps": 0})", 422, "fps = 0");
+  expect_animate_refused("{" + keys + R"(, "format": "gif"})", 400, "format must be");
+  expect_animate_refused("{" + keys + R"(, "loop": true})", 400, "unknown key \"loop\"");
+  expect_animate_refused(R"({"keys": [{"time": 0, "angles": {"L2.flex": 0}}, {"time": 1, "angles": {"I2.flex": 5}}], "inputs_only": true})",
+                         422, "keys[0] gives no index.mcp.flex");
+  expect_animate_refused(R"({"keys": [{"time": 0, "when": 1}, {"time": 1}]})", 400, "unknown key \"when\"");
 }
 
 TEST(Studio, ServerServesOnlyItsOwnFilesAndKeepsServing) {

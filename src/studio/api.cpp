@@ -1,6 +1,7 @@
 #include "studio/api.hpp"
 
 #include <cmath>
+#include <optional>
 
 #include "core/dof.hpp"
 #include "core/errors.hpp"
@@ -58,18 +59,27 @@ ApiResponse StudioModel::dofs() const {
   return {200, Json{{"dofs", list}, {"parameter_set", skin_.model.name}, {"binding", skin_.binding.mode}}.dump()};
 }
 
-ApiResponse StudioModel::solve(const std::string& text) const {
+namespace {
+// The request's JSON object, or the reason it is refused.
+std::optional<ApiResponse> parse_body(const std::string& text, Json* body) {
   if (text.size() > kMaxBodyBytes)
     return error(413, "the request body is " + std::to_string(text.size()) + " bytes; at most " + std::to_string(kMaxBodyBytes));
   // Depth is checked while parsing, so a deeply nested body is refused before it is built.
   bool too_deep = false;
-  const Json body = Json::parse(text, [&](int depth, Json::parse_event_t, Json&) {
+  *body = Json::parse(text, [&](int depth, Json::parse_event_t, Json&) {
     if (depth > kMaxDepth) too_deep = true;
     return !too_deep;
   }, false);
   if (too_deep) return error(400, "the request nests deeper than " + std::to_string(kMaxDepth) + " levels");
-  if (body.is_discarded()) return error(400, "the request body is not JSON");
-  if (!body.is_object()) return error(400, "the request body must be a JSON object");
+  if (body->is_discarded()) return error(400, "the request body is not JSON");
+  if (!body->is_object()) return error(400, "the request body must be a JSON object");
+  return std::nullopt;
+}
+}  // namespace
+
+ApiResponse StudioModel::solve(const std::string& text) const {
+  Json body;
+  if (const auto refused = parse_body(text, &body)) return *refused;
   // A pinned or target angle beyond the DOF's limits is refused (pose clamps; a page should not).
   const auto within_limits = [&](int d, double v, const std::string& where) {
     const DofParams& p = skin_.model.dof[d];
@@ -128,6 +138,94 @@ ApiResponse StudioModel::solve(const std::string& text) const {
   } catch (const BadRequest& b) {
     return error(b.status, b.message);
   } catch (const InputError& e) {  // the solver's own checks
+    return error(400, e.what());
+  }
+}
+
+ApiResponse StudioModel::animate(const std::string& text) const {
+  Json body;
+  if (const auto refused = parse_body(text, &body)) return *refused;
+  try {
+    for (auto it = body.begin(); it != body.end(); ++it)
+      if (it.key() != "keys" && it.key() != "fps" && it.key() != "inputs_only" && it.key() != "format")
+        throw BadRequest{400, "unknown key \"" + it.key() + "\" (keys, fps, inputs_only, format)"};
+    const double fps = body.contains("fps") ? finite_number(body["fps"], "fps") : 30.0;
+    if (fps < 1 || fps > 60) throw BadRequest{422, "fps = " + number_text(fps) + " must be in [1, 60]"};
+    if (body.contains("inputs_only") && !body["inputs_only"].is_boolean()) throw BadRequest{400, "inputs_only must be true or false"};
+    const bool inputs_only = body.value("inputs_only", false);
+    const std::string format = body.contains("format") && body["format"].is_string() ? body["format"].get<std::string>() : "frames";
+    if (format != "frames" && format != "glb" && format != "csv")
+      throw BadRequest{400, "format must be \"frames\", \"glb\" or \"csv\""};
+    if (!body.contains("keys") || !body["keys"].is_array()) throw BadRequest{400, "\"keys\" must be an array of keys"};
+    const Json& keys = body["keys"];
+    if (keys.size() < 2 || keys.size() > static_cast<size_t>(kMaxAnimationKeys))
+      throw BadRequest{422, "an animation needs 2 to " + std::to_string(kMaxAnimationKeys) + " keys, got " + std::to_string(keys.size())};
+    // The keys' DOFs in order of first appearance; a key that does not give one has NaN there.
+    KeyFrames k;
+    std::vector<int> column(kDofCount, -1);
+    for (size_t r = 0; r < keys.size(); ++r) {
+      const std::string where = "keys[" + std::to_string(r) + "]";
+      const Json& key = keys[r];
+      if (!key.is_object()) throw BadRequest{400, where + " must be an object with time and angles"};
+      for (auto it = key.begin(); it != key.end(); ++it)
+        if (it.key() != "time" && it.key() != "angles") throw BadRequest{400, where + ": unknown key \"" + it.key() + "\" (time, angles)"};
+      const double t = key.contains("time") ? finite_number(key["time"], where + ".time") : static_cast<double>(r);
+      if (t < 0 || t > 3600) throw BadRequest{422, where + ".time = " + number_text(t) + " must be in [0, 3600] s"};
+      if (r > 0 && t <= k.times.back()) throw BadRequest{422, where + ".time must be after the key before it"};
+      k.times.push_back(t);
+      k.lines.push_back(static_cast<long>(r));
+      k.values.emplace_back(k.dofs.size(), std::nan(""));
+      if (!key.contains("angles")) continue;
+      if (!key["angles"].is_object()) throw BadRequest{400, where + ".angles must be an object of DOF names"};
+      for (auto it = key["angles"].begin(); it != key["angles"].end(); ++it) {
+        const int d = dof_of(it.key(), (where + ".angles").c_str());
+        const double v = finite_number(it.value(), where + ".angles." + it.key());
+        const DofParams& p = skin_.model.dof[d];
+        if (v < p.lo || v > p.hi)
+          throw BadRequest{422, where + ".angles." + it.key() + " = " + number_text(v) + " is outside its limits [" +
+                                    number_text(p.lo) + ", " + number_text(p.hi) + "]"};
+        if (column[d] < 0) {
+          column[d] = static_cast<int>(k.dofs.size());
+          k.dofs.push_back(d);
+          for (auto& row : k.values) row.push_back(std::nan(""));
+        }
+        k.values[r][column[d]] = v;
+      }
+    }
+    if ((k.times.back() - k.times.front()) * fps > kMaxAnimationFrames)
+      throw BadRequest{422, "the animation would have more than " + std::to_string(kMaxAnimationFrames) + " frames"};
+    if (inputs_only)
+      for (size_t r = 0; r < k.values.size(); ++r)
+        for (size_t c = 0; c < k.dofs.size(); ++c)
+          if (!std::isfinite(k.values[r][c]))
+            throw BadRequest{422, "keys[" + std::to_string(r) + "] gives no " + ::handskin::dofs()[k.dofs[c]].name +
+                                      "; with inputs_only every key gives every input"};
+    PostureAnimation anim;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      anim = ::handskin::animate(solver_, k, fps, inputs_only, "keys");
+    }
+    if (format == "glb") {
+      const std::vector<unsigned char> glb = skin_glb(skin_, nullptr, &anim);
+      return {200, std::string(glb.begin(), glb.end()), "model/gltf-binary"};
+    }
+    if (format == "csv") return {200, animation_csv(anim), "text/csv"};
+    Json frames = Json::array();
+    for (const Angles& f : anim.frames) {
+      Json nodes = Json::array();
+      for (const auto& n : joint_nodes(skeleton_, f))
+        nodes.push_back({n.translation[0], n.translation[1], n.translation[2], n.rotation[0], n.rotation[1], n.rotation[2],
+                         n.rotation[3]});
+      frames.push_back({{"angles", std::vector<double>(f.begin(), f.end())}, {"joints", nodes}});
+    }
+    Json names = Json::array(), joint_names = Json::array();
+    for (int d = 0; d < kDofCount; ++d) names.push_back(::handskin::dofs()[d].name);
+    for (int j = 0; j < kJointCount; ++j) joint_names.push_back(joints()[j].name);
+    return {200, Json{{"times", anim.times}, {"dofs", names}, {"joint_names", joint_names}, {"frames", frames},
+                      {"clamped", anim.clamped}}.dump()};
+  } catch (const BadRequest& b) {
+    return error(b.status, b.message);
+  } catch (const InputError& e) {
     return error(400, e.what());
   }
 }

@@ -6,7 +6,8 @@
 ///   parameter set (the posture model skin.glb carries);
 /// - `POST /api/solve` with `{"inputs": {"L2.flex": 60}, "torques": {...}, "targets":
 ///   {"I3.flex": 40 | {"deg": 40, "weight": 2}}}`: every DOF's angle, the potential, and the
-///   joint nodes' local transforms (what the page sets on skin.glb's joints).
+///   joint nodes' local transforms (what the page sets on skin.glb's joints);
+/// - `POST /api/animate`: keyframe or constrained animation (below).
 /// Bad requests get a 4xx status and `{"error": "<one line>"}`: a body over kMaxBodyBytes
 /// (413), JSON that does not parse or nests deeper than kMaxDepth, a key of the wrong type, an
 /// unknown DOF, a value that is not a finite number (400), a pinned value beyond the DOF's
@@ -16,6 +17,7 @@
 
 #include "posture/skeleton.hpp"
 #include "posture/solver.hpp"
+#include "rigging/animation.hpp"
 #include "rigging/gltf.hpp"
 
 namespace handskin {
@@ -25,8 +27,12 @@ constexpr int kMaxDepth = 8;
 
 struct ApiResponse {
   int status = 200;
-  std::string body;  ///< JSON
+  std::string body;  ///< JSON, unless content_type says otherwise
+  std::string content_type = "application/json";
 };
+
+constexpr int kMaxAnimationKeys = 500;
+constexpr int kMaxAnimationFrames = 3600;
 
 /// The studio's model: skin.glb as read, its solver and skeleton. The solver's caches are not
 /// thread-safe, so solves take the lock.
@@ -36,6 +42,12 @@ class StudioModel {
   const RiggedSkin& skin() const { return skin_; }
   ApiResponse dofs() const;
   ApiResponse solve(const std::string& body) const;
+  /// `POST /api/animate` with `{"keys": [{"time": 0, "angles": {"L2.flex": 0, …}}, …],
+  /// "fps": 30, "inputs_only": false, "format": "frames" | "glb" | "csv"}`: the animation of
+  /// rigging/animation.hpp — as frames (times, every DOF, and the joint nodes' transforms per
+  /// frame, for the page to play), as skin.glb with the animation, or as the frames' CSV. At
+  /// most kMaxAnimationKeys keys and kMaxAnimationFrames frames.
+  ApiResponse animate(const std::string& body) const;
 
  private:
   RiggedSkin skin_;

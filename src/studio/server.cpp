@@ -66,10 +66,11 @@ StudioServer::StudioServer(const StudioOptions& o) : impl_(new Impl(o, checked_m
   s.set_tcp_nodelay(true);  // small replies at once (Nagle + delayed ACK added ~40 ms a solve)
   const auto send = [](httplib::Response& res, const ApiResponse& r) {
     res.status = r.status;
-    res.set_content(r.body, "application/json");
+    res.set_content(r.body, r.content_type.c_str());
   };
   s.Get("/api/dofs", [&I, send](const httplib::Request&, httplib::Response& res) { send(res, I.model.dofs()); });
   s.Post("/api/solve", [&I, send](const httplib::Request& req, httplib::Response& res) { send(res, I.model.solve(req.body)); });
+  s.Post("/api/animate", [&I, send](const httplib::Request& req, httplib::Response& res) { send(res, I.model.animate(req.body)); });
   s.Get("/model.glb", [&I](const httplib::Request&, httplib::Response& res) { res.set_content(I.glb, "model/gltf-binary"); });
   s.Get(".*", [&I](const httplib::Request& req, httplib::Response& res) {
     const auto it = I.files.find(req.path);

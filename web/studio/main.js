@@ -128,6 +128,116 @@ function buildSliders() {
   }
 }
 
+// --- keys: capture, edit, play, export, import (POST /api/animate) ---
+state.keys = [];
+state.played = 0;
+function currentKeyAngles() {
+  const inputsOnly = document.getElementById('inputs-only').checked;
+  const angles = {};
+  for (const d of state.dofs)
+    if (!inputsOnly || state.mode[d.name] === 'input') angles[d.name] = state.values[d.name];
+  return angles;
+}
+function renderKeys() {
+  const list = document.getElementById('key-list');
+  list.innerHTML = '';
+  state.keys.forEach((k, i) => {
+    const li = document.createElement('li');
+    const n = Object.keys(k.angles).length;
+    li.innerHTML = `<label>at <input type="number" min="0" max="3600" step="0.1" value="${k.time}" aria-label="key ${i + 1} time (s)"> s</label>` +
+      ` ${n} DOF${n === 1 ? '' : 's'} <button aria-label="move key ${i + 1} earlier">↑</button><button aria-label="move key ${i + 1} later">↓</button>` +
+      `<button aria-label="delete key ${i + 1}">✕</button>`;
+    const [time] = li.querySelectorAll('input');
+    const [up, down, del] = li.querySelectorAll('button');
+    time.onchange = () => { k.time = parseFloat(time.value); };
+    // Moving a key swaps its posture with its neighbour's; the times stay in order.
+    const swap = j => { if (j < 0 || j >= state.keys.length) return; [state.keys[i].angles, state.keys[j].angles] = [state.keys[j].angles, state.keys[i].angles]; renderKeys(); };
+    up.onclick = () => swap(i - 1);
+    down.onclick = () => swap(i + 1);
+    del.onclick = () => { state.keys.splice(i, 1); renderKeys(); };
+    list.appendChild(li);
+  });
+}
+function addKey() {
+  const step = parseFloat(document.getElementById('key-step').value) || 1;
+  const time = state.keys.length ? state.keys[state.keys.length - 1].time + step : 0;
+  state.keys.push({ time: Math.round(time * 1000) / 1000, angles: currentKeyAngles() });
+  renderKeys();
+  status.textContent = `${state.keys.length} key(s)`;
+}
+function animationRequest(format) {
+  return { keys: state.keys.map(k => ({ time: k.time, angles: k.angles })), fps: parseFloat(document.getElementById('fps').value) || 30,
+           inputs_only: document.getElementById('inputs-only').checked, format };
+}
+async function play() {
+  if (state.keys.length < 2) { status.textContent = 'add at least two keys to play'; return; }
+  let r;
+  try { r = await api('/api/animate', animationRequest('frames')); } catch (e) { status.textContent = 'error: ' + e.message; return; }
+  state.playing = true;
+  state.played = 0;
+  const start = performance.now(), last = r.times[r.times.length - 1];
+  await new Promise(done => {
+    const step = () => {
+      const t = Math.min((performance.now() - start) / 1000, last);
+      let f = 0;
+      while (f + 1 < r.times.length && r.times[f + 1] <= t) ++f;
+      r.frames[f].joints.forEach((n, j) => {
+        const b = state.bones[r.joint_names[j]];
+        if (b) { b.position.set(n[0], n[1], n[2]); b.quaternion.set(n[3], n[4], n[5], n[6]); }
+      });
+      state.played++;
+      status.textContent = `playing ${t.toFixed(2)} / ${last.toFixed(2)} s`;
+      if (t < last) requestAnimationFrame(step); else done();
+    };
+    requestAnimationFrame(step);
+  });
+  const angles = {};
+  r.dofs.forEach((name, k) => { angles[name] = r.frames[r.frames.length - 1].angles[k]; });
+  showValues(angles, true);
+  state.playing = false;
+  status.textContent = `played ${r.frames.length} frames over ${last.toFixed(2)} s` + (r.clamped ? ` (${r.clamped} values put on their limits)` : '');
+}
+async function exportAnimation(format) {
+  if (state.keys.length < 2) { status.textContent = 'add at least two keys to export'; return; }
+  const r = await fetch('/api/animate', { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify(animationRequest(format)) });
+  if (!r.ok) { status.textContent = 'error: ' + (await r.json()).error; return; }
+  const url = URL.createObjectURL(await r.blob());
+  const a = document.createElement('a');
+  a.href = url;
+  a.download = format === 'glb' ? 'animation.glb' : 'animation.csv';
+  document.body.appendChild(a);
+  a.click();
+  a.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 10000);
+  status.textContent = `exported ${a.download}`;
+}
+// Keys from a CSV: a header of DOF names or aliases and an optional "time" column; empty cells
+// are not given (the format `handskin animate --keys` reads).
+function importKeys(text) {
+  const lines = text.replace(/^\uFEFF/, '').split(/\r?\n/).filter(l => l.trim() !== '');
+  if (lines.length < 3) throw new Error('a keys CSV needs a header and at least two rows');
+  const byName = {};
+  for (const d of state.dofs) { byName[d.name.toLowerCase()] = d.name; if (d.alias) byName[d.alias.toLowerCase()] = d.name; }
+  const head = lines[0].split(',').map(c => c.trim());
+  const cols = head.map(h => (h.toLowerCase() === 'time' ? 'time' : byName[h.toLowerCase()]));
+  cols.forEach((c, i) => { if (!c) throw new Error(`unknown DOF '${head[i]}' in the header`); });
+  state.keys = lines.slice(1).map((l, r) => {
+    const cells = l.split(',').map(c => c.trim());
+    if (cells.length !== cols.length) throw new Error(`line ${r + 2}: ${cells.length} cells, the header has ${cols.length}`);
+    const k = { time: r, angles: {} };
+    cells.forEach((c, i) => {
+      if (c === '') return;
+      const v = Number(c);
+      if (!Number.isFinite(v)) throw new Error(`line ${r + 2}: '${c}' is not a number`);
+      if (cols[i] === 'time') k.time = v; else k.angles[cols[i]] = v;
+    });
+    return k;
+  });
+  renderKeys();
+  status.textContent = `imported ${state.keys.length} keys`;
+}
+Object.assign(state, { addKey, play, exportAnimation, importKeys });
+
 async function main() {
   resize();
   const info = await api('/api/dofs');
@@ -146,6 +256,15 @@ async function main() {
   document.getElementById('scan').onclick = () => { const inputs = {}; for (const d of state.dofs) inputs[d.name] = 0; state.touched = new Set(state.dofs.map(d => d.name)); api('/api/solve', { inputs }).then(r => { applyJoints(r.joints); showValues(r.angles, true); }); };
   const help = document.getElementById('help'), hb = document.getElementById('help-button');
   hb.onclick = () => { const open = help.style.display !== 'block'; help.style.display = open ? 'block' : 'none'; hb.setAttribute('aria-expanded', String(open)); };
+  document.getElementById('key-add').onclick = addKey;
+  document.getElementById('play').onclick = play;
+  document.getElementById('export-glb').onclick = () => exportAnimation('glb');
+  document.getElementById('export-csv').onclick = () => exportAnimation('csv');
+  document.getElementById('import-csv').onchange = async ev => {
+    const f = ev.target.files[0];
+    if (!f) return;
+    try { importKeys(await f.text()); } catch (e) { status.textContent = 'error: ' + e.message; }
+  };
   await solve();
   state.ready = true;
   renderer.setAnimationLoop(() => { controls.update(); renderer.render(scene, camera); });

@@ -1,8 +1,11 @@
 // End-to-end test of the hand studio in headless Chromium (Debian's chromium, driven by
 // playwright-core): `handskin studio` on a skin.glb, the page loads, the L2 (little MCP)
-// slider in input mode moves the other fingers through the solver and changes the picture.
+// slider in input mode moves the other fingers through the solver and changes the picture;
+// two keys recorded (L2 0° and 80°, inputs only) play back to the second posture and export as
+// a glTF animation that the Khronos validator passes (saved as studio_animation.glb).
 // Usage: node web/tests/studio.js <handskin> <skin.glb> <artefacts-folder>
 const { spawn } = require('child_process');
+const fs = require('fs');
 const path = require('path');
 const { chromium } = require('playwright-core');
 
@@ -57,10 +60,45 @@ function pixelDifference(a, b) {
     await page.screenshot({ path: path.join(art, 'studio_L2_input.png') });
     const moved = ['ring.mcp.flex', 'ring.pip.flex', 'middle.mcp.flex'].filter((d) => Math.abs(after[d] - before[d]) > 1);
     const diff = pixelDifference(shot0, shot1);
+
+    // Keys: L2 back to 0 as the first key, 80 as the second (inputs only: the solver fills in
+    // every frame), then play them and export the animation.
+    await page.check('#inputs-only');
+    await page.locator('#slider-little-mcp-flex').fill('0');
+    await page.waitForFunction(() => Math.abs(window.studio.values['little.mcp.flex']) < 1e-6 && !window.studio.busy, null, { timeout: 20000 });
+    await page.click('#key-add');
+    await page.locator('#slider-little-mcp-flex').fill('80');
+    await page.waitForFunction(() => Math.abs(window.studio.values['little.mcp.flex'] - 80) < 1e-6 && !window.studio.busy, null, { timeout: 20000 });
+    await page.click('#key-add');
+    const keys = await page.evaluate(() => window.studio.keys);
+    await page.locator('#slider-little-mcp-flex').fill('0');  // away from the last key, so playing shows a change
+    await page.waitForFunction(() => !window.studio.busy, null, { timeout: 20000 });
+    await page.waitForTimeout(300);
+    const shotKey0 = await page.locator('canvas').screenshot();
+    await page.click('#play');
+    await page.waitForFunction(() => window.studio.played > 0 && !window.studio.playing, null, { timeout: 30000 });
+    const played = await page.evaluate(() => ({ frames: window.studio.played, ring: window.studio.values['ring.mcp.flex'],
+                                                little: window.studio.values['little.mcp.flex'] }));
+    await page.waitForTimeout(300);
+    const shotPlayed = await page.locator('canvas').screenshot();
+    await page.screenshot({ path: path.join(art, 'studio_played.png') });
+    const [download] = await Promise.all([page.waitForEvent('download'), page.click('#export-glb')]);
+    const exported = path.join(art, 'studio_animation.glb');
+    await download.saveAs(exported);
+    const validator = require('gltf-validator');
+    const report = await validator.validateBytes(new Uint8Array(fs.readFileSync(exported)), { maxIssues: 100 });
+    const playDiff = pixelDifference(shotKey0, shotPlayed);
     console.log(JSON.stringify({ url: studio.url, moved, ring_mcp: [before['ring.mcp.flex'], after['ring.mcp.flex']],
-                                 picture_difference: diff, solve_ms: after.solveMs, page_errors: errors }));
-    const ok = errors.length === 0 && moved.length >= 2 && diff > 0.01;
+                                 picture_difference: diff, solve_ms: after.solveMs, keys: keys.length, played,
+                                 play_picture_difference: playDiff, exported_bytes: fs.statSync(exported).size,
+                                 validator: { errors: report.issues.numErrors, warnings: report.issues.numWarnings },
+                                 page_errors: errors }));
+    let ok = errors.length === 0 && moved.length >= 2 && diff > 0.01;
     if (!ok) console.error('studio: moving L2 in input mode did not move the other fingers or the picture');
+    const animated = keys.length === 2 && played.frames > 1 && Math.abs(played.little - 80) < 1e-6 && played.ring > 40 &&
+                     playDiff > 0.01 && report.issues.numErrors === 0 && report.issues.numWarnings === 0;
+    if (!animated) console.error('studio: two keys did not play to the second posture, or the exported animation is not valid glTF');
+    ok = ok && animated;
     code = ok ? 0 : 1;
   } catch (e) {
     console.error('studio: ' + (e.message || e));
