@@ -238,6 +238,115 @@ function importKeys(text) {
 }
 Object.assign(state, { addKey, play, exportAnimation, importKeys });
 
+// --- the piano: a key under each fingertip; a computer key presses it: an input to the
+// finger's two flexion DOFs, the solver moves the whole hand, the bones ease to the answer ---
+const PIANO = [
+  { key: 'a', finger: 'little', dofs: { 'little.mcp.flex': 45, 'little.pip.flex': 50 }, tip: 'pinky-finger-tip', note: 261.63 },
+  { key: 's', finger: 'ring', dofs: { 'ring.mcp.flex': 45, 'ring.pip.flex': 50 }, tip: 'ring-finger-tip', note: 293.66 },
+  { key: 'd', finger: 'middle', dofs: { 'middle.mcp.flex': 45, 'middle.pip.flex': 50 }, tip: 'middle-finger-tip', note: 329.63 },
+  { key: 'f', finger: 'index', dofs: { 'index.mcp.flex': 45, 'index.pip.flex': 50 }, tip: 'index-finger-tip', note: 349.23 },
+  { key: ' ', finger: 'thumb', dofs: { 'thumb.mcp.flex': 35, 'thumb.ip.flex': 40 }, tip: 'thumb-tip', note: 392.0 },
+];
+const piano = { on: false, ready: false, pressed: new Set(), meshes: [], group: null, target: null, audio: null, presses: 0, palmar: new THREE.Vector3(0, -1, 0) };
+state.piano = piano;
+// The keyboard sits under the fingertips of the relaxed posture, on the palm's side: the way a
+// fingertip moves when its finger flexes (asked of the solver, so left hands work alike).
+async function buildPiano() {
+  const tipsAt = async inputs => {
+    const r = await api('/api/solve', { inputs });
+    applyJoints(r.joints);
+    scene.updateMatrixWorld(true);
+    const out = {};
+    for (const k of PIANO) out[k.tip] = state.bones[k.tip].getWorldPosition(new THREE.Vector3());
+    return out;
+  };
+  const flexed = await tipsAt({ 'index.mcp.flex': 60 });
+  const relaxed = await tipsAt({});
+  // Along the finger (MCP to tip), and the tip's motion square to it: toward the palm.
+  const mcp = state.bones['index-finger-phalanx-proximal'].getWorldPosition(new THREE.Vector3());
+  const along = relaxed['index-finger-tip'].clone().sub(mcp).normalize();
+  const palmar = flexed['index-finger-tip'].clone().sub(relaxed['index-finger-tip']);
+  palmar.addScaledVector(along, -palmar.dot(along)).normalize();
+  piano.palmar = palmar;
+  piano.group = new THREE.Group();
+  for (const k of PIANO) {
+    const box = new THREE.Mesh(new THREE.BoxGeometry(0.018, 0.018, 0.018),
+                               new THREE.MeshStandardMaterial({ color: 0xfafafa, roughness: 0.5 }));
+    box.position.copy(relaxed[k.tip]).addScaledVector(palmar, 0.022);
+    box.userData.rest = box.position.clone();
+    piano.group.add(box);
+    piano.meshes.push(box);
+  }
+  scene.add(piano.group);
+  piano.target = null;
+  state.touched = new Set();
+}
+function pianoSolve() {
+  const inputs = {};
+  for (const d of state.dofs) if (state.mode[d.name] === 'input') inputs[d.name] = state.values[d.name];
+  for (const i of piano.pressed) Object.assign(inputs, PIANO[i].dofs);
+  api('/api/solve', { inputs }).then(r => { piano.target = r.joints; showValues(r.angles, true); })
+    .catch(e => { status.textContent = 'error: ' + e.message; });
+}
+function sound(freq) {
+  try {
+    piano.audio ??= new AudioContext();
+    const ctx = piano.audio, o = ctx.createOscillator(), g = ctx.createGain();
+    o.type = 'triangle';
+    o.frequency.value = freq;
+    g.gain.setValueAtTime(0.2, ctx.currentTime);
+    g.gain.exponentialRampToValueAtTime(0.001, ctx.currentTime + 0.8);
+    o.connect(g).connect(ctx.destination);
+    o.start();
+    o.stop(ctx.currentTime + 0.8);
+  } catch (e) { /* no audio device: the piano still moves */ }
+}
+function pianoKey(ev, down) {
+  if (!piano.on || ev.target.tagName === 'INPUT' || ev.target.tagName === 'SELECT') return;
+  const i = PIANO.findIndex(k => k.key === ev.key.toLowerCase());
+  if (i < 0) return;
+  ev.preventDefault();
+  if (down === piano.pressed.has(i)) return;  // key repeat
+  if (down) { piano.pressed.add(i); piano.presses++; sound(PIANO[i].note); } else piano.pressed.delete(i);
+  const m = piano.meshes[i];
+  m.position.copy(m.userData.rest).addScaledVector(piano.palmar, down ? 0.005 : 0);
+  m.material.color.set(down ? 0xc7d7f5 : 0xfafafa);
+  pianoSolve();
+}
+// Softly: each frame the bones go a fifth of the way to the solver's answer.
+function easeBones() {
+  if (!piano.target) return;
+  for (const [name, n] of Object.entries(piano.target)) {
+    const b = state.bones[name];
+    if (!b) continue;
+    b.position.lerp(new THREE.Vector3(...n.t), 0.2);
+    b.quaternion.slerp(new THREE.Quaternion(...n.q), 0.2);
+  }
+}
+async function togglePiano() {
+  piano.on = !piano.on;
+  if (piano.on && !piano.group) await buildPiano();
+  piano.group.visible = piano.on;
+  piano.pressed.clear();
+  piano.target = null;
+  if (piano.on) {
+    pianoSolve();
+    // The hand over its keyboard: seen from the side, a little from above, the palm down.
+    const side = new THREE.Vector3(0, 0, 1);
+    side.addScaledVector(piano.palmar, -side.dot(piano.palmar)).normalize();
+    camera.position.copy(state.centre).addScaledVector(side, state.radius * 4).addScaledVector(piano.palmar, -state.radius * 1.6);
+    camera.up.copy(piano.palmar).negate();
+    controls.target.copy(state.centre);
+    controls.update();
+  }
+  const b = document.getElementById('piano-button');
+  b.setAttribute('aria-pressed', String(piano.on));
+  piano.ready = piano.on;
+  status.textContent = piano.on ? 'piano: A S D F Space press the little, ring, middle, index finger and the thumb' : 'piano off';
+}
+window.addEventListener('keydown', ev => pianoKey(ev, true));
+window.addEventListener('keyup', ev => pianoKey(ev, false));
+
 async function main() {
   resize();
   const info = await api('/api/dofs');
@@ -256,6 +365,7 @@ async function main() {
   document.getElementById('scan').onclick = () => { const inputs = {}; for (const d of state.dofs) inputs[d.name] = 0; state.touched = new Set(state.dofs.map(d => d.name)); api('/api/solve', { inputs }).then(r => { applyJoints(r.joints); showValues(r.angles, true); }); };
   const help = document.getElementById('help'), hb = document.getElementById('help-button');
   hb.onclick = () => { const open = help.style.display !== 'block'; help.style.display = open ? 'block' : 'none'; hb.setAttribute('aria-expanded', String(open)); };
+  document.getElementById('piano-button').onclick = togglePiano;
   document.getElementById('key-add').onclick = addKey;
   document.getElementById('play').onclick = play;
   document.getElementById('export-glb').onclick = () => exportAnimation('glb');
@@ -267,6 +377,6 @@ async function main() {
   };
   await solve();
   state.ready = true;
-  renderer.setAnimationLoop(() => { controls.update(); renderer.render(scene, camera); });
+  renderer.setAnimationLoop(() => { controls.update(); if (piano.on) easeBones(); renderer.render(scene, camera); });
 }
 main().catch(e => { status.textContent = 'error: ' + e.message; });

@@ -2,7 +2,8 @@
 // playwright-core): `handskin studio` on a skin.glb, the page loads, the L2 (little MCP)
 // slider in input mode moves the other fingers through the solver and changes the picture;
 // two keys recorded (L2 0° and 80°, inputs only) play back to the second posture and export as
-// a glTF animation that the Khronos validator passes (saved as studio_animation.glb).
+// a glTF animation that the Khronos validator passes (saved as studio_animation.glb); the
+// piano's F key bends the index finger (studio_piano.png).
 // Usage: node web/tests/studio.js <handskin> <skin.glb> <artefacts-folder>
 const { spawn } = require('child_process');
 const fs = require('fs');
@@ -88,10 +89,27 @@ function pixelDifference(a, b) {
     const validator = require('gltf-validator');
     const report = await validator.validateBytes(new Uint8Array(fs.readFileSync(exported)), { maxIssues: 100 });
     const playDiff = pixelDifference(shotKey0, shotPlayed);
+
+    // The piano: F presses the index finger's key; the index MCP and PIP bend, the picture changes.
+    await page.click('#piano-button');
+    await page.waitForFunction(() => window.studio.piano.ready, null, { timeout: 20000 });
+    await page.waitForTimeout(800);
+    const shotPiano0 = await page.locator('canvas').screenshot();
+    const indexBefore = await page.evaluate(() => window.studio.values['index.mcp.flex']);
+    await page.keyboard.down('f');
+    await page.waitForFunction(() => Math.abs(window.studio.values['index.mcp.flex'] - 45) < 1e-6, null, { timeout: 20000 });
+    await page.waitForTimeout(800);  // the bones ease to the answer
+    const shotPiano1 = await page.locator('canvas').screenshot();
+    await page.screenshot({ path: path.join(art, 'studio_piano.png') });
+    const pianoState = await page.evaluate(() => ({ presses: window.studio.piano.presses, index_mcp: window.studio.values['index.mcp.flex'],
+                                                    index_pip: window.studio.values['index.pip.flex'] }));
+    await page.keyboard.up('f');
+    const pianoDiff = pixelDifference(shotPiano0, shotPiano1);
     console.log(JSON.stringify({ url: studio.url, moved, ring_mcp: [before['ring.mcp.flex'], after['ring.mcp.flex']],
                                  picture_difference: diff, solve_ms: after.solveMs, keys: keys.length, played,
                                  play_picture_difference: playDiff, exported_bytes: fs.statSync(exported).size,
                                  validator: { errors: report.issues.numErrors, warnings: report.issues.numWarnings },
+                                 piano: { ...pianoState, index_mcp_before: indexBefore, picture_difference: pianoDiff },
                                  page_errors: errors }));
     let ok = errors.length === 0 && moved.length >= 2 && diff > 0.01;
     if (!ok) console.error('studio: moving L2 in input mode did not move the other fingers or the picture');
@@ -99,6 +117,9 @@ function pixelDifference(a, b) {
                      playDiff > 0.01 && report.issues.numErrors === 0 && report.issues.numWarnings === 0;
     if (!animated) console.error('studio: two keys did not play to the second posture, or the exported animation is not valid glTF');
     ok = ok && animated;
+    const pianoOk = pianoState.presses === 1 && Math.abs(pianoState.index_pip - 50) < 1e-6 && pianoDiff > 0.01;
+    if (!pianoOk) console.error('studio: pressing F on the piano did not bend the index finger or change the picture');
+    ok = ok && pianoOk;
     code = ok ? 0 : 1;
   } catch (e) {
     console.error('studio: ' + (e.message || e));
