@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <thread>
 
 #include "core/json_util.hpp"
@@ -124,6 +125,24 @@ TEST(Studio, AnimateGivesFramesAGlbOrACsvAndRefusesBadKeys) {
   expect_animate_refused(R"({"keys": [{"time": 0, "angles": {"L2.flex": 0}}, {"time": 1, "angles": {"I2.flex": 5}}], "inputs_only": true})",
                          422, "keys[0] gives no index.mcp.flex");
   expect_animate_refused(R"({"keys": [{"time": 0, "when": 1}, {"time": 1}]})", 400, "unknown key \"when\"");
+}
+
+TEST(Studio, ARequestMayNameAnotherParameterSetAndTorques) {
+  const Json d = Json::parse(model().dofs().body);
+  EXPECT_EQ(d["parameter_sets"], Json::array({"model", "anatomical", "thesis"}));
+  const ApiResponse own = model().solve(R"({"torques": {"index.mcp.flex": 20}})");
+  const ApiResponse thesis = model().solve(R"({"torques": {"index.mcp.flex": 20}, "parameter_set": "thesis"})");
+  ASSERT_EQ(own.status, 200);
+  ASSERT_EQ(thesis.status, 200);
+  const Json a = Json::parse(own.body)["angles"], b = Json::parse(thesis.body)["angles"];
+  double differ = 0;
+  for (auto it = a.begin(); it != a.end(); ++it) differ += std::abs(it.value().get<double>() - b[it.key()].get<double>());
+  EXPECT_GT(differ, 1.0);
+  const ApiResponse relaxed = model().solve("{}");
+  EXPECT_GT(a["index.mcp.flex"].get<double>(), Json::parse(relaxed.body)["angles"]["index.mcp.flex"].get<double>() + 5);  // the torque turns it
+  expect_refused(R"({"parameter_set": "mine"})", 400, "unknown parameter_set \"mine\" (model, anatomical, thesis)");
+  expect_refused(R"({"parameter_set": 3})", 400, "parameter_set must be a string");
+  expect_animate_refused(R"({"keys": [{"time": 0}, {"time": 1}], "parameter_set": "mine"})", 400, "unknown parameter_set");
 }
 
 TEST(Studio, ServerServesOnlyItsOwnFilesAndKeepsServing) {

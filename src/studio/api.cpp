@@ -41,7 +41,22 @@ const Json* object_member(const Json& body, const char* key) {
 
 }  // namespace
 
-StudioModel::StudioModel(RiggedSkin skin) : skin_(std::move(skin)), solver_(skin_.model), skeleton_(skin_.rig, "skin.glb rig") {}
+StudioModel::StudioModel(RiggedSkin skin) : skin_(std::move(skin)), skeleton_(skin_.rig, "skin.glb rig") {
+  solvers_.emplace_back("model", std::make_unique<PostureSolver>(skin_.model));
+  for (const char* name : {"anatomical", "thesis"}) solvers_.emplace_back(name, std::make_unique<PostureSolver>(builtin_model(name)));
+}
+
+const PostureSolver& StudioModel::solver_for(const Json& body) const {
+  if (!body.contains("parameter_set")) return *solvers_.front().second;
+  if (!body["parameter_set"].is_string()) throw BadRequest{400, "parameter_set must be a string"};
+  const std::string name = body["parameter_set"];
+  std::string known;
+  for (const auto& [n, solver] : solvers_) {
+    if (n == name) return *solver;
+    known += (known.empty() ? "" : ", ") + n;
+  }
+  throw BadRequest{400, "unknown parameter_set \"" + name + "\" (" + known + ")"};
+}
 
 ApiResponse StudioModel::dofs() const {
   Json list = Json::array();
@@ -56,7 +71,9 @@ ApiResponse StudioModel::dofs() const {
                     {"max", p.hi},
                     {"relaxed", p.relaxed}});
   }
-  return {200, Json{{"dofs", list}, {"parameter_set", skin_.model.name}, {"binding", skin_.binding.mode}}.dump()};
+  Json sets = Json::array();
+  for (const auto& [n, solver] : solvers_) sets.push_back(n);
+  return {200, Json{{"dofs", list}, {"parameter_set", skin_.model.name}, {"parameter_sets", sets}, {"binding", skin_.binding.mode}}.dump()};
 }
 
 namespace {
@@ -81,16 +98,19 @@ ApiResponse StudioModel::solve(const std::string& text) const {
   Json body;
   if (const auto refused = parse_body(text, &body)) return *refused;
   // A pinned or target angle beyond the DOF's limits is refused (pose clamps; a page should not).
+  const PostureModel* limits = &skin_.model;
   const auto within_limits = [&](int d, double v, const std::string& where) {
-    const DofParams& p = skin_.model.dof[d];
+    const DofParams& p = limits->dof[d];
     if (v < p.lo || v > p.hi)
       throw BadRequest{422, where + " = " + number_text(v) + " is outside its limits [" + number_text(p.lo) + ", " +
                                 number_text(p.hi) + "]"};
   };
   try {
     for (auto it = body.begin(); it != body.end(); ++it)
-      if (it.key() != "inputs" && it.key() != "torques" && it.key() != "targets")
-        throw BadRequest{400, "unknown key \"" + it.key() + "\" (inputs, torques, targets)"};
+      if (it.key() != "inputs" && it.key() != "torques" && it.key() != "targets" && it.key() != "parameter_set")
+        throw BadRequest{400, "unknown key \"" + it.key() + "\" (inputs, torques, targets, parameter_set)"};
+    const PostureSolver& solver = solver_for(body);
+    limits = &solver.model();
     PostureInputs in;
     if (const Json* m = object_member(body, "inputs"))
       for (auto it = m->begin(); it != m->end(); ++it) {
@@ -127,7 +147,7 @@ ApiResponse StudioModel::solve(const std::string& text) const {
     PostureSolution sol;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      sol = solver_.solve(in);
+      sol = solver.solve(in);
     }
     Json angles = Json::object();
     for (int k = 0; k < kDofCount; ++k) angles[::handskin::dofs()[k].name] = sol.angles[k];
@@ -147,8 +167,10 @@ ApiResponse StudioModel::animate(const std::string& text) const {
   if (const auto refused = parse_body(text, &body)) return *refused;
   try {
     for (auto it = body.begin(); it != body.end(); ++it)
-      if (it.key() != "keys" && it.key() != "fps" && it.key() != "inputs_only" && it.key() != "format")
-        throw BadRequest{400, "unknown key \"" + it.key() + "\" (keys, fps, inputs_only, format)"};
+      if (it.key() != "keys" && it.key() != "fps" && it.key() != "inputs_only" && it.key() != "format" &&
+          it.key() != "parameter_set")
+        throw BadRequest{400, "unknown key \"" + it.key() + "\" (keys, fps, inputs_only, format, parameter_set)"};
+    const PostureSolver& solver = solver_for(body);
     const double fps = body.contains("fps") ? finite_number(body["fps"], "fps") : 30.0;
     if (fps < 1 || fps > 60) throw BadRequest{422, "fps = " + number_text(fps) + " must be in [1, 60]"};
     if (body.contains("inputs_only") && !body["inputs_only"].is_boolean()) throw BadRequest{400, "inputs_only must be true or false"};
@@ -180,7 +202,7 @@ ApiResponse StudioModel::animate(const std::string& text) const {
       for (auto it = key["angles"].begin(); it != key["angles"].end(); ++it) {
         const int d = dof_of(it.key(), (where + ".angles").c_str());
         const double v = finite_number(it.value(), where + ".angles." + it.key());
-        const DofParams& p = skin_.model.dof[d];
+        const DofParams& p = solver.model().dof[d];
         if (v < p.lo || v > p.hi)
           throw BadRequest{422, where + ".angles." + it.key() + " = " + number_text(v) + " is outside its limits [" +
                                     number_text(p.lo) + ", " + number_text(p.hi) + "]"};
@@ -203,7 +225,7 @@ ApiResponse StudioModel::animate(const std::string& text) const {
     PostureAnimation anim;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      anim = ::handskin::animate(solver_, k, fps, inputs_only, "keys");
+      anim = ::handskin::animate(solver, k, fps, inputs_only, "keys");
     }
     if (format == "glb") {
       const std::vector<unsigned char> glb = skin_glb(skin_, nullptr, &anim);

@@ -2,19 +2,24 @@
 /// The hand studio's JSON API (docs/studio.md), as plain functions from a request to a
 /// response, so that the HTTP server (server.cpp) only routes and the API is tested without a
 /// socket:
-/// - `GET /api/dofs`: every DOF with its joint, limits, relaxed value and unit, and the
-///   parameter set (the posture model skin.glb carries);
+/// - `GET /api/dofs`: every DOF with its joint, limits, relaxed value and unit, the parameter
+///   set skin.glb carries, and the parameter sets a request may name;
 /// - `POST /api/solve` with `{"inputs": {"L2.flex": 60}, "torques": {...}, "targets":
-///   {"I3.flex": 40 | {"deg": 40, "weight": 2}}}`: every DOF's angle, the potential, and the
+///   {"I3.flex": 40 | {"deg": 40, "weight": 2}}, "parameter_set": "thesis"}`: every DOF's
+///   angle (with the parameter set named — default the skin's own), the potential, and the
 ///   joint nodes' local transforms (what the page sets on skin.glb's joints);
 /// - `POST /api/animate`: keyframe or constrained animation (below).
 /// Bad requests get a 4xx status and `{"error": "<one line>"}`: a body over kMaxBodyBytes
 /// (413), JSON that does not parse or nests deeper than kMaxDepth, a key of the wrong type, an
 /// unknown DOF, a value that is not a finite number (400), a pinned value beyond the DOF's
 /// limits (422).
+#include <memory>
 #include <mutex>
+#include <utility>
+#include <vector>
 #include <string>
 
+#include "core/json_util.hpp"
 #include "posture/skeleton.hpp"
 #include "posture/solver.hpp"
 #include "rigging/animation.hpp"
@@ -50,8 +55,12 @@ class StudioModel {
   ApiResponse animate(const std::string& body) const;
 
  private:
+  /// The parameter set a request names ("parameter_set"; default the skin's own), or a 400.
+  const PostureSolver& solver_for(const Json& body) const;
   RiggedSkin skin_;
-  PostureSolver solver_;
+  /// The parameter sets: "model" (the one skin.glb carries), then the shipped "anatomical"
+  /// and "thesis" (posture/model.hpp).
+  std::vector<std::pair<std::string, std::unique_ptr<PostureSolver>>> solvers_;
   Skeleton skeleton_;
   mutable std::mutex mutex_;
 };

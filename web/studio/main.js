@@ -60,6 +60,7 @@ function applyJoints(joints) {
 // a reply to an older request must not undo a newer move.
 function showValues(angles, all = false) {
   for (const d of state.dofs) {
+    if (state.mode[d.name] === 'torque') continue;  // the slider is the torque, not the angle
     if (!all && (state.mode[d.name] === 'input' || state.touched?.has(d.name))) continue;
     state.values[d.name] = angles[d.name];
     const row = document.getElementById('dof-' + d.name);
@@ -76,9 +77,12 @@ async function solve() {
   const anyInput = state.dofs.some(d => state.mode[d.name] === 'input');
   for (const d of state.dofs)
     if (!anyInput || state.mode[d.name] === 'input' || state.touched?.has(d.name)) inputs[d.name] = state.values[d.name];
+  const torques = {};
+  for (const d of state.dofs)
+    if (state.mode[d.name] === 'torque') { torques[d.name] = state.values[d.name]; delete inputs[d.name]; }
   const t0 = performance.now();
   try {
-    const r = await api('/api/solve', { inputs });
+    const r = await api('/api/solve', { inputs, torques, parameter_set: state.parameterSet });
     applyJoints(r.joints);
     showValues(r.angles);
     state.lastSolveMs = performance.now() - t0;
@@ -110,7 +114,7 @@ function buildSliders() {
     row.innerHTML = `<label for="${id}" title="${d.name}${d.alias ? ' (' + d.alias + ')' : ''}">${d.name.split('.').slice(1).join('.')}${d.alias ? ' ' + d.alias : ''}</label>` +
       `<input type="range" id="${id}" min="${d.min}" max="${d.max}" step="0.5" value="${d.relaxed}" aria-label="${d.name} (${d.unit})">` +
       `<output for="${id}">${d.relaxed.toFixed(1)}</output>` +
-      `<select aria-label="${d.name} mode"><option value="free">free</option><option value="input">input</option></select>`;
+      `<select aria-label="${d.name} mode"><option value="free">free</option><option value="input">input</option><option value="torque">torque</option></select>`;
     const slider = row.querySelector('input'), mode = row.querySelector('select');
     slider.addEventListener('input', () => {
       state.values[d.name] = parseFloat(slider.value);
@@ -120,7 +124,12 @@ function buildSliders() {
     });
     mode.addEventListener('change', () => {
       state.mode[d.name] = mode.value;
-      row.classList.toggle('input', mode.value === 'input');
+      row.classList.toggle('input', mode.value !== 'free');
+      if (mode.value === 'torque') {  // a torque slider starts at no torque
+        state.values[d.name] = 0;
+        slider.value = 0;
+        row.querySelector('output').value = '0.0';
+      }
       solve();
     });
     groups[g].appendChild(row);
@@ -167,7 +176,7 @@ function addKey() {
 }
 function animationRequest(format) {
   return { keys: state.keys.map(k => ({ time: k.time, angles: k.angles })), fps: parseFloat(document.getElementById('fps').value) || 30,
-           inputs_only: document.getElementById('inputs-only').checked, format };
+           inputs_only: document.getElementById('inputs-only').checked, format, parameter_set: state.parameterSet };
 }
 async function play() {
   if (state.keys.length < 2) { status.textContent = 'add at least two keys to play'; return; }
@@ -285,7 +294,7 @@ function pianoSolve() {
   const inputs = {};
   for (const d of state.dofs) if (state.mode[d.name] === 'input') inputs[d.name] = state.values[d.name];
   for (const i of piano.pressed) Object.assign(inputs, PIANO[i].dofs);
-  api('/api/solve', { inputs }).then(r => { piano.target = r.joints; showValues(r.angles, true); })
+  api('/api/solve', { inputs, parameter_set: state.parameterSet }).then(r => { piano.target = r.joints; showValues(r.angles, true); })
     .catch(e => { status.textContent = 'error: ' + e.message; });
 }
 function sound(freq) {
@@ -352,6 +361,15 @@ async function main() {
   const info = await api('/api/dofs');
   state.dofs = info.dofs;
   for (const d of state.dofs) state.values[d.name] = d.relaxed;
+  state.parameterSet = info.parameter_sets[0];
+  const sets = document.getElementById('parameter-set');
+  for (const name of info.parameter_sets) {
+    const o = document.createElement('option');
+    o.value = name;
+    o.textContent = name === 'model' ? `skin.glb (${info.parameter_set})` : name;
+    sets.appendChild(o);
+  }
+  sets.onchange = () => { state.parameterSet = sets.value; solve(); };
   buildSliders();
   const gltf = await new GLTFLoader().loadAsync('/model.glb');
   scene.add(gltf.scene);

@@ -90,6 +90,30 @@ function pixelDifference(a, b) {
     const report = await validator.validateBytes(new Uint8Array(fs.readFileSync(exported)), { maxIssues: 100 });
     const playDiff = pixelDifference(shotKey0, shotPlayed);
 
+    // A torque instead of an angle: the index MCP turns toward it; another parameter set answers differently.
+    const beforeTorque = await page.evaluate(() => window.studio.values['index.mcp.flex']);
+    await page.selectOption('#dof-index\\.mcp\\.flex select', 'torque');
+    await page.locator('#slider-index-mcp-flex').fill('20');
+    await page.waitForFunction(() => !window.studio.busy, null, { timeout: 20000 });
+    await page.waitForTimeout(300);
+    const torque = await page.evaluate(() => ({ torque: window.studio.values['index.mcp.flex'], ring: window.studio.values['ring.mcp.flex'] }));
+    const solvedWithTorque = await page.evaluate(async () => (await (await fetch('/api/solve', { method: 'POST',
+      body: JSON.stringify({ torques: { 'index.mcp.flex': 20 } }) })).json()).angles['index.mcp.flex']);
+    await page.selectOption('#parameter-set', 'thesis');
+    await page.waitForFunction(() => !window.studio.busy, null, { timeout: 20000 });
+    // The same torques under the thesis's parameters: a different whole-hand answer.
+    const thesis = await page.evaluate(async () => {
+      const ask = async set => (await (await fetch('/api/solve', { method: 'POST',
+        body: JSON.stringify({ torques: { 'index.mcp.flex': 20 }, parameter_set: set }) })).json()).angles;
+      const a = await ask('model'), b = await ask('thesis');
+      return Object.keys(a).reduce((s, k) => s + Math.abs(a[k] - b[k]), 0);
+    });
+    await page.selectOption('#dof-index\\.mcp\\.flex select', 'free');
+    await page.selectOption('#parameter-set', 'model');
+    await page.waitForFunction(() => !window.studio.busy, null, { timeout: 20000 });
+    const torqueOk = solvedWithTorque > beforeTorque + 5 && thesis > 1;
+    if (!torqueOk) console.error('studio: a torque on the index MCP did not turn it, or the thesis parameters answered the same');
+
     // The piano: F presses the index finger's key; the index MCP and PIP bend, the picture changes.
     await page.click('#piano-button');
     await page.waitForFunction(() => window.studio.piano.ready, null, { timeout: 20000 });
@@ -110,6 +134,8 @@ function pixelDifference(a, b) {
                                  play_picture_difference: playDiff, exported_bytes: fs.statSync(exported).size,
                                  validator: { errors: report.issues.numErrors, warnings: report.issues.numWarnings },
                                  piano: { ...pianoState, index_mcp_before: indexBefore, picture_difference: pianoDiff },
+                                 torque: { index_mcp_before: beforeTorque, index_mcp_with_torque_20: solvedWithTorque,
+                                           thesis_differs_by_deg: thesis },
                                  page_errors: errors }));
     let ok = errors.length === 0 && moved.length >= 2 && diff > 0.01;
     if (!ok) console.error('studio: moving L2 in input mode did not move the other fingers or the picture');
@@ -119,7 +145,7 @@ function pixelDifference(a, b) {
     ok = ok && animated;
     const pianoOk = pianoState.presses === 1 && Math.abs(pianoState.index_pip - 50) < 1e-6 && pianoDiff > 0.01;
     if (!pianoOk) console.error('studio: pressing F on the piano did not bend the index finger or change the picture');
-    ok = ok && pianoOk;
+    ok = ok && pianoOk && torqueOk;
     code = ok ? 0 : 1;
   } catch (e) {
     console.error('studio: ' + (e.message || e));
