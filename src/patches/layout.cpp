@@ -498,6 +498,21 @@ Json layout_to_json(const PatchLayout& L) {
   return {{"vertices", v}, {"faces", f}, {"names", L.names}, {"creases", c}};
 }
 
+namespace {
+// N vertex indices (a face's corners, a crease's ends) from a JSON array, each in [0, nv).
+template <size_t N>
+std::array<int, N> vertex_indices(const Json& a, const std::string& where, size_t nv, const std::string& file) {
+  if (!a.is_array() || a.size() != N) throw InputError(file, where + " must be " + std::to_string(N) + " vertex indices");
+  std::array<int, N> out;
+  for (size_t s = 0; s < N; ++s) {
+    if (!a[s].is_number_integer() || a[s].get<long>() < 0 || a[s].get<long>() >= static_cast<long>(nv))
+      throw InputError(file, where + " must hold vertex indices in [0, " + std::to_string(nv - 1) + "]");
+    out[s] = static_cast<int>(a[s].get<long>());
+  }
+  return out;
+}
+}  // namespace
+
 PatchLayout layout_from_json(const Json& j, const std::string& file) {
   PatchLayout L;
   const Json& v = require(j, "vertices", file);
@@ -506,17 +521,7 @@ PatchLayout layout_from_json(const Json& j, const std::string& file) {
     throw InputError(file, "key 'vertices' must be an array of 8 to 200000 points");
   if (!f.is_array() || f.size() < 6 || f.size() > 200000) throw InputError(file, "key 'faces' must be an array of 6 to 200000 faces");
   for (size_t k = 0; k < v.size(); ++k) L.vertices.push_back(to_vec3(v[k], "vertices[" + std::to_string(k) + "]", file));
-  for (size_t k = 0; k < f.size(); ++k) {
-    const std::string where = "faces[" + std::to_string(k) + "]";
-    if (!f[k].is_array() || f[k].size() != 4) throw InputError(file, where + " must be 4 vertex indices");
-    std::array<int, 4> c;
-    for (int s = 0; s < 4; ++s) {
-      if (!f[k][s].is_number_integer() || f[k][s].get<long>() < 0 || f[k][s].get<long>() >= static_cast<long>(v.size()))
-        throw InputError(file, where + " must hold vertex indices in [0, " + std::to_string(v.size() - 1) + "]");
-      c[s] = static_cast<int>(f[k][s].get<long>());
-    }
-    L.faces.push_back(c);
-  }
+  for (size_t k = 0; k < f.size(); ++k) L.faces.push_back(vertex_indices<4>(f[k], "faces[" + std::to_string(k) + "]", v.size(), file));
   if (j.contains("names")) {
     const Json& n = j["names"];
     if (!n.is_array() || n.size() != f.size()) throw InputError(file, "key 'names' must name every face");
@@ -530,17 +535,7 @@ PatchLayout layout_from_json(const Json& j, const std::string& file) {
   if (j.contains("creases")) {
     const Json& c = j["creases"];
     if (!c.is_array()) throw InputError(file, "key 'creases' must be an array of corner pairs");
-    for (size_t k = 0; k < c.size(); ++k) {
-      const std::string where = "creases[" + std::to_string(k) + "]";
-      if (!c[k].is_array() || c[k].size() != 2) throw InputError(file, where + " must be 2 vertex indices");
-      std::array<int, 2> e;
-      for (int s = 0; s < 2; ++s) {
-        if (!c[k][s].is_number_integer() || c[k][s].get<long>() < 0 || c[k][s].get<long>() >= static_cast<long>(v.size()))
-          throw InputError(file, where + " must hold vertex indices in [0, " + std::to_string(v.size() - 1) + "]");
-        e[s] = static_cast<int>(c[k][s].get<long>());
-      }
-      L.creases.push_back(e);
-    }
+    for (size_t k = 0; k < c.size(); ++k) L.creases.push_back(vertex_indices<2>(c[k], "creases[" + std::to_string(k) + "]", v.size(), file));
   }
   layout_topology(L, file);  // closed and oriented alike, or an error naming the edge
   return L;
