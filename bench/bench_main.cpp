@@ -22,6 +22,8 @@
 #include "register/registration.hpp"
 #include "skin/auto_rig.hpp"
 #include "patches/patches.hpp"
+#include "pipeline/patch_report.hpp"
+#include "pipeline/patch_stage.hpp"
 #include "skin/baseline.hpp"
 #include "skin/skin_mesh.hpp"
 
@@ -278,6 +280,23 @@ static void BM_PatchesFixture(benchmark::State& st) {
   st.counters["back_mean_mm"] = p.side[1].mean;
 }
 BENCHMARK(BM_PatchesFixture)->Unit(benchmark::kMillisecond)->Iterations(5);
+
+// The fitting-error report of the 98 patches on the fixture (issue 13's bar: ≤ 1 s): Table
+// 4.1's cell-grid error and the noise floor, then report.html with its four pictures (the fit
+// outside the timing).
+static void BM_PatchReport(benchmark::State& st) {
+  const MergedArrays& m = fixture_merged();
+  static const Rig rig = load_rig(kFix + "rig.json");
+  static const SkinResult skin = build_skin(m.points, rig, SkinOptions{});
+  static const PatchStageResult r = run_patch_stage(skin, rig, m.points, m.sides, PatchOptions{}, nullptr);
+  size_t bytes = 0;
+  for (auto _ : st) {
+    const PatchReportFigures f = patch_report_figures(r.patches, 100);
+    bytes = patch_report_html(r, f, rig).size();
+  }
+  st.counters["html_bytes"] = static_cast<double>(bytes);
+}
+BENCHMARK(BM_PatchReport)->Unit(benchmark::kMillisecond)->Iterations(3);
 
 // The rigged skin (issue 15): the fixture's skin bound by bone heat (outside the timing), then
 // per posture: one solve of the anatomical model from a pinned input, the link motions, and
