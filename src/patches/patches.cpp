@@ -716,21 +716,26 @@ std::vector<std::vector<int>> tessellation_index(const PatchSkin& s, int n, std:
   }
   return index;
 }
+
+// Each vertex the index made, evaluated once on the patch that made it.
+void evaluate_made(const PatchSkin& s, int n, const std::vector<std::array<int, 3>>& made, std::vector<Eigen::Vector3d>* out) {
+  out->resize(made.size());
+  for (size_t k = 0; k < made.size(); ++k)
+    (*out)[k] = s.patches[made[k][0]].eval(static_cast<double>(made[k][1]) / n, static_cast<double>(made[k][2]) / n);
+}
 }  // namespace
 
 void tessellation_vertices(const PatchSkin& s, int n, std::vector<Eigen::Vector3d>* out) {
   std::vector<std::array<int, 3>> made;
   tessellation_index(s, n, &made);
-  out->resize(made.size());
-  for (size_t k = 0; k < made.size(); ++k)
-    (*out)[k] = s.patches[made[k][0]].eval(static_cast<double>(made[k][1]) / n, static_cast<double>(made[k][2]) / n);
+  evaluate_made(s, n, made, out);
 }
 
 TriMesh tessellate(const PatchSkin& s, int n) {
   std::vector<std::array<int, 3>> made;
   const auto index = tessellation_index(s, n, &made);
   std::vector<Eigen::Vector3d> points;
-  tessellation_vertices(s, n, &points);
+  evaluate_made(s, n, made, &points);
   std::vector<std::array<int, 3>> tris;
   for (size_t f = 0; f < s.patches.size(); ++f)
     for (int i = 0; i < n; ++i)

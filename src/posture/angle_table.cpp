@@ -13,7 +13,6 @@
 
 namespace handskin {
 
-namespace {
 std::vector<std::string> split_cells(const std::string& line) {
   std::vector<std::string> cells;
   std::string cur;
@@ -32,6 +31,8 @@ std::vector<std::string> split_cells(const std::string& line) {
   }
   return cells;
 }
+
+namespace {
 // A cell as it can be shown in one line of an error: control and non-ASCII bytes as \xNN,
 // so an invisible character is seen.
 std::string printable(const std::string& c) {

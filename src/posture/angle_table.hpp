@@ -16,6 +16,9 @@ struct AngleTable {
 /// with another number of cells than the header, a cell that is not a finite number.
 AngleTable read_angle_table(const std::string& file);
 AngleTable parse_angle_table(const std::string& text, const std::string& file);
+/// One line of such a table split at its commas, each cell trimmed of spaces and tabs ('\r'
+/// dropped).
+std::vector<std::string> split_cells(const std::string& line);
 /// Atomic write; NaN cells are written empty.
 void write_angle_table(const std::string& file, const AngleTable& table);
 

@@ -14,18 +14,7 @@
 namespace handskin {
 
 namespace {
-std::string trim(const std::string& s) {
-  const size_t a = s.find_first_not_of(" \t\r"), b = s.find_last_not_of(" \t\r");
-  return a == std::string::npos ? "" : s.substr(a, b - a + 1);
-}
-std::vector<std::string> split(const std::string& line) {
-  std::vector<std::string> cells(1);
-  for (char c : line) {
-    if (c == ',') cells.emplace_back();
-    else cells.back().push_back(c);
-  }
-  return cells;
-}
+bool blank(const std::string& line) { return line.find_first_not_of(" \t\r") == std::string::npos; }
 }  // namespace
 
 KeyFrames parse_keyframes(const std::string& text, const std::string& file) {
@@ -38,20 +27,20 @@ KeyFrames parse_keyframes(const std::string& text, const std::string& file) {
   std::vector<std::pair<long, std::string>> time_cells;
   while (std::getline(in, line)) {
     ++lineno;
-    if (trim(line).empty()) {
+    if (blank(line)) {
       rest += "\n";
       continue;
     }
-    std::vector<std::string> cells = split(line);
+    std::vector<std::string> cells = split_cells(line);
     if (!header) {
       for (size_t c = 0; c < cells.size(); ++c) {
-        std::string h = trim(cells[c]);
+        std::string h = cells[c];
         std::transform(h.begin(), h.end(), h.begin(), [](unsigned char ch) { return std::tolower(ch); });
         if (h == "time") time_col = static_cast<long>(c);
       }
       header = true;
     } else if (time_col >= 0 && time_col < static_cast<long>(cells.size())) {
-      time_cells.emplace_back(lineno, trim(cells[time_col]));
+      time_cells.emplace_back(lineno, cells[time_col]);
     } else if (time_col >= 0) {
       throw InputError(file + ":" + std::to_string(lineno), "the row has no cell in the 'time' column");
     }
@@ -151,9 +140,10 @@ PostureAnimation animate(const PostureSolver& solver, const KeyFrames& keys, dou
       for (size_t r = 0; r < nk; ++r) series.back().push_back(postures[r][d]);
     }
   }
-  for (size_t f = 0; f < frames; ++f) {
-    const double t = std::min(static_cast<double>(f) / fps, times.back());
-    a.times.push_back(t);
+  // Frames 1 / fps apart, and the last key's time exactly, so that the animation ends on it.
+  for (size_t f = 0; f < frames; ++f) a.times.push_back(std::min(static_cast<double>(f) / fps, times.back()));
+  if (a.times.back() < times.back() - 1e-9) a.times.push_back(times.back());
+  for (const double t : a.times) {
     std::vector<double> v(animated.size());
     for (size_t c = 0; c < animated.size(); ++c) v[c] = bezier_at(times, series[c], t);
     if (inputs_only) {
@@ -172,19 +162,6 @@ PostureAnimation animate(const PostureSolver& solver, const KeyFrames& keys, dou
       }
       a.frames.push_back(ang);
     }
-  }
-  // The last key's time exactly, so that the animation ends on the last key.
-  if (a.times.back() < times.back() - 1e-9) {
-    a.times.push_back(times.back());
-    Angles last = a.frames.back();
-    if (inputs_only) {
-      PostureInputs in;
-      for (size_t c = 0; c < animated.size(); ++c) in.pins.emplace_back(animated[c], series[c].back());
-      last = solver.solve(in).angles;
-    } else {
-      for (size_t c = 0; c < animated.size(); ++c) last[animated[c]] = std::clamp(series[c].back(), dof[animated[c]].lo, dof[animated[c]].hi);
-    }
-    a.frames.push_back(last);
   }
   return a;
 }
