@@ -20,7 +20,7 @@ namespace handskin::cli {
 namespace {
 
 struct PoseArgs {
-  std::string model, posture, out, png, view = "back", blend = "lbs";
+  std::string model, posture, out, png, view = "back", blend = "dqs";
   std::vector<std::string> sets, torques, targets;
   int size = 1024;
   double texture_weight = 0.7;
@@ -57,7 +57,14 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
   const Skeleton skel(skin.rig, a.model);
   const auto motions = link_motions(skel, sol.angles);
   std::vector<Eigen::Vector3d> posed = deform(skin.vertices, skin.binding, motions, blend);
-  if (a.crease_guard) guard_creases(crease_guard(skin.vertices, skin.binding, skin.rig), motions, &posed);
+  if (a.crease_guard) {
+    guard_creases(crease_guard(skin.vertices, skin.binding, skin.rig), motions, &posed);
+    const Untangled u = untangle_folds(skin.faces, dominant_links(skin.faces, skin.binding), &posed);
+    if (u.folding_before)
+      progress("pose", "crease guard: " + std::to_string(u.folding_before) + " folding triangle pair(s) smoothed out over " +
+                           std::to_string(u.moved) + " vertices in " + std::to_string(u.rounds) + " round(s)" +
+                           (u.folding_after ? "; " + std::to_string(u.folding_after) + " remain" : ""));
+  }
   // Everything computed; now the files, each atomically.
   if (!a.out.empty()) {
     if (ext == ".glb") {
@@ -128,7 +135,7 @@ void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out
   pc->add_option("--torque", pa->torques, "Instructed input on a DOF: name=value (repeatable)");
   pc->add_option("--target", pa->targets, "Soft target: name=degrees[@weight] (repeatable)");
   pc->add_option("--posture", pa->posture, "Joint-angle CSV: its first row's cells are pinned");
-  pc->add_option("--blend", pa->blend, "lbs (linear blend, as glTF viewers) or dqs (dual quaternions)")
+  pc->add_option("--blend", pa->blend, "dqs (dual quaternions: keeps the volume at bent joints) or lbs (linear blend, what glTF viewers do)")
       ->check(CLI::IsMember({"lbs", "dqs"}))
       ->capture_default_str();
   pc->add_option("--out", pa->out, "Posed skin: .ply or .obj (vertex order kept), or .glb (the rigged skin with the posture on its joints)");
@@ -137,7 +144,8 @@ void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out
   pc->add_option("--size", pa->size, "Picture size, px")->check(CLI::Range(16, 4096))->capture_default_str();
   pc->add_flag("!--no-crease-guard", pa->crease_guard,
                "Leave the blend as it is (what glTF viewers show): by default the skin on the inside of a bent joint is "
-               "held to its side of the joint's bisecting plane, so it does not fold into itself");
+               "held to its side of the joint's bisecting plane, and what still crumples there is smoothed out, so it does not "
+               "fold into itself");
   pc->add_option("--texture-weight", pa->texture_weight,
                  "Picture of a textured skin: colour = (1 - w) shading + w texture (the thesis blended 0.3 : 0.7)")
       ->check(CLI::Range(0.0, 1.0))

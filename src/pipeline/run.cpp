@@ -49,6 +49,7 @@ std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, const TriMesh& me
   rb.mode = "rigid";
   const SkinBinding rigid = bind_skin(mesh, bones_from_rig(s.rig), rb);
   const CreaseGuard guard = crease_guard(s.vertices, s.binding, s.rig);
+  const std::vector<int> dominant = dominant_links(s.faces, s.binding);
   const PostureInputs fist = fist_inputs();
   PostureInputs l2;
   l2.pins.emplace_back(dof_index("little.mcp.flex").value(), 75.0);
@@ -66,7 +67,10 @@ std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, const TriMesh& me
         {"fist, rigid binding (the thesis)", &closed, &rigid}, {"little MCP 75°, rigid binding (the thesis)", &little, &rigid}}) {
     const auto motions = link_motions(skel, *angles);
     auto v = deform(s.vertices, *binding, motions, binding == &rigid ? Blend::Linear : Blend::DualQuaternion);
-    if (binding != &rigid) guard_creases(guard, motions, &v);
+    if (binding != &rigid) {
+      guard_creases(guard, motions, &v);
+      untangle_folds(s.faces, dominant, &v);
+    }
     const TriMesh m = mesh_from_arrays(v, s.faces);
     out.push_back({caption, render_mesh_png({&m}, ro)});
   }

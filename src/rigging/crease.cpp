@@ -5,6 +5,7 @@
 
 #include "core/dof.hpp"
 #include "core/errors.hpp"
+#include "rigging/deform.hpp"
 
 namespace handskin {
 
@@ -63,6 +64,51 @@ void guard_creases(const CreaseGuard& g, const std::vector<Eigen::Isometry3d>& m
     const double s = c.side * (v - at[c.joint]).dot(normal[c.joint]);
     if (s < c.keep) v += (c.keep - s) * c.side * normal[c.joint];
   }
+}
+
+Untangled untangle_folds(const std::vector<std::array<int, 3>>& faces, const std::vector<int>& dominant,
+                         std::vector<Eigen::Vector3d>* posed, int max_rounds) {
+  HS_CHECK(dominant.size() == faces.size(), "one dominant link per face");
+  std::vector<Eigen::Vector3d>& x = *posed;
+  const auto folding = [&] {
+    std::vector<std::array<int, 2>> out;
+    for (const auto& p : crossing_face_pairs(x, faces))
+      if (links_fold(dominant[p[0]], dominant[p[1]])) out.push_back(p);
+    return out;
+  };
+  Untangled u;
+  auto pairs = folding();
+  u.folding_before = pairs.size();
+  if (pairs.empty()) return u;
+  std::vector<std::vector<int>> next(x.size());
+  for (const auto& f : faces)
+    for (int k = 0; k < 3; ++k) next[f[k]].push_back(f[(k + 1) % 3]), next[f[(k + 1) % 3]].push_back(f[k]);
+  for (auto& n : next) std::sort(n.begin(), n.end()), n.erase(std::unique(n.begin(), n.end()), n.end());
+  std::vector<Eigen::Vector3d> moved(x.size());
+  for (; u.rounds < max_rounds && !pairs.empty(); ++u.rounds) {
+    std::vector<char> in(x.size(), 0);
+    std::vector<int> region;
+    for (const auto& p : pairs)
+      for (int f : p)
+        for (int c : faces[f])
+          if (!in[c]) in[c] = 1, region.push_back(c);
+    for (int ring = 0; ring < 1 + u.rounds; ++ring)
+      for (size_t i = 0, n = region.size(); i < n; ++i)
+        for (int c : next[region[i]])
+          if (!in[c]) in[c] = 1, region.push_back(c);
+    for (int step = 0; step < 10; ++step) {  // Jacobi: every vertex from the previous step's
+      for (int i : region) {
+        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+        for (int c : next[i]) mean += x[c];
+        moved[i] = x[i] + 0.5 * (mean / static_cast<double>(next[i].size()) - x[i]);
+      }
+      for (int i : region) x[i] = moved[i];
+    }
+    u.moved = region.size();
+    pairs = folding();
+  }
+  u.folding_after = pairs.size();
+  return u;
 }
 
 }  // namespace handskin

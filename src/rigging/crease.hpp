@@ -45,4 +45,21 @@ CreaseGuard crease_guard(const std::vector<Eigen::Vector3d>& rest, const SkinBin
 void guard_creases(const CreaseGuard& guard, const std::vector<Eigen::Isometry3d>& motions,
                    std::vector<Eigen::Vector3d>* posed);
 
+/// What untangle_folds did.
+struct Untangled {
+  size_t folding_before = 0, folding_after = 0;  ///< folding face pairs (pose_quality's)
+  int rounds = 0;                                ///< smoothing rounds run
+  size_t moved = 0;                              ///< vertices smoothed (in the last round's region)
+};
+/// The second half of the guard. Where the bent skin still crumples onto itself after the
+/// planes (pairs of crossing faces whose dominant links fold: one link, or a link and its
+/// parent; links_fold), the faces' vertices and `1 + round` rings of their neighbours are
+/// smoothed (umbrella steps, x ← x + ½(mean of neighbours − x), 10 per round; the rest of the
+/// skin is held), until no folding pair is left or `max_rounds` rounds. Contacts between
+/// fingers or with the palm are left as they are. Costs a self-intersection test per round
+/// (tens of ms on 8000 triangles): for `pose`'s outputs and the report's pictures, not for
+/// batch posing.
+Untangled untangle_folds(const std::vector<std::array<int, 3>>& faces, const std::vector<int>& dominant_links,
+                         std::vector<Eigen::Vector3d>* posed, int max_rounds = 8);
+
 }  // namespace handskin
