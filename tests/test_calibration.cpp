@@ -213,9 +213,13 @@ TEST(MixtureCalibration, KeepsTheLinearModelWhereItIsNoBetter) {
   Json rep;
   const PostureModel m = calibrate(r.table, o, "g.csv", &rep);
   for (const auto& t : cv_rows(rep, "blocks"))
-    if (!m.mixture.components.empty()) EXPECT_LE(t.model, t.linear) << t.task;
+    if (!m.mixture.components.empty()) {
+      EXPECT_LE(t.model, t.linear) << t.task;
+    }
   for (const auto& c : rep["mixture"]["candidates"])
-    if (c["components"].get<int>() == rep["mixture"]["components"].get<int>()) EXPECT_TRUE(c["no_task_worse_than_linear"].get<bool>());
+    if (c["components"].get<int>() == rep["mixture"]["components"].get<int>()) {
+      EXPECT_TRUE(c["no_task_worse_than_linear"].get<bool>());
+    }
 }
 
 TEST(GaussianCalibration, TasksAndSplits) {

@@ -106,7 +106,9 @@ TEST(Contracts, AFailedRunLeavesTheOutputFolderExactlyAsItWas) {
       EXPECT_NE(out.find(c.expect), std::string::npos) << out;
       EXPECT_EQ(snapshot(dir), before);
       const fs::path parent = fs::path(dir).parent_path();
-      if (fresh) EXPECT_FALSE(fs::exists(parent));  // not even its parent was made
+      if (fresh) {
+        EXPECT_FALSE(fs::exists(parent));
+      }  // not even its parent was made
       EXPECT_TRUE(no_staging_left((fresh ? parent.parent_path() : parent).string()));
     }
   }

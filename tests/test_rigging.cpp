@@ -130,7 +130,9 @@ TEST(Rigging, SmoothWeightsWithTheCreaseGuardDoNotFoldAtBentJoints) {
     EXPECT_EQ(q.folding_pairs, 0u) << "pose " << p;
     EXPECT_EQ(guarded[1].folding_pairs, 0u) << "pose " << p;
     EXPECT_EQ(at_the_bend, 0u) << "pose " << p;
-    if (p == 4) EXPECT_GT(dqs.folding_pairs, 0u);  // the fist does fold without the guard
+    if (p == 4) {
+      EXPECT_GT(dqs.folding_pairs, 0u);  // the fist does fold without the guard
+    }
     EXPECT_LT(std::abs(q.volume_mm3 / rest - 1), 0.05) << "pose " << p;
   }
 }

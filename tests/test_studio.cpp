@@ -72,6 +72,51 @@ TEST(Studio, SolveAnswersEveryDofAndTheJointsAndAnInputMovesTheOtherFingers) {
   }
 }
 
+TEST(Studio, SystemGivesThePotentialThePageSolvesAndTheJointsItPoses) {
+  // For the page's own solver: at the server's answer x (no DOF at a limit, nothing pinned),
+  // the free DOFs satisfy Hx = g, and ½xᵀHx − gᵀx + c is the server's potential; the rest
+  // transforms are the glb's nodes at the scan posture.
+  const Json sys = Json::parse(model().system().body);
+  ASSERT_EQ(sys["dofs"], 35);
+  ASSERT_EQ(sys["joints"].size(), 25u);
+  std::vector<std::string> names;
+  const Json dof_list = Json::parse(model().dofs().body);
+  for (const auto& d : dof_list["dofs"]) names.push_back(d["name"]);
+  for (const char* set : {"model", "anatomical", "thesis"}) {
+    SCOPED_TRACE(set);
+    const Json& m = sys["sets"][set];
+    ASSERT_TRUE(m["linear"].get<bool>());
+    const std::vector<double> H = m["H"], g = m["g"];
+    ASSERT_EQ(H.size(), 35u * 35u);
+    for (int i = 0; i < 35; ++i)
+      for (int k = 0; k < 35; ++k) EXPECT_DOUBLE_EQ(H[i * 35 + k], H[k * 35 + i]);
+    const Json r = Json::parse(model().solve(std::string(R"({"torques": {"index.mcp.flex": 5}, "parameter_set": ")") + set + "\"}").body);
+    std::vector<double> x;
+    for (const auto& n : names) x.push_back(r["angles"][n]);
+    double e = m["c"].get<double>() - 5 * x[dof_index("index.mcp.flex").value()];
+    for (int i = 0; i < 35; ++i) {
+      double hx = 0;
+      for (int k = 0; k < 35; ++k) hx += H[i * 35 + k] * x[k];
+      e += 0.5 * x[i] * hx - g[i] * x[i];
+      const bool at_limit = x[i] <= m["lo"][i].get<double>() + 1e-9 || x[i] >= m["hi"][i].get<double>() - 1e-9;
+      if (!at_limit) {
+        EXPECT_NEAR(hx, g[i] + (names[i] == "index.mcp.flex" ? 5 : 0), 1e-9) << names[i];
+      }
+    }
+    EXPECT_NEAR(e, r["energy"].get<double>(), 1e-9);
+  }
+  const auto rest = joint_nodes(Skeleton(model().skin().rig, "rig"), Angles{});
+  for (int j = 0; j < 25; ++j) {
+    const Json& J = sys["joints"][j];
+    EXPECT_EQ(J["name"], joints()[j].name);
+    for (int k = 0; k < 3; ++k) EXPECT_DOUBLE_EQ(J["rest"]["t"][k].get<double>(), rest[j].translation[k]);
+    for (int k = 0; k < 4; ++k) EXPECT_DOUBLE_EQ(J["rest"]["q"][k].get<double>(), rest[j].rotation[k]);
+    if (J["flex"].get<int>() >= 0) {
+      EXPECT_EQ(dofs()[J["flex"].get<int>()].joint, j);
+    }
+  }
+}
+
 TEST(Studio, MalformedRequestsGetAFourHundredAndOneLine) {
   expect_refused("{\"inputs\":", 400, "not JSON");
   expect_refused("[1, 2]", 400, "must be a JSON object");
@@ -180,6 +225,7 @@ TEST(Studio, ServerServesOnlyItsOwnFilesAndKeepsServing) {
   ASSERT_TRUE(good);
   EXPECT_EQ(good->status, 200);
   EXPECT_EQ(c.Get("/api/dofs")->status, 200);
+  EXPECT_EQ(c.Get("/api/system")->status, 200);
   server.stop();
   t.join();
 }

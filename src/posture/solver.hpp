@@ -67,6 +67,9 @@ class PostureSolver {
   /// The matrix and vector of eq. 3.17 in θ̄-relative angles (for tests): K + AᵀWA, −AᵀWb.
   Eigen::MatrixXd system_matrix() const;
   Eigen::VectorXd system_rhs() const;
+  /// The linear model's potential in absolute angles, without inputs: ½xᵀHx − gᵀx + c, with
+  /// H = system_matrix(); this is g (for a page that solves the linear model itself).
+  Eigen::VectorXd absolute_rhs() const { return g0_; }
 
  private:
   using Vec = Eigen::Matrix<double, kDofCount, 1>;

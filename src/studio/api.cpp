@@ -76,6 +76,40 @@ ApiResponse StudioModel::dofs() const {
   return {200, Json{{"dofs", list}, {"parameter_set", skin_.model.name}, {"parameter_sets", sets}, {"binding", skin_.binding.mode}}.dump()};
 }
 
+ApiResponse StudioModel::system() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Json sets = Json::object();
+  for (const auto& [name, solver] : solvers_) {
+    const PostureModel& m = solver->model();
+    const Eigen::MatrixXd H = solver->system_matrix();
+    const Eigen::VectorXd g = solver->absolute_rhs();
+    std::vector<double> h(H.data(), H.data() + H.size()), gv(g.data(), g.data() + g.size()), relaxed, lo, hi;
+    for (const DofParams& d : m.dof) relaxed.push_back(d.relaxed), lo.push_back(d.lo), hi.push_back(d.hi);
+    const Angles zero{};
+    sets[name] = {{"linear", !solver->has_grids() && !solver->has_mixture()},
+                  {"H", h},  // symmetric, so row- and column-major agree
+                  {"g", gv},
+                  {"c", solver->energy(zero, PostureInputs{}, false)},
+                  {"relaxed", relaxed},
+                  {"lo", lo},
+                  {"hi", hi}};
+  }
+  Json joint_list = Json::array();
+  const auto rest = joint_nodes(skeleton_, Angles{});
+  for (int j = 0; j < kJointCount; ++j) {
+    int flex = -1, abd = -1;
+    for (int d = 6; d < kDofCount; ++d)
+      if (::handskin::dofs()[d].joint == j) (::handskin::dofs()[d].kind == DofKind::Flexion ? flex : abd) = d;
+    const auto finger = joints()[j].finger;
+    joint_list.push_back({{"name", joints()[j].name},
+                          {"flex", flex},
+                          {"abd", abd},
+                          {"abd_sign", finger ? Skeleton::abduction_sign(*finger, skeleton_.side()) : 0.0},
+                          {"rest", {{"t", rest[j].translation}, {"q", rest[j].rotation}}}});
+  }
+  return {200, Json{{"dofs", kDofCount}, {"sets", sets}, {"joints", joint_list}}.dump()};
+}
+
 namespace {
 // The request's JSON object, or the reason it is refused.
 std::optional<ApiResponse> parse_body(const std::string& text, Json* body) {

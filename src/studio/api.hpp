@@ -8,7 +8,11 @@
 ///   {"I3.flex": 40 | {"deg": 40, "weight": 2}}, "parameter_set": "thesis"}`: every DOF's
 ///   angle (with the parameter set named — default the skin's own), the potential, and the
 ///   joint nodes' local transforms (what the page sets on skin.glb's joints);
-/// - `POST /api/animate`: keyframe or constrained animation (below).
+/// - `POST /api/animate`: keyframe or constrained animation (below);
+/// - `GET /api/system`: what a page needs to solve the linear model and pose the joints
+///   itself (docs/studio.md, "Solving in the page"): per parameter set, whether it is linear,
+///   the potential ½xᵀHx − gᵀx + c (H, g, c), the relaxed posture and the limits; per joint,
+///   its flexion and abduction DOFs, the abduction's sign and its node's rest transform.
 /// Bad requests get a 4xx status and `{"error": "<one line>"}`: a body over kMaxBodyBytes
 /// (413), JSON that does not parse or nests deeper than kMaxDepth, a key of the wrong type, an
 /// unknown DOF, a value that is not a finite number (400), a pinned value beyond the DOF's
@@ -47,6 +51,7 @@ class StudioModel {
   const RiggedSkin& skin() const { return skin_; }
   ApiResponse dofs() const;
   ApiResponse solve(const std::string& body) const;
+  ApiResponse system() const;
   /// `POST /api/animate` with `{"keys": [{"time": 0, "angles": {"L2.flex": 0, …}}, …],
   /// "fps": 30, "inputs_only": false, "format": "frames" | "glb" | "csv"}`: the animation of
   /// rigging/animation.hpp — as frames (times, every DOF, and the joint nodes' transforms per

@@ -69,6 +69,7 @@ StudioServer::StudioServer(const StudioOptions& o) : impl_(new Impl(o, checked_m
     res.set_content(r.body, r.content_type.c_str());
   };
   s.Get("/api/dofs", [&I, send](const httplib::Request&, httplib::Response& res) { send(res, I.model.dofs()); });
+  s.Get("/api/system", [&I, send](const httplib::Request&, httplib::Response& res) { send(res, I.model.system()); });
   s.Post("/api/solve", [&I, send](const httplib::Request& req, httplib::Response& res) { send(res, I.model.solve(req.body)); });
   s.Post("/api/animate", [&I, send](const httplib::Request& req, httplib::Response& res) { send(res, I.model.animate(req.body)); });
   s.Get("/model.glb", [&I](const httplib::Request&, httplib::Response& res) { res.set_content(I.glb, "model/gltf-binary"); });

@@ -3,6 +3,7 @@
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/examples/jsm/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
+import { LinearPostureSolver, JointPoser } from './solver.js';
 
 const view = document.getElementById('view');
 const status = document.getElementById('status');
@@ -26,9 +27,34 @@ function resize() {
   camera.aspect = w / h;
   camera.updateProjectionMatrix();
 }
-window.addEventListener('resize', resize);
+window.addEventListener('resize', () => { resize(); requestRender(); });
 
-const state = { dofs: [], values: {}, mode: {}, bones: {}, centre: new THREE.Vector3(), radius: 0.15, pending: null, busy: false };
+// Drawn on demand: a frame when something moved (a solve's answer, the camera, the piano's
+// easing, playback), not continuously, so that a software renderer leaves the page's thread to
+// the sliders. redrawStart is the first slider move since the last frame: the frame that shows
+// the answer records the time from that move to the hand drawn (state.redrawMs).
+function requestRender() {
+  if (state.frameRequested) return;
+  state.frameRequested = true;
+  requestAnimationFrame(drawFrame);
+}
+function drawFrame() {
+  state.frameRequested = false;
+  controls.update();
+  if (piano.on && easeBones()) requestRender();
+  renderer.render(scene, camera);
+  if (state.redrawStart !== null && state.answered) {
+    renderer.getContext().finish();  // the picture is drawn, not only queued
+    state.lastRedrawMs = performance.now() - state.redrawStart;
+    state.redrawMs.push(state.lastRedrawMs);
+    state.redrawStart = null;
+    state.answered = false;
+    status.textContent = `redrawn ${state.lastRedrawMs.toFixed(1)} ms after the slider (solved in the ${state.lastSolvedIn} in ${state.lastSolveMs.toFixed(2)} ms), potential ${state.lastEnergy.toFixed(2)}`;
+  }
+}
+
+const state = { dofs: [], values: {}, mode: {}, bones: {}, centre: new THREE.Vector3(), radius: 0.15, pending: null, busy: false,
+                solveIn: 'page', local: {}, poser: null, redrawStart: null, answered: false, redrawMs: [], frameRequested: false };
 window.studio = state;  // for tests and the console
 
 async function api(path, body) {
@@ -45,6 +71,7 @@ function setView(name) {
   camera.up.set(name === 'side' ? 0 : 0, name === 'side' ? 1 : 0, name === 'side' ? 0 : -1);
   controls.target.copy(state.centre);
   controls.update();
+  requestRender();
 }
 
 function applyJoints(joints) {
@@ -54,6 +81,7 @@ function applyJoints(joints) {
     b.position.set(...n.t);
     b.quaternion.set(...n.q);
   }
+  requestRender();
 }
 
 // The solver's angles on the sliders, except those the user holds (inputs, and sliders moved):
@@ -82,11 +110,23 @@ async function solve() {
     if (state.mode[d.name] === 'torque') { torques[d.name] = state.values[d.name]; delete inputs[d.name]; }
   const t0 = performance.now();
   try {
-    const r = await api('/api/solve', { inputs, torques, parameter_set: state.parameterSet });
-    applyJoints(r.joints);
-    showValues(r.angles);
+    const local = state.solveIn === 'page' ? state.local[state.parameterSet] : null;
+    if (local) {  // the linear model, solved here
+      const r = local.solve(inputs, torques);
+      state.poser.apply(r.angles);
+      requestRender();
+      showValues(r.angles);
+      state.lastEnergy = r.energy;
+    } else {
+      const r = await api('/api/solve', { inputs, torques, parameter_set: state.parameterSet });
+      applyJoints(r.joints);
+      showValues(r.angles);
+      state.lastEnergy = r.energy;
+    }
+    state.lastSolvedIn = local ? 'page' : 'server';
     state.lastSolveMs = performance.now() - t0;
-    status.textContent = `solved in ${state.lastSolveMs.toFixed(1)} ms, potential ${r.energy.toFixed(2)}`;
+    state.answered = true;
+    status.textContent = `solved in the ${state.lastSolvedIn} in ${state.lastSolveMs.toFixed(2)} ms, potential ${state.lastEnergy.toFixed(2)}`;
   } catch (e) {
     status.textContent = 'error: ' + e.message;
   }
@@ -120,6 +160,7 @@ function buildSliders() {
       state.values[d.name] = parseFloat(slider.value);
       row.querySelector('output').value = parseFloat(slider.value).toFixed(1);
       (state.touched ??= new Set()).add(d.name);
+      if (state.redrawStart === null) state.redrawStart = performance.now();
       solve();
     });
     mode.addEventListener('change', () => {
@@ -196,6 +237,7 @@ async function play() {
       });
       state.played++;
       status.textContent = `playing ${t.toFixed(2)} / ${last.toFixed(2)} s`;
+      requestRender();
       if (t < last) requestAnimationFrame(step); else done();
     };
     requestAnimationFrame(step);
@@ -294,7 +336,7 @@ function pianoSolve() {
   const inputs = {};
   for (const d of state.dofs) if (state.mode[d.name] === 'input') inputs[d.name] = state.values[d.name];
   for (const i of piano.pressed) Object.assign(inputs, PIANO[i].dofs);
-  api('/api/solve', { inputs, parameter_set: state.parameterSet }).then(r => { piano.target = r.joints; showValues(r.angles, true); })
+  api('/api/solve', { inputs, parameter_set: state.parameterSet }).then(r => { piano.target = r.joints; showValues(r.angles, true); requestRender(); })
     .catch(e => { status.textContent = 'error: ' + e.message; });
 }
 function sound(freq) {
@@ -320,17 +362,25 @@ function pianoKey(ev, down) {
   const m = piano.meshes[i];
   m.position.copy(m.userData.rest).addScaledVector(piano.palmar, down ? 0.005 : 0);
   m.material.color.set(down ? 0xc7d7f5 : 0xfafafa);
+  requestRender();
   pianoSolve();
 }
-// Softly: each frame the bones go a fifth of the way to the solver's answer.
+// Softly: each frame the bones go a fifth of the way to the solver's answer. True while they
+// are still on their way (another frame is wanted).
+const easeT = new THREE.Vector3(), easeQ = new THREE.Quaternion();
 function easeBones() {
-  if (!piano.target) return;
+  if (!piano.target) return false;
+  let moving = false;
   for (const [name, n] of Object.entries(piano.target)) {
     const b = state.bones[name];
     if (!b) continue;
-    b.position.lerp(new THREE.Vector3(...n.t), 0.2);
-    b.quaternion.slerp(new THREE.Quaternion(...n.q), 0.2);
+    easeT.set(...n.t);
+    easeQ.set(...n.q);
+    moving ||= b.position.distanceToSquared(easeT) > 1e-14 || 1 - Math.abs(b.quaternion.dot(easeQ)) > 1e-12;
+    b.position.lerp(easeT, 0.2);
+    b.quaternion.slerp(easeQ, 0.2);
   }
+  return moving;
 }
 async function togglePiano() {
   piano.on = !piano.on;
@@ -351,6 +401,7 @@ async function togglePiano() {
   const b = document.getElementById('piano-button');
   b.setAttribute('aria-pressed', String(piano.on));
   piano.ready = piano.on;
+  requestRender();
   status.textContent = piano.on ? 'piano: A S D F Space press the little, ring, middle, index finger and the thumb' : 'piano off';
 }
 window.addEventListener('keydown', ev => pianoKey(ev, true));
@@ -374,6 +425,15 @@ async function main() {
   const gltf = await new GLTFLoader().loadAsync('/model.glb');
   scene.add(gltf.scene);
   gltf.scene.traverse(o => { if (o.isBone) state.bones[o.name] = o; });
+  // The linear parameter sets, solved in the page; the others go to the server.
+  const sys = await api('/api/system');
+  const names = state.dofs.map(d => d.name);
+  for (const [name, set] of Object.entries(sys.sets)) if (set.linear) state.local[name] = new LinearPostureSolver(set, names);
+  state.poser = new JointPoser(sys.joints, state.bones, names);
+  const solveIn = document.getElementById('solve-in');
+  solveIn.value = state.solveIn;
+  solveIn.onchange = () => { state.solveIn = solveIn.value; };
+  controls.addEventListener('change', requestRender);
   const box = new THREE.Box3().setFromObject(gltf.scene);
   box.getCenter(state.centre);
   state.radius = box.getSize(new THREE.Vector3()).length() / 2;
@@ -395,6 +455,6 @@ async function main() {
   };
   await solve();
   state.ready = true;
-  renderer.setAnimationLoop(() => { controls.update(); if (piano.on) easeBones(); renderer.render(scene, camera); });
+  requestRender();
 }
 main().catch(e => { status.textContent = 'error: ' + e.message; });

@@ -3,7 +3,8 @@
 // slider in input mode moves the other fingers through the solver and changes the picture;
 // two keys recorded (L2 0° and 80°, inputs only) play back to the second posture and export as
 // a glTF animation that the Khronos validator passes (saved as studio_animation.glb); the
-// piano's F key bends the index finger (studio_piano.png).
+// piano's F key bends the index finger (studio_piano.png); the page's own solver gives the
+// server's answers, and the slider-to-redraw time is reported both ways.
 // Usage: node web/tests/studio.js <handskin> <skin.glb> <artefacts-folder>
 const { spawn } = require('child_process');
 const fs = require('fs');
@@ -61,6 +62,56 @@ function pixelDifference(a, b) {
     await page.screenshot({ path: path.join(art, 'studio_L2_input.png') });
     const moved = ['ring.mcp.flex', 'ring.pip.flex', 'middle.mcp.flex'].filter((d) => Math.abs(after[d] - before[d]) > 1);
     const diff = pixelDifference(shot0, shot1);
+
+    // The page's own solver (linear parameter sets) against the server's: the same angles, the
+    // same potential and the same joint transforms for the same inputs and torques.
+    const agreement = await page.evaluate(async () => {
+      const s = window.studio;
+      let angle = 0, energy = 0, rotation = 0, translation = 0, cases = 0;
+      const asks = [{ inputs: {} }, { inputs: { 'little.mcp.flex': 80 } }, { inputs: { 'index.pip.flex': 90, 'thumb.cmc.abd': 40 } },
+                    { inputs: { 'ring.mcp.flex': -15, 'middle.dip.flex': 70 } }, { inputs: {}, torques: { 'index.mcp.flex': 20 } },
+                    { inputs: { 'wrist.rx': 30, 'wrist.tz': 12 } }];
+      for (const set of Object.keys(s.local))
+        for (const ask of asks) {
+          const r = await (await fetch('/api/solve', { method: 'POST', body: JSON.stringify({ ...ask, parameter_set: set }) })).json();
+          const l = s.local[set].solve(ask.inputs, ask.torques || {});
+          for (const k of Object.keys(r.angles)) angle = Math.max(angle, Math.abs(r.angles[k] - l.angles[k]));
+          energy = Math.max(energy, Math.abs(r.energy - l.energy));
+          s.poser.apply(l.angles);
+          for (const [name, n] of Object.entries(r.joints)) {
+            const b = s.bones[name];
+            const dot = Math.abs(b.quaternion.x * n.q[0] + b.quaternion.y * n.q[1] + b.quaternion.z * n.q[2] + b.quaternion.w * n.q[3]);
+            rotation = Math.max(rotation, 1 - dot);
+            translation = Math.max(translation, Math.hypot(b.position.x - n.t[0], b.position.y - n.t[1], b.position.z - n.t[2]));
+          }
+          ++cases;
+        }
+      return { sets: Object.keys(s.local), cases, max_angle_deg: angle, max_energy: energy, max_rotation_1_minus_dot: rotation,
+               max_translation_m: translation };
+    });
+    const agreeOk = agreement.sets.length >= 2 && agreement.cases >= 12 && agreement.max_angle_deg < 1e-6 &&
+                    agreement.max_energy < 1e-6 && agreement.max_rotation_1_minus_dot < 1e-9 && agreement.max_translation_m < 1e-9;
+    if (!agreeOk) console.error('studio: the page\'s solver or joints differ from the server\'s: ' + JSON.stringify(agreement));
+
+    // Slider to redrawn hand, solved in the server and in the page (15 moves each; the page
+    // records from the slider's move to the end of the frame that shows the answer).
+    const redraw = {};
+    for (const where of ['server', 'page']) {
+      await page.selectOption('#solve-in', where);
+      const ms = [];
+      for (let k = 0; k < 15; ++k) {
+        const n = await page.evaluate(() => window.studio.redrawMs.length);
+        await page.locator('#slider-little-mcp-flex').fill(String(20 + 4 * k));
+        await page.waitForFunction(n0 => window.studio.redrawMs.length > n0, n, { timeout: 20000 });
+        const r = await page.evaluate(() => ({ ms: window.studio.lastRedrawMs, where: window.studio.lastSolvedIn }));
+        if (r.where !== where) throw new Error(`asked to solve in the ${where}, solved in the ${r.where}`);
+        ms.push(r.ms);
+        await page.waitForTimeout(50);
+      }
+      ms.sort((a, b) => a - b);
+      redraw[where] = { p50_ms: +ms[7].toFixed(1), max_ms: +ms[14].toFixed(1), min_ms: +ms[0].toFixed(1) };
+    }
+    await page.selectOption('#solve-in', 'page');
 
     // Keys: L2 back to 0 as the first key, 80 as the second (inputs only: the solver fills in
     // every frame), then play them and export the animation.
@@ -136,6 +187,7 @@ function pixelDifference(a, b) {
                                  piano: { ...pianoState, index_mcp_before: indexBefore, picture_difference: pianoDiff },
                                  torque: { index_mcp_before: beforeTorque, index_mcp_with_torque_20: solvedWithTorque,
                                            thesis_differs_by_deg: thesis },
+                                 page_solver_agreement: agreement, slider_to_redraw: redraw,
                                  page_errors: errors }));
     let ok = errors.length === 0 && moved.length >= 2 && diff > 0.01;
     if (!ok) console.error('studio: moving L2 in input mode did not move the other fingers or the picture');
@@ -145,7 +197,7 @@ function pixelDifference(a, b) {
     ok = ok && animated;
     const pianoOk = pianoState.presses === 1 && Math.abs(pianoState.index_pip - 50) < 1e-6 && pianoDiff > 0.01;
     if (!pianoOk) console.error('studio: pressing F on the piano did not bend the index finger or change the picture');
-    ok = ok && pianoOk && torqueOk;
+    ok = ok && pianoOk && torqueOk && agreeOk;
     code = ok ? 0 : 1;
   } catch (e) {
     console.error('studio: ' + (e.message || e));
