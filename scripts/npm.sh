@@ -3,7 +3,7 @@
 # web/node_modules. Idempotent: skips npm when they are already there.
 set -euo pipefail
 cd "$(dirname "$0")/../web"
-if [ -d node_modules/gltf-validator ] && [ -d node_modules/three ] && [ -d node_modules/playwright-core ] && [ -x node_modules/.bin/esbuild ] &&
+if [ -d node_modules/gltf-validator ] && [ -d node_modules/three ] && [ -d node_modules/playwright-core ] && [ -d node_modules/puppeteer-core ] && [ -x node_modules/.bin/esbuild ] &&
    [ node_modules/.package-lock.json -nt package-lock.json ]; then
   echo "npm: web/node_modules up to date"
   exit 0
