@@ -245,6 +245,7 @@ static void skin_build(benchmark::State& st, const MergedArrays& m, const Rig& r
   st.counters["rings_ms"] = 1000 * s.seconds_rings;
   st.counters["stitch_ms"] = 1000 * s.seconds_union;
   st.counters["decimate_ms"] = 1000 * s.seconds_decimation;
+  st.counters["fit_ms"] = 1000 * s.seconds_fit;
   st.counters["checks_ms"] = 1000 * s.seconds_checks;
 }
 static void BM_SkinBuild(benchmark::State& st) { skin_build(st, fixture_merged(), load_rig(kFix + "rig.json")); }

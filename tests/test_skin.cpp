@@ -261,7 +261,9 @@ TEST(SkinMesh, RigShiftedSidewaysIsRefusedAndTheErrorNamesTheDigit) {
   // The rig as given fits: every digit's links within 1.2 mm of its sections' middle.
   const SkinResult s = build_skin(m.points, load_rig(kFixture + "rig.json"), SkinOptions{});
   for (const auto& t : s.tubes)
-    if (t.name != "palm") EXPECT_LT(t.axis_offset_mm, 1.2) << t.name;
+    if (t.name != "palm") {
+      EXPECT_LT(t.axis_offset_mm, 1.2) << t.name;
+    }
 }
 
 TEST(SkinMesh, DecimationStopsAtTheBudgetOrTheTolerance) {
@@ -336,7 +338,10 @@ TEST(MeshDistanceTools, SamplesCoverTheAreaAndASurfaceIsAtZeroFromItself) {
 
 // ---------------- the skin stage's steps (skin/skin_steps.hpp) ----------------
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
+#include <CGAL/Subdivision_method_3/subdivision_methods_3.h>
+#include <CGAL/boost/graph/generators.h>
 
+#include "mesh/from_cgal.hpp"
 #include "skin/skin_steps.hpp"
 
 namespace {
@@ -650,6 +655,62 @@ TEST(SkinSteps, StitchJoinsCrossingTubesIntoOneClosedSurface) {
   EXPECT_GT(origin.size(), 100u);
 }
 
+TEST(SkinSteps, FitToDataFollowsTheCloudsSurfaceAndBridgesItsHoleSmoothly) {
+  // A coarse sphere of radius 10 (an icosahedron subdivided twice, its vertices on the sphere:
+  // the chords lie inside) and the data: a sphere of radius 10.6 with 0.07 mm noise, with no
+  // points over the cap z > 8 (a hole) and a few far points (another surface 5 mm out).
+  SM sm;
+  CGAL::make_icosahedron(sm, K::Point_3(0, 0, 0), 10.0);
+  for (int k = 0; k < 2; ++k) {
+    CGAL::Subdivision_method_3::Loop_subdivision(sm, CGAL::parameters::number_of_iterations(1));
+    for (auto v : sm.vertices()) {
+      const K::Vector_3 d = sm.point(v) - CGAL::ORIGIN;
+      sm.point(v) = CGAL::ORIGIN + d * (10.0 / std::sqrt(d.squared_length()));
+    }
+  }
+  Rng rng(7);
+  std::vector<Eigen::Vector3d> pts;
+  for (int i = 0; i < 20000; ++i) {
+    const Eigen::Vector3d d = Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()).normalized();
+    if (10.6 * d.z() > 8) continue;
+    pts.push_back(d * (10.6 + 0.07 * rng.normal()));
+    if (i % 50 == 0) pts.push_back(d * 15.6);
+  }
+  std::vector<K::Point_3> rest;
+  for (auto v : sm.vertices()) rest.push_back(sm.point(v));
+  const auto mean_distance = [&](const SM& m) {
+    const MeshDistance d(to_trimesh(m));
+    double sum = 0;
+    size_t n = 0;
+    for (const auto& p : pts)
+      if (p.norm() < 12) sum += d.distance(p), ++n;
+    return sum / static_cast<double>(n);
+  };
+  const double before = mean_distance(sm);
+  DataFitOptions o;
+  const DataFit f = fit_to_data(&sm, pts, o);
+  const double after = mean_distance(sm);
+  std::printf("data to the sphere: %.3f -> %.3f mm; %zu vertices moved, mean %.3f, max %.3f mm, %zu taken back\n", before,
+              after, f.moved, f.mean_move_mm, f.max_move_mm, f.reverted);
+  EXPECT_GT(before, 0.6);
+  EXPECT_LT(after, 0.1);  // the noise's mean absolute value is 0.056
+  EXPECT_FALSE(f.self_intersects);
+  EXPECT_LE(f.max_move_mm, o.max_move_mm + 1e-9);
+  // The vertices moved out by about 0.6 (a little more: the chords between them reach out to
+  // the surface). Over the hole, where no point pulls, the edge term carries the rim's move
+  // on smoothly (no dent, no spike); the far points pulled nothing.
+  size_t i = 0;
+  for (auto v : sm.vertices()) {
+    const double r = std::sqrt((sm.point(v) - CGAL::ORIGIN).squared_length()), z = rest[i++].z();
+    EXPECT_NEAR(r, 10.7, z < 6 ? 0.1 : 0.25) << z;
+  }
+  // Off: nothing moves.
+  SM again;
+  CGAL::make_icosahedron(again, K::Point_3(0, 0, 0), 10.0);
+  o.enabled = false;
+  EXPECT_EQ(fit_to_data(&again, pts, o).moved, 0u);
+}
+
 TEST(SkinMesh, RingGridIsRegularPerTube) {
   const MergedArrays& m = fixture_merged();
   const SkinResult s = build_skin(m.points, load_rig(kFixture + "rig.json"), SkinOptions{});
@@ -665,6 +726,8 @@ TEST(SkinMesh, RingGridIsRegularPerTube) {
     EXPECT_EQ(g.pole.has_value(), t != 0);
     // Plane rings first, in plane order; then a digit's dome rings (station -1).
     for (size_t k = 1; k < g.station.size(); ++k)
-      if (g.station[k] >= 0) EXPECT_EQ(g.station[k], g.station[k - 1] + 1);
+      if (g.station[k] >= 0) {
+        EXPECT_EQ(g.station[k], g.station[k - 1] + 1);
+      }
   }
 }

@@ -48,6 +48,8 @@ const std::vector<KeySpec>& key_table() {
       // 0 (no decimation) or [1000, 1000000]: the gap is checked by SkinOptions::IsValid.
       {"skin", "max_triangles", Kind::Int, 0, 1000000, false, HS_FIELD(skin.max_triangles)},
       {"skin", "decimation_tolerance_mm", Kind::Real, 0, 1, true, HS_FIELD(skin.decimation_tolerance_mm)},
+      {"skin", "fit_to_data", Kind::Bool, 0, 1, false, HS_FIELD(skin.fit_to_data)},
+      {"skin", "fit_max_move_mm", Kind::Real, 0, 10, true, HS_FIELD(skin.fit_max_move_mm)},
       {"skin", "slices_json", Kind::Bool, 0, 1, false, HS_FIELD(skin.slices_json)},
       {"skin", "baseline", Kind::Bool, 0, 1, false, HS_FIELD(skin.baseline)},
       {"patches", "enabled", Kind::Bool, 0, 1, false, HS_FIELD(patches.enabled)},

@@ -197,8 +197,14 @@ Json to_json(const SkinStageResult& r) {
   j["mesh"]["watertight"] = skin.watertight();
   j["triangles_before_decimation"] = skin.triangles_before_decimation;
   j["pockets_removed"] = skin.pockets_removed;
+  j["fit_to_data"] = {{"points", skin.data_fit.points},
+                      {"moved", skin.data_fit.moved},
+                      {"reverted", skin.data_fit.reverted},
+                      {"mean_move_mm", skin.data_fit.mean_move_mm},
+                      {"max_move_mm", skin.data_fit.max_move_mm}};
   j["timings_ms"] = {{"rings", 1000 * skin.seconds_rings}, {"stitch", 1000 * skin.seconds_union},
-                     {"decimate", 1000 * skin.seconds_decimation}, {"checks", 1000 * skin.seconds_checks}};
+                     {"decimate", 1000 * skin.seconds_decimation}, {"fit", 1000 * skin.seconds_fit},
+                     {"checks", 1000 * skin.seconds_checks}};
   Json tubes = Json::array();
   for (const auto& t : skin.tubes)
     tubes.push_back({{"name", t.name}, {"present", t.present}, {"points", t.points}, {"rings", t.rings},

@@ -34,6 +34,8 @@ SkinOptions skin_options(const PipelineOptions& o) {
   s.cap_rings = to_int(o.skin.cap_rings);
   s.max_triangles = to_int(o.skin.max_triangles);
   s.decimation_tolerance_mm = o.skin.decimation_tolerance_mm;
+  s.data_fit.enabled = o.skin.fit_to_data;
+  s.data_fit.max_move_mm = o.skin.fit_max_move_mm;
   return s;
 }
 

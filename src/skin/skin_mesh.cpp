@@ -49,6 +49,10 @@ bool SkinOptions::IsValid(std::string* error) const {
   if (max_triangles != 0 && (max_triangles < 1000 || max_triangles > 1000000))
     return bad("skin.max_triangles must be 0 (no decimation) or in [1000, 1000000]");
   if (!(decimation_tolerance_mm > 0 && decimation_tolerance_mm <= 1)) return bad("skin.decimation_tolerance_mm must be in (0, 1]");
+  if (!(data_fit.max_move_mm > 0 && data_fit.max_move_mm <= 10)) return bad("skin.fit_max_move_mm must be in (0, 10]");
+  if (!(data_fit.smoothness > 0 && data_fit.smoothness <= 100)) return bad("the data fit's smoothness must be in (0, 100]");
+  if (data_fit.rounds < 1 || data_fit.rounds > 20) return bad("the data fit's rounds must be in [1, 20]");
+  if (data_fit.max_points < 100 || data_fit.max_points > 10000000) return bad("the data fit's max_points must be in [100, 1e7]");
   if (!(thumb_overlap_mm >= 0 && thumb_overlap_mm <= 20)) return bad("skin.thumb_overlap_mm must be in [0, 20]");
   if (cap_rings < 1 || cap_rings > 20) return bad("skin.cap_rings must be in [1, 20]");
   if (!(window_deg > 0 && window_deg <= 20)) return bad("skin.window_deg must be in (0, 20]");
@@ -170,13 +174,21 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
                            std::to_string(o.max_triangles) + "): fewer would move it more than " +
                            std::to_string(o.decimation_tolerance_mm).substr(0, 5) + " mm");
   }
-  R.mesh = to_trimesh(skin);  // vertices in the order of skin.vertices()
   R.seconds_decimation = since(t2);
+
+  // 8. the skin fitted to the data: the rings' chords, the webs' saddles and the seams between
+  // tubes lie up to a few millimetres off the scanned surface; each vertex moves onto it along
+  // its normal where the cloud measures it (fit_data.cpp).
+  const auto tf = Clock::now();
+  R.data_fit = fit_to_data(&skin, points, o.data_fit);
+  R.mesh = to_trimesh(skin);  // vertices in the order of skin.vertices()
+  R.seconds_fit = since(tf);
 
   // --- checks, labels, the OpenMesh result ---
   const auto t3 = Clock::now();
   if (o.check_self_intersections) {
-    R.self_intersects = PMP::does_self_intersect(skin);
+    // Step 8 ends with the same test when it ran.
+    R.self_intersects = o.data_fit.enabled ? R.data_fit.self_intersects : PMP::does_self_intersect(skin);
     R.self_intersection_checked = true;
   }
   R.health = mesh_health(R.mesh);

@@ -24,6 +24,24 @@
 
 namespace handskin {
 
+/// Step 8, the skin fitted to the data (docs/skin.md): after decimation each vertex moves along
+/// its normal onto the cloud's surface, where the cloud has one.
+struct DataFitOptions {
+  bool enabled = true;
+  double max_move_mm = 2.0;  ///< a point farther from the skin is not its surface; no vertex moves farther
+  double smoothness = 0.2;   ///< λ per point per vertex: the weight of equal moves along an edge
+  int rounds = 2;            ///< the least squares solved this many times, the nearest faces found again
+  int max_points = 10000;    ///< the cloud is thinned to about this many points
+};
+/// What step 8 did.
+struct DataFit {
+  size_t points = 0;    ///< points fitted (the last round)
+  size_t moved = 0;     ///< vertices moved
+  size_t reverted = 0;  ///< moves taken back because the skin crossed itself
+  bool self_intersects = false;  ///< after the moves and the take-backs (checked when enabled)
+  double mean_move_mm = 0, max_move_mm = 0;
+};
+
 struct SkinOptions {
   /// planes: cuts from the wrist to the middle fingertip (the spacing of every tube's rings);
   /// points_per_segment: ring points per link and arc (a finger ring has 2 arcs — dorsal and
@@ -46,6 +64,7 @@ struct SkinOptions {
   /// surface by at most decimation_tolerance_mm; 0: keep every strip triangle.
   int max_triangles = 8000;
   double decimation_tolerance_mm = 0.15;
+  DataFitOptions data_fit;
   bool check_self_intersections = true;
   bool IsValid(std::string* error) const;
 };
@@ -109,7 +128,8 @@ struct SkinResult {
   WristCut wrist_cut;                 ///< the plane the palm's first ring lies in
   std::vector<std::string> warnings;
   size_t triangles_before_decimation = 0;
-  double seconds_rings = 0, seconds_union = 0, seconds_decimation = 0, seconds_checks = 0;
+  DataFit data_fit;
+  double seconds_rings = 0, seconds_union = 0, seconds_decimation = 0, seconds_fit = 0, seconds_checks = 0;
   /// Closed, manifold, one component, positive volume, and (when checked) no self-intersection.
   bool watertight() const;
 };

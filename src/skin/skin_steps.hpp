@@ -9,6 +9,8 @@
 ///   5. resample_rings, keep_apart, add_dome   rings of a fixed number of points (rings.cpp)
 ///   6. stitch_tubes    tube meshes united into one closed surface (stitch.cpp)
 ///   7. decimate        CGAL edge collapse to the triangle budget (decimate.cpp)
+///   8. fit_to_data     the decimated skin fitted to the cloud in least squares (fit_data.cpp;
+///                      in the rig frame, as the stitched skin is)
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Surface_mesh.h>
 
@@ -160,5 +162,11 @@ SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& ha
 /// about `tolerance_mm`; each vertex's (tube, ring) in `origin` follows it.
 using Origin = SM::Property_map<SM::Vertex_index, std::pair<int, int>>;
 void decimate(SM* sm, size_t max_faces, double tolerance_mm, Origin origin);
+
+/// Step 8 (fit_data.cpp): each vertex moved along its normal onto the cloud's surface where
+/// the cloud has one (a weighted quadric height field over the nearest layer of points within
+/// DataFitOptions::radius_mm of the normal line), the offsets smoothed once; moves that make
+/// the skin cross itself are taken back.
+DataFit fit_to_data(SM* sm, const std::vector<Eigen::Vector3d>& points, const DataFitOptions& options);
 
 }  // namespace handskin::skin_steps
