@@ -704,9 +704,13 @@ TEST(SkinSteps, FitToDataFollowsTheCloudsSurfaceAndBridgesItsHoleSmoothly) {
     const double r = std::sqrt((sm.point(v) - CGAL::ORIGIN).squared_length()), z = rest[i++].z();
     EXPECT_NEAR(r, 10.7, z < 6 ? 0.1 : 0.25) << z;
   }
-  // Off: nothing moves.
+  // Only points farther than max_move from the skin: nothing moves.
   SM again;
   CGAL::make_icosahedron(again, K::Point_3(0, 0, 0), 10.0);
+  std::vector<Eigen::Vector3d> far;
+  for (const auto& p : pts) far.push_back(p.normalized() * 20.0);
+  EXPECT_EQ(fit_to_data(&again, far, o).moved, 0u);
+  // Off: nothing moves.
   o.enabled = false;
   EXPECT_EQ(fit_to_data(&again, pts, o).moved, 0u);
 }

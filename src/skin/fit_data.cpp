@@ -56,6 +56,8 @@ DataFit fit_to_data(SM* sm, const std::vector<Eigen::Vector3d>& points, const Da
     for (size_t n = 0; n < rows.size(); ++n) {
       const Eigen::Vector3d& p = points[n * stride];
       const K::Point_3 q(p.x(), p.y(), p.z());
+      // A point within max_move of a face is within max_move and an edge's length (~5 mm
+      // after decimation) of that face's corners.
       const int nv = vgrid.nearest(p, o.max_move_mm + 10.0);
       if (nv < 0) continue;
       K::Point_3 c;
@@ -101,6 +103,10 @@ DataFit fit_to_data(SM* sm, const std::vector<Eigen::Vector3d>& points, const Da
       }
       ++used;
     }
+    if (used == 0) {  // no point near the skin: nothing to fit
+      sm->remove_property_map(normals);
+      break;
+    }
     // λ scaled by the points per vertex, so that the balance does not depend on the density.
     const double per_vertex = static_cast<double>(used) / static_cast<double>(std::max<size_t>(sm->number_of_vertices(), 1));
     const double lambda = o.smoothness * per_vertex, mu = 1e-3 * per_vertex;
@@ -114,8 +120,8 @@ DataFit fit_to_data(SM* sm, const std::vector<Eigen::Vector3d>& points, const Da
     for (size_t i = 0; i < N; ++i) trip.emplace_back(static_cast<int>(i), static_cast<int>(i), mu + (sm->is_removed(SM::Vertex_index(static_cast<SM::size_type>(i))) ? 1.0 : 0.0));
     Eigen::SparseMatrix<double> A(static_cast<Eigen::Index>(N), static_cast<Eigen::Index>(N));
     A.setFromTriplets(trip.begin(), trip.end());
-    // Conjugate gradients (the matrix is symmetric positive definite and diagonally heavy:
-    // a few dozen iterations), from zero moves.
+    // Conjugate gradients (the matrix is symmetric positive definite and diagonally heavy),
+    // from zero moves.
     Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> cg;
     cg.setTolerance(1e-8);
     cg.compute(A);
