@@ -40,7 +40,7 @@ struct PipelineOptions {
     long cap_rings = 4;            ///< rings of each fingertip's dome
     long max_triangles = 8000;     ///< decimate to at most this many triangles (0: no decimation)
     double decimation_tolerance_mm = 0.15; ///< ... moving the surface by at most this
-    bool fit_to_data = true;       ///< step 8: the decimated skin fitted to the cloud (docs/skin.md)
+    bool fit_to_data = true;       ///< the decimated skin fitted to the cloud (docs/skin.md, step 11)
     double fit_max_move_mm = 2.0;  ///< ... no vertex moving farther, no point farther counted
     bool slices_json = true;       ///< write slices.json (the thesis's sections, for inspection)
     bool baseline = false;         ///< also run CGAL Poisson on the cloud and report it beside (--baseline)

@@ -10,6 +10,7 @@
 #include "core/atomic_file.hpp"
 #include "core/dof.hpp"
 #include "core/errors.hpp"
+#include "posture/angle_table.hpp"
 
 namespace handskin {
 
@@ -164,13 +165,6 @@ PostureAnimation animate(const PostureSolver& solver, const KeyFrames& keys, dou
     }
   }
   return a;
-}
-
-AngleTable animation_table(const PostureAnimation& a) {
-  AngleTable t;
-  for (int d = 0; d < kDofCount; ++d) t.columns.push_back(d);
-  for (const auto& f : a.frames) t.rows.emplace_back(f.begin(), f.end());
-  return t;
 }
 
 std::string animation_csv(const PostureAnimation& a) {

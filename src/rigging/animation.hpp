@@ -6,7 +6,6 @@
 #include <string>
 #include <vector>
 
-#include "posture/angle_table.hpp"
 #include "posture/skeleton.hpp"
 #include "posture/solver.hpp"
 
@@ -48,8 +47,6 @@ struct PostureAnimation {
 PostureAnimation animate(const PostureSolver& solver, const KeyFrames& keys, double fps, bool inputs_only,
                          const std::string& file);
 
-/// The frames as a joint-angle table: every DOF, one row per frame (the times go beside it).
-AngleTable animation_table(const PostureAnimation& a);
 /// CSV text: a `time` column, then every DOF.
 std::string animation_csv(const PostureAnimation& a);
 

@@ -24,7 +24,7 @@
 
 namespace handskin {
 
-/// Step 8, the skin fitted to the data (docs/skin.md): after decimation each vertex moves along
+/// build_skin's step 8, the skin fitted to the data (docs/skin.md, step 11): after decimation each vertex moves along
 /// its normal onto the cloud's surface, where the cloud has one.
 struct DataFitOptions {
   bool enabled = true;

@@ -163,10 +163,10 @@ SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& ha
 using Origin = SM::Property_map<SM::Vertex_index, std::pair<int, int>>;
 void decimate(SM* sm, size_t max_faces, double tolerance_mm, Origin origin);
 
-/// Step 8 (fit_data.cpp): each vertex moved along its normal onto the cloud's surface where
-/// the cloud has one (a weighted quadric height field over the nearest layer of points within
-/// DataFitOptions::radius_mm of the normal line), the offsets smoothed once; moves that make
-/// the skin cross itself are taken back.
+/// Step 8 (fit_data.cpp; docs/skin.md's step 11): each vertex moved along its normal so that
+/// the piecewise-linear skin fits the cloud's points in least squares (point to nearest face,
+/// an edge smoothness term, DataFitOptions::rounds rounds); moves that make the skin cross
+/// itself are taken back, and the last self-intersection test is reported.
 DataFit fit_to_data(SM* sm, const std::vector<Eigen::Vector3d>& points, const DataFitOptions& options);
 
 }  // namespace handskin::skin_steps

@@ -32,6 +32,14 @@ double finite_number(const Json& v, const std::string& where) {
   return x;
 }
 
+// A pinned, target or key angle beyond the DOF's limits is refused (pose clamps; a page should not).
+void within_limits(const PostureModel& model, int d, double v, const std::string& where) {
+  const DofParams& p = model.dof[d];
+  if (v < p.lo || v > p.hi)
+    throw BadRequest{422, where + " = " + number_text(v) + " is outside its limits [" + number_text(p.lo) + ", " +
+                              number_text(p.hi) + "]"};
+}
+
 const Json* object_member(const Json& body, const char* key) {
   if (!body.contains(key)) return nullptr;
   const Json& m = body[key];
@@ -131,26 +139,17 @@ std::optional<ApiResponse> parse_body(const std::string& text, Json* body) {
 ApiResponse StudioModel::solve(const std::string& text) const {
   Json body;
   if (const auto refused = parse_body(text, &body)) return *refused;
-  // A pinned or target angle beyond the DOF's limits is refused (pose clamps; a page should not).
-  const PostureModel* limits = &skin_.model;
-  const auto within_limits = [&](int d, double v, const std::string& where) {
-    const DofParams& p = limits->dof[d];
-    if (v < p.lo || v > p.hi)
-      throw BadRequest{422, where + " = " + number_text(v) + " is outside its limits [" + number_text(p.lo) + ", " +
-                                number_text(p.hi) + "]"};
-  };
   try {
     for (auto it = body.begin(); it != body.end(); ++it)
       if (it.key() != "inputs" && it.key() != "torques" && it.key() != "targets" && it.key() != "parameter_set")
         throw BadRequest{400, "unknown key \"" + it.key() + "\" (inputs, torques, targets, parameter_set)"};
     const PostureSolver& solver = solver_for(body);
-    limits = &solver.model();
     PostureInputs in;
     if (const Json* m = object_member(body, "inputs"))
       for (auto it = m->begin(); it != m->end(); ++it) {
         const int d = dof_of(it.key(), "inputs");
         const double v = finite_number(it.value(), "inputs." + it.key());
-        within_limits(d, v, "inputs." + it.key());
+        within_limits(solver.model(), d, v, "inputs." + it.key());
         in.pins.emplace_back(d, v);
       }
     if (const Json* m = object_member(body, "torques"))
@@ -174,7 +173,7 @@ ApiResponse StudioModel::solve(const std::string& text) const {
         } else {
           deg = finite_number(it.value(), "targets." + it.key());
         }
-        within_limits(d, deg, "targets." + it.key());
+        within_limits(solver.model(), d, deg, "targets." + it.key());
         if (weight < 0 || weight > 1e4) throw BadRequest{422, "targets." + it.key() + ".weight must be in [0, 10000]"};
         in.targets.push_back({d, deg, weight});
       }
@@ -236,10 +235,7 @@ ApiResponse StudioModel::animate(const std::string& text) const {
       for (auto it = key["angles"].begin(); it != key["angles"].end(); ++it) {
         const int d = dof_of(it.key(), (where + ".angles").c_str());
         const double v = finite_number(it.value(), where + ".angles." + it.key());
-        const DofParams& p = solver.model().dof[d];
-        if (v < p.lo || v > p.hi)
-          throw BadRequest{422, where + ".angles." + it.key() + " = " + number_text(v) + " is outside its limits [" +
-                                    number_text(p.lo) + ", " + number_text(p.hi) + "]"};
+        within_limits(solver.model(), d, v, where + ".angles." + it.key());
         if (column[d] < 0) {
           column[d] = static_cast<int>(k.dofs.size());
           k.dofs.push_back(d);
