@@ -53,14 +53,17 @@ DataFit fit_to_data(SM* sm, const std::vector<Eigen::Vector3d>& points, const Da
       double r = 0;
     };
     std::vector<Row> rows(n_rows);
-    for (size_t n = 0; n < rows.size(); ++n) {
+    // Each point's row in its own slot: the same rows on any number of threads.
+#pragma omp parallel for schedule(static)
+    for (long nn = 0; nn < static_cast<long>(rows.size()); ++nn) {
+      const size_t n = static_cast<size_t>(nn);
       const Eigen::Vector3d& p = points[n * stride];
       const K::Point_3 q(p.x(), p.y(), p.z());
       // A point within max_move of a face is within max_move and an edge's length (~5 mm
       // after decimation) of that face's corners.
       const int nv = vgrid.nearest(p, o.max_move_mm + 10.0);
       if (nv < 0) continue;
-      K::Point_3 c;
+      K::Point_3 c = q;
       SM::Face_index face;
       double best = 1e300;
       for (const auto fc : CGAL::faces_around_target(sm->halfedge(vid[static_cast<size_t>(nv)]), *sm)) {

@@ -153,7 +153,6 @@ SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& Ti
       throw InputError("merged cloud", "the " + what + " cannot be stitched to the palm into a closed manifold");
     return out;
   };
-  check_folds(0);
   SM digits;
   for (size_t k = 1; k < parts.size(); ++k) {
     std::vector<SM::Vertex_index> map(parts[k].number_of_vertices());
@@ -164,8 +163,20 @@ SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& Ti
       digits.add_face(tri[0], tri[1], tri[2]);
     }
   }
+  // The palm's test and the digits' run side by side (one thread each; CGAL's own parallel
+  // test, over TBB, was slower here than its sequential one).
+  bool palm_folds = false, digits_cross = false;
+#pragma omp parallel sections
+  {
+#pragma omp section
+    palm_folds = PMP::does_self_intersect(parts[0]);
+#pragma omp section
+    digits_cross = parts.size() > 1 && PMP::does_self_intersect(digits);
+  }
+  if (palm_folds) check_folds(0);
+  CGAL::get_default_random() = CGAL::Random(1);  // the tests drew from it (the union's order, below)
   SM skin = std::move(parts.front());  // the palm
-  if (parts.size() > 1 && !PMP::does_self_intersect(digits)) {
+  if (parts.size() > 1 && !digits_cross) {
     skin = unite(skin, digits, "digits");
   } else {
     for (size_t k = 1; k < parts.size(); ++k) check_folds(k);
