@@ -26,6 +26,10 @@ constexpr double kKneeBeyondWrist = 12.0;
 // A finger's bones lie this far (nominal mm) dorsal of the middle of its cross-sections.
 constexpr double kDorsalOffset = 1.0;
 
+// A digit's section middle more than this (mm) beside the line through those beyond it
+// toward the tip is not across the digit.
+constexpr double kLateralStrayMm = 1.5;
+
 // In the palm, the joints' depth as a share of the palm's local thickness from its back: the
 // metacarpals lie nearer the back than the palm (the palmar soft tissue is the thicker).
 // Measured at the true joints of the synthetic family (12 hands, 160-215 mm, thin to thick):
@@ -381,6 +385,31 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
       for (size_t k = 0; k < widths.size(); ++k)
         if (widths[k] >= 0.6 * wm && widths[k] <= 1.4 * wm) kept_c.push_back(centres[k]), kept_w.push_back(widths[k]);
       if (kept_c.size() >= 4) centres.swap(kept_c), widths.swap(kept_w);
+    }
+    // A digit does not bend sideways: from the tip's end, the centres that keep to one line.
+    // The opening's remnant can carry on past the finger's root as a sliver along its
+    // neighbour's boundary, of a finger's width but beside the finger's line (H12's close
+    // little finger: the sliver's middles turned its line 20 deg and put its PIP 9.6 mm off).
+    // The distal four start the line; each centre toward the palm joins it while it lies
+    // within kLateralStrayMm of the line through those kept; the first that strays ends it.
+    if (centres.size() > 4) {
+      auto stray = [&](size_t first, size_t k) {  // distance of centre k from the line fitted to first..end
+        double st = 0, sl = 0, stt = 0, stl = 0;
+        const double n = static_cast<double>(centres.size() - first);
+        for (size_t i = first; i < centres.size(); ++i) {
+          st += centres[i].x(), sl += centres[i].y();
+          stt += centres[i].x() * centres[i].x(), stl += centres[i].x() * centres[i].y();
+        }
+        const double den = n * stt - st * st;
+        const double b = std::abs(den) > 1e-12 ? (n * stl - st * sl) / den : 0.0, a = (sl - b * st) / n;
+        return std::abs(centres[k].y() - (a + b * centres[k].x()));
+      };
+      size_t first = centres.size() - 4;
+      while (first > 0 && stray(first, first - 1) <= kLateralStrayMm) --first;
+      if (first > 0) {
+        centres.erase(centres.begin(), centres.begin() + static_cast<long>(first));
+        widths.erase(widths.begin(), widths.begin() + static_cast<long>(first));
+      }
     }
     if (centres.size() < 4) throw InputError("merged cloud", "a digit is too short to find its axis; give a rig");
     // The lateral line is fitted to these centres and to more toward the palm: the opening
