@@ -35,6 +35,19 @@ class PointGrid {
     return best;
   }
 
+  /// Whether any point lies within `radius` of `q`: the nearest cells first, the first point
+  /// found ends the search (what `nearest(q, radius) >= 0` says, without finding the nearest).
+  bool any_within(const Eigen::Vector3d& q, double radius) const {
+    const Eigen::Vector3i c = coords(q);
+    const int rings = static_cast<int>(std::ceil(radius / cell_));
+    for (int ring = 0; ring <= rings; ++ring) {
+      bool found = false;
+      visit_ring(c, ring, [&](int k) { found = found || (pts_[k] - q).squaredNorm() < radius * radius; });
+      if (found) return true;
+    }
+    return false;
+  }
+
   /// `f(index)` for every point within `radius` of `q`.
   template <class F>
   void within(const Eigen::Vector3d& q, double radius, F&& f) const {

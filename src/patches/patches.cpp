@@ -228,6 +228,8 @@ constexpr size_t kFitPoints = 15000;  // measured points in the least squares (a
 struct NetSolver {
   Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
   bool analysed = false;
+  Eigen::SparseMatrix<double> A;  ///< the normal equations; their pattern is fixed after the first round
+  std::vector<int> slot;          ///< per triplet, its value's index in A
 };
 void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& data, const PatchOptions& o,
              NetSolver* solver) {
@@ -268,7 +270,10 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
     }
     block[f].noalias() = C * C.transpose();
     rhs[f].noalias() = C * Y;
-    nblock[f].noalias() = Cn * Cn.transpose();
+    // Cn·Cnᵀ is symmetric: its lower half by a rank update (half the products), mirrored.
+    nblock[f].setZero();
+    nblock[f].selfadjointView<Eigen::Lower>().rankUpdate(Cn);
+    nblock[f].triangularView<Eigen::StrictlyUpper>() = nblock[f].transpose();
     nrhs[f].noalias() = Cn * Yn;
   }
   std::vector<Eigen::Triplet<double>> A;
@@ -348,8 +353,21 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
     }
   }
   // Sparse Cholesky (LDLᵀ) of the normal equations; never an inverse.
-  Eigen::SparseMatrix<double> As(3 * n, 3 * n);
-  As.setFromTriplets(A.begin(), A.end());  // duplicates are summed
+  // The triplets come in the same order every round (the same net, blocks and penalties):
+  // the first round builds the matrix (duplicates summed) and records where each triplet's
+  // value lands; later rounds add the values there, in the same order.
+  Eigen::SparseMatrix<double>& As = solver->A;
+  if (solver->slot.size() != A.size()) {
+    As.resize(3 * n, 3 * n);
+    As.setFromTriplets(A.begin(), A.end());
+    As.makeCompressed();
+    solver->slot.resize(A.size());
+    for (size_t t = 0; t < A.size(); ++t)
+      solver->slot[t] = static_cast<int>(&As.coeffRef(A[t].row(), A[t].col()) - As.valuePtr());
+  } else {
+    std::fill(As.valuePtr(), As.valuePtr() + As.nonZeros(), 0.0);
+    for (size_t t = 0; t < A.size(); ++t) As.valuePtr()[solver->slot[t]] += A[t].value();
+  }
   // The pattern is the same every round (the same net and penalties): its ordering and
   // symbolic analysis are made once. CHOLMOD's supernodal Cholesky (SuiteSparse, through
   // Eigen): 6–8 times faster here than Eigen's simplicial LDLᵀ, whose factorisation took most
@@ -456,7 +474,7 @@ PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector
     std::vector<char> keep(points.size(), 1);
     if (!support.empty()) {
 #pragma omp parallel for schedule(static)
-      for (long k = 0; k < static_cast<long>(points.size()); ++k) keep[k] = near_skin.nearest(points[k], kFarMm) >= 0;
+      for (long k = 0; k < static_cast<long>(points.size()); ++k) keep[k] = near_skin.any_within(points[k], kFarMm);
     }
     const size_t measured = static_cast<size_t>(std::count(keep.begin(), keep.end(), 1));
     const size_t wanted = std::max<size_t>(kFitPoints, 16 * static_cast<size_t>(net.count));
@@ -646,7 +664,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
     const std::vector<Eigen::Vector3d> v = mesh_vertices(skin.mesh);
     const PointGrid grid(v, 4.0);
     for (size_t k = 0; k < layout.vertices.size(); ++k)
-      if (!layout.vertices[k].allFinite() || grid.nearest(layout.vertices[k], 20.0) < 0)
+      if (!layout.vertices[k].allFinite() || !grid.any_within(layout.vertices[k], 20.0))
         throw InputError("patch layout", "corner " + std::to_string(k) +
                                              " lies more than 20 mm from the skin; is the layout from this skin?");
   }
