@@ -494,7 +494,11 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     for (const auto& q : h)
       if (q.dot(Xh) < cut + 10) vl = std::min(vl, q.dot(Yh)), vh = std::max(vh, q.dot(Yh)), wl = std::min(wl, q.z()), wh = std::max(wh, q.z());
     W = wrist_x * Xh + 0.5 * (vl + vh) * Yh + 0.5 * (wl + wh) * Eigen::Vector3d::UnitZ();
-    if (const auto z = depth_at(W, kWristDepth, 3 * s)) W.z() = *z;
+    // Its height from the thickness a disc's radius inside the cut: a disc at the cut itself
+    // (a cast sawn off at the wrist, no stub) holds the rim only, often one scan's side, and
+    // put the wrist 10 mm toward the palm (H03).
+    const Eigen::Vector3d W_in = W + std::max(0.0, cut + 3 * s - wrist_x) * Xh;
+    if (const auto z = depth_at(W_in, kWristDepth, 3 * s)) W.z() = *z;
     // digits sorted little, ring, middle, index, thumb → fingers 4, 3, 2, 1, 0; joints back
     // from the tip along the centre line by the proportions' lengths.
     for (int k = 0; k < 5; ++k) {
