@@ -227,7 +227,6 @@ constexpr double kSettledRms = 0.005;  // a round that takes less off the RMS en
 constexpr size_t kFitPoints = 15000;  // measured points in the least squares (at least 16 per control point)
 struct NetSolver {
   Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
-  bool analysed = false;
   Eigen::SparseMatrix<double> A;  ///< the normal equations; their pattern is fixed after the first round
   std::vector<int> slot;          ///< per triplet, its value's index in A
 };
@@ -354,8 +353,11 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
   }
   // Sparse Cholesky (LDLᵀ) of the normal equations; never an inverse.
   // The triplets come in the same order every round (the same net, blocks and penalties):
-  // the first round builds the matrix (duplicates summed) and records where each triplet's
-  // value lands; later rounds add the values there, in the same order.
+  // the first round builds the matrix (duplicates summed), records where each triplet's
+  // value lands and has CHOLMOD order and analyse the pattern; later rounds add the values
+  // there, in the same order, and only refactor. CHOLMOD's supernodal Cholesky (SuiteSparse,
+  // through Eigen): 6–8 times faster here than Eigen's simplicial LDLᵀ, whose factorisation
+  // took most of the fit's time.
   Eigen::SparseMatrix<double>& As = solver->A;
   if (solver->slot.size() != A.size()) {
     As.resize(3 * n, 3 * n);
@@ -364,15 +366,11 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
     solver->slot.resize(A.size());
     for (size_t t = 0; t < A.size(); ++t)
       solver->slot[t] = static_cast<int>(&As.coeffRef(A[t].row(), A[t].col()) - As.valuePtr());
+    solver->llt.analyzePattern(As);
   } else {
     std::fill(As.valuePtr(), As.valuePtr() + As.nonZeros(), 0.0);
     for (size_t t = 0; t < A.size(); ++t) As.valuePtr()[solver->slot[t]] += A[t].value();
   }
-  // The pattern is the same every round (the same net and penalties): its ordering and
-  // symbolic analysis are made once. CHOLMOD's supernodal Cholesky (SuiteSparse, through
-  // Eigen): 6–8 times faster here than Eigen's simplicial LDLᵀ, whose factorisation took most
-  // of the fit's time.
-  if (!solver->analysed) solver->llt.analyzePattern(As), solver->analysed = true;
   solver->llt.factorize(As);
   HS_CHECK(solver->llt.info() == Eigen::Success, "patch fit: the normal equations could not be factored");
   const Eigen::VectorXd X = solver->llt.solve(R);

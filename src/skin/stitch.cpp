@@ -142,10 +142,9 @@ SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& Ti
     parts.push_back(to_surface_mesh(V, F));
     part_tube.push_back(t.id);
   }
-  auto check_folds = [&](size_t k) {
-    if (PMP::does_self_intersect(parts[k]))
-      throw InputError("merged cloud", std::string("the ") + skin_tube_name(part_tube[k]) +
-                                           " tube folds into itself; the rig may be badly placed for this scan");
+  auto folds = [&](size_t k) {
+    return InputError("merged cloud", std::string("the ") + skin_tube_name(part_tube[k]) +
+                                          " tube folds into itself; the rig may be badly placed for this scan");
   };
   auto unite = [&](SM& a, SM& b, const std::string& what) {
     SM out;
@@ -173,13 +172,14 @@ SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& Ti
 #pragma omp section
     digits_cross = parts.size() > 1 && PMP::does_self_intersect(digits);
   }
-  if (palm_folds) check_folds(0);
+  if (palm_folds) throw folds(0);
   CGAL::get_default_random() = CGAL::Random(1);  // the tests drew from it (the union's order, below)
   SM skin = std::move(parts.front());  // the palm
   if (parts.size() > 1 && !digits_cross) {
     skin = unite(skin, digits, "digits");
   } else {
-    for (size_t k = 1; k < parts.size(); ++k) check_folds(k);
+    for (size_t k = 1; k < parts.size(); ++k)
+      if (PMP::does_self_intersect(parts[k])) throw folds(k);
     for (size_t k = 1; k < parts.size(); ++k) skin = unite(skin, parts[k], skin_tube_name(part_tube[k]) + std::string(" tube"));
   }
   // The union's boundary also bounds any pocket the tubes enclose between them: inward-facing
