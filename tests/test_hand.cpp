@@ -172,6 +172,39 @@ TEST(ScanPair, TruthIsConsistentWithTheScans) {
     }
 }
 
+// A hand model whose forearm ends rounded (not a sawn cast) is sawn flat as asked: the true
+// skin is the sawn one, closed, one piece, outward, its proximal end the saw's plane.
+TEST(ScanPair, SawnReplicaEndsFlatWhereAsked) {
+  const auto& h = default_hand();
+  ReplicaOptions ro;
+  ro.saw_mm = 4.0;
+  const ScanPair pair = synthesize_scan_pair(h.mesh.mesh, h.model.rig, ro, ScannerOptions{}, 7, false);
+  const MeshHealth health = mesh_health(pair.skin_palm);
+  EXPECT_TRUE(health.closed());
+  EXPECT_TRUE(health.manifold());
+  EXPECT_EQ(health.components, 1u);
+  EXPECT_GT(health.volume_mm3, 0);
+  EXPECT_LT(health.volume_mm3, mesh_health(h.mesh.mesh).volume_mm3);
+  // In the hand frame (origin at the wrist joint, X along the hand) nothing lies proximal of
+  // the cut, and the cut face holds vertices.
+  double lowest = 1e300;
+  size_t on_face = 0;
+  for (const Eigen::Vector3d& p : mesh_vertices(pair.skin_palm)) {
+    const double x = (pair.T_palm_hand.inverse() * p).x();
+    lowest = std::min(lowest, x);
+    on_face += std::abs(x + 4.0) < 1e-6;
+  }
+  EXPECT_NEAR(lowest, -4.0, 1e-6);
+  EXPECT_GT(on_face, 20u);
+  ASSERT_EQ(pair.markers_hand.size(), 9u);
+  // Sawing beyond the mesh's end leaves it as it is; an out-of-range saw is refused.
+  ro.saw_mm = 90.0;
+  EXPECT_EQ(mesh_health(synthesize_scan_pair(h.mesh.mesh, h.model.rig, ro, ScannerOptions{}, 7, false).skin_palm).faces,
+            mesh_health(h.mesh.mesh).faces);
+  ro.saw_mm = -1.0;
+  EXPECT_THROW(synthesize_scan_pair(h.mesh.mesh, h.model.rig, ro, ScannerOptions{}, 7, false), InputError);
+}
+
 TEST(ScanPair, FixtureTruthFile) {
   const std::string dir = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
   const Json t = load_json_object(dir + "truth.json");

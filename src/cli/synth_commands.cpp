@@ -187,6 +187,9 @@ void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) 
   ssc->add_option("--omit-back-marker", ss->replica.omit_marker_in_back,
                   "Hard case: leave this marker (0-based) off the back scan")->capture_default_str();
   ssc->add_flag("--extra-bump", ss->replica.extra_bump, "Hard case: a marker-sized blob on the back of the hand");
+  ssc->add_option("--saw", ss->replica.saw_mm,
+                  "Saw the replica flat this many mm beyond the wrist joint, square to the hand's axis, as a cast is "
+                  "sawn (for a mesh whose forearm ends rounded); the true skin is the sawn one");
   ssc->add_option("--max-yaw", ss->replica.max_yaw_deg, "Random yaw on the table, ± deg")->capture_default_str();
   ssc->add_option("--noise", ss->scanner.noise_sigma_mm, "Depth noise sigma before quantisation, mm")->capture_default_str();
   ssc->add_option("--z-step", ss->scanner.z_step_mm, "Depth quantisation step, mm")->capture_default_str();

@@ -15,7 +15,9 @@ namespace handskin {
 template <class Point>
 TriMesh to_trimesh(const CGAL::Surface_mesh<Point>& sm) {
   TriMesh mesh;
-  std::vector<TriMesh::VertexHandle> vh(sm.number_of_vertices());
+  // Indexed by the vertices' indices, which run past number_of_vertices() while removed
+  // vertices await garbage collection.
+  std::vector<TriMesh::VertexHandle> vh(sm.number_of_vertices() + sm.number_of_removed_vertices());
   for (auto v : sm.vertices()) {
     const Point& p = sm.point(v);
     vh[v.idx()] = mesh.add_vertex(TriMesh::Point(p.x(), p.y(), p.z()));

@@ -4,7 +4,14 @@
 #include <cstdio>
 #include <map>
 
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Polygon_mesh_processing/clip.h>
+#include <CGAL/Polygon_mesh_processing/connected_components.h>
+#include <CGAL/Polygon_mesh_processing/triangulate_faces.h>
+#include <CGAL/Surface_mesh.h>
+
 #include "core/errors.hpp"
+#include "mesh/from_cgal.hpp"
 #include "mesh/triangle_tree.hpp"
 #include "core/random.hpp"
 #include "synth/albedo.hpp"
@@ -58,6 +65,31 @@ Eigen::Isometry3d yaw_then(double yaw_deg, const Eigen::Matrix3d& base) {
   return T;
 }
 
+// The replica sawn flat `saw_mm` proximal of the wrist joint (hand frame: x = -saw_mm), the
+// cut closed by a flat face (CGAL's clip with the clipped volume kept closed). The sawn mesh
+// must stay one closed piece.
+TriMesh saw_flat(const std::vector<Eigen::Vector3d>& v, const std::vector<std::array<int, 3>>& f, double saw_mm) {
+  using EK = CGAL::Exact_predicates_inexact_constructions_kernel;  // clip corefines: robust predicates
+  using SM = CGAL::Surface_mesh<EK::Point_3>;
+  SM sm;
+  std::vector<SM::Vertex_index> vi;
+  for (const auto& p : v) vi.push_back(sm.add_vertex(EK::Point_3(p.x(), p.y(), p.z())));
+  for (const auto& t : f)
+    if (sm.add_face(vi[t[0]], vi[t[1]], vi[t[2]]) == SM::null_face())
+      throw InputError("--mesh", "not a two-manifold triangle mesh; cannot saw it");
+  if (!CGAL::is_closed(sm)) throw InputError("--mesh", "the hand mesh is not closed; cannot saw it");
+  // clip keeps the plane's negative side: -x - saw_mm < 0, i.e. x > -saw_mm.
+  CGAL::Polygon_mesh_processing::clip(sm, EK::Plane_3(-1, 0, 0, -saw_mm), CGAL::parameters::clip_volume(true));
+  auto component = sm.add_property_map<SM::Face_index, std::size_t>("f:component").first;
+  const bool one_piece = !sm.is_empty() && CGAL::is_closed(sm) &&
+                         CGAL::Polygon_mesh_processing::connected_components(sm, component) == 1;
+  sm.remove_property_map(component);
+  if (!one_piece)
+    throw InputError("--saw", "sawing " + std::to_string(saw_mm) + " mm beyond the wrist leaves no single closed hand");
+  CGAL::Polygon_mesh_processing::triangulate_faces(sm);
+  return to_trimesh(sm);
+}
+
 }  // namespace
 
 bool ReplicaOptions::IsValid(std::string* error) const {
@@ -72,6 +104,7 @@ bool ReplicaOptions::IsValid(std::string* error) const {
   if (omit_marker_in_back < -1 || omit_marker_in_back >= marker_count)
     return bad("omit_marker_in_back must be -1 or a marker index below marker_count");
   if (!(max_yaw_deg >= 0 && max_yaw_deg <= 45)) return bad("max_yaw_deg must be in [0, 45]");
+  if (saw_mm && !(*saw_mm >= 0 && *saw_mm <= 100)) return bad("saw_mm must be in [0, 100]");
   return true;
 }
 
@@ -153,7 +186,20 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
   const Eigen::Isometry3d T_hand_rig = hand_frame_from_rig(rig_in);
   std::vector<Eigen::Vector3d> hv = mesh_vertices(hand_in);
   for (auto& p : hv) p = T_hand_rig * p;
-  const std::vector<std::array<int, 3>> hf = mesh_faces(hand_in);
+  std::vector<std::array<int, 3>> hf = mesh_faces(hand_in);
+  // The saw: the hand frame's origin is the wrist joint and its X axis the hand's long axis.
+  std::optional<TriMesh> sawn;  // the sawn replica's skin, rig frame
+  if (ro.saw_mm) {
+    sawn = saw_flat(hv, hf, *ro.saw_mm);
+    for (auto vh : sawn->vertices()) {
+      const auto& p = sawn->point(vh);
+      const Eigen::Vector3d q = T_hand_rig.inverse() * Eigen::Vector3d(p[0], p[1], p[2]);
+      sawn->set_point(vh, TriMesh::Point(q.x(), q.y(), q.z()));
+    }
+    hv = mesh_vertices(*sawn);
+    for (auto& p : hv) p = T_hand_rig * p;
+    hf = mesh_faces(*sawn);
+  }
   RayCaster caster(hv, hf);
   Rig rig_hand = rig_in;
   for (auto& j : rig_hand.joints) j = T_hand_rig * j;
@@ -196,15 +242,23 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
     return true;
   };
   // The wrist cut face: the hand's samples within 1 mm of its proximal end, their (y, z) box.
-  Eigen::Vector2d face_c, face_h;
+  // Beside it, the forearm's section 15 mm in: a flat cut is nearly as wide as that; an end
+  // that is rounded (a hand model's forearm, not a sawn cast) is not, and gives no face for
+  // the wrist markers.
+  Eigen::Vector2d face_c, face_h, section_h;
   {
     double x0 = 1e300;
     for (const auto& p : hv) x0 = std::min(x0, p.x());
-    Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
-    for (const auto& p : hv)
-      if (p.x() < x0 + 1.0) lo = lo.cwiseMin(p.tail<2>()), hi = hi.cwiseMax(p.tail<2>());
-    face_c = 0.5 * (lo + hi);
-    face_h = 0.5 * (hi - lo);
+    auto box = [&](double depth, Eigen::Vector2d* c, Eigen::Vector2d* h) {
+      Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
+      for (const auto& p : hv)
+        if (p.x() < x0 + depth) lo = lo.cwiseMin(p.tail<2>()), hi = hi.cwiseMax(p.tail<2>());
+      *c = 0.5 * (lo + hi);
+      *h = 0.5 * (hi - lo);
+    };
+    Eigen::Vector2d section_c;
+    box(1.0, &face_c, &face_h);
+    box(15.0, &section_c, &section_h);
   }
   // A narrower search after many failures: markers nearer the palm (the little finger's
   // metacarpal, the thumb's base), where the flanks are broad and nothing overhangs.
@@ -254,8 +308,19 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
         if ((c[a] - c[b]).norm() < 2 * r + 3.0) ok = false;
     if (ok && min_signature_gap(c) >= ro.min_signature_gap_mm) markers = c;
   }
-  if (markers.empty())
-    throw InputError("--mesh", "cannot place the markers on this hand's flanks and wrist end with an irregular pattern");
+  if (markers.empty()) {
+    std::string why;
+    if (face_h.x() < 0.6 * section_h.x() || face_h.y() < 0.6 * section_h.y()) {
+      char buf[200];
+      std::snprintf(buf, sizeof buf,
+                    ": its forearm end is rounded, not sawn flat (%.0f x %.0f mm within 1 mm of the end, the forearm "
+                    "%.0f x %.0f mm); saw it flat (--saw MM)",
+                    2 * face_h.x(), 2 * face_h.y(), 2 * section_h.x(), 2 * section_h.y());
+      why = buf;
+    }
+    throw InputError("--mesh",
+                     "cannot place the markers on this hand's flanks and wrist end with an irregular pattern" + why);
+  }
 
   // The optional plaster blob: on the back of the middle metacarpal, seen only from above.
   std::vector<Eigen::Vector3d> spheres = markers;  // the markers, then the blob if any
@@ -354,7 +419,7 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
       const SkinAlbedo albedo(rig_hand);
       out.back_photo = take_photo(out.back, so, out.T_back_hand, hv, hf, albedo);
       out.palm_photo = take_photo(out.palm, so, out.T_palm_hand, hv, hf, albedo);
-      out.skin_palm = hand_in;
+      out.skin_palm = sawn ? *sawn : hand_in;
       for (auto vh : out.skin_palm.vertices()) {
         const auto& p = out.skin_palm.point(vh);
         const Eigen::Vector3d q = T_palm_rig * Eigen::Vector3d(p[0], p[1], p[2]);

@@ -22,6 +22,10 @@ struct ReplicaOptions {
   // Hard cases for the registration tests:
   int omit_marker_in_back = -1;    ///< this marker is missing from the back scan (broken off), -1 none
   bool extra_bump = false;         ///< a marker-sized plaster blob on the back of the hand (back scan only)
+  /// Saw the replica flat this far proximal of the wrist joint (square to the hand's long
+  /// axis), as a cast is sawn, before the markers go on; the true skin is the sawn one. For
+  /// meshes that end in a rounded forearm (a hand model, not a cast). Unset: as given.
+  std::optional<double> saw_mm;
   bool IsValid(std::string* error) const;
 };
 

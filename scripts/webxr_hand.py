@@ -1,0 +1,191 @@
+#!/usr/bin/env python3
+"""A hand handskin did not make: the WebXR Input Profiles' generic hand (MIT, Amazon 2019;
+npm @webxr-input-profiles/assets, profiles/generic-hand/{left,right}.glb) as a replica mesh
+and its rig, for `handskin synth scan --mesh ... --rig ...`.
+
+The glTF holds one skinned mesh in its bind pose (metres, closed: a ~22 mm forearm stub
+beyond the wrist joint) and the 25 WebXR hand joints, whose names are the rig's
+(../shared/formats/hand-rig.md). This script welds the mesh's seams (normals and texture
+coordinates split its vertices), checks it closed and two-manifold, optionally smooths it by
+Loop subdivision (the asset is low-poly, 2314 triangles with 3-5 mm edges; a plaster cast is
+smooth), scales it to millimetres and writes hand.ply and hand_rig.json (joints from the
+skin's inverse bind matrices, palm_normal out of the back of the hand).
+
+    python3 scripts/webxr_hand.py --glb right.glb --side right --out DIR [--subdivide 2]
+"""
+import argparse
+import json
+import os
+import struct
+import sys
+
+import numpy as np
+
+JOINTS = ["wrist"] + [f"thumb-{j}" for j in ("metacarpal", "phalanx-proximal", "phalanx-distal", "tip")] + [
+    f"{f}-finger-{j}" for f in ("index", "middle", "ring", "pinky")
+    for j in ("metacarpal", "phalanx-proximal", "phalanx-intermediate", "phalanx-distal", "tip")]
+
+
+def read_glb(path):
+    b = open(path, "rb").read()
+    if b[:4] != b"glTF":
+        sys.exit(f"{path}: not a binary glTF")
+    jl = struct.unpack("<I", b[12:16])[0]
+    js = json.loads(b[20:20 + jl])
+    off = 20 + jl
+    bl = struct.unpack("<I", b[off:off + 4])[0]
+    blob = b[off + 8:off + 8 + bl]
+
+    def accessor(i):
+        a = js["accessors"][i]
+        bv = js["bufferViews"][a["bufferView"]]
+        ct = {5126: np.float32, 5123: np.uint16, 5125: np.uint32, 5121: np.uint8}[a["componentType"]]
+        n = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}[a["type"]]
+        arr = np.frombuffer(blob, dtype=ct, count=a["count"] * n, offset=bv.get("byteOffset", 0) + a.get("byteOffset", 0))
+        return arr.reshape(a["count"], n) if n > 1 else arr
+
+    return js, accessor
+
+
+def weld(V, F):
+    """Vertices at one position (to 1e-7 m) become one; faces re-indexed."""
+    keys = np.round(V / 1e-7).astype(np.int64)
+    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    return V[first], inverse.reshape(-1)[F]
+
+
+def edges_of(F):
+    E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+    return np.unique(E, axis=0, return_inverse=True, return_counts=True)
+
+
+def check_closed(F, what):
+    _, _, counts = edges_of(F)
+    if (counts != 2).any():
+        sys.exit(f"{what}: {int((counts == 1).sum())} boundary and {int((counts > 2).sum())} non-manifold edges; "
+                 "the replica must be a closed surface")
+
+
+def loop_subdivide(V, F):
+    """One round of Loop subdivision of a closed triangle mesh."""
+    E, inv, _ = edges_of(F)
+    nv, ne = len(V), len(E)
+    inv = inv.reshape(-1)
+    # The two vertices opposite each edge.
+    opp = np.zeros((ne, 2), dtype=np.int64)
+    fill = np.zeros(ne, dtype=np.int64)
+    for k, (a, b, c) in enumerate(((0, 1, 2), (1, 2, 0), (2, 0, 1))):
+        for f in range(len(F)):
+            e = inv[k * len(F) + f]
+            opp[e, fill[e]] = F[f, c]
+            fill[e] += 1
+    Vn = np.empty((nv + ne, 3))
+    Vn[nv:] = 0.375 * (V[E[:, 0]] + V[E[:, 1]]) + 0.125 * (V[opp[:, 0]] + V[opp[:, 1]])
+    nb = np.zeros((nv, 3))
+    deg = np.zeros(nv)
+    np.add.at(nb, E[:, 0], V[E[:, 1]])
+    np.add.at(nb, E[:, 1], V[E[:, 0]])
+    np.add.at(deg, E[:, 0], 1)
+    np.add.at(deg, E[:, 1], 1)
+    beta = (0.625 - (0.375 + 0.25 * np.cos(2 * np.pi / deg)) ** 2) / deg
+    Vn[:nv] = (1 - deg * beta)[:, None] * V + beta[:, None] * nb
+    m = nv + inv.reshape(3, -1).T  # per face: the new vertices of edges (0,1), (1,2), (2,0)
+    a, b, c = F[:, 0], F[:, 1], F[:, 2]
+    ab, bc, ca = m[:, 0], m[:, 1], m[:, 2]
+    Fn = np.concatenate([np.stack([a, ab, ca], 1), np.stack([ab, b, bc], 1), np.stack([ca, bc, c], 1),
+                         np.stack([ab, bc, ca], 1)])
+    return Vn, Fn
+
+
+def node_world(js):
+    nodes = js["nodes"]
+    parent = {c: i for i, n in enumerate(nodes) for c in n.get("children", [])}
+
+    def local(n):
+        if "matrix" in n:
+            return np.array(n["matrix"], dtype=float).reshape(4, 4).T
+        M = np.eye(4)
+        x, y, z, w = n.get("rotation", [0, 0, 0, 1])
+        M[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+        M[:3, :3] *= np.array(n.get("scale", [1, 1, 1]))[None, :]
+        M[:3, 3] = n.get("translation", [0, 0, 0])
+        return M
+
+    def world(i):
+        M = local(nodes[i])
+        while i in parent:
+            i = parent[i]
+            M = local(nodes[i]) @ M
+        return M
+
+    return world
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--glb", required=True)
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--side", required=True, choices=("right", "left"))
+    ap.add_argument("--subdivide", type=int, default=2, help="Loop subdivision rounds (0: the asset's facets)")
+    a = ap.parse_args()
+    js, accessor = read_glb(a.glb)
+    nodes = js["nodes"]
+    mesh_node = next(i for i, n in enumerate(nodes) if "mesh" in n)
+    prim = js["meshes"][nodes[mesh_node]["mesh"]]["primitives"][0]
+    V = accessor(prim["attributes"]["POSITION"]).astype(float)
+    F = accessor(prim["indices"]).astype(np.int64).reshape(-1, 3)
+    world = node_world(js)
+    M = world(mesh_node)
+    V = V @ M[:3, :3].T + M[:3, 3]
+    V, F = weld(V, F)
+    check_closed(F, a.glb)
+    for _ in range(a.subdivide):
+        V, F = loop_subdivide(V, F)
+    V *= 1000.0  # metres -> mm
+    skin = js["skins"][0]
+    ibm = accessor(skin["inverseBindMatrices"]).reshape(-1, 4, 4).transpose(0, 2, 1)
+    joints = {}
+    for k, ni in enumerate(skin["joints"]):
+        name = nodes[ni].get("name")
+        if name in JOINTS:
+            joints[name] = (np.linalg.inv(ibm[k])[:3, 3] * 1000.0).tolist()
+    missing = [j for j in JOINTS if j not in joints]
+    if missing:
+        sys.exit(f"{a.glb}: joints missing: {', '.join(missing)}")
+    J = {k: np.array(v) for k, v in joints.items()}
+    across = J["pinky-finger-phalanx-proximal"] - J["index-finger-phalanx-proximal"]
+    along = J["middle-finger-tip"] - J["wrist"]
+    # For a right hand (index to little finger) x (wrist to tips) points out of the back; a
+    # left hand is the mirror image, so the same product points out of its palm. Joint
+    # positions alone cannot tell the two apart: the side is the asset's (its file name).
+    back = np.cross(across, along) * (1 if a.side == "right" else -1)
+    # The thumb confirms it: its metacarpal's base lies on the palm's side of the index's.
+    # (The fingers' bend does not: this asset's fingers are a few degrees hyperextended.)
+    if np.dot(J["thumb-metacarpal"] - J["index-finger-metacarpal"], back) > 0:
+        sys.exit(f"{a.glb}: the thumb's base lies on the back of the hand for --side {a.side}; is it the other side's?")
+    back /= np.linalg.norm(back)
+    # The enclosed volume must be positive (faces outward).
+    vol = np.einsum("ij,ij->i", V[F[:, 0]], np.cross(V[F[:, 1]], V[F[:, 2]])).sum() / 6
+    if vol < 0:
+        F = F[:, [0, 2, 1]]
+    os.makedirs(a.out, exist_ok=True)
+    with open(os.path.join(a.out, "hand.ply"), "w") as f:
+        f.write(f"ply\nformat ascii 1.0\ncomment WebXR Input Profiles generic hand (MIT, Amazon 2019), "
+                f"{a.subdivide} Loop subdivisions, mm\nelement vertex {len(V)}\nproperty double x\n"
+                f"property double y\nproperty double z\nelement face {len(F)}\nproperty list uchar int vertex_indices\n"
+                "end_header\n")
+        for v in V:
+            f.write(f"{v[0]:.6f} {v[1]:.6f} {v[2]:.6f}\n")
+        for t in F:
+            f.write(f"3 {t[0]} {t[1]} {t[2]}\n")
+    rig = {"format": "hand-rig/1", "units": "mm", "frame": "hand", "joints": joints, "palm_normal": back.tolist()}
+    with open(os.path.join(a.out, "hand_rig.json"), "w") as f:
+        json.dump(rig, f, indent=2, sort_keys=True)
+    print(f"{len(V)} vertices, {len(F)} triangles, {a.side} hand, "
+          f"wrist to middle tip joint {np.linalg.norm(along):.1f} mm")
+
+
+if __name__ == "__main__":
+    main()
