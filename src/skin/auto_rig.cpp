@@ -212,7 +212,6 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
   if (end_thickness(false) > end_thickness(true)) X = -X;  // the wrist's cut end is the thicker (checked below)
   Eigen::Vector3d Y = Z.cross(X);  // flipped below for a left hand
   std::vector<Eigen::Vector3d> h(pts.size());  // hand coordinates (u, v, w)
-  for (size_t i = 0; i < pts.size(); ++i) h[i] = Eigen::Vector3d((pts[i] - c).dot(X), (pts[i] - c).dot(Y), (pts[i] - c).dot(Z));
   // The height (Z, toward the back) at `share` of the cloud's thickness from its back, over a
   // disc of `radius` about (x, y); nothing where fewer than 5 points lie there.
   auto depth_at = [&h](const Eigen::Vector3d& at, double share, double radius) -> std::optional<double> {
@@ -228,55 +227,146 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
 
   // --- silhouette, palm centre (largest inscribed circle), digits beyond an opening of it ---
   Grid g;
-  Eigen::Vector3d lo = h.front(), hi = h.front();
-  for (const auto& q : h) lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
-  g.u0 = lo.x() - 3, g.v0 = lo.y() - 3;
-  g.nx = static_cast<int>((hi.x() - lo.x()) / g.cell) + 7;
-  g.ny = static_cast<int>((hi.y() - lo.y()) / g.cell) + 7;
-  if (static_cast<long>(g.nx) * g.ny > 4000000) throw InputError("merged cloud", "spans more than 2 m; not a hand in mm");
-  g.on.assign(static_cast<size_t>(g.nx) * g.ny, 0);
   std::vector<int> cell_of(h.size());
-  for (size_t i = 0; i < h.size(); ++i) {
-    cell_of[i] = g.idx(g.ci(h[i].x()), g.cj(h[i].y()));
-    g.on[cell_of[i]] = 1;
-  }
-  g.morph(true), g.morph(true), g.morph(false), g.morph(false);
-  const std::vector<double> dist = g.distance();
-  const int best = static_cast<int>(std::max_element(dist.begin(), dist.end()) - dist.begin());
-  const double R = dist[best] * g.cell;
-  Eigen::Vector2d pc(g.u0 + (best % g.nx + 0.5) * g.cell, g.v0 + (best / g.nx + 0.5) * g.cell);
-  out.palm_radius_mm = R;
-  // Digits: what a morphological opening with a disc of 0.45 R removes (fingers are far
-  // narrower than the palm and the wrist stub, which survive it).
-  const double r0 = 0.45 * R / g.cell;
-  Grid core = g;
-  for (size_t k = 0; k < g.on.size(); ++k) core.on[k] = !(dist[k] >= r0);
-  const std::vector<double> to_core = core.distance();
-  std::vector<std::uint8_t> digit_cell(g.on.size(), 0);
-  for (size_t k = 0; k < g.on.size(); ++k) digit_cell[k] = g.on[k] && to_core[k] > r0;
-  std::vector<int> comp(g.on.size(), -1);
+  std::vector<double> dist, to_core;
+  double R = 0, r0 = 0;
+  Eigen::Vector2d pc;
+  std::vector<std::uint8_t> digit_cell;
   std::vector<std::vector<int>> comps;
-  for (int j = 0; j < g.ny; ++j)
-    for (int i = 0; i < g.nx; ++i) {
-      if (!digit_cell[g.idx(i, j)] || comp[g.idx(i, j)] >= 0) continue;
-      std::vector<int> cells;
-      std::queue<std::pair<int, int>> qu;
-      qu.push({i, j});
-      comp[g.idx(i, j)] = static_cast<int>(comps.size());
+  constexpr size_t kDigitCells = 150;  // smaller pieces are specks the opening left
+  auto count_digits = [&](const std::vector<std::vector<int>>& cs) {
+    return std::count_if(cs.begin(), cs.end(), [&](const auto& cc) { return cc.size() >= kDigitCells; });
+  };
+  // 4-connected components of a cell mask, in scan order.
+  auto components = [&g](const std::vector<std::uint8_t>& mask) {
+    std::vector<int> comp(mask.size(), -1);
+    std::vector<std::vector<int>> found;
+    for (int j = 0; j < g.ny; ++j)
+      for (int i = 0; i < g.nx; ++i) {
+        if (!mask[g.idx(i, j)] || comp[g.idx(i, j)] >= 0) continue;
+        std::vector<int> cells;
+        std::queue<std::pair<int, int>> qu;
+        qu.push({i, j});
+        comp[g.idx(i, j)] = static_cast<int>(found.size());
+        while (!qu.empty()) {
+          auto [a, b] = qu.front();
+          qu.pop();
+          cells.push_back(g.idx(a, b));
+          for (auto [da, db] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
+            const int x = a + da, y = b + db;
+            if (g.in(x, y) && mask[g.idx(x, y)] && comp[g.idx(x, y)] < 0) {
+              comp[g.idx(x, y)] = static_cast<int>(found.size());
+              qu.push({x, y});
+            }
+          }
+        }
+        found.push_back(std::move(cells));
+      }
+    return found;
+  };
+  auto beyond = [&](double t) {  // the silhouette's cells farther than t from the opened palm
+    std::vector<std::uint8_t> mask(g.on.size(), 0);
+    for (size_t k = 0; k < g.on.size(); ++k) mask[k] = g.on[k] && to_core[k] > t;
+    return mask;
+  };
+  // The silhouette is made square to the cloud's thinnest axis. That is the palm's normal
+  // while the digits lie near the palm's plane; a raised thumb and arched fingers tilt it
+  // (21 deg on the WebXR hand model, fixtures/webxr-hand), and two neighbouring fingers at
+  // different heights then overlap in the silhouette and make one digit. Only then (fewer
+  // than five digits found) the frame is refitted to the palm's mid-surface — a plane halfway
+  // between the back's and the palm's samples over the cells the opening keeps — until it
+  // turns by less than 2 deg (at most 8 times). Hands whose five digits the first silhouette
+  // finds keep it: on the family's 48 pairs the refit always was no better on the whole.
+  for (int pass = 0;; ++pass) {
+    Y = Z.cross(X);
+    for (size_t i = 0; i < pts.size(); ++i) h[i] = Eigen::Vector3d((pts[i] - c).dot(X), (pts[i] - c).dot(Y), (pts[i] - c).dot(Z));
+    Eigen::Vector3d lo = h.front(), hi = h.front();
+    for (const auto& q : h) lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
+    g = Grid{};
+    g.u0 = lo.x() - 3, g.v0 = lo.y() - 3;
+    g.nx = static_cast<int>((hi.x() - lo.x()) / g.cell) + 7;
+    g.ny = static_cast<int>((hi.y() - lo.y()) / g.cell) + 7;
+    if (static_cast<long>(g.nx) * g.ny > 4000000) throw InputError("merged cloud", "spans more than 2 m; not a hand in mm");
+    g.on.assign(static_cast<size_t>(g.nx) * g.ny, 0);
+    for (size_t i = 0; i < h.size(); ++i) {
+      cell_of[i] = g.idx(g.ci(h[i].x()), g.cj(h[i].y()));
+      g.on[cell_of[i]] = 1;
+    }
+    g.morph(true), g.morph(true), g.morph(false), g.morph(false);
+    dist = g.distance();
+    const int best = static_cast<int>(std::max_element(dist.begin(), dist.end()) - dist.begin());
+    R = dist[best] * g.cell;
+    pc = Eigen::Vector2d(g.u0 + (best % g.nx + 0.5) * g.cell, g.v0 + (best / g.nx + 0.5) * g.cell);
+    // Digits: what a morphological opening with a disc of 0.45 R removes (fingers are far
+    // narrower than the palm and the wrist stub, which survive it).
+    r0 = 0.45 * R / g.cell;
+    Grid core = g;
+    for (size_t k = 0; k < g.on.size(); ++k) core.on[k] = !(dist[k] >= r0);
+    to_core = core.distance();
+    digit_cell = beyond(r0);
+    comps = components(digit_cell);
+    if (count_digits(comps) >= 5 || pass == 8) break;
+    std::vector<double> zlo(g.on.size(), 1e300), zhi(g.on.size(), -1e300);
+    std::vector<std::uint8_t> seen(g.on.size(), 0);
+    for (size_t i = 0; i < h.size(); ++i) {
+      const int k = cell_of[i];
+      if (!(dist[k] >= r0)) continue;
+      zlo[k] = std::min(zlo[k], h[i].z()), zhi[k] = std::max(zhi[k], h[i].z());
+      seen[k] |= sides[i] == 1 ? 1 : 2;
+    }
+    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+    for (size_t k = 0; k < g.on.size(); ++k) {
+      if (seen[k] != 3) continue;
+      const Eigen::Vector3d row(g.u0 + (k % g.nx + 0.5) * g.cell, g.v0 + (k / g.nx + 0.5) * g.cell, 1.0);
+      A += row * row.transpose();
+      rhs += row * 0.5 * (zlo[k] + zhi[k]);
+    }
+    if (A(2, 2) < 500) break;  // too little of the palm seen from both sides
+    const Eigen::Vector3d plane = A.ldlt().solve(rhs);  // mid-surface z = a u + b v + c
+    const Eigen::Vector3d Zp = (Z - plane(0) * X - plane(1) * Y).normalized();
+    if (!Zp.allFinite() || Zp.dot(Z) > std::cos(2 * M_PI / 180)) break;
+    Z = Zp;
+    X = (X - X.dot(Z) * Z).normalized();
+  }
+  out.palm_radius_mm = R;
+  // Two digits can still join beyond the opening: a little finger whose web lies far
+  // proximal of the ring finger's leaves a band along the palm's edge, outside the opening,
+  // that links their bases. Farther from the palm they part: the pieces found beyond the
+  // first distance that gives five digits are grown back over the digits' cells (breadth
+  // first from all of them at once: each cell goes to the piece it is nearest through them).
+  if (count_digits(comps) < 5) {
+    const long before = count_digits(comps);
+    for (double t = r0 + 1; t <= 2 * r0; t += 1) {
+      const std::vector<std::vector<int>> seeds = components(beyond(t));
+      const long n = count_digits(seeds);
+      if (n < before) break;  // a digit ends before the joined ones part
+      if (n != 5) continue;
+      std::vector<int> owner(g.on.size(), -1);
+      std::queue<int> qu;
+      std::vector<std::vector<int>> grown;
+      for (const auto& sd : seeds) {
+        if (sd.size() < kDigitCells) continue;
+        for (int cidx : sd) owner[cidx] = static_cast<int>(grown.size()), qu.push(cidx);
+        grown.emplace_back();
+      }
       while (!qu.empty()) {
-        auto [a, b] = qu.front();
+        const int cidx = qu.front();
         qu.pop();
-        cells.push_back(g.idx(a, b));
+        grown[owner[cidx]].push_back(cidx);
+        const int a = cidx % g.nx, b = cidx / g.nx;
         for (auto [da, db] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
           const int x = a + da, y = b + db;
-          if (g.in(x, y) && digit_cell[g.idx(x, y)] && comp[g.idx(x, y)] < 0) {
-            comp[g.idx(x, y)] = static_cast<int>(comps.size());
-            qu.push({x, y});
+          if (g.in(x, y) && digit_cell[g.idx(x, y)] && owner[g.idx(x, y)] < 0) {
+            owner[g.idx(x, y)] = owner[cidx];
+            qu.push(g.idx(x, y));
           }
         }
       }
-      comps.push_back(std::move(cells));
+      comps = std::move(grown);
+      break;
     }
+  }
   struct Digit {
     std::vector<size_t> points;
     double angle = 0;
@@ -303,7 +393,7 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
   };
   std::vector<Digit> digits;
   for (size_t k = 0; k < comps.size(); ++k) {
-    if (comps[k].size() < 150) continue;  // specks the opening left
+    if (comps[k].size() < kDigitCells) continue;
     Digit dg;
     Eigen::Vector2d m = Eigen::Vector2d::Zero();
     for (int cidx : comps[k]) m += Eigen::Vector2d(g.u0 + (cidx % g.nx + 0.5) * g.cell, g.v0 + (cidx / g.nx + 0.5) * g.cell);
