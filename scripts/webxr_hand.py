@@ -71,14 +71,10 @@ def loop_subdivide(V, F):
     E, inv, _ = edges_of(F)
     nv, ne = len(V), len(E)
     inv = inv.reshape(-1)
-    # The two vertices opposite each edge.
-    opp = np.zeros((ne, 2), dtype=np.int64)
-    fill = np.zeros(ne, dtype=np.int64)
-    for k, (a, b, c) in enumerate(((0, 1, 2), (1, 2, 0), (2, 0, 1))):
-        for f in range(len(F)):
-            e = inv[k * len(F) + f]
-            opp[e, fill[e]] = F[f, c]
-            fill[e] += 1
+    # The two vertices opposite each edge: each edge of a closed mesh occurs twice among the
+    # faces' edges (0,1), (1,2), (2,0), whose opposite corners are 2, 0, 1.
+    opposite = np.concatenate([F[:, 2], F[:, 0], F[:, 1]])
+    opp = opposite[np.argsort(inv, kind="stable")].reshape(ne, 2)
     Vn = np.empty((nv + ne, 3))
     Vn[nv:] = 0.375 * (V[E[:, 0]] + V[E[:, 1]]) + 0.125 * (V[opp[:, 0]] + V[opp[:, 1]])
     nb = np.zeros((nv, 3))

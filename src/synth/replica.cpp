@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cstdio>
 #include <map>
+#include <tuple>
+#include <utility>
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/clip.h>
@@ -188,16 +190,10 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
   for (auto& p : hv) p = T_hand_rig * p;
   std::vector<std::array<int, 3>> hf = mesh_faces(hand_in);
   // The saw: the hand frame's origin is the wrist joint and its X axis the hand's long axis.
-  std::optional<TriMesh> sawn;  // the sawn replica's skin, rig frame
+  std::optional<TriMesh> sawn;  // the sawn replica's skin, hand frame
   if (ro.saw_mm) {
     sawn = saw_flat(hv, hf, *ro.saw_mm);
-    for (auto vh : sawn->vertices()) {
-      const auto& p = sawn->point(vh);
-      const Eigen::Vector3d q = T_hand_rig.inverse() * Eigen::Vector3d(p[0], p[1], p[2]);
-      sawn->set_point(vh, TriMesh::Point(q.x(), q.y(), q.z()));
-    }
     hv = mesh_vertices(*sawn);
-    for (auto& p : hv) p = T_hand_rig * p;
     hf = mesh_faces(*sawn);
   }
   RayCaster caster(hv, hf);
@@ -249,16 +245,14 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
   {
     double x0 = 1e300;
     for (const auto& p : hv) x0 = std::min(x0, p.x());
-    auto box = [&](double depth, Eigen::Vector2d* c, Eigen::Vector2d* h) {
+    auto box = [&](double depth) {  // centre and half-extents
       Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
       for (const auto& p : hv)
         if (p.x() < x0 + depth) lo = lo.cwiseMin(p.tail<2>()), hi = hi.cwiseMax(p.tail<2>());
-      *c = 0.5 * (lo + hi);
-      *h = 0.5 * (hi - lo);
+      return std::pair<Eigen::Vector2d, Eigen::Vector2d>(0.5 * (lo + hi), 0.5 * (hi - lo));
     };
-    Eigen::Vector2d section_c;
-    box(1.0, &face_c, &face_h);
-    box(15.0, &section_c, &section_h);
+    std::tie(face_c, face_h) = box(1.0);
+    section_h = box(15.0).second;
   }
   // A narrower search after many failures: markers nearer the palm (the little finger's
   // metacarpal, the thumb's base), where the flanks are broad and nothing overhangs.
@@ -420,9 +414,10 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
       out.back_photo = take_photo(out.back, so, out.T_back_hand, hv, hf, albedo);
       out.palm_photo = take_photo(out.palm, so, out.T_palm_hand, hv, hf, albedo);
       out.skin_palm = sawn ? *sawn : hand_in;
+      const Eigen::Isometry3d T_palm_skin = sawn ? out.T_palm_hand : T_palm_rig;  // the sawn skin is in the hand frame
       for (auto vh : out.skin_palm.vertices()) {
         const auto& p = out.skin_palm.point(vh);
-        const Eigen::Vector3d q = T_palm_rig * Eigen::Vector3d(p[0], p[1], p[2]);
+        const Eigen::Vector3d q = T_palm_skin * Eigen::Vector3d(p[0], p[1], p[2]);
         out.skin_palm.set_point(vh, TriMesh::Point(q.x(), q.y(), q.z()));
       }
       return out;
