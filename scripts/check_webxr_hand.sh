@@ -7,9 +7,10 @@
 #    2.5 mm (left) markers: the registration, with the marker radius estimated, must meet the
 #    issue's bounds (0.02 deg, 0.05 mm mean) and the radius lie within 0.05 mm of the truth;
 #  - the skin with the hand's own rig must be written, closed, 6 000-10 000 triangles, and
-#    stay within this hand's regression bounds (mean 0.15 mm, p95 0.65 mm, 98 % within 1 mm;
-#    measured 0.125-0.134 / 0.53-0.57 mm / 98.3-98.5 %: the issue's 0.10 / 0.35 / 98.5 are
-#    NOT met on this hand, docs/skin.md says why);
+#    stay within this hand's regression bounds (mean 0.12 mm, p95 0.45 mm, 98.6 % within 1 mm;
+#    measured 0.104-0.111 / 0.38-0.41 mm / 98.8-98.9 %, and 0.125-0.134 / 0.53-0.57 mm /
+#    98.3-98.5 % before the unseen arcs were bridged by two guesses: the issue's 0.10 / 0.35
+#    are still NOT met on this hand, docs/skin.md says why);
 #  - the automatic skeleton finds the five digits, then either places a skeleton or stops
 #    with a one-line error (exit 1; today: the thumb's links lie 5.5-5.8 mm from its sections).
 # Prints every figure. Usage: scripts/check_webxr_hand.sh <handskin-binary>
@@ -60,8 +61,8 @@ for spec in "right 1 3.0" "left 3 2.5"; do
   read -r tight tri smean sp95 within <<< "$line"
   echo "$side-s$seed given rig: watertight $tight, $tri triangles, skin->truth mean $smean p95 $sp95 mm, truth within 1 mm $within"
   [ "$tight" = True ] || fail "$side-s$seed: the skin is not watertight"
-  "$PY" -c "import sys; sys.exit(0 if 6000 <= $tri <= 10000 and $smean <= 0.15 and $sp95 <= 0.65 and $within >= 0.98 else 1)" \
-    || fail "$side-s$seed: skin outside this hand's regression bounds (mean 0.15, p95 0.65 mm, 98 % within 1 mm)"
+  "$PY" -c "import sys; sys.exit(0 if 6000 <= $tri <= 10000 and $smean <= 0.12 and $sp95 <= 0.45 and $within >= 0.986 else 1)" \
+    || fail "$side-s$seed: skin outside this hand's regression bounds (mean 0.12, p95 0.45 mm, 98.6 % within 1 mm)"
   set +e
   msg=$("$BIN" -q skin --merged "$d/reg/merged.ply" --rig "$d/rig.json" --auto-rig --truth "$d/truth.json" \
         --pipeline "$pipeline" --out "$d/auto" 2>&1)

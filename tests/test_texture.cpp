@@ -77,7 +77,11 @@ TEST(Texture, TheFixturesSkinTakesTheHandsOwnColoursFromBothPhotos) {
   EXPECT_GT((*stage)["area_palm_photo_only"].get<double>(), 0.35);
   EXPECT_GT((*stage)["area_back_photo_only"].get<double>(), 0.35);
   EXPECT_GT((*stage)["area_blended"].get<double>(), 0.03);
-  EXPECT_LT((*stage)["area_unseen"].get<double>(), 0.06);
+  // Unseen: 5.2 % of the area until the skin's unseen arcs were bridged by the mean of two
+  // guesses (docs/skin.md, step 4), 6.0 % since: the flanks that no scan saw came in toward
+  // the true skin, and the steeper skin beside them turned from both cameras. The bound was
+  // 6 %; it is 6.5 %.
+  EXPECT_LT((*stage)["area_unseen"].get<double>(), 0.065);
   EXPECT_TRUE(fs::exists(fixture_run() + "/texture.png"));
 }
 

@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <tuple>
 #include <utility>
 #include <vector>
@@ -92,10 +93,18 @@ struct Profile {
   }
 
   /// The radius at angle p for a closed ring of the skin's strips: the window mean where the
-  /// data are dense, linear interpolation across a narrow gap, and across a wider one the
-  /// circle fitted (Kåsa) to the samples on both of its sides — the rounded flank neither
-  /// scan saw — unless that circle bulges out by more than `max_bulge` of the gap's chord;
-  /// then the chord itself (e.g. where another tube's points were taken out).
+  /// data are dense, linear interpolation across a narrow gap, and across a wider one (the
+  /// rounded flank neither scan saw) the mean of two guesses that err on opposite sides:
+  ///  - the circle fitted (Kåsa) to the samples on both sides of the gap follows the curvature
+  ///    at its ends: it bulges too far where the curvature is highest at the ends and the
+  ///    unseen middle is flatter (a thumb turned about its axis, whose nail and pad face
+  ///    sideways; the WebXR hand: up to 0.6 mm out);
+  ///  - the circular arc through the gap's two ends that turns as the sides' tangents there
+  ///    do (each end's tangent from a circle fitted to that side alone) follows the turning
+  ///    across the gap: it falls short where the curvature peaks inside the gap (the edge of
+  ///    a section wider than it is thick).
+  /// A guess that bulges out by more than `max_bulge` of the gap's chord is dropped (e.g.
+  /// where another tube's points were taken out); with neither, the chord itself.
   double at_bridged(double p, double window, double bridge, double max_bulge = 0.35) const {
     const size_t n = phi.size();
     p = wrap(p);
@@ -111,30 +120,71 @@ struct Profile {
     const double det = Mx.determinant();
     const double t_chord = std::abs(det) > 1e-12 ? Mx.inverse().row(0).dot(A) : std::min(rho[lo], rho[hi]);
     const double chord = (B - A).norm(), reach = std::max(3.0, chord);
-    Eigen::Matrix3d N = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d r = Eigen::Vector3d::Zero();
-    int used = 0;
-    auto take = [&](size_t start, int step) {
+    auto plausible = [&](double t) { return t >= t_chord - max_bulge * chord && t <= t_chord + max_bulge * chord; };
+    // Kåsa's circle x² + y² + D x + E y + F = 0 over the samples within `reach` of the gap's
+    // end `start`, walking away from the gap (step −1 below it, +1 above it).
+    struct Side {
+      Eigen::Matrix3d N = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d r = Eigen::Vector3d::Zero();
+      int used = 0;
+      Eigen::Vector2d far;  ///< the sample farthest from the gap's end
+    };
+    auto side = [&](size_t start, int step) {
+      Side S;
       const Eigen::Vector2d E = xy(start);
+      S.far = E;
       for (size_t k = 0, i = start; k < n / 2; ++k, i = (i + n + step) % n) {
         const Eigen::Vector2d q = xy(i);
         if ((q - E).norm() > reach) break;
         const Eigen::Vector3d row(q.x(), q.y(), 1.0);
-        N += row * row.transpose();
-        r += row * -q.squaredNorm();
-        ++used;
+        S.N += row * row.transpose();
+        S.r += row * -q.squaredNorm();
+        ++S.used;
+        S.far = q;
       }
+      return S;
     };
-    take(lo, -1);
-    const int before = used;
-    take(hi, +1);
-    if (before < 3 || used - before < 3) return t_chord;
-    const Eigen::Vector3d c = N.ldlt().solve(r);  // x² + y² + D x + E y + F = 0
-    const double b = c(0) * d.x() + c(1) * d.y(), disc = b * b - 4 * c(2);
-    if (!c.allFinite() || disc < 0) return t_chord;
-    const double t = 0.5 * (-b + std::sqrt(disc));
-    if (t < t_chord - max_bulge * chord || t > t_chord + max_bulge * chord) return t_chord;
-    return t;
+    const Side below = side(lo, -1), above = side(hi, +1);
+    // The circle through both sides' samples, where the ray meets it.
+    std::optional<double> circle;
+    if (below.used >= 3 && above.used >= 3) {
+      const Eigen::Vector3d c = (below.N + above.N).ldlt().solve(below.r + above.r);
+      const double b = c(0) * d.x() + c(1) * d.y(), disc = b * b - 4 * c(2);
+      if (c.allFinite() && disc >= 0 && plausible(0.5 * (-b + std::sqrt(disc)))) circle = 0.5 * (-b + std::sqrt(disc));
+    }
+    // The tangent arc. Each end's tangent, pointing counter-clockwise (the way φ grows): from
+    // its side's own circle, or along the side's samples where they are nearly straight.
+    auto tangent = [&](const Side& S, const Eigen::Vector2d& E, int step) -> std::optional<Eigen::Vector2d> {
+      if (S.used < 5) return std::nullopt;
+      Eigen::Vector2d along = step < 0 ? Eigen::Vector2d(E - S.far) : Eigen::Vector2d(S.far - E);
+      if (!(along.norm() > 1e-9)) return std::nullopt;
+      along.normalize();
+      const Eigen::Vector3d c = S.N.ldlt().solve(S.r);
+      const Eigen::Vector2d C(-0.5 * c(0), -0.5 * c(1));
+      const double R2 = C.squaredNorm() - c(2);
+      if (!c.allFinite() || !(R2 > 0) || R2 > 400 * reach * reach) return along;
+      Eigen::Vector2d t(-(E - C).y(), (E - C).x());
+      t.normalize();
+      return t.dot(along) < 0 ? Eigen::Vector2d(-t) : t;
+    };
+    std::optional<double> arc;
+    const auto tA = tangent(below, A, -1), tB = tangent(above, B, +1);
+    if (tA && tB && chord > 1e-9) {
+      const double turn = std::atan2(tA->x() * tB->y() - tA->y() * tB->x(), tA->dot(*tB));  // > 0: convex
+      if (turn > 1e-3) {
+        const double th = std::min(turn, M_PI - 1e-3), R = chord / (2 * std::sin(th / 2));
+        const Eigen::Vector2d mid = 0.5 * (A + B), u = (B - A) / chord;
+        Eigen::Vector2d out(u.y(), -u.x());  // away from the ring's centre
+        if (out.dot(mid) < 0) out = -out;
+        const Eigen::Vector2d C = mid - out * std::sqrt(std::max(0.0, R * R - 0.25 * chord * chord));
+        const double dc = d.dot(C), disc = dc * dc - C.squaredNorm() + R * R;
+        if (disc >= 0 && plausible(dc + std::sqrt(disc))) arc = dc + std::sqrt(disc);
+      }
+    }
+    if (circle && arc) return 0.5 * (*circle + *arc);
+    if (circle) return *circle;
+    if (arc) return *arc;
+    return t_chord;
   }
 };
 
