@@ -95,6 +95,33 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
     place();
     R.rig = R.placed->rig;
     build(R.rig);
+    // The skin refused the placed skeleton (its links off the middle of a digit's sections):
+    // once more with the thumb's base on the thumb's own centre line. The proportions put it
+    // in the thenar, which suits a thumb near the palm's plane; a thumb raised and turned out
+    // of it (the WebXR hand) then has its metacarpal's link cross the thenar off its sections.
+    if (build_error && R.placed->thumb_base_on_line) {
+      std::string first;
+      try {
+        std::rethrow_exception(build_error);
+      } catch (const InputError& e) {
+        if (e.where() == "rig") first = e.detail();
+      } catch (...) {
+      }
+      if (!first.empty()) {
+        progress("the skin refused the placed skeleton (" + first + "); trying the thumb's base on its centre line");
+        const std::exception_ptr refused = build_error;
+        build_error = nullptr;
+        build(*R.placed->thumb_base_on_line);
+        if (build_error) {
+          build_error = refused;  // the first refusal is the one to report
+        } else {
+          R.rig = *R.placed->thumb_base_on_line;
+          R.placed->rig = R.rig;
+          R.placed->notes.push_back("the thumb's base placed on the thumb's centre line: with the proportions' base, " +
+                                    first);
+        }
+      }
+    }
   } else {
     R.rig = *in.rig;
 #pragma omp parallel sections

@@ -667,6 +667,32 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     for (size_t k2 = 0; k2 < chains[fi].size(); ++k2) rig.joints[chain[k2 + 1]] = to_cloud(chains[fi][k2]);
   }
   rig.palm_normal = Z;
+  {
+    // The thumb's base on its own centre line: the metacarpal's length (chord) back from the
+    // MCP along the curve, which runs on into the palm; straight on along its first chord
+    // where it ends sooner.
+    const Digit& dg = digits[4];
+    const Eigen::Vector3d& mcp = chains[0].front();
+    const double L = kFingers[0].metacarpal * s;
+    Eigen::Vector3d base;
+    if ((dg.curve.front() - mcp).norm() >= L) {
+      size_t k_mcp = 0;
+      double bd = 1e300;
+      for (size_t k = 0; k < dg.curve.size(); ++k)
+        if (const double d = (dg.curve[k] - mcp).squaredNorm(); d < bd) bd = d, k_mcp = k;
+      double lo = 0, hi = dg.arc[k_mcp];
+      for (int it = 0; it < 40; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        ((dg.at(mid) - mcp).norm() > L ? lo : hi) = mid;
+      }
+      base = dg.at(0.5 * (lo + hi));
+    } else {
+      base = mcp - L * (mcp - dg.curve.front()).normalized();
+    }
+    Rig alt = rig;
+    alt.joints[finger_chain(Finger::Thumb)[0]] = to_cloud(base);
+    out.thumb_base_on_line = alt;
+  }
   if (out.side == HandSide::Left) out.notes.push_back("a left hand (the thumb lies on the other side of the middle finger)");
   out.notes.push_back("joints along the measured digit centre lines with the proportions of Buryanov & Kotiuk (2010), scale " +
                       std::to_string(s).substr(0, 5) + " from the middle fingertip and the wrist cut");
