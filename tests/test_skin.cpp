@@ -648,7 +648,7 @@ TEST(SkinSteps, StitchJoinsCrossingTubesIntoOneClosedSurface) {
   for (auto& ring : tubes[1].rings)
     for (auto& p : ring) p = turn * p;
   for (auto& c : tubes[1].ring_centre) c = turn * c;
-  std::map<std::array<double, 3>, std::pair<int, int>> origin;
+  skin_steps::PositionOrigin origin;
   int pockets = -1;
   SM sm = stitch_tubes(tubes, Eigen::Isometry3d::Identity(), &origin, &pockets);
   EXPECT_TRUE(CGAL::is_closed(sm));

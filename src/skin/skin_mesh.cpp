@@ -148,7 +148,7 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
 
   // 6. the tubes' meshes united into one surface
   const auto t1 = Clock::now();
-  std::map<std::array<double, 3>, std::pair<int, int>> origin;  // exact position → tube, ring
+  PositionOrigin origin;  // exact position → tube, ring
   SM skin = stitch_tubes(tubes, Ti, &origin, &R.pockets_removed);
   R.seconds_union = since(t1);
   say("tubes stitched (" + std::to_string(static_cast<int>(R.seconds_union * 1000)) + " ms)");

@@ -19,6 +19,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "core/dof.hpp"
@@ -151,12 +152,26 @@ void keep_apart(TubeBuild* t, const HandFrame& H, int finger);
 /// The fingertip's dome: `rings` rings about the last station and a pole.
 void add_dome(TubeBuild* t, int M, int rings, const SkinOptions& o);
 
+/// Exact position → (tube, ring) of the tubes' vertices, looked up again after the union. A
+/// hash map: only lookups by equal position are made (std::hash<double> gives 0.0 and −0.0
+/// one hash), and for the fixture's ~24 000 positions and ~30 000 lookups the ordered map
+/// took ~9 ms, this one ~3 ms.
+struct PositionHash {
+  size_t operator()(const std::array<double, 3>& a) const {
+    size_t h = std::hash<double>()(a[0]);
+    h ^= std::hash<double>()(a[1]) + 0x9e3779b97f4a7c15ULL + (h << 6) + (h >> 2);
+    h ^= std::hash<double>()(a[2]) + 0x9e3779b97f4a7c15ULL + (h << 6) + (h >> 2);
+    return h;
+  }
+};
+using PositionOrigin = std::unordered_map<std::array<double, 3>, std::pair<int, int>, PositionHash>;
+
 /// Step 6: each tube's triangles (strips, caps), then one corefinement union. `origin` maps
 /// every tube vertex's exact position (rig frame) to its (tube, ring); `pockets` counts the
 /// inner shells dropped. Throws InputError naming a tube that folds into itself, or when the
 /// tubes do not join into one surface.
 SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& hand_to_rig,
-                std::map<std::array<double, 3>, std::pair<int, int>>* origin, int* pockets);
+                PositionOrigin* origin, int* pockets);
 
 /// Step 7: quadric-error decimation of a closed mesh to `max_faces`, moving it by at most
 /// about `tolerance_mm`; each vertex's (tube, ring) in `origin` follows it.

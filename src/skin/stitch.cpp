@@ -115,7 +115,7 @@ SM canonical_order(const SM& in) {
 }  // namespace
 
 SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& Ti,
-                std::map<std::array<double, 3>, std::pair<int, int>>* origin_out, int* pockets_out) {
+                PositionOrigin* origin_out, int* pockets_out) {
   auto& origin = *origin_out;
   *pockets_out = 0;
   // CGAL's box intersection (inside the self-intersection checks and the corefinement) draws
