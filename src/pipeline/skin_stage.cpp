@@ -99,7 +99,7 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
     // once more with the thumb's base on the thumb's own centre line. The proportions put it
     // in the thenar, which suits a thumb near the palm's plane; a thumb raised and turned out
     // of it (the WebXR hand) then has its metacarpal's link cross the thenar off its sections.
-    if (build_error && R.placed->thumb_base_on_line) {
+    if (build_error) {
       std::string first;
       try {
         std::rethrow_exception(build_error);
@@ -111,11 +111,11 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
         progress("the skin refused the placed skeleton (" + first + "); trying the thumb's base on its centre line");
         const std::exception_ptr refused = build_error;
         build_error = nullptr;
-        build(*R.placed->thumb_base_on_line);
+        build(R.placed->thumb_base_on_line);
         if (build_error) {
           build_error = refused;  // the first refusal is the one to report
         } else {
-          R.rig = *R.placed->thumb_base_on_line;
+          R.rig = R.placed->thumb_base_on_line;
           R.placed->rig = R.rig;
           R.placed->notes.push_back("the thumb's base placed on the thumb's centre line: with the proportions' base, " +
                                     first);

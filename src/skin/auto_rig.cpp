@@ -382,6 +382,16 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
       return curve[i - 1] + u * (curve[i] - curve[i - 1]);
     }
     double length() const { return arc.back(); }
+    // The arc length, before `a_from`, of the point `chord` (straight line) from `from`: the
+    // next joint back along the centre line (a bent chain's corners are a bone's length apart).
+    double chord_back(const Eigen::Vector3d& from, double chord, double a_from) const {
+      double lo = 0, hi = a_from;
+      for (int it = 0; it < 40; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        ((at(mid) - from).norm() > chord ? lo : hi) = mid;
+      }
+      return 0.5 * (lo + hi);
+    }
   };
   // The centre line's direction at the curve point nearest q.
   auto tangent_near = [](const Digit& dg, const Eigen::Vector3d& q) {
@@ -558,6 +568,7 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
   Eigen::Vector3d Xh = Eigen::Vector3d::UnitX(), W = Eigen::Vector3d::Zero();
   double s = 1;
   std::array<std::vector<Eigen::Vector3d>, 5> chains;  // hand coordinates, MCP ... tip
+  double thumb_mcp_arc = 0;                            // the thumb's MCP along its centre line
   for (int round = 0; round < 3; ++round) {
     const Eigen::Vector3d Yh = Eigen::Vector3d::UnitZ().cross(Xh);
     double cut = 1e300;
@@ -603,12 +614,7 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
         const double L = lengths[li];
         // Chord, not arc: the joints are the corners of the bent chain.
         const Eigen::Vector3d from = js.back();
-        double lo = 0, hi = a;
-        for (int it = 0; it < 40; ++it) {
-          const double mid = 0.5 * (lo + hi);
-          ((dg.at(mid) - from).norm() > L * s ? lo : hi) = mid;
-        }
-        a = 0.5 * (lo + hi);
+        a = dg.chord_back(from, L * s, a);
         Eigen::Vector3d j = dg.at(a);
         if (fi != 0 && fi != 2 && li + 1 == lengths.size()) {
           // A finger's MCP is its metacarpal's head: a spread finger turns there, so the
@@ -646,6 +652,7 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
       if (mcp_z) js.back().z() = *mcp_z;
       std::reverse(js.begin(), js.end());
       chains[fi] = js;
+      if (fi == 0) thumb_mcp_arc = a;
     }
     Xh = chains[2].front() - W;
     Xh.z() = 0;
@@ -674,24 +681,11 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     const Digit& dg = digits[4];
     const Eigen::Vector3d& mcp = chains[0].front();
     const double L = kFingers[0].metacarpal * s;
-    Eigen::Vector3d base;
-    if ((dg.curve.front() - mcp).norm() >= L) {
-      size_t k_mcp = 0;
-      double bd = 1e300;
-      for (size_t k = 0; k < dg.curve.size(); ++k)
-        if (const double d = (dg.curve[k] - mcp).squaredNorm(); d < bd) bd = d, k_mcp = k;
-      double lo = 0, hi = dg.arc[k_mcp];
-      for (int it = 0; it < 40; ++it) {
-        const double mid = 0.5 * (lo + hi);
-        ((dg.at(mid) - mcp).norm() > L ? lo : hi) = mid;
-      }
-      base = dg.at(0.5 * (lo + hi));
-    } else {
-      base = mcp - L * (mcp - dg.curve.front()).normalized();
-    }
-    Rig alt = rig;
-    alt.joints[finger_chain(Finger::Thumb)[0]] = to_cloud(base);
-    out.thumb_base_on_line = alt;
+    const Eigen::Vector3d base = (dg.curve.front() - mcp).norm() >= L
+                                     ? dg.at(dg.chord_back(mcp, L, thumb_mcp_arc))
+                                     : Eigen::Vector3d(mcp - L * (mcp - dg.curve.front()).normalized());
+    out.thumb_base_on_line = rig;
+    out.thumb_base_on_line.joints[finger_chain(Finger::Thumb)[0]] = to_cloud(base);
   }
   if (out.side == HandSide::Left) out.notes.push_back("a left hand (the thumb lies on the other side of the middle finger)");
   out.notes.push_back("joints along the measured digit centre lines with the proportions of Buryanov & Kotiuk (2010), scale " +

@@ -5,7 +5,6 @@
 /// (core/hand_proportions.hpp) scaled to the measured hand.
 #include <Eigen/Core>
 #include <cstdint>
-#include <optional>
 #include <string>
 #include <vector>
 
@@ -23,7 +22,7 @@ struct AutoRig {
   /// metacarpal's length (chord) back from its MCP, instead of where the proportions put it
   /// in the palm's frame. The skin stage builds on it when it refuses `rig` (a thumb raised
   /// and turned out of the palm plane, whose links then cross the thenar off its sections).
-  std::optional<Rig> thumb_base_on_line;
+  Rig thumb_base_on_line;
 };
 
 /// Place the 25 joints in a merged cloud (palm frame, mm) of an open hand, right or left,
