@@ -819,3 +819,33 @@ TEST(SkinProfile, BridgeAcrossAnUnseenArcSuitsFlatAndPointedMiddles) {
       30 * M_PI / 180);
   for (double deg = -20; deg <= 20; deg += 5) EXPECT_NEAR(round.at_bridged(deg * M_PI / 180, window, bridge), 7.0, 0.02);
 }
+
+TEST(SkinProfile, BridgeAcrossHalfTheRingStaysRound) {
+  // A curled fingertip cut at a slant by the automatic skeleton's planes: half its section
+  // (the pad) unseen. A circle's arc across half a turn bulges half its chord; the bridge
+  // took that for a wild guess and fell back to the chord, which runs through the centre:
+  // the radius dropped to the ring's floor and the pad got a 5 mm notch (H05, automatic).
+  const double window = 2 * M_PI / 180, bridge = 0.2;
+  for (const double half_gap_deg : {90.0, 110.0}) {
+    const auto round = section_without(
+        walk([](double u) { return Eigen::Vector2d(7 * std::cos(2 * M_PI * u), 7 * std::sin(2 * M_PI * u)); }, 44.0),
+        half_gap_deg * M_PI / 180);
+    double worst = 0;
+    for (double deg = -half_gap_deg + 10; deg <= half_gap_deg - 10; deg += 10)
+      worst = std::max(worst, std::abs(round.at_bridged(deg * M_PI / 180, window, bridge) - 7.0));
+    EXPECT_LT(worst, 0.3) << "a circle of 7 mm with " << 2 * half_gap_deg << "° unseen";
+  }
+  // An ellipse 5.5 × 8 mm with the half beyond its short axis unseen: both guesses round it
+  // off at the radius of the gap's ends (8 mm where the truth is 5.5: the seen half says
+  // nothing of how flat the other is), never the chord's radius near zero (before: 0.0).
+  const auto ellipse = section_without(
+      walk([](double u) { return Eigen::Vector2d(5.5 * std::cos(2 * M_PI * u), 8 * std::sin(2 * M_PI * u)); }, 43.0),
+      M_PI / 2);
+  for (double deg = -80; deg <= 80; deg += 10) {
+    const double p = deg * M_PI / 180;
+    const double truth = 1 / std::sqrt(std::pow(std::cos(p) / 5.5, 2) + std::pow(std::sin(p) / 8, 2));
+    const double r = ellipse.at_bridged(p, window, bridge);
+    EXPECT_GT(r, 0.9 * truth) << deg << "°";
+    EXPECT_LT(r, 1.5 * truth) << deg << "°";
+  }
+}

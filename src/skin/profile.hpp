@@ -103,8 +103,10 @@ struct Profile {
   ///    do (each end's tangent from a circle fitted to that side alone) follows the turning
   ///    across the gap: it falls short where the curvature peaks inside the gap (the edge of
   ///    a section wider than it is thick).
-  /// A guess that bulges out by more than `max_bulge` of the gap's chord is dropped (e.g.
-  /// where another tube's points were taken out); with neither, the chord itself.
+  /// A guess that bulges out by more than `max_bulge` of the gap's chord, or more than a
+  /// circle's arc across the gap's angle would by a quarter, is dropped (e.g. where another
+  /// tube's points were taken out); with neither, the chord itself, or across more than a
+  /// quarter turn the radii interpolated linearly in angle.
   double at_bridged(double p, double window, double bridge, double max_bulge = 0.35) const {
     const size_t n = phi.size();
     p = wrap(p);
@@ -120,7 +122,11 @@ struct Profile {
     const double det = Mx.determinant();
     const double t_chord = std::abs(det) > 1e-12 ? Mx.inverse().row(0).dot(A) : std::min(rho[lo], rho[hi]);
     const double chord = (B - A).norm(), reach = std::max(3.0, chord);
-    auto plausible = [&](double t) { return t >= t_chord - max_bulge * chord && t <= t_chord + max_bulge * chord; };
+    // A circle's arc across a gap of angle θ about its centre bulges tan(θ/4)/2 of its chord
+    // (0.21 at 90°, 0.5 at 180°): the bound grows with the gap where that exceeds it.
+    const double span = wrap(phi[hi] - phi[lo]);
+    const double allowed = std::max(max_bulge, 1.25 * 0.5 * std::tan(std::min(span, 1.9 * M_PI) / 4));
+    auto plausible = [&](double t) { return t >= t_chord - allowed * chord && t <= t_chord + allowed * chord; };
     // Kåsa's circle x² + y² + D x + E y + F = 0 over the samples within `reach` of the gap's
     // end `start`, walking away from the gap (step −1 below it, +1 above it).
     struct Side {
@@ -184,7 +190,9 @@ struct Profile {
     if (circle && arc) return 0.5 * (*circle + *arc);
     if (circle) return *circle;
     if (arc) return *arc;
-    return t_chord;
+    // Across more than a quarter turn the chord runs near the centre (through it at half a
+    // turn): the radii's linear interpolation in angle instead (eqs. 4.1–4.2).
+    return span > M_PI / 2 ? linear(p, lo, hi) : t_chord;
   }
 };
 
