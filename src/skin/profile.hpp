@@ -103,10 +103,11 @@ struct Profile {
   ///    do (each end's tangent from a circle fitted to that side alone) follows the turning
   ///    across the gap: it falls short where the curvature peaks inside the gap (the edge of
   ///    a section wider than it is thick).
-  /// A guess that bulges out by more than `max_bulge` of the gap's chord, or more than a
-  /// circle's arc across the gap's angle would by a quarter, is dropped (e.g. where another
-  /// tube's points were taken out); with neither, the chord itself, or across more than a
-  /// quarter turn the radii interpolated linearly in angle.
+  /// A guess that bulges out by more than `max_bulge` of the gap's chord is dropped (e.g.
+  /// where another tube's points were taken out), unless it bulges less than 1.25 times what
+  /// a circle's arc across the gap's angle does (wider gaps than ~120°). With neither guess,
+  /// the chord itself, or across more than a quarter turn the radii interpolated linearly in
+  /// angle.
   double at_bridged(double p, double window, double bridge, double max_bulge = 0.35) const {
     const size_t n = phi.size();
     p = wrap(p);
