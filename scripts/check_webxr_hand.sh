@@ -14,7 +14,7 @@
 #  - the automatic skeleton finds the five digits and places a skeleton the skin accepts (the
 #    thumb's base on the thumb's own centre line, after the proportions' base was refused:
 #    its links lay 5.5-5.8 mm from its sections), and that skin stays within the same
-#    regression bounds (measured 0.095-0.102 / 0.34-0.37 mm / 99.05-99.5 %).
+#    regression bounds (measured 0.095-0.103 / 0.34-0.37 mm / 99.05-99.5 %).
 # Prints every figure. Usage: scripts/check_webxr_hand.sh <handskin-binary>
 set -euo pipefail
 cd "$(dirname "$0")/.."
