@@ -250,7 +250,7 @@ struct EarlierFactor {
 // round's control points: iterations of one sparse product and two triangular solves (~0.6 ms
 // each on the fixture) against a new factorisation (~25 ms). Where they do not converge in
 // kCgIterations the round factors its own matrix, which later rounds then use. On the fixture
-// 6 of the 9 later rounds converge so (10–23 iterations); the fit takes ~10 % less time.
+// 6 of the 9 later rounds converge so (10–23 iterations); the fit takes 5–10 % less time.
 constexpr int kCgIterations = 24;
 constexpr double kCgTolerance = 1e-10;  // relative residual; the control points then agree with a direct solve within 1e-6 mm
 struct NetSolver {
