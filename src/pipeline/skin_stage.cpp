@@ -80,10 +80,16 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
     R.placement_seconds = since(ta);
   };
   std::exception_ptr build_error;
+  std::string rig_refused;  // the build's error, when it refused the rig
   auto build = [&](const Rig& rig) {
     const auto tb = std::chrono::steady_clock::now();
+    build_error = nullptr;
+    rig_refused.clear();
     try {
       R.skin = build_skin(in.points, rig, so, progress);
+    } catch (const InputError& e) {
+      build_error = std::current_exception();
+      if (e.where() == "rig") rig_refused = e.detail();
     } catch (...) {
       build_error = std::current_exception();
     }
@@ -99,27 +105,17 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
     // once more with the thumb's base on the thumb's own centre line. The proportions put it
     // in the thenar, which suits a thumb near the palm's plane; a thumb raised and turned out
     // of it (the WebXR hand) then has its metacarpal's link cross the thenar off its sections.
-    if (build_error) {
-      std::string first;
-      try {
-        std::rethrow_exception(build_error);
-      } catch (const InputError& e) {
-        if (e.where() == "rig") first = e.detail();
-      } catch (...) {
-      }
-      if (!first.empty()) {
-        progress("the skin refused the placed skeleton (" + first + "); trying the thumb's base on its centre line");
-        const std::exception_ptr refused = build_error;
-        build_error = nullptr;
-        build(R.placed->thumb_base_on_line);
-        if (build_error) {
-          build_error = refused;  // the first refusal is the one to report
-        } else {
-          R.rig = R.placed->thumb_base_on_line;
-          R.placed->rig = R.rig;
-          R.placed->notes.push_back("the thumb's base placed on the thumb's centre line: with the proportions' base, " +
-                                    first);
-        }
+    if (!rig_refused.empty()) {
+      const std::string first = rig_refused;
+      const std::exception_ptr refused = build_error;
+      progress("the skin refused the placed skeleton (" + first + "); trying the thumb's base on its centre line");
+      build(R.placed->thumb_base_on_line);
+      if (build_error) {
+        build_error = refused;  // the first refusal is the one to report
+      } else {
+        R.rig = R.placed->thumb_base_on_line;
+        R.placed->rig = R.rig;
+        R.placed->notes.push_back("the thumb's base placed on the thumb's centre line: with the proportions' base, " + first);
       }
     }
   } else {
