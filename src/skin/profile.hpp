@@ -157,7 +157,8 @@ struct Profile {
     if (below.used >= 3 && above.used >= 3) {
       const Eigen::Vector3d c = (below.N + above.N).ldlt().solve(below.r + above.r);
       const double b = c(0) * d.x() + c(1) * d.y(), disc = b * b - 4 * c(2);
-      if (c.allFinite() && disc >= 0 && plausible(0.5 * (-b + std::sqrt(disc)))) circle = 0.5 * (-b + std::sqrt(disc));
+      const double t = 0.5 * (-b + std::sqrt(disc));
+      if (c.allFinite() && disc >= 0 && plausible(t)) circle = t;
     }
     // The tangent arc. Each end's tangent, pointing counter-clockwise (the way φ grows): from
     // its side's own circle, or along the side's samples where they are nearly straight.

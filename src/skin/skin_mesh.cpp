@@ -7,7 +7,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <map>
 
 #include "core/atomic_file.hpp"
 #include "core/dof.hpp"

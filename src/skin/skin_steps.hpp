@@ -16,7 +16,6 @@
 
 #include <Eigen/Geometry>
 #include <array>
-#include <map>
 #include <optional>
 #include <string>
 #include <unordered_map>
