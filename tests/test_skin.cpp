@@ -10,6 +10,7 @@
 #include "register/registration.hpp"
 #include "skin/auto_rig.hpp"
 #include "skin/baseline.hpp"
+#include "skin/profile.hpp"
 #include "skin/skin_mesh.hpp"
 #include "skin/slices.hpp"
 #include "mesh/mesh_distance.hpp"
@@ -738,8 +739,6 @@ TEST(SkinMesh, RingGridIsRegularPerTube) {
   }
 }
 
-#include "skin/profile.hpp"
-
 namespace {
 // A closed convex section sampled every 0.1 mm along its contour, as a radial profile about
 // the origin, with the arc |φ| < half_gap left unseen (the flank neither scan saw).
@@ -760,6 +759,10 @@ std::vector<Eigen::Vector2d> walk(const std::function<Eigen::Vector2d(double)>& 
   const int n = static_cast<int>(length / 0.1);
   for (int k = 0; k < n; ++k) out.push_back(at(static_cast<double>(k) / n));
   return out;
+}
+// The ellipse with half-axes a (along x) and b, walked from (a, 0); `length` about its perimeter.
+std::vector<Eigen::Vector2d> ellipse(double a, double b, double length) {
+  return walk([a, b](double u) { return Eigen::Vector2d(a * std::cos(2 * M_PI * u), b * std::sin(2 * M_PI * u)); }, length);
 }
 }  // namespace
 
@@ -796,9 +799,7 @@ TEST(SkinProfile, BridgeAcrossAnUnseenArcSuitsFlatAndPointedMiddles) {
   };
   const auto flat = section_without(walk(rounded, perimeter), 24 * M_PI / 180);
   // Ellipse 8 × 5.5 mm, the gap (±28°) round the end of its long axis.
-  const auto pointed = section_without(
-      walk([](double u) { return Eigen::Vector2d(8 * std::cos(2 * M_PI * u), 5.5 * std::sin(2 * M_PI * u)); }, 43.0),
-      28 * M_PI / 180);
+  const auto pointed = section_without(ellipse(8, 5.5, 43.0), 28 * M_PI / 180);
   const double window = 2 * M_PI / 180, bridge = 0.2;
   double worst_flat = 0, worst_pointed = 0;
   for (double deg = -15; deg <= 15; deg += 5) {
@@ -814,9 +815,7 @@ TEST(SkinProfile, BridgeAcrossAnUnseenArcSuitsFlatAndPointedMiddles) {
   EXPECT_LT(worst_flat, 0.5);
   EXPECT_LT(worst_pointed, 0.6);
   // Where both guesses are right, so is their mean: a circle of 7 mm, a ±30° gap.
-  const auto round = section_without(
-      walk([](double u) { return Eigen::Vector2d(7 * std::cos(2 * M_PI * u), 7 * std::sin(2 * M_PI * u)); }, 44.0),
-      30 * M_PI / 180);
+  const auto round = section_without(ellipse(7, 7, 44.0), 30 * M_PI / 180);
   for (double deg = -20; deg <= 20; deg += 5) EXPECT_NEAR(round.at_bridged(deg * M_PI / 180, window, bridge), 7.0, 0.02);
 }
 
@@ -827,9 +826,7 @@ TEST(SkinProfile, BridgeAcrossHalfTheRingStaysRound) {
   // the radius dropped to the ring's floor and the pad got a 5 mm notch (H05, automatic).
   const double window = 2 * M_PI / 180, bridge = 0.2;
   for (const double half_gap_deg : {90.0, 110.0}) {
-    const auto round = section_without(
-        walk([](double u) { return Eigen::Vector2d(7 * std::cos(2 * M_PI * u), 7 * std::sin(2 * M_PI * u)); }, 44.0),
-        half_gap_deg * M_PI / 180);
+    const auto round = section_without(ellipse(7, 7, 44.0), half_gap_deg * M_PI / 180);
     double worst = 0;
     for (double deg = -half_gap_deg + 10; deg <= half_gap_deg - 10; deg += 10)
       worst = std::max(worst, std::abs(round.at_bridged(deg * M_PI / 180, window, bridge) - 7.0));
@@ -838,13 +835,11 @@ TEST(SkinProfile, BridgeAcrossHalfTheRingStaysRound) {
   // An ellipse 5.5 × 8 mm with the half beyond its short axis unseen: both guesses round it
   // off at the radius of the gap's ends (8 mm where the truth is 5.5: the seen half says
   // nothing of how flat the other is), never the chord's radius near zero (before: 0.0).
-  const auto ellipse = section_without(
-      walk([](double u) { return Eigen::Vector2d(5.5 * std::cos(2 * M_PI * u), 8 * std::sin(2 * M_PI * u)); }, 43.0),
-      M_PI / 2);
+  const auto oval = section_without(ellipse(5.5, 8, 43.0), M_PI / 2);
   for (double deg = -80; deg <= 80; deg += 10) {
     const double p = deg * M_PI / 180;
     const double truth = 1 / std::sqrt(std::pow(std::cos(p) / 5.5, 2) + std::pow(std::sin(p) / 8, 2));
-    const double r = ellipse.at_bridged(p, window, bridge);
+    const double r = oval.at_bridged(p, window, bridge);
     EXPECT_GT(r, 0.9 * truth) << deg << "°";
     EXPECT_LT(r, 1.5 * truth) << deg << "°";
   }
