@@ -67,7 +67,10 @@ TEST(Patches, AClosedSurfaceOfKnownShapeIsFittedWithExactBordersAndSmoothJoins) 
   EXPECT_EQ(s.control_points, L.vertices.size() + 2 * 108 + 4 * 54);  // corners, 2 per edge, 4 per face
   EXPECT_LT(s.g0_gap_mm, 1e-9);  // shared control points: the same curve from both sides
   EXPECT_LT(s.g1_median_deg, 0.5);
-  EXPECT_LT(s.g1_p95_deg, 2.0);
+  // G1 along the borders into the eight corners too: measured p95 0.08°, at most 0.20° next to
+  // the corners (0.70° and 1.44° with those borders held C1 only away from the corners).
+  EXPECT_LT(s.g1_p95_deg, 0.3);
+  EXPECT_LT(s.g1_near_max_deg, 0.6);
   for (int side = 0; side < 2; ++side) {
     EXPECT_GT(s.side[side].points, 15000u);
     EXPECT_LT(s.side[side].mean, 0.012) << side;  // noise 0.01 mm: its mean |n| is 0.008; measured 0.009
@@ -101,6 +104,36 @@ TEST(Patches, AClosedSurfaceOfKnownShapeIsFittedWithExactBordersAndSmoothJoins) 
     for (int side = 0; side < 4; ++side)
       for (int k = 0; k < 4; ++k)
         ASSERT_EQ(border(s.patches[f], side, k), border(s.patches[T.neighbour[f][side]], T.neighbour_side[f][side], 3 - k));
+}
+
+// A patch that no point falls on (a hole in the scan over a small patch; at 882 patches a
+// family hand had one) is held by the penalties and its neighbours. Before, Eigen's product of
+// its empty data block divided by zero (SIGFPE).
+TEST(Patches, APatchWithoutPointsIsHeldByItsNeighbours) {
+  const PatchLayout L = cube_layout(3);
+  const Cloud all = ellipsoid_cloud(40000, 0.01);
+  Cloud c;  // no point in a cone about +x wider than the middle patch of that face
+  for (size_t k = 0; k < all.points.size(); ++k) {
+    const Eigen::Vector3d& p = all.points[k];
+    if (p.x() > 0 && std::abs(p.y()) < 0.45 * p.x() && std::abs(p.z()) < 0.45 * p.x()) continue;
+    c.points.push_back(p), c.sides.push_back(all.sides[k]);
+  }
+  ASSERT_LT(c.points.size(), all.points.size() - 500);
+  const PatchSkin s = fit_patches(L, c.points, c.sides, {}, {}, PatchOptions{});
+  ASSERT_EQ(s.patches.size(), 54u);
+  for (const auto& q : s.control) ASSERT_TRUE(q.allFinite());
+  EXPECT_LT(s.g0_gap_mm, 1e-9);
+  // Over the hole (~13 mm across) the fairness and the neighbours keep the surface near the
+  // ellipsoid: measured 0.61 mm at most within 10 mm of the hole's middle.
+  const Eigen::Vector3d middle = ellipsoid_point(Eigen::Vector3d(1, 0, 0));
+  double worst = 0;
+  for (const auto& P : s.patches)
+    for (int i = 0; i <= 8; ++i)
+      for (int j = 0; j <= 8; ++j) {
+        const Eigen::Vector3d q = P.eval(i / 8.0, j / 8.0);
+        if ((q - middle).norm() < 10) worst = std::max(worst, (q - ellipsoid_point(q)).norm());
+      }
+  EXPECT_LT(worst, 1.0);
 }
 
 TEST(Patches, LayoutsAreCheckedOrientedAndSplit) {
@@ -176,11 +209,17 @@ TEST(Patches, TheCommandWritesPatchesOnTheFixture) {
   const Json r = load_json_object(pdir + "/report.json");
   EXPECT_LT(r["continuity"]["g0_gap_mm"].get<double>(), 1e-9);
   EXPECT_LT(r["continuity"]["g1_normal_jump_deg"]["median"].get<double>(), 1.0);
+  // Away from the corners where other than four patches meet (the bar: 5°); measured
+  // 0.44°, and 8.85° while the borders next to those corners were held C1 only where it could.
+  EXPECT_LT(r["continuity"]["g1_normal_jump_deg"]["p95"].get<double>(), 5.0);
   for (const char* side : {"palm", "back"}) {
     EXPECT_LT(r["data_to_surface_mm"][side]["mean"].get<double>(), 0.18) << side;  // measured 0.14-0.15 (docs/patches.md)
+    // The largest distance is the nearest foot point's: measured 0.85 / 0.93 mm; 2.08 / 1.73
+    // when a foot point could stop on a patch's side short of the nearest point across it.
+    EXPECT_LT(r["data_to_surface_mm"][side]["max"].get<double>(), 1.3) << side;
     EXPECT_GT(r["data_to_surface_mm"][side]["points"].get<int>(), 50000) << side;
   }
-  EXPECT_GT(r["truth"]["truth_to_surface_mm"]["within_1mm"].get<double>(), 0.99);  // measured 99.8 %
+  EXPECT_GT(r["truth"]["truth_to_surface_mm"]["within_1mm"].get<double>(), 0.99);  // measured 99.97 %
   EXPECT_LT(r["truth"]["surface_to_truth_mm"]["mean"].get<double>(), 0.19);          // measured 0.15
   // One closed surface: the tessellation has no open edge, one piece, outward.
   const MeshHealth ph = mesh_health(load_mesh(pdir + "/patches.ply"));
