@@ -419,7 +419,7 @@ bool preconditioned_cg(const Eigen::SparseMatrix<double>& A,
   Eigen::VectorXd p = z, Ap(b.size());
   double rz = r.dot(z);
   for (int it = 1; it <= kCgBudget && err > kCgTolerance; ++it) {
-    Ap.noalias() = A * p;
+    Ap.noalias() = A.transpose() * p;  // A is symmetric: its transpose is row-major, whose product Eigen runs on every thread
     const double pAp = p.dot(Ap);
     if (!(pAp > 0)) return false;  // not positive definite to working precision: factor
     const double alpha = rz / pAp;
