@@ -188,13 +188,16 @@ struct SurfaceSamples {
   SurfaceSamples(const std::vector<BezierPatch>& P, int m) {
     const size_t row = static_cast<size_t>(m) + 1;
     cover.assign(P.size(), 0.0);
-    for (size_t f = 0; f < P.size(); ++f) {
-      const size_t first = p.size();
+    p.resize(P.size() * row * row);
+    at.resize(p.size());
+#pragma omp parallel for schedule(static)
+    for (long f = 0; f < static_cast<long>(P.size()); ++f) {
+      const size_t first = static_cast<size_t>(f) * row * row;
       for (int i = 0; i <= m; ++i)
         for (int j = 0; j <= m; ++j) {
           const double s = static_cast<double>(i) / m, t = static_cast<double>(j) / m;
-          p.push_back(P[f].eval(s, t));
-          at.push_back({static_cast<float>(f), static_cast<float>(s), static_cast<float>(t)});
+          p[first + i * row + j] = P[f].eval(s, t);
+          at[first + i * row + j] = {static_cast<float>(f), static_cast<float>(s), static_cast<float>(t)};
         }
       double c = 0;
       for (int i = 0; i < m; ++i)
@@ -205,8 +208,8 @@ struct SurfaceSamples {
                                     (mid - p[k + row + 1]).norm()}));
         }
       cover[f] = 1.25 * c + 0.05;
-      widest = std::max(widest, cover[f]);
     }
+    for (double c : cover) widest = std::max(widest, c);
   }
 };
 
@@ -397,6 +400,7 @@ Eigen::Matrix<double, 36, 36> g1_block(const PatchSkin& out, const G1Border& b, 
 // factor; the later ones converge so as the surface settles.
 constexpr int kCgBudget = 40;  // iterations; a factorisation costs about 65 on the fixture (a budget of 60 took as long)
 constexpr int kCgCheck = 6;    // iterations between two predictions of the iterations still needed
+constexpr int kCgStalled = 12;  // given up within this many: the next round factors at once
 constexpr double kCgTolerance = 1e-7;  // relative residual; the control points then agree with direct solves within ~3e-4 mm
 
 // Conjugate gradients on A x = b (A holding both halves) from x, preconditioned by M (the
@@ -407,7 +411,8 @@ constexpr double kCgTolerance = 1e-7;  // relative residual; the control points 
 // factors). Returns true when the relative residual reached kCgTolerance.
 bool preconditioned_cg(const Eigen::SparseMatrix<double>& A,
                        const Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>>& M, const Eigen::VectorXd& b,
-                       Eigen::VectorXd* x) {
+                       Eigen::VectorXd* x, int* iterations) {
+  *iterations = 0;
   const double bn = b.norm();
   if (bn == 0) {
     x->setZero();
@@ -426,6 +431,7 @@ bool preconditioned_cg(const Eigen::SparseMatrix<double>& A,
     *x += alpha * p;
     r -= alpha * Ap;
     err = r.norm() / bn;
+    *iterations = it;
     if (err <= kCgTolerance) break;
     if (it % kCgCheck == 0) {
       const double rate = std::pow(err / err_checked, 1.0 / kCgCheck);
@@ -444,6 +450,7 @@ struct NetSolver {
   Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
   bool factored = false;
   bool factored_with_normals = false;
+  bool stalled = false;  ///< the last round's conjugate gradients gave up early
   Eigen::SparseMatrix<double> A;  ///< the normal equations (both halves)
   std::vector<double> penalty_values;  ///< the penalties' share of A's values
   std::vector<int> block_slot;  ///< per patch, its 48 × 48 block's entries' indices in A's values
@@ -693,10 +700,15 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
     rebuild_patches(out);
     return;
   }
-  bool direct = !solver->factored || normals != solver->factored_with_normals;
+  bool direct = !solver->factored || normals != solver->factored_with_normals || solver->stalled;
+  solver->stalled = false;
   if (!direct) {
     X = solver->x;
-    direct = !preconditioned_cg(As, solver->llt, R, &X);
+    int iterations = 0;
+    direct = !preconditioned_cg(As, solver->llt, R, &X, &iterations);
+    // Given up within kCgStalled iterations: the matrices still change fast from round to
+    // round (the early rounds), so the next round factors without trying.
+    solver->stalled = direct && iterations <= kCgStalled;
   }
   if (direct) {
     solver->llt.factorize(As);
