@@ -448,8 +448,7 @@ bool preconditioned_cg(const Eigen::SparseMatrix<double>& A,
 
 struct NetSolver {
   Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
-  bool factored = false;
-  bool factored_with_normals = false;
+  bool factored = false;  ///< llt holds a factor (of a round with normals: the first fit solves its own)
   bool stalled = false;  ///< the last round's conjugate gradients gave up early
   Eigen::SparseMatrix<double> A;  ///< the normal equations (both halves)
   std::vector<double> penalty_values;  ///< the penalties' share of A's values
@@ -639,27 +638,26 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
   Eigen::SparseMatrix<double>& As = solver->A;
   if (solver->block_slot.empty()) {
     // The pattern: every patch's 48 × 48 block (as zeros) and the penalties.
-    std::vector<Eigen::Triplet<double>> A = net_penalties(*out, T, o, wsum / n);
-    A.reserve(A.size() + static_cast<size_t>(patches) * 48 * 48);
-    for (int f = 0; f < patches; ++f) {
-      const auto& idx = out->patch_control[f];
-      for (int a = 0; a < 48; ++a)
-        for (int b = 0; b < 48; ++b) A.emplace_back(3 * idx[a / 3] + a % 3, 3 * idx[b / 3] + b % 3, 0.0);
-    }
+    // Each dense block's unknowns: every patch's 48, then every G1 border's 36.
     solver->g1 = g1_borders(*out, T);
-    for (const G1Border& g : solver->g1)
-      for (int a = 0; a < 36; ++a)
-        for (int b = 0; b < 36; ++b) A.emplace_back(3 * g.ids[a / 3] + a % 3, 3 * g.ids[b / 3] + b % 3, 0.0);
+    std::vector<std::vector<int>> blocks;
+    for (int f = 0; f < patches; ++f) blocks.push_back(unknowns_of(out->patch_control[f].data(), 16));
+    for (const G1Border& g : solver->g1) blocks.push_back(unknowns_of(g.ids.data(), 12));
+    std::vector<Eigen::Triplet<double>> A = net_penalties(*out, T, o, wsum / n);
+    A.reserve(A.size() + static_cast<size_t>(patches) * 48 * 48 + solver->g1.size() * 36 * 36);
+    for (const auto& u : blocks)
+      for (int a : u)
+        for (int b : u) A.emplace_back(a, b, 0.0);
     As.resize(3 * n, 3 * n);
     As.setFromTriplets(A.begin(), A.end());  // sums duplicates, keeps the zeros
     As.makeCompressed();
     solver->penalty_values.assign(As.valuePtr(), As.valuePtr() + As.nonZeros());
     solver->block_slot.resize(static_cast<size_t>(patches) * 48 * 48);
-    for (int f = 0; f < patches; ++f)
-      block_slots(As, unknowns_of(out->patch_control[f].data(), 16), &solver->block_slot[static_cast<size_t>(f) * 48 * 48]);
     solver->g1_slot.resize(solver->g1.size() * 36 * 36);
-    for (size_t k = 0; k < solver->g1.size(); ++k)
-      block_slots(As, unknowns_of(solver->g1[k].ids.data(), 12), &solver->g1_slot[k * 36 * 36]);
+    for (size_t k = 0; k < blocks.size(); ++k)
+      block_slots(As, blocks[k],
+                  k < static_cast<size_t>(patches) ? &solver->block_slot[k * 48 * 48]
+                                                   : &solver->g1_slot[(k - patches) * 36 * 36]);
     solver->llt.analyzePattern(As);
   }
   std::copy(solver->penalty_values.begin(), solver->penalty_values.end(), As.valuePtr());
@@ -694,27 +692,25 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
     Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt1(A1);
     HS_CHECK(llt1.info() == Eigen::Success, "patch fit: the normal equations could not be factored");
     const Eigen::MatrixXd X1 = llt1.solve(Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(R.data(), n, 3));
-    solver->x.resize(3 * n);
-    for (int k = 0; k < n; ++k) solver->x.segment<3>(3 * k) = X1.row(k).transpose();
-    for (int k = 0; k < n; ++k) out->control[k] = solver->x.segment<3>(3 * k);
-    rebuild_patches(out);
-    return;
-  }
-  bool direct = !solver->factored || normals != solver->factored_with_normals || solver->stalled;
-  solver->stalled = false;
-  if (!direct) {
-    X = solver->x;
-    int iterations = 0;
-    direct = !preconditioned_cg(As, solver->llt, R, &X, &iterations);
-    // Given up within kCgStalled iterations: the matrices still change fast from round to
-    // round (the early rounds), so the next round factors without trying.
-    solver->stalled = direct && iterations <= kCgStalled;
-  }
-  if (direct) {
-    solver->llt.factorize(As);
-    HS_CHECK(solver->llt.info() == Eigen::Success, "patch fit: the normal equations could not be factored");
-    solver->factored = true, solver->factored_with_normals = normals;
-    X = solver->llt.solve(R);
+    X.resize(3 * n);
+    for (int k = 0; k < n; ++k) X.segment<3>(3 * k) = X1.row(k).transpose();
+  } else {
+    bool direct = !solver->factored || solver->stalled;
+    solver->stalled = false;
+    if (!direct) {
+      X = solver->x;
+      int iterations = 0;
+      direct = !preconditioned_cg(As, solver->llt, R, &X, &iterations);
+      // Given up within kCgStalled iterations: the matrices still change fast from round to
+      // round (the early rounds), so the next round factors without trying.
+      solver->stalled = direct && iterations <= kCgStalled;
+    }
+    if (direct) {
+      solver->llt.factorize(As);
+      HS_CHECK(solver->llt.info() == Eigen::Success, "patch fit: the normal equations could not be factored");
+      solver->factored = true;
+      X = solver->llt.solve(R);
+    }
   }
   solver->x = X;
   for (int k = 0; k < n; ++k) out->control[k] = X.segment<3>(3 * k);
@@ -837,7 +833,7 @@ PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector
     std::vector<Eigen::Vector3d> fitted;
     fitted.reserve(data.size());
     for (const Datum& d : data) fitted.push_back(d.p);
-    const PointGrid seen(fitted, 2.0);
+    const PointGrid seen(fitted, kSeenMm);
     for (const auto& p : support)
       if (!seen.any_within(p, kSeenMm)) data.push_back({p, o.skin_weight, -1});
   }
