@@ -658,19 +658,26 @@ TEST(SkinSteps, StitchJoinsCrossingTubesIntoOneClosedSurface) {
   EXPECT_GT(origin.size(), 100u);
 }
 
+// A sphere about the origin: an icosahedron Loop-subdivided `levels` times, every vertex put
+// back on the sphere (the chords lie inside it).
+static SM sphere_mesh(double radius, int levels) {
+  SM m;
+  CGAL::make_icosahedron(m, K::Point_3(0, 0, 0), radius);
+  for (int k = 0; k < levels; ++k) {
+    CGAL::Subdivision_method_3::Loop_subdivision(m, CGAL::parameters::number_of_iterations(1));
+    for (auto v : m.vertices()) {
+      const K::Vector_3 d = m.point(v) - CGAL::ORIGIN;
+      m.point(v) = CGAL::ORIGIN + d * (radius / std::sqrt(d.squared_length()));
+    }
+  }
+  return m;
+}
+
 TEST(SkinSteps, FitToDataFollowsTheCloudsSurfaceAndBridgesItsHoleSmoothly) {
   // A coarse sphere of radius 10 (an icosahedron subdivided twice, its vertices on the sphere:
   // the chords lie inside) and the data: a sphere of radius 10.6 with 0.07 mm noise, with no
   // points over the cap z > 8 (a hole) and a few far points (another surface 5 mm out).
-  SM sm;
-  CGAL::make_icosahedron(sm, K::Point_3(0, 0, 0), 10.0);
-  for (int k = 0; k < 2; ++k) {
-    CGAL::Subdivision_method_3::Loop_subdivision(sm, CGAL::parameters::number_of_iterations(1));
-    for (auto v : sm.vertices()) {
-      const K::Vector_3 d = sm.point(v) - CGAL::ORIGIN;
-      sm.point(v) = CGAL::ORIGIN + d * (10.0 / std::sqrt(d.squared_length()));
-    }
-  }
+  SM sm = sphere_mesh(10.0, 2);
   Rng rng(7);
   std::vector<Eigen::Vector3d> pts;
   for (int i = 0; i < 20000; ++i) {
@@ -692,12 +699,13 @@ TEST(SkinSteps, FitToDataFollowsTheCloudsSurfaceAndBridgesItsHoleSmoothly) {
   const double before = mean_distance(sm);
   DataFitOptions o;
   const DataFit f = fit_to_data(&sm, pts, o);
+  const Crossings c = take_back_crossings(&sm, rest);
   const double after = mean_distance(sm);
   std::printf("data to the sphere: %.3f -> %.3f mm; %zu vertices moved, mean %.3f, max %.3f mm, %zu taken back\n", before,
-              after, f.moved, f.mean_move_mm, f.max_move_mm, f.reverted);
+              after, f.moved, f.mean_move_mm, f.max_move_mm, c.reverted);
   EXPECT_GT(before, 0.6);
   EXPECT_LT(after, 0.1);  // the noise's mean absolute value is 0.056
-  EXPECT_FALSE(f.self_intersects);
+  EXPECT_FALSE(c.self_intersects);
   EXPECT_LE(f.max_move_mm, o.max_move_mm + 1e-9);
   // The vertices moved out by about 0.6 (a little more: the chords between them reach out to
   // the surface). Over the hole, where no point pulls, the edge term carries the rim's move
@@ -716,6 +724,59 @@ TEST(SkinSteps, FitToDataFollowsTheCloudsSurfaceAndBridgesItsHoleSmoothly) {
   // Off: nothing moves.
   o.enabled = false;
   EXPECT_EQ(fit_to_data(&again, pts, o).moved, 0u);
+}
+
+TEST(SkinSteps, FairUnseenSmoothsAnUnseenPitAndLeavesTheSeenSkinAndSmoothUnseenSkinAlone) {
+  // A sphere of radius 10 (an icosahedron subdivided three times, ~1.3 mm edges) with a
+  // conical pit 3 mm deep over the cap within 25° of +Z, as the union leaves a V between two
+  // tubes; the cloud: the true sphere, seen everywhere but within 32° of +Z.
+  const auto sphere = [] { return sphere_mesh(10.0, 3); };
+  const auto angle_deg = [](const K::Point_3& p) {
+    return std::acos(std::clamp(p.z() / std::sqrt((p - CGAL::ORIGIN).squared_length()), -1.0, 1.0)) * 180 / M_PI;
+  };
+  SM sm = sphere();
+  for (auto v : sm.vertices()) {
+    const double a = angle_deg(sm.point(v));
+    if (a < 25) sm.point(v) = CGAL::ORIGIN + (sm.point(v) - CGAL::ORIGIN) * ((10.0 - 3.0 * (1 - a / 25)) / 10.0);
+  }
+  Rng rng(3);
+  std::vector<Eigen::Vector3d> pts;
+  for (int i = 0; i < 40000; ++i) {
+    const Eigen::Vector3d d = Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()).normalized();
+    if (std::acos(d.z()) * 180 / M_PI > 32) pts.push_back(10.0 * d);
+  }
+  const Eigen::Vector3d far_cut(1, 0, 0);  // a wrist cut 100 mm away: holds nothing
+  std::vector<K::Point_3> was;
+  for (auto v : sm.vertices()) was.push_back(sm.point(v));
+  const auto worst_radial = [](const SM& m) {
+    double w = 0;
+    for (auto v : m.vertices()) w = std::max(w, std::abs(std::sqrt((m.point(v) - CGAL::ORIGIN).squared_length()) - 10.0));
+    return w;
+  };
+  FairUnseenOptions o;
+  SM faired = sm;
+  const FairUnseen f = fair_unseen(&faired, pts, far_cut, -100, o);
+  std::printf("pit: %zu crease vertices, %zu faired, mean move %.3f, max %.3f mm; worst radial error %.3f -> %.3f mm\n",
+              f.crease_vertices, f.faired, f.mean_move_mm, f.max_move_mm, worst_radial(sm), worst_radial(faired));
+  EXPECT_GT(f.crease_vertices, 0u);
+  EXPECT_NEAR(worst_radial(sm), 3.0, 1e-9);
+  EXPECT_LT(worst_radial(faired), 0.5);  // the pit's floor rises to about the sphere
+  size_t i = 0, seen_moved = 0;
+  for (auto v : faired.vertices()) {
+    if (angle_deg(was[i]) > 40 && faired.point(v) != was[i]) ++seen_moved;
+    ++i;
+  }
+  EXPECT_EQ(seen_moved, 0u);  // the seen skin stays, bit for bit
+  // The same unseen cap without the pit has no concave crease: nothing moves.
+  SM smooth = sphere();
+  const FairUnseen g = fair_unseen(&smooth, pts, far_cut, -100, o);
+  EXPECT_EQ(g.crease_vertices, 0u);
+  EXPECT_EQ(g.faired, 0u);
+  // Everything on the near side of the wrist cut (here the plane Z = 20) is held; off: nothing moves.
+  SM held = sm;
+  EXPECT_EQ(fair_unseen(&held, pts, Eigen::Vector3d(0, 0, 1), 20, o).faired, 0u);
+  o.enabled = false;
+  EXPECT_EQ(fair_unseen(&held, pts, far_cut, -100, o).faired, 0u);
 }
 
 TEST(SkinMesh, RingGridIsRegularPerTube) {

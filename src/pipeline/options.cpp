@@ -50,6 +50,7 @@ const std::vector<KeySpec>& key_table() {
       {"skin", "decimation_tolerance_mm", Kind::Real, 0, 1, true, HS_FIELD(skin.decimation_tolerance_mm)},
       {"skin", "fit_to_data", Kind::Bool, 0, 1, false, HS_FIELD(skin.fit_to_data)},
       {"skin", "fit_max_move_mm", Kind::Real, 0, 10, true, HS_FIELD(skin.fit_max_move_mm)},
+      {"skin", "fair_unseen", Kind::Bool, 0, 1, false, HS_FIELD(skin.fair_unseen)},
       {"skin", "slices_json", Kind::Bool, 0, 1, false, HS_FIELD(skin.slices_json)},
       {"skin", "baseline", Kind::Bool, 0, 1, false, HS_FIELD(skin.baseline)},
       {"patches", "enabled", Kind::Bool, 0, 1, false, HS_FIELD(patches.enabled)},

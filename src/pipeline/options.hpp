@@ -42,6 +42,7 @@ struct PipelineOptions {
     double decimation_tolerance_mm = 0.15; ///< ... moving the surface by at most this
     bool fit_to_data = true;       ///< the decimated skin fitted to the cloud (docs/skin.md, step 11)
     double fit_max_move_mm = 2.0;  ///< ... no vertex moving farther, no point farther counted
+    bool fair_unseen = true;       ///< unseen creases made fair (docs/skin.md, step 12)
     bool slices_json = true;       ///< write slices.json (the thesis's sections, for inspection)
     bool baseline = false;         ///< also run CGAL Poisson on the cloud and report it beside (--baseline)
   } skin;

@@ -225,6 +225,12 @@ Json to_json(const SkinStageResult& r) {
                       {"reverted", skin.data_fit.reverted},
                       {"mean_move_mm", skin.data_fit.mean_move_mm},
                       {"max_move_mm", skin.data_fit.max_move_mm}};
+  j["fair_unseen"] = {{"crease_vertices", skin.fair_unseen.crease_vertices},
+                      {"faired", skin.fair_unseen.faired},
+                      {"held", skin.fair_unseen.held},
+                      {"taken_back", skin.fair_unseen.taken_back},
+                      {"mean_move_mm", skin.fair_unseen.mean_move_mm},
+                      {"max_move_mm", skin.fair_unseen.max_move_mm}};
   j["timings_ms"] = {{"rings", 1000 * skin.seconds_rings}, {"stitch", 1000 * skin.seconds_union},
                      {"decimate", 1000 * skin.seconds_decimation}, {"fit", 1000 * skin.seconds_fit},
                      {"checks", 1000 * skin.seconds_checks}};

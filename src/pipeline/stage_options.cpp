@@ -36,6 +36,7 @@ SkinOptions skin_options(const PipelineOptions& o) {
   s.decimation_tolerance_mm = o.skin.decimation_tolerance_mm;
   s.data_fit.enabled = o.skin.fit_to_data;
   s.data_fit.max_move_mm = o.skin.fit_max_move_mm;
+  s.fair_unseen.enabled = o.skin.fair_unseen;
   return s;
 }
 

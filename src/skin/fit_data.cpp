@@ -28,8 +28,6 @@ DataFit fit_to_data(SM* sm, const std::vector<Eigen::Vector3d>& points, const Da
   DataFit f;
   if (!o.enabled) return f;
   const size_t N = sm->num_vertices();  // indexed by vertex index (a decimated mesh keeps removed ones)
-  std::vector<K::Point_3> before(N);
-  for (const auto v : sm->vertices()) before[v.idx()] = sm->point(v);
   std::vector<double> total(N, 0.0);
   const size_t stride = std::max<size_t>(1, points.size() / static_cast<size_t>(o.max_points));
   const size_t n_rows = (points.size() + stride - 1) / stride;
@@ -153,19 +151,24 @@ DataFit fit_to_data(SM* sm, const std::vector<Eigen::Vector3d>& points, const Da
     f.max_move_mm = std::max(f.max_move_mm, m);
   }
   f.mean_move_mm /= static_cast<double>(std::max<size_t>(sm->number_of_vertices(), 1));
-  // Where a move made the skin cross itself (a thin web pulled through its other side), those
-  // triangles' corners go back, until nothing crosses (the stage's own check, done here).
+  return f;
+}
+
+// Where a move made the skin cross itself (a thin web pulled through its other side), those
+// triangles' corners go back, until nothing crosses (the stage's own check, done here).
+Crossings take_back_crossings(SM* sm, const std::vector<K::Point_3>& before) {
+  Crossings c;
   for (int round = 0; round < 10; ++round) {
     std::vector<std::pair<SM::Face_index, SM::Face_index>> pairs;
     PMP::self_intersections(*sm, std::back_inserter(pairs));
-    f.self_intersects = !pairs.empty();
+    c.self_intersects = !pairs.empty();
     if (pairs.empty()) break;
     for (const auto& [a, b] : pairs)
       for (const auto fc : {a, b})
         for (auto v : CGAL::vertices_around_face(sm->halfedge(fc), *sm))
-          if (sm->point(v) != before[v.idx()]) sm->point(v) = before[v.idx()], ++f.reverted;
+          if (sm->point(v) != before[v.idx()]) sm->point(v) = before[v.idx()], ++c.reverted;
   }
-  return f;
+  return c;
 }
 
 }  // namespace handskin::skin_steps

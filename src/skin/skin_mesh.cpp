@@ -52,6 +52,11 @@ bool SkinOptions::IsValid(std::string* error) const {
   if (!(data_fit.smoothness > 0 && data_fit.smoothness <= 100)) return bad("the data fit's smoothness must be in (0, 100]");
   if (data_fit.rounds < 1 || data_fit.rounds > 20) return bad("the data fit's rounds must be in [1, 20]");
   if (data_fit.max_points < 100 || data_fit.max_points > 10000000) return bad("the data fit's max_points must be in [100, 1e7]");
+  if (!(fair_unseen.seen_mm > 0 && fair_unseen.seen_mm <= 10)) return bad("the fairing's seen_mm must be in (0, 10]");
+  if (!(fair_unseen.crease_deg > 0 && fair_unseen.crease_deg < 180)) return bad("the fairing's crease_deg must be in (0, 180)");
+  if (fair_unseen.rings < 0 || fair_unseen.rings > 50) return bad("the fairing's rings must be in [0, 50]");
+  if (!(fair_unseen.cut_margin_mm >= 0 && fair_unseen.cut_margin_mm <= 50)) return bad("the fairing's cut_margin_mm must be in [0, 50]");
+  if (!(fair_unseen.away_mm >= 0 && fair_unseen.away_mm <= 20)) return bad("the fairing's away_mm must be in [0, 20]");
   if (!(thumb_overlap_mm >= 0 && thumb_overlap_mm <= 20)) return bad("skin.thumb_overlap_mm must be in [0, 20]");
   if (cap_rings < 1 || cap_rings > 20) return bad("skin.cap_rings must be in [1, 20]");
   if (!(window_deg > 0 && window_deg <= 20)) return bad("skin.window_deg must be in (0, 20]");
@@ -179,7 +184,23 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   // tubes lie up to a few millimetres off the scanned surface; each vertex moves onto it along
   // its normal where the cloud measures it (fit_data.cpp).
   const auto tf = Clock::now();
+  std::vector<K::Point_3> before(skin.num_vertices());
+  for (const auto v : skin.vertices()) before[v.idx()] = skin.point(v);
   R.data_fit = fit_to_data(&skin, points, o.data_fit);
+  // 9. the unseen creases made fair (fair_unseen.cpp), then the moves of both steps that make
+  // the skin cross itself taken back.
+  {
+    const Eigen::Vector3d cut_n = Ti.linear() * R.wrist_cut.n;
+    const double cut_d = R.wrist_cut.d + cut_n.dot(Ti.translation());
+    Moves faired;
+    R.fair_unseen = fair_unseen(&skin, points, cut_n, cut_d, o.fair_unseen, &faired);
+    if (o.data_fit.enabled || o.fair_unseen.enabled) {
+      const Crossings c = take_back_crossings(&skin, before);
+      R.data_fit.reverted = c.reverted;
+      R.data_fit.self_intersects = c.self_intersects;
+    }
+    settle_fair_figures(skin, faired, before, &R.fair_unseen);
+  }
   R.mesh = to_trimesh(skin);  // vertices in the order of skin.vertices()
   R.seconds_fit = since(tf);
 
@@ -187,7 +208,8 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   const auto t3 = Clock::now();
   if (o.check_self_intersections) {
     // Step 8 ends with the same test when it ran.
-    R.self_intersects = o.data_fit.enabled ? R.data_fit.self_intersects : PMP::does_self_intersect(skin);
+    R.self_intersects =
+        o.data_fit.enabled || o.fair_unseen.enabled ? R.data_fit.self_intersects : PMP::does_self_intersect(skin);
     R.self_intersection_checked = true;
   }
   R.health = mesh_health(R.mesh);

@@ -33,6 +33,26 @@ struct DataFitOptions {
   int rounds = 2;            ///< the least squares solved this many times, the nearest faces found again
   int max_points = 10000;    ///< the cloud is thinned to about this many points
 };
+/// Step 9 (docs/skin.md's step 12): the skin neither scan saw, where the union or the rings
+/// left a concave crease in it (the V between two fingers' tubes short of their web, where a
+/// tube's rings meet the palm's), made fair: those vertices move to the surface of least
+/// bending that meets the seen skin round them.
+struct FairUnseenOptions {
+  bool enabled = true;
+  double seen_mm = 1.0;       ///< a vertex with a cloud point this near is seen, and stays
+  double crease_deg = 15;     ///< an edge whose faces turn by more, concave, is a crease
+  int rings = 4;              ///< unseen vertices this many edges from a crease's move too
+  double cut_margin_mm = 2;   ///< vertices this near the wrist cut (or beyond it) stay
+  double away_mm = 2.0;       ///< a vertex the fairing takes this much farther from the cloud is held
+};
+/// What step 9 did.
+struct FairUnseen {
+  size_t crease_vertices = 0;  ///< unseen vertices on a concave crease
+  size_t faired = 0;           ///< vertices moved (the creases' regions)
+  size_t held = 0;             ///< region vertices held where they were (fairing took them away from the cloud)
+  size_t taken_back = 0;       ///< of those, put back because the skin crossed itself there
+  double mean_move_mm = 0, max_move_mm = 0;  ///< of the moves kept
+};
 /// What step 8 did.
 struct DataFit {
   size_t points = 0;    ///< points fitted (the last round)
@@ -65,6 +85,7 @@ struct SkinOptions {
   int max_triangles = 8000;
   double decimation_tolerance_mm = 0.15;
   DataFitOptions data_fit;
+  FairUnseenOptions fair_unseen;
   bool check_self_intersections = true;
   bool IsValid(std::string* error) const;
 };
@@ -129,6 +150,7 @@ struct SkinResult {
   std::vector<std::string> warnings;
   size_t triangles_before_decimation = 0;
   DataFit data_fit;
+  FairUnseen fair_unseen;
   double seconds_rings = 0, seconds_union = 0, seconds_decimation = 0, seconds_fit = 0, seconds_checks = 0;
   /// Closed, manifold, one component, positive volume, and (when checked) no self-intersection.
   bool watertight() const;

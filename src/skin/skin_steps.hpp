@@ -11,6 +11,8 @@
 ///   7. decimate        CGAL edge collapse to the triangle budget (decimate.cpp)
 ///   8. fit_to_data     the decimated skin fitted to the cloud in least squares (fit_data.cpp;
 ///                      in the rig frame, as the stitched skin is)
+///   9. fair_unseen     the unseen skin round concave creases made fair (fair_unseen.cpp), then
+///                      take_back_crossings: moves of 8 and 9 that cross the skin taken back
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Surface_mesh.h>
 
@@ -179,8 +181,27 @@ void decimate(SM* sm, size_t max_faces, double tolerance_mm, Origin origin);
 
 /// Step 8 (fit_data.cpp; docs/skin.md's step 11): each vertex moved along its normal so that
 /// the piecewise-linear skin fits the cloud's points in least squares (point to nearest face,
-/// an edge smoothness term, DataFitOptions::rounds rounds); moves that make the skin cross
-/// itself are taken back, and the last self-intersection test is reported.
+/// an edge smoothness term, DataFitOptions::rounds rounds).
 DataFit fit_to_data(SM* sm, const std::vector<Eigen::Vector3d>& points, const DataFitOptions& options);
+/// Step 9 (fair_unseen.cpp; docs/skin.md's step 12): the unseen vertices near a concave crease
+/// moved to the fair surface (CGAL's cotangent bi-Laplacian fairing) that the seen skin round
+/// them holds. Vertices within `cut_margin_mm` distal of the wrist cut `cut` (n . p = d, rig
+/// frame, n distal) or proximal of it stay: the sawn face is unseen and flat by construction.
+/// `moved` (if given) receives each moved vertex and where it was, for the figures after the
+/// take-back (`settle_fair_figures`).
+using Moves = std::vector<std::pair<SM::Vertex_index, K::Point_3>>;
+FairUnseen fair_unseen(SM* sm, const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& cut_n, double cut_d,
+                       const FairUnseenOptions& options, Moves* moved = nullptr);
+/// After steps 8 and 9: the corners of triangles that cross another go back to `before`
+/// (positions by vertex index), until nothing crosses; the last self-intersection test is
+/// reported (the stage's own check).
+struct Crossings {
+  size_t reverted = 0;
+  bool self_intersects = false;
+};
+Crossings take_back_crossings(SM* sm, const std::vector<K::Point_3>& before);
+/// Step 9's figures as the take-back left them: the moves kept (mean, largest) and the
+/// vertices put back.
+void settle_fair_figures(const SM& sm, const Moves& moved, const std::vector<K::Point_3>& before, FairUnseen* f);
 
 }  // namespace handskin::skin_steps
