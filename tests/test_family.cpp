@@ -242,21 +242,50 @@ TEST(Family, EveryDocumentedSizeGetsItsMarkersAndLeftHandsMirrorTheirRig) {
 // One pair of the family study through the command line, as scripts/family_study.py runs
 // it: synth hand, synth scan, register (radius estimated), skin with the automatic skeleton
 // against the pair's rig and truth. Returns skin_report.json.
-nlohmann::json study_pair_auto_skin(const std::string& tag, const std::string& hand_options, int seed, double radius) {
+// A study pair through the command line as scripts/family_study.py runs it: synth hand, synth
+// scan, register (the marker radius estimated, against the truth); returns its folder.
+std::string study_pair(const std::string& tag, const std::string& hand_options, int seed, double radius,
+                       const std::string& scan_options = "") {
   const std::string dir = test::temp_dir(tag);
-  const std::string bin = HANDSKIN_BINARY;
   std::string out;
   auto step = [&](const std::string& args) {
-    if (test::run(bin + " -q " + args, &out) != 0) throw std::runtime_error(args + ": " + out);
+    if (test::run(std::string(HANDSKIN_BINARY) + " -q " + args, &out) != 0) throw std::runtime_error(args + ": " + out);
   };
   step("synth hand --no-render --out " + dir + "/hand " + hand_options);
   step("synth scan --no-render --mesh " + dir + "/hand/hand.ply --rig " + dir + "/hand/hand_rig.json --out " + dir +
-       "/pair --seed " + std::to_string(seed) + " --marker-radius " + std::to_string(radius));
-  step("register --back " + dir + "/pair/back --palm " + dir + "/pair/palm --out " + dir + "/reg");
-  step("skin --merged " + dir + "/reg/merged.ply --rig " + dir + "/pair/rig.json --auto-rig --truth " + dir +
-       "/pair/truth.json --out " + dir + "/skin");
+       "/pair --seed " + std::to_string(seed) + " --marker-radius " + std::to_string(radius) + " " + scan_options);
+  step("register --back " + dir + "/pair/back --palm " + dir + "/pair/palm --truth " + dir + "/pair/truth.json --out " +
+       dir + "/reg");
+  return dir;
+}
+
+nlohmann::json study_pair_auto_skin(const std::string& tag, const std::string& hand_options, int seed, double radius) {
+  const std::string dir = study_pair(tag, hand_options, seed, radius);
+  std::string out;
+  const std::string args = "skin --merged " + dir + "/reg/merged.ply --rig " + dir + "/pair/rig.json --auto-rig --truth " +
+                           dir + "/pair/truth.json --out " + dir + "/skin";
+  if (test::run(std::string(HANDSKIN_BINARY) + " -q " + args, &out) != 0) throw std::runtime_error(args + ": " + out);
   std::ifstream in(dir + "/skin/skin_report.json");
   return nlohmann::json::parse(in);
+}
+
+// The study's largest hand with 2.5 mm markers over a 300 x 240 mm field (H04, first pair): the
+// palm scan's detector missed two markers (their caps half hidden by the flank they sit on),
+// the fit used 7 and turned 0.033 deg from the truth. They are now looked for where the other
+// seven put them, and the fit uses all nine.
+TEST(Family, MarkersMissedInOneScanAreFoundWhereThePatternPutsThem) {
+  const std::string dir = study_pair("family-recover", "--side left --hand-length 215 --thickness 1.25 --width 1.15 "
+                                     "--finger-thickness 1.2 --forearm 40", 1, 2.5, "--x-extent 300 --y-extent 240");
+  std::ifstream in(dir + "/reg/registration.json");
+  const auto r = nlohmann::json::parse(in);
+  std::printf("[family] H04-s1: %zu pairs, %d recovered, rotation %.4f deg, skin mean %.4f mm\n",
+              r["matching"]["pairs_back_palm"].size(), r["matching"]["recovered"].get<int>(),
+              r["against_truth"]["chosen"]["rotation_deg"].get<double>(),
+              r["against_truth"]["chosen"]["skin_mean_mm"].get<double>());
+  EXPECT_EQ(r["matching"]["recovered"].get<int>(), 2);
+  EXPECT_EQ(r["matching"]["pairs_back_palm"].size(), 9u);
+  EXPECT_LE(r["against_truth"]["chosen"]["rotation_deg"].get<double>(), 0.02);  // measured 0.0180; 0.0330 with 7
+  EXPECT_LE(r["against_truth"]["chosen"]["skin_mean_mm"].get<double>(), 0.05);  // measured 0.0288; 0.0669 with 7
 }
 
 // A broad hand with its fingers 3 deg apart (the family study's H12, second pair): the
