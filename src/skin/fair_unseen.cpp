@@ -14,7 +14,7 @@ namespace PMP = CGAL::Polygon_mesh_processing;
 
 namespace {
 constexpr double kFarMm = 20.0;  // distances to the cloud are looked for this far
-constexpr int kHoldRounds = 4;
+constexpr int kHoldRounds = 4;   // fairings at most, each holding the vertices the last took away
 }  // namespace
 
 // Step 9. Where neither scan saw the skin, the tubes' union leaves what the rings made of it,
@@ -27,7 +27,7 @@ constexpr int kHoldRounds = 4;
 // faired with the seen skin round it held (CGAL's `fair`: the cotangent bi-Laplacian, C1 to
 // the fixed vertices, Botsch & Kobbelt). Convex creases do not start a region: a finger's
 // flank where the section's curvature peaks, tessellated by the decimation, turns 20-40°
-// between faces, and fairing it flattens it (tried: 0.003 mm worse on the family's close,
+// between faces, and fairing it flattens it (tried: 0.003-0.008 mm worse on the family's close,
 // wide hand H12). Why not on every unseen vertex: the finger's flanks are bridged by the
 // rings' two guesses (step 4), which fit the family's sections better than the least-bending
 // surface does (a Hermite bridge was tried there and was worse).
