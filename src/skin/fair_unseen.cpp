@@ -114,32 +114,30 @@ FairUnseen fair_unseen(SM* sm, const std::vector<Eigen::Vector3d>& points, const
       for (size_t k = 0; k < region.size(); ++k)
         if (held[k]) sm->point(region[k]) = was[k];
   }
-  size_t n = 0;
   for (size_t k = 0; k < region.size(); ++k) {
-    const double m = std::sqrt(CGAL::squared_distance(sm->point(region[k]), was[k]));
-    if (!std::isfinite(m)) {  // never a NaN into the skin: put the region back
+    const K::Point_3& p = sm->point(region[k]);
+    if (!std::isfinite(p.x()) || !std::isfinite(p.y()) || !std::isfinite(p.z())) {
+      // never a NaN into the skin: put the region back
       for (size_t j = 0; j < region.size(); ++j) sm->point(region[j]) = was[j];
-      FairUnseen none;
-      none.crease_vertices = f.crease_vertices;
-      return none;
+      return f;
     }
-    if (held[k]) continue;
-    f.mean_move_mm += m;
-    f.max_move_mm = std::max(f.max_move_mm, m);
-    ++n;
-    if (moved) moved->emplace_back(region[k], was[k]);
   }
-  f.held = region.size() - n;
-  f.faired = n;
-  if (n) f.mean_move_mm /= static_cast<double>(n);
+  Moves kept;
+  for (size_t k = 0; k < region.size(); ++k)
+    if (!held[k]) kept.emplace_back(region[k], was[k]);
+  f.held = region.size() - kept.size();
+  f.faired = kept.size();
+  settle_fair_figures(*sm, kept, nullptr, &f);
+  if (moved) moved->insert(moved->end(), kept.begin(), kept.end());
   return f;
 }
-void settle_fair_figures(const SM& sm, const Moves& moved, const std::vector<K::Point_3>& before, FairUnseen* f) {
+
+void settle_fair_figures(const SM& sm, const Moves& moved, const std::vector<K::Point_3>* before, FairUnseen* f) {
   f->taken_back = 0;
   f->mean_move_mm = f->max_move_mm = 0;
   size_t kept = 0;
   for (const auto& [v, was] : moved) {
-    if (sm.point(v) == before[v.idx()] && sm.point(v) != was) {
+    if (before && sm.point(v) == (*before)[v.idx()] && sm.point(v) != was) {
       ++f->taken_back;
       continue;
     }

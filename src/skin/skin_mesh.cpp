@@ -199,7 +199,7 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
       R.data_fit.reverted = c.reverted;
       R.data_fit.self_intersects = c.self_intersects;
     }
-    settle_fair_figures(skin, faired, before, &R.fair_unseen);
+    settle_fair_figures(skin, faired, &before, &R.fair_unseen);
   }
   R.mesh = to_trimesh(skin);  // vertices in the order of skin.vertices()
   R.seconds_fit = since(tf);
@@ -207,7 +207,7 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   // --- checks, labels, the OpenMesh result ---
   const auto t3 = Clock::now();
   if (o.check_self_intersections) {
-    // Step 8 ends with the same test when it ran.
+    // The take-back after steps 8 and 9 ends with the same test when either ran.
     R.self_intersects =
         o.data_fit.enabled || o.fair_unseen.enabled ? R.data_fit.self_intersects : PMP::does_self_intersect(skin);
     R.self_intersection_checked = true;

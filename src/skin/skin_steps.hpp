@@ -200,8 +200,8 @@ struct Crossings {
   bool self_intersects = false;
 };
 Crossings take_back_crossings(SM* sm, const std::vector<K::Point_3>& before);
-/// Step 9's figures as the take-back left them: the moves kept (mean, largest) and the
-/// vertices put back.
-void settle_fair_figures(const SM& sm, const Moves& moved, const std::vector<K::Point_3>& before, FairUnseen* f);
+/// Step 9's figures from its moves: the moves kept (mean, largest) and, given the positions
+/// the take-back restores (`before`, by vertex index), the vertices it put back.
+void settle_fair_figures(const SM& sm, const Moves& moved, const std::vector<K::Point_3>* before, FairUnseen* f);
 
 }  // namespace handskin::skin_steps
