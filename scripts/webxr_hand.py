@@ -48,10 +48,11 @@ def read_glb(path):
 
 
 def weld(V, F):
-    """Vertices at one position (to 1e-7 m) become one; faces re-indexed."""
+    """Vertices at one position (to 1e-7 m) become one; faces re-indexed. Also returns, per
+    welded vertex, the index of its first original vertex (for its skin weights)."""
     keys = np.round(V / 1e-7).astype(np.int64)
     _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
-    return V[first], inverse.reshape(-1)[F]
+    return V[first], inverse.reshape(-1)[F], first
 
 
 def edges_of(F):
@@ -119,13 +120,77 @@ def node_world(js):
     return world
 
 
+# A rig DOF's joint (../shared/formats/hand-rig.md names) -> (the WebXR joint it turns at, the
+# WebXR joint its bone runs to). Flexion turns the bone and every bone beyond it about the
+# axis bone x palm-normal through the joint, so that positive angles curl toward the palm.
+DIGITS = {"thumb": "thumb", "index": "index-finger", "middle": "middle-finger", "ring": "ring-finger",
+          "little": "pinky-finger"}
+FLEX_AT = {"cmc": ("metacarpal", "phalanx-proximal"), "mcp": ("phalanx-proximal", "phalanx-intermediate"),
+           "pip": ("phalanx-intermediate", "phalanx-distal"), "dip": ("phalanx-distal", "tip")}
+THUMB_FLEX_AT = {"cmc": ("metacarpal", "phalanx-proximal"), "mcp": ("phalanx-proximal", "phalanx-distal"),
+                 "ip": ("phalanx-distal", "tip")}
+CHAINS = {d: [f"{p}-{j}" for j in (("metacarpal", "phalanx-proximal", "phalanx-distal", "tip") if d == "thumb" else
+                                   ("metacarpal", "phalanx-proximal", "phalanx-intermediate", "phalanx-distal", "tip"))]
+          for d, p in DIGITS.items()}
+
+
+def rotation(axis, deg):
+    a = axis / np.linalg.norm(axis)
+    t = np.radians(deg)
+    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * K @ K
+
+
+def pose(J, palm, sets):
+    """Rigid transforms (R, t), one per WebXR joint, for flexion angles {"index.pip.flex": deg}.
+    A joint's transform moves its bone (the one that starts there) and is the product of the
+    flexions at it and at every joint before it on its digit, applied from the tip inward."""
+    T = {name: (np.eye(3), np.zeros(3)) for name in J}
+    for key, deg in sets.items():
+        parts = key.split(".")
+        table = THUMB_FLEX_AT if parts[0] == "thumb" else FLEX_AT
+        if len(parts) != 3 or parts[0] not in DIGITS or parts[1] not in table or parts[2] != "flex":
+            sys.exit(f"--set {key}: expected DIGIT.JOINT.flex with DIGIT one of {', '.join(DIGITS)} and JOINT one of "
+                     f"{', '.join(FLEX_AT)} (thumb: {', '.join(THUMB_FLEX_AT)})")
+    for digit, chain in CHAINS.items():
+        table = THUMB_FLEX_AT if digit == "thumb" else FLEX_AT
+        # From the tip inward, so each rotation acts in the rest frame on what lies beyond it.
+        for joint in reversed(list(table)):
+            deg = sets.get(f"{digit}.{joint}.flex", 0.0)
+            if deg == 0.0:
+                continue
+            at, to = (f"{DIGITS[digit]}-{j}" for j in table[joint])
+            d = J[to] - J[at]
+            d /= np.linalg.norm(d)
+            n = palm - np.dot(palm, d) * d
+            R = rotation(np.cross(d, n), deg)
+            c = J[at]
+            for name in chain[chain.index(at):]:
+                R0, t0 = T[name]
+                T[name] = (R @ R0, R @ (t0 - c) + c)
+    return T
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--glb", required=True)
     ap.add_argument("--out", required=True)
     ap.add_argument("--side", required=True, choices=("right", "left"))
     ap.add_argument("--subdivide", type=int, default=2, help="Loop subdivision rounds (0: the asset's facets)")
+    ap.add_argument("--set", action="append", default=[], metavar="DOF=DEG",
+                    help="pose the hand through its own skin weights before subdividing: flexion in degrees, "
+                         "e.g. index.pip.flex=30 (DIGIT: thumb index middle ring little; JOINT: cmc mcp pip dip, "
+                         "thumb cmc mcp ip); the rig is posed with it")
     a = ap.parse_args()
+    sets = {}
+    for kv in a.set:
+        k, eq, v = kv.partition("=")
+        try:
+            sets[k] = float(v)
+        except ValueError:
+            sets[k] = None
+        if not eq or sets[k] is None or not -90 <= sets[k] <= 120:
+            sys.exit(f"--set {kv}: expected DOF=DEG with DEG a number of degrees in [-90, 120]")
     js, accessor = read_glb(a.glb)
     nodes = js["nodes"]
     mesh_node = next(i for i, n in enumerate(nodes) if "mesh" in n)
@@ -135,22 +200,21 @@ def main():
     world = node_world(js)
     M = world(mesh_node)
     V = V @ M[:3, :3].T + M[:3, 3]
-    V, F = weld(V, F)
+    V, F, first = weld(V, F)
     check_closed(F, a.glb)
-    for _ in range(a.subdivide):
-        V, F = loop_subdivide(V, F)
     V *= 1000.0  # metres -> mm
     skin = js["skins"][0]
     ibm = accessor(skin["inverseBindMatrices"]).reshape(-1, 4, 4).transpose(0, 2, 1)
     joints = {}
-    for k, ni in enumerate(skin["joints"]):
-        name = nodes[ni].get("name")
+    skin_names = [nodes[ni].get("name") for ni in skin["joints"]]
+    for k, name in enumerate(skin_names):
         if name in JOINTS:
             joints[name] = (np.linalg.inv(ibm[k])[:3, 3] * 1000.0).tolist()
     missing = [j for j in JOINTS if j not in joints]
     if missing:
         sys.exit(f"{a.glb}: joints missing: {', '.join(missing)}")
     J = {k: np.array(v) for k, v in joints.items()}
+    # From the rest pose: the hand frame does not move with the fingers.
     across = J["pinky-finger-phalanx-proximal"] - J["index-finger-phalanx-proximal"]
     along = J["middle-finger-tip"] - J["wrist"]
     # For a right hand (index to little finger) x (wrist to tips) points out of the back; a
@@ -162,6 +226,22 @@ def main():
     if np.dot(J["thumb-metacarpal"] - J["index-finger-metacarpal"], back) > 0:
         sys.exit(f"{a.glb}: the thumb's base lies on the back of the hand for --side {a.side}; is it the other side's?")
     back /= np.linalg.norm(back)
+    if sets:
+        # Linear blend skinning with the asset's own weights (its bind pose is the rest pose),
+        # on the asset's facets, before the subdivision smooths them.
+        T = pose(J, -back, sets)
+        idx = accessor(prim["attributes"]["JOINTS_0"]).astype(np.int64)[first]
+        wts = accessor(prim["attributes"]["WEIGHTS_0"]).astype(float)[first]
+        wts /= wts.sum(1, keepdims=True)
+        P = np.zeros_like(V)
+        for k, name in enumerate(skin_names):
+            R, t = T.get(name, (np.eye(3), np.zeros(3)))
+            w = (wts * (idx == k)).sum(1)
+            P += w[:, None] * (V @ R.T + t)
+        V = P
+        joints = {name: (T[name][0] @ np.array(p) + T[name][1]).tolist() for name, p in joints.items()}
+    for _ in range(a.subdivide):
+        V, F = loop_subdivide(V, F)
     # The enclosed volume must be positive (faces outward).
     vol = np.einsum("ij,ij->i", V[F[:, 0]], np.cross(V[F[:, 1]], V[F[:, 2]])).sum() / 6
     if vol < 0:

@@ -65,6 +65,24 @@ struct Grid {
       }
     on = out;
   }
+  // Empty cells that the grid's border cannot reach through empty cells (4-connected) become
+  // set: holes in the silhouette, not the gaps between fingers, which open to the outside.
+  void fill_holes() {
+    std::vector<std::uint8_t> outside(on.size(), 0);
+    std::queue<int> qu;
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i)
+        if ((i == 0 || j == 0 || i == nx - 1 || j == ny - 1) && !on[idx(i, j)]) outside[idx(i, j)] = 1, qu.push(idx(i, j));
+    while (!qu.empty()) {
+      const int k = qu.front();
+      qu.pop();
+      const int a = k % nx, b = k / nx;
+      for (auto [da, db] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}})
+        if (in(a + da, b + db) && !on[idx(a + da, b + db)] && !outside[idx(a + da, b + db)])
+          outside[idx(a + da, b + db)] = 1, qu.push(idx(a + da, b + db));
+    }
+    for (size_t k = 0; k < on.size(); ++k) on[k] = !outside[k];
+  }
   // Distance (in cells) to the nearest empty cell: two-pass 3-4 chamfer.
   std::vector<double> distance() const {
     std::vector<double> d(on.size());
@@ -118,6 +136,31 @@ std::optional<double> breadth_knee(const std::vector<Eigen::Vector3d>& h, const 
   }
   if (!(b2 > 0.3 && b2 > 2 * std::max(b1, 0.0))) return std::nullopt;
   return best_k;
+}
+
+// The middle of the cloud's section through `at` square to `a` (the points within 1.5 mm of
+// that plane and within `window` of `at` along e1 and e2): the midpoint of their extents
+// along e1 and e2, moved to and measured again, three times. Empty when the section does not
+// close inside the window (it runs on into the palm or a neighbour) or holds < 30 points.
+std::optional<Eigen::Vector3d> section_middle(const std::vector<Eigen::Vector3d>& h, Eigen::Vector3d at,
+                                              const Eigen::Vector3d& a, const Eigen::Vector3d& e1,
+                                              const Eigen::Vector3d& e2, double window) {
+  for (int it = 0; it < 3; ++it) {
+    double lo1 = 1e300, hi1 = -1e300, lo2 = 1e300, hi2 = -1e300;
+    int n = 0;
+    for (const auto& p : h) {
+      const Eigen::Vector3d d = p - at;
+      if (std::abs(d.dot(a)) > 1.5) continue;
+      const double x1 = d.dot(e1), x2 = d.dot(e2);
+      if (std::abs(x1) > window || std::abs(x2) > window) continue;
+      lo1 = std::min(lo1, x1), hi1 = std::max(hi1, x1), lo2 = std::min(lo2, x2), hi2 = std::max(hi2, x2);
+      ++n;
+    }
+    const double edge = 0.9 * window;
+    if (n < 30 || lo1 < -edge || hi1 > edge || lo2 < -edge || hi2 > edge) return std::nullopt;
+    at += 0.5 * (lo1 + hi1) * e1 + 0.5 * (lo2 + hi2) * e2;
+  }
+  return at;
 }
 
 // A finger's section centres carried toward the palm from its first one (at t = lateral's
@@ -277,99 +320,117 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
   // between the back's and the palm's samples over the cells the opening keeps — until it
   // turns by less than 2 deg (at most 8 times). Hands whose five digits the first silhouette
   // finds keep it: on the family's 48 pairs the refit always was no better on the whole.
-  for (int pass = 0;; ++pass) {
-    Y = Z.cross(X);
-    for (size_t i = 0; i < pts.size(); ++i) h[i] = Eigen::Vector3d((pts[i] - c).dot(X), (pts[i] - c).dot(Y), (pts[i] - c).dot(Z));
-    Eigen::Vector3d lo = h.front(), hi = h.front();
-    for (const auto& q : h) lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
-    g = Grid{};
-    g.u0 = lo.x() - 3, g.v0 = lo.y() - 3;
-    g.nx = static_cast<int>((hi.x() - lo.x()) / g.cell) + 7;
-    g.ny = static_cast<int>((hi.y() - lo.y()) / g.cell) + 7;
-    if (static_cast<long>(g.nx) * g.ny > 4000000) throw InputError("merged cloud", "spans more than 2 m; not a hand in mm");
-    g.on.assign(static_cast<size_t>(g.nx) * g.ny, 0);
-    for (size_t i = 0; i < h.size(); ++i) {
-      cell_of[i] = g.idx(g.ci(h[i].x()), g.cj(h[i].y()));
-      g.on[cell_of[i]] = 1;
-    }
-    g.morph(true), g.morph(true), g.morph(false), g.morph(false);
-    dist = g.distance();
-    const int best = static_cast<int>(std::max_element(dist.begin(), dist.end()) - dist.begin());
-    R = dist[best] * g.cell;
-    pc = Eigen::Vector2d(g.u0 + (best % g.nx + 0.5) * g.cell, g.v0 + (best / g.nx + 0.5) * g.cell);
-    // Digits: what a morphological opening with a disc of 0.45 R removes (fingers are far
-    // narrower than the palm and the wrist stub, which survive it).
-    r0 = 0.45 * R / g.cell;
-    Grid core = g;
-    for (size_t k = 0; k < g.on.size(); ++k) core.on[k] = !(dist[k] >= r0);
-    to_core = core.distance();
-    digit_cell = beyond(r0);
-    comps = components(digit_cell);
-    if (count_digits(comps) >= 5 || pass == 8) break;
-    std::vector<double> zlo(g.on.size(), 1e300), zhi(g.on.size(), -1e300);
-    std::vector<std::uint8_t> seen(g.on.size(), 0);
-    for (size_t i = 0; i < h.size(); ++i) {
-      const int k = cell_of[i];
-      if (!(dist[k] >= r0)) continue;
-      zlo[k] = std::min(zlo[k], h[i].z()), zhi[k] = std::max(zhi[k], h[i].z());
-      seen[k] |= sides[i] == 1 ? 1 : 2;
-    }
-    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
-    for (size_t k = 0; k < g.on.size(); ++k) {
-      if (seen[k] != 3) continue;
-      const Eigen::Vector3d row(g.u0 + (k % g.nx + 0.5) * g.cell, g.v0 + (k / g.nx + 0.5) * g.cell, 1.0);
-      A += row * row.transpose();
-      rhs += row * 0.5 * (zlo[k] + zhi[k]);
-    }
-    if (A(2, 2) < 500) break;  // too little of the palm seen from both sides
-    const Eigen::Vector3d plane = A.ldlt().solve(rhs);  // mid-surface z = a u + b v + c
-    const Eigen::Vector3d Zp = (Z - plane(0) * X - plane(1) * Y).normalized();
-    if (!Zp.allFinite() || Zp.dot(Z) > std::cos(2 * M_PI / 180)) break;
-    Z = Zp;
-    X = (X - X.dot(Z) * Z).normalized();
-  }
-  out.palm_radius_mm = R;
-  // Two digits can still join beyond the opening: a little finger whose web lies far
-  // proximal of the ring finger's leaves a band along the palm's edge, outside the opening,
-  // that links their bases. Farther from the palm they part: the pieces found beyond the
-  // first distance that gives five digits are grown back over the digits' cells (breadth
-  // first from all of them at once: each cell goes to the piece it is nearest through them).
-  if (count_digits(comps) < 5) {
-    const long before = count_digits(comps);
-    for (double t = r0 + 1; t <= 2 * r0; t += 1) {
-      const std::vector<std::vector<int>> seeds = components(beyond(t));
-      const long n = count_digits(seeds);
-      if (n < before) break;  // a digit ends before the joined ones part
-      if (n != 5) continue;
-      std::vector<int> owner(g.on.size(), -1);
-      std::queue<int> qu;
-      std::vector<std::vector<int>> grown;
-      for (const auto& sd : seeds) {
-        if (sd.size() < kDigitCells) continue;
-        for (int cidx : sd) owner[cidx] = static_cast<int>(grown.size()), qu.push(cidx);
-        grown.emplace_back();
+  // The silhouette is closed (2 cells) against the scans' small gaps. Fingers that lie within
+  // ~4 mm of each other in it are closed into one digit too; when five digits are not found
+  // that way, the search starts again from the principal frame with the silhouette unclosed
+  // (only its enclosed holes filled): the WebXR hand model with its fingers arched 8-14 deg
+  // at the MCPs and 12-18 deg at the PIPs brings its ring and little fingers ~2 mm apart in
+  // the silhouette.
+  const Eigen::Vector3d X0 = X, Z0 = Z;
+  for (const bool closed : {true, false}) {
+    X = X0, Z = Z0;
+    for (int pass = 0;; ++pass) {
+      Y = Z.cross(X);
+      for (size_t i = 0; i < pts.size(); ++i) h[i] = Eigen::Vector3d((pts[i] - c).dot(X), (pts[i] - c).dot(Y), (pts[i] - c).dot(Z));
+      Eigen::Vector3d lo = h.front(), hi = h.front();
+      for (const auto& q : h) lo = lo.cwiseMin(q), hi = hi.cwiseMax(q);
+      g = Grid{};
+      g.u0 = lo.x() - 3, g.v0 = lo.y() - 3;
+      g.nx = static_cast<int>((hi.x() - lo.x()) / g.cell) + 7;
+      g.ny = static_cast<int>((hi.y() - lo.y()) / g.cell) + 7;
+      if (static_cast<long>(g.nx) * g.ny > 4000000) throw InputError("merged cloud", "spans more than 2 m; not a hand in mm");
+      g.on.assign(static_cast<size_t>(g.nx) * g.ny, 0);
+      for (size_t i = 0; i < h.size(); ++i) {
+        cell_of[i] = g.idx(g.ci(h[i].x()), g.cj(h[i].y()));
+        g.on[cell_of[i]] = 1;
       }
-      while (!qu.empty()) {
-        const int cidx = qu.front();
-        qu.pop();
-        grown[owner[cidx]].push_back(cidx);
-        const int a = cidx % g.nx, b = cidx / g.nx;
-        for (auto [da, db] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
-          const int x = a + da, y = b + db;
-          if (g.in(x, y) && digit_cell[g.idx(x, y)] && owner[g.idx(x, y)] < 0) {
-            owner[g.idx(x, y)] = owner[cidx];
-            qu.push(g.idx(x, y));
+      if (closed)
+        g.morph(true), g.morph(true), g.morph(false), g.morph(false);
+      else
+        g.fill_holes();
+      dist = g.distance();
+      const int best = static_cast<int>(std::max_element(dist.begin(), dist.end()) - dist.begin());
+      R = dist[best] * g.cell;
+      pc = Eigen::Vector2d(g.u0 + (best % g.nx + 0.5) * g.cell, g.v0 + (best / g.nx + 0.5) * g.cell);
+      // Digits: what a morphological opening with a disc of 0.45 R removes (fingers are far
+      // narrower than the palm and the wrist stub, which survive it).
+      r0 = 0.45 * R / g.cell;
+      Grid core = g;
+      for (size_t k = 0; k < g.on.size(); ++k) core.on[k] = !(dist[k] >= r0);
+      to_core = core.distance();
+      digit_cell = beyond(r0);
+      comps = components(digit_cell);
+      if (count_digits(comps) >= 5 || pass == 8) break;
+      std::vector<double> zlo(g.on.size(), 1e300), zhi(g.on.size(), -1e300);
+      std::vector<std::uint8_t> seen(g.on.size(), 0);
+      for (size_t i = 0; i < h.size(); ++i) {
+        const int k = cell_of[i];
+        if (!(dist[k] >= r0)) continue;
+        zlo[k] = std::min(zlo[k], h[i].z()), zhi[k] = std::max(zhi[k], h[i].z());
+        seen[k] |= sides[i] == 1 ? 1 : 2;
+      }
+      Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+      for (size_t k = 0; k < g.on.size(); ++k) {
+        if (seen[k] != 3) continue;
+        const Eigen::Vector3d row(g.u0 + (k % g.nx + 0.5) * g.cell, g.v0 + (k / g.nx + 0.5) * g.cell, 1.0);
+        A += row * row.transpose();
+        rhs += row * 0.5 * (zlo[k] + zhi[k]);
+      }
+      if (A(2, 2) < 500) break;  // too little of the palm seen from both sides
+      const Eigen::Vector3d plane = A.ldlt().solve(rhs);  // mid-surface z = a u + b v + c
+      const Eigen::Vector3d Zp = (Z - plane(0) * X - plane(1) * Y).normalized();
+      if (!Zp.allFinite() || Zp.dot(Z) > std::cos(2 * M_PI / 180)) break;
+      Z = Zp;
+      X = (X - X.dot(Z) * Z).normalized();
+    }
+    out.palm_radius_mm = R;
+    // Two digits can still join beyond the opening: a little finger whose web lies far
+    // proximal of the ring finger's leaves a band along the palm's edge, outside the opening,
+    // that links their bases. Farther from the palm they part: the pieces found beyond the
+    // first distance that gives five digits are grown back over the digits' cells (breadth
+    // first from all of them at once: each cell goes to the piece it is nearest through them).
+    if (count_digits(comps) < 5) {
+      const long before = count_digits(comps);
+      for (double t = r0 + 1; t <= 2 * r0; t += 1) {
+        const std::vector<std::vector<int>> seeds = components(beyond(t));
+        const long n = count_digits(seeds);
+        if (n < before) break;  // a digit ends before the joined ones part
+        if (n != 5) continue;
+        std::vector<int> owner(g.on.size(), -1);
+        std::queue<int> qu;
+        std::vector<std::vector<int>> grown;
+        for (const auto& sd : seeds) {
+          if (sd.size() < kDigitCells) continue;
+          for (int cidx : sd) owner[cidx] = static_cast<int>(grown.size()), qu.push(cidx);
+          grown.emplace_back();
+        }
+        while (!qu.empty()) {
+          const int cidx = qu.front();
+          qu.pop();
+          grown[owner[cidx]].push_back(cidx);
+          const int a = cidx % g.nx, b = cidx / g.nx;
+          for (auto [da, db] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
+            const int x = a + da, y = b + db;
+            if (g.in(x, y) && digit_cell[g.idx(x, y)] && owner[g.idx(x, y)] < 0) {
+              owner[g.idx(x, y)] = owner[cidx];
+              qu.push(g.idx(x, y));
+            }
           }
         }
+        comps = std::move(grown);
+        break;
       }
-      comps = std::move(grown);
+    }
+    if (count_digits(comps) == 5) {
+      if (!closed) out.notes.push_back("digits found in the silhouette left unclosed (two fingers lie within ~4 mm)");
       break;
     }
   }
   struct Digit {
     std::vector<size_t> points;
     double angle = 0;
+    double width = 0;  // the median width of its measured sections (across it, in the silhouette)
     // Centre line (hand coordinates) from well inside the palm to the skin's tip, sampled
     // every 0.25 mm, with its arc length: a curled or arched digit's axis is a curve.
     std::vector<Eigen::Vector3d> curve;
@@ -485,6 +546,7 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
       for (size_t k = 0; k < widths.size(); ++k)
         if (widths[k] >= 0.6 * wm && widths[k] <= 1.4 * wm) kept_c.push_back(centres[k]), kept_w.push_back(widths[k]);
       if (kept_c.size() >= 4) centres.swap(kept_c), widths.swap(kept_w);
+      dg.width = wm;
     }
     // A digit does not bend sideways: from the tip's end, the centres that keep to one line.
     // The opening's remnant can carry on past the finger's root as a sliver along its
@@ -657,6 +719,25 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     Xh = chains[2].front() - W;
     Xh.z() = 0;
     Xh.normalize();
+  }
+  // The thumb's MCP and IP on the middle of the cloud's sections through them. The centre
+  // line's height is a quadratic fitted to the part beyond the palm's opening and carried on
+  // straight; a raised thumb bent at its MCP (the WebXR hand model, ~25 deg out of the palm's
+  // plane and flexed 10 deg) leaves its MCP there ~5 mm off the thumb's middle, and the skin
+  // then refused the skeleton (the thumb's links 4.8-6.1 mm from its sections' middles).
+  if (const double dg_thumb_width = digits[4].width; dg_thumb_width > 0) {
+    std::vector<Eigen::Vector3d>& js = chains[0];  // MCP, IP, tip
+    // Each joint moves as the middle of the section at `along` of the way from it to the
+    // next joint out: the IP's own section is free of the palm; at the MCP the thenar runs
+    // on below the thumb, but a third of the way out along its proximal phalanx it is clear.
+    for (const auto& [k, along] : {std::pair{1, 0.0}, std::pair{0, 0.35}}) {
+      const Eigen::Vector3d a = (js[k + 1] - js[k]).normalized(), q = js[k] + along * (js[k + 1] - js[k]);
+      Eigen::Vector3d e1 = Eigen::Vector3d::UnitZ() - a.z() * a;
+      if (e1.norm() < 0.3) continue;  // a thumb pointing up or down out of the hand: no height to centre
+      e1.normalize();
+      const Eigen::Vector3d e2 = a.cross(e1), up = kDorsalOffset * s * e1;
+      if (const auto m = section_middle(h, q - up, a, e1, e2, dg_thumb_width)) js[k] += *m + up - q;
+    }
   }
   out.scale = s;
   Rig& rig = out.rig;

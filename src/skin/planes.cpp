@@ -211,9 +211,14 @@ TubeBuild digit_planes(const HandFrame& H, const TubePoints& Pts, int f, double 
   for (int k = 0; k < K; ++k) t.st.push_back(frame_at(pl.at(k * hs), pl.tangent(k * hs, window)));
   fill_slabs(&t, pts, hs, true);
   {
+    // The thumb's tube starts at its base (CMC), but its metacarpal lies in the thenar, whose
+    // sections (the thumb's share of the palm) have no middle the bone keeps to: even the
+    // WebXR hand model's own rig lies 6-8.5 mm off there. Its phalanges are measured, as a
+    // finger's are (a finger's tube starts at its MCP).
+    const double s_from = f == 0 ? (axis[1] - axis[0]).norm() : 0.0;
     std::vector<double> off, rad;
     for (const auto& g : t.slab) {
-      if (g.size() < 20) continue;
+      if (g.size() < 20 || static_cast<double>(&g - t.slab.data()) * hs < s_from) continue;
       Eigen::Vector2d mn = g.front(), mx = mn;
       for (const auto& p : g) mn = mn.cwiseMin(p), mx = mx.cwiseMax(p);
       off.push_back((0.5 * (mn + mx)).norm());

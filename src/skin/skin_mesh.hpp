@@ -103,9 +103,10 @@ struct SkinTubeReport {
   int partial = 0;          ///< of those, rings whose own samples (too few angles to stand alone) corrected the fill
   size_t points = 0;        ///< measured points given to this tube
   bool present = true;      ///< false: no ring measured (a digit missing from the scan)
-  /// A digit: median over its sections of how far the middle of the section's extent lies
-  /// from the link axis, and the sections' median radius. A rig that fits puts its links
-  /// near the middle (the bones lie a little dorsal); one of another scan does not.
+  /// A digit: median over its sections (the thumb's: those beyond its MCP, not the thenar's)
+  /// of how far the middle of the section's extent lies from the link axis, and those
+  /// sections' median radius. A rig that fits puts its links near the middle (the bones lie
+  /// a little dorsal); one of another scan does not.
   double axis_offset_mm = 0, section_radius_mm = 0;
 };
 
