@@ -11,12 +11,10 @@ Prints a Markdown table and the summary (median and slowest pair); pairs already
 are reused. A failing stage is a row with its one-line error, not an abort.
 """
 import argparse
-import json
 import os
-import statistics
 import sys
 
-from study_util import run as sh
+from study_util import measure_pair, no_baseline_pipeline, print_table, run as sh
 
 # name: synth hand options
 HANDS = {
@@ -52,10 +50,7 @@ def main():
     ap.add_argument("--hands", default=",".join(HANDS))
     a = ap.parse_args()
     os.makedirs(a.work, exist_ok=True)
-    pipeline = os.path.join(a.work, "no-baseline.json")
-    p = json.load(open(os.path.join(os.path.dirname(__file__), "..", "pipelines", "cubist.json")))
-    p["skin"]["baseline"] = False
-    json.dump(p, open(pipeline, "w"))
+    pipeline = no_baseline_pipeline(a.work)
     rows, fails = [], 0
     stats = {"given": [], "auto": []}  # (pair, watertight, triangles, mean, p95, within 1 mm, seconds)
     regs = []  # (pair, rotation deg, skin mean mm)
@@ -77,63 +72,11 @@ def main():
                     rows.append([name, "-", "synth scan: " + out.strip().splitlines()[-1]])
                     fails += 1
                     continue
-            out_dir = os.path.join(a.work, "out-" + name)
-            rc, out = sh([a.bin, "-q", "register", "--back", d + "/back", "--palm", d + "/palm", "--truth",
-                          d + "/truth.json", "--out", out_dir])
-            if rc:
-                rows.append([name, "-", "register: " + out.strip().splitlines()[-1]])
-                fails += 1
-                continue
-            reg = json.load(open(out_dir + "/registration.json"))
-            tr = reg["against_truth"]["chosen"]
-            row = [name, f'{reg["marker_radius"]["radius_mm"]:.3f}', f'{tr["rotation_deg"]:.4f} / {tr["skin_mean_mm"]:.4f}']
-            regs.append((name, tr["rotation_deg"], tr["skin_mean_mm"]))
-            for mode, extra in (("given", ["--rig", d + "/rig.json"]), ("auto", ["--rig", d + "/rig.json", "--auto-rig"])):
-                sk = os.path.join(out_dir, mode)
-                rc, out = sh([a.bin, "-q", "skin", "--merged", out_dir + "/merged.ply", "--truth", d + "/truth.json",
-                              "--pipeline", pipeline, "--out", sk] + extra)
-                if rc:
-                    row += ["FAIL: " + out.strip().splitlines()[-1]]
-                    fails += 1
-                    continue
-                r = json.load(open(sk + "/skin_report.json"))
-                t = r["truth"]
-                stats[mode].append((name, r["mesh"]["watertight"], r["mesh"]["triangles"], t["skin_to_truth_mm"]["mean"],
-                                    t["skin_to_truth_mm"]["p95"], t["truth_to_skin_mm"]["within_1mm"], r["build_seconds"]))
-                cell = (f'{"ok" if r["mesh"]["watertight"] else "NOT watertight"} {r["mesh"]["triangles"]} tri, '
-                        f'{t["skin_to_truth_mm"]["mean"]:.3f} / {t["skin_to_truth_mm"]["p95"]:.3f} / '
-                        f'{100 * t["truth_to_skin_mm"]["within_1mm"]:.2f} %, {1000 * r["build_seconds"]:.0f} ms')
-                if mode == "auto":
-                    e = r["skeleton"]["automatic"]["against_given_rig"]
-                    cell += f', joints {e["mean_joint_error_mm"]:.2f} / {e["max_joint_error_mm"]:.1f} mm'
-                row.append(cell)
+            row, failed = measure_pair(a.bin, name, d, os.path.join(a.work, "out-" + name), pipeline, stats, regs)
             rows.append(row)
+            fails += failed
             print(name, "done", file=sys.stderr)
-    head = ["pair", "marker radius (est.)", "registration deg / mm",
-            "given rig: skin→truth mean / p95 / truth within 1 mm, build_skin time",
-            "automatic: the same, joint error mean / max"]
-    print("| " + " | ".join(head) + " |")
-    print("|" + "---|" * len(head))
-    for r in rows:
-        print("| " + " | ".join(str(x) for x in r) + " |")
-    print(f"\n{len(rows)} pairs, {fails} failed stages")
-    # Against issue 11's figures: closed, 6 000-10 000 triangles, skin -> truth mean <= 0.1 mm,
-    # p95 <= 0.35 mm, >= 98.5 % of the true skin within 1 mm; registration 0.02 deg, 0.05 mm.
-    for mode, st in stats.items():
-        if not st:
-            continue
-        miss = [x[0] for x in st if not (x[1] and 6000 <= x[2] <= 10000 and x[3] <= 0.1 and x[4] <= 0.35 and x[5] >= 0.985)]
-        times = sorted(st, key=lambda x: x[6])
-        print(f"{mode}: {len(st) - len(miss)} of {len(st)} skins meet the issue's figures"
-              + (f" (not: {', '.join(miss)})" if miss else "")
-              + f"; mean over the pairs {statistics.mean(x[3] for x in st):.4f} mm, worst mean {max(x[3] for x in st):.4f},"
-              f" worst p95 {max(x[4] for x in st):.3f}, worst within 1 mm {100 * min(x[5] for x in st):.2f} %;"
-              f" build_skin median {1000 * statistics.median(x[6] for x in st):.0f} ms, slowest {times[-1][0]}"
-              f" {1000 * times[-1][6]:.0f} ms")
-    if regs:
-        over = [f"{n} ({r:.4f} deg / {m:.4f} mm)" for n, r, m in regs if r > 0.02 or m > 0.05]
-        print(f"registration: {len(regs) - len(over)} of {len(regs)} pairs within 0.02 deg / 0.05 mm"
-              + (f" (not: {', '.join(over)})" if over else ""))
+    print_table(rows, fails, stats, regs)
 
 
 if __name__ == "__main__":

@@ -120,15 +120,16 @@ def node_world(js):
     return world
 
 
-# A rig DOF's joint (../shared/formats/hand-rig.md names) -> (the WebXR joint it turns at, the
-# WebXR joint its bone runs to). Flexion turns the bone and every bone beyond it about the
-# axis bone x palm-normal through the joint, so that positive angles curl toward the palm.
+# A rig DOF's joint (../shared/formats/hand-rig.md names) -> the WebXR joint it turns at.
+# Flexion turns the bone and every bone beyond it about the
+# joint's own flexion axis: WebXR joint frames have +Y out of the nail and -Z along the bone,
+# so -X is the axis about which positive angles curl the digit toward its pad (for the
+# fingers that is bone x palm-normal; the thumb, turned ~75 deg about its axis, curls
+# across the palm).
 DIGITS = {"thumb": "thumb", "index": "index-finger", "middle": "middle-finger", "ring": "ring-finger",
           "little": "pinky-finger"}
-FLEX_AT = {"cmc": ("metacarpal", "phalanx-proximal"), "mcp": ("phalanx-proximal", "phalanx-intermediate"),
-           "pip": ("phalanx-intermediate", "phalanx-distal"), "dip": ("phalanx-distal", "tip")}
-THUMB_FLEX_AT = {"cmc": ("metacarpal", "phalanx-proximal"), "mcp": ("phalanx-proximal", "phalanx-distal"),
-                 "ip": ("phalanx-distal", "tip")}
+FLEX_AT = {"cmc": "metacarpal", "mcp": "phalanx-proximal", "pip": "phalanx-intermediate", "dip": "phalanx-distal"}
+THUMB_FLEX_AT = {"cmc": "metacarpal", "mcp": "phalanx-proximal", "ip": "phalanx-distal"}
 CHAINS = {d: [f"{p}-{j}" for j in (("metacarpal", "phalanx-proximal", "phalanx-distal", "tip") if d == "thumb" else
                                    ("metacarpal", "phalanx-proximal", "phalanx-intermediate", "phalanx-distal", "tip"))]
           for d, p in DIGITS.items()}
@@ -141,8 +142,9 @@ def rotation(axis, deg):
     return np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * K @ K
 
 
-def pose(J, palm, sets):
-    """Rigid transforms (R, t), one per WebXR joint, for flexion angles {"index.pip.flex": deg}.
+def pose(J, frames, sets):
+    """Rigid transforms (R, t), one per WebXR joint, for flexion angles {"index.pip.flex": deg};
+    `frames`: each joint's rest orientation (3 x 3, columns its local axes).
     A joint's transform moves its bone (the one that starts there) and is the product of the
     flexions at it and at every joint before it on its digit, applied from the tip inward."""
     T = {name: (np.eye(3), np.zeros(3)) for name in J}
@@ -159,11 +161,8 @@ def pose(J, palm, sets):
             deg = sets.get(f"{digit}.{joint}.flex", 0.0)
             if deg == 0.0:
                 continue
-            at, to = (f"{DIGITS[digit]}-{j}" for j in table[joint])
-            d = J[to] - J[at]
-            d /= np.linalg.norm(d)
-            n = palm - np.dot(palm, d) * d
-            R = rotation(np.cross(d, n), deg)
+            at = f"{DIGITS[digit]}-{table[joint]}"
+            R = rotation(-frames[at][:, 0], deg)
             c = J[at]
             for name in chain[chain.index(at):]:
                 R0, t0 = T[name]
@@ -229,7 +228,11 @@ def main():
     if sets:
         # Linear blend skinning with the asset's own weights (its bind pose is the rest pose),
         # on the asset's facets, before the subdivision smooths them.
-        T = pose(J, -back, sets)
+        frames = {}
+        for k, name in enumerate(skin_names):
+            Rb = np.linalg.inv(ibm[k])[:3, :3]
+            frames[name] = Rb / np.linalg.norm(Rb, axis=0)
+        T = pose(J, frames, sets)
         idx = accessor(prim["attributes"]["JOINTS_0"]).astype(np.int64)[first]
         wts = accessor(prim["attributes"]["WEIGHTS_0"]).astype(float)[first]
         wts /= wts.sum(1, keepdims=True)

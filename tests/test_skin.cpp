@@ -510,6 +510,41 @@ TEST(SkinSteps, CurledFingerPlanesDoNotCrossInsideTheFinger) {
   EXPECT_GT(crossings(abrupt), 50u);  // 86 of the samples
 }
 
+TEST(SkinSteps, SectionsSeenFromOneSideDoNotCountAgainstARigThatFits) {
+  // A straight middle finger (radius 8 mm, along +X) sampled as the two scanners see it
+  // (surface within 72 deg of straight up or down), whose distal part (beyond x = 35 mm, most
+  // of its sections) shows only its back:
+  // its pad was turned away from the palm scanner, as a bent thumb's or a curled finger's far
+  // side is. Those sections' extents stop short of their middles' true places; a rig on the
+  // axis must still be taken for one that fits, and one 5 mm to the side must not.
+  const auto c = finger_chain(Finger::Middle);
+  auto make = [&](double shift) {
+    HandFrame H;
+    for (auto& j : H.J) j = Eigen::Vector3d(-100, 0, 0);
+    const double x[] = {-60, 0, 45, 73, 97};
+    for (size_t k = 0; k < c.size(); ++k) H.J[c[k]] = Eigen::Vector3d(x[k], shift, 0);
+    return H;
+  };
+  TubePoints P;
+  P.tube.resize(kSkinTubes);
+  auto& pts = P.tube[1 + static_cast<int>(Finger::Middle)];
+  const double R = 8.0;
+  for (double x = 0; x <= 105; x += 0.5)
+    for (double a = 0; a < 360; a += 2) {
+      const double th = a * M_PI / 180, nz = std::sin(th);
+      if (std::abs(nz) < std::cos(72 * M_PI / 180)) continue;  // the flanks neither scanner sees
+      if (nz < 0 && x > 35) continue;                             // the pad beyond the PIP, unseen
+      pts.emplace_back(x, R * std::cos(th), R * nz);
+    }
+  const TubeBuild fits = digit_planes(make(0.0), P, static_cast<int>(Finger::Middle), 2.5);
+  ASSERT_TRUE(fits.report.present);
+  EXPECT_LT(fits.report.axis_offset_mm, 1.0);  // over every section: 5.2 mm (the distal ones)
+  EXPECT_NEAR(fits.report.section_radius_mm, R, 1.0);
+  const TubeBuild beside = digit_planes(make(5.0), P, static_cast<int>(Finger::Middle), 2.5);
+  ASSERT_TRUE(beside.report.present);
+  EXPECT_GT(beside.report.axis_offset_mm, 4.0);
+}
+
 TEST(SkinSteps, RingsOfANoisyCylinderHaveItsRadiusAndSameCount) {
   std::vector<Eigen::Vector3d> pts;
   TubeBuild t = cylinder_tube(40, 8.0, 2.0, 0.05, &pts);

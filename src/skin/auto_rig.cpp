@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <map>
 #include <optional>
 #include <queue>
 
@@ -29,6 +30,12 @@ constexpr double kDorsalOffset = 1.0;
 // A digit's section middle more than this (mm) beside the line through those beyond it
 // toward the tip is not across the digit.
 constexpr double kLateralStrayMm = 1.5;
+// Digits overlapping in the silhouette are parted by the scans' sheets: points within
+// kSheetLinkMm of each other connect (a sheet's samples lie 0.5 mm apart across the scanlines
+// and up to 1.6 mm apart on a flank at the scanner's 72 deg), and a piece of at least
+// kSheetPoints points is a digit's (smaller ones are flank fragments).
+constexpr double kSheetLinkMm = 2.0;
+constexpr size_t kSheetPoints = 200;
 
 // In the palm, the joints' depth as a share of the palm's local thickness from its back: the
 // metacarpals lie nearer the back than the palm (the palmar soft tissue is the thicker).
@@ -161,6 +168,47 @@ std::optional<Eigen::Vector3d> section_middle(const std::vector<Eigen::Vector3d>
     at += 0.5 * (lo1 + hi1) * e1 + 0.5 * (lo2 + hi2) * e2;
   }
   return at;
+}
+
+// Points linked through points within `link` mm of each other, over a hash grid of
+// `link`-sized cells: labels spread breadth first from every labelled point of `idx` (indices
+// into h; label[i] >= 0) at once to the unlabelled ones (-1), each taking the label of the
+// point it is reached from. Points no label reaches keep -1. With no label given, `fresh`
+// starts a new label at each point not yet reached (in idx's order): the pieces the links
+// connect.
+void spread_labels(const std::vector<Eigen::Vector3d>& h, const std::vector<size_t>& idx, double link,
+                   std::vector<int>* label, bool fresh = false) {
+  auto key = [link](const Eigen::Vector3d& p) {
+    return std::array<long, 3>{static_cast<long>(std::floor(p.x() / link)), static_cast<long>(std::floor(p.y() / link)),
+                               static_cast<long>(std::floor(p.z() / link))};
+  };
+  std::map<std::array<long, 3>, std::vector<size_t>> cells;
+  std::queue<size_t> qu;
+  for (size_t i : idx) {
+    cells[key(h[i])].push_back(i);
+    if ((*label)[i] >= 0) qu.push(i);
+  }
+  int next = 0;
+  for (size_t i : idx) next = std::max(next, (*label)[i] + 1);
+  auto drain = [&] {
+    while (!qu.empty()) {
+      const size_t i = qu.front();
+      qu.pop();
+      const auto c = key(h[i]);
+      for (long dx = -1; dx <= 1; ++dx)
+        for (long dy = -1; dy <= 1; ++dy)
+          for (long dz = -1; dz <= 1; ++dz) {
+            const auto it = cells.find({c[0] + dx, c[1] + dy, c[2] + dz});
+            if (it == cells.end()) continue;
+            for (size_t m : it->second)
+              if ((*label)[m] < 0 && (h[m] - h[i]).squaredNorm() <= link * link) (*label)[m] = (*label)[i], qu.push(m);
+          }
+    }
+  };
+  drain();
+  if (!fresh) return;
+  for (size_t i : idx)
+    if ((*label)[i] < 0) (*label)[i] = next++, qu.push(i), drain();
 }
 
 // A finger's section centres carried toward the palm from its first one (at t = lateral's
@@ -325,9 +373,104 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
   // that way, the search starts again from the principal frame with the silhouette unclosed
   // (only its enclosed holes filled): the WebXR hand model with its fingers arched 8-14 deg
   // at the MCPs and 12-18 deg at the PIPs brings its ring and little fingers ~2 mm apart in
-  // the silhouette.
+  // the silhouette. Where two fingers at different heights overlap in it (the same hand
+  // flexed about its joints' own axes: its little finger runs under the ring finger's edge),
+  // no silhouette parts them: the third try takes each digit's points from the scans'
+  // sheets (below).
+  enum class Silhouette { Closed, Unclosed, Sheets };
+  // Two digits can still join beyond the opening (below): the pieces (of at least
+  // kDigitCells) farther out are grown back over the digits' cells, breadth first from all of
+  // them at once: each cell goes to the piece it is nearest through them.
+  auto grow_back = [&](const std::vector<std::vector<int>>& seeds) {
+    std::vector<int> owner(g.on.size(), -1);
+    std::queue<int> qu;
+    std::vector<std::vector<int>> grown;
+    for (const auto& sd : seeds) {
+      if (sd.size() < kDigitCells) continue;
+      for (int cidx : sd) owner[cidx] = static_cast<int>(grown.size()), qu.push(cidx);
+      grown.emplace_back();
+    }
+    while (!qu.empty()) {
+      const int cidx = qu.front();
+      qu.pop();
+      grown[owner[cidx]].push_back(cidx);
+      const int a = cidx % g.nx, b = cidx / g.nx;
+      for (auto [da, db] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
+        const int x = a + da, y = b + db;
+        if (g.in(x, y) && digit_cell[g.idx(x, y)] && owner[g.idx(x, y)] < 0) {
+          owner[g.idx(x, y)] = owner[cidx];
+          qu.push(g.idx(x, y));
+        }
+      }
+    }
+    return grown;
+  };
+  // Each digit's points from the scans' sheets: beyond a distance t from the opened palm,
+  // the back scan's points fall into pieces that points within kSheetLinkMm of each other
+  // connect — one per digit, however the digits overlap in the silhouette, as two fingers
+  // lie a gap apart in height where one runs under the other's edge — and so do the palm
+  // scan's (a digit's two sheets do not meet: neither scan sees its flanks). From the first
+  // t that gives five pieces of at least kSheetPoints on each side, the pieces spread over
+  // their side's points in the digits' cells, and the two sides' pieces pair up in their
+  // order round the palm's centre. Empty when a side never gives five.
+  std::vector<std::vector<size_t>> sheet_groups;
+  auto sheet_digits = [&]() {
+    std::array<std::vector<std::vector<size_t>>, 2> side_groups;
+    for (const std::uint32_t side : {1u, 0u}) {
+      std::vector<size_t> all;
+      for (size_t i = 0; i < h.size(); ++i)
+        if (sides[i] == side && digit_cell[cell_of[i]]) all.push_back(i);
+      for (double t = r0; t <= 2 * r0 && side_groups[side].empty(); t += 1) {
+        std::vector<size_t> far;
+        for (size_t i : all)
+          if (to_core[cell_of[i]] > t) far.push_back(i);
+        std::vector<int> label(h.size(), -1);
+        spread_labels(h, far, kSheetLinkMm, &label, true);
+        std::map<int, size_t> size;
+        for (size_t i : far) ++size[label[i]];
+        std::map<int, int> big;  // label -> digit
+        for (const auto& [l, n] : size)
+          if (n >= kSheetPoints) big.emplace(l, static_cast<int>(big.size()));
+        if (big.size() != 5) continue;
+        std::vector<int> digit(h.size(), -1);
+        for (size_t i : far)
+          if (const auto it = big.find(label[i]); it != big.end()) digit[i] = it->second;
+        spread_labels(h, all, kSheetLinkMm, &digit);
+        side_groups[side].assign(5, {});
+        for (size_t i : all)
+          if (digit[i] >= 0) side_groups[side][digit[i]].push_back(i);
+      }
+      if (side_groups[side].empty()) return std::vector<std::vector<size_t>>{};
+    }
+    // Each side's pieces in their order round the palm's centre (angles about the mean
+    // direction of the ten, so that none wraps round).
+    auto centre = [&](const std::vector<size_t>& grp) {
+      Eigen::Vector2d m = Eigen::Vector2d::Zero();
+      for (size_t i : grp) m += h[i].head<2>();
+      return Eigen::Vector2d(m / static_cast<double>(grp.size()) - pc);
+    };
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (const auto& sg : side_groups)
+      for (const auto& grp : sg) mean += centre(grp).normalized();
+    const double phi0 = std::atan2(mean.y(), mean.x());
+    for (auto& sg : side_groups)
+      std::sort(sg.begin(), sg.end(), [&](const auto& x, const auto& y) {
+        auto angle = [&](const std::vector<size_t>& grp) {
+          const Eigen::Vector2d d = centre(grp);
+          return std::remainder(std::atan2(d.y(), d.x()) - phi0, 2 * M_PI);
+        };
+        return angle(x) < angle(y);
+      });
+    std::vector<std::vector<size_t>> groups(5);
+    for (int k = 0; k < 5; ++k) {
+      groups[k] = side_groups[1][k];
+      groups[k].insert(groups[k].end(), side_groups[0][k].begin(), side_groups[0][k].end());
+    }
+    return groups;
+  };
   const Eigen::Vector3d X0 = X, Z0 = Z;
-  for (const bool closed : {true, false}) {
+  Silhouette parted_by = Silhouette::Closed;
+  for (const Silhouette mode : {Silhouette::Closed, Silhouette::Unclosed, Silhouette::Sheets}) {
     X = X0, Z = Z0;
     for (int pass = 0;; ++pass) {
       Y = Z.cross(X);
@@ -344,7 +487,7 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
         cell_of[i] = g.idx(g.ci(h[i].x()), g.cj(h[i].y()));
         g.on[cell_of[i]] = 1;
       }
-      if (closed)
+      if (mode == Silhouette::Closed)
         g.morph(true), g.morph(true), g.morph(false), g.morph(false);
       else
         g.fill_holes();
@@ -359,7 +502,20 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
       for (size_t k = 0; k < g.on.size(); ++k) core.on[k] = !(dist[k] >= r0);
       to_core = core.distance();
       digit_cell = beyond(r0);
-      comps = components(digit_cell);
+      if (mode == Silhouette::Sheets) {
+        // The digits' cells for the count: those of each group's points.
+        sheet_groups = sheet_digits();
+        comps.clear();
+        for (const auto& grp : sheet_groups) {
+          std::vector<int> cells;
+          for (size_t i : grp) cells.push_back(cell_of[i]);
+          std::sort(cells.begin(), cells.end());
+          cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+          comps.push_back(std::move(cells));
+        }
+      } else {
+        comps = components(digit_cell);
+      }
       if (count_digits(comps) >= 5 || pass == 8) break;
       std::vector<double> zlo(g.on.size(), 1e300), zhi(g.on.size(), -1e300);
       std::vector<std::uint8_t> seen(g.on.size(), 0);
@@ -397,33 +553,17 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
         const long n = count_digits(seeds);
         if (n < before) break;  // a digit ends before the joined ones part
         if (n != 5) continue;
-        std::vector<int> owner(g.on.size(), -1);
-        std::queue<int> qu;
-        std::vector<std::vector<int>> grown;
-        for (const auto& sd : seeds) {
-          if (sd.size() < kDigitCells) continue;
-          for (int cidx : sd) owner[cidx] = static_cast<int>(grown.size()), qu.push(cidx);
-          grown.emplace_back();
-        }
-        while (!qu.empty()) {
-          const int cidx = qu.front();
-          qu.pop();
-          grown[owner[cidx]].push_back(cidx);
-          const int a = cidx % g.nx, b = cidx / g.nx;
-          for (auto [da, db] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
-            const int x = a + da, y = b + db;
-            if (g.in(x, y) && digit_cell[g.idx(x, y)] && owner[g.idx(x, y)] < 0) {
-              owner[g.idx(x, y)] = owner[cidx];
-              qu.push(g.idx(x, y));
-            }
-          }
-        }
-        comps = std::move(grown);
+        const std::vector<std::vector<int>> grown = grow_back(seeds);
+        comps = grown;
         break;
       }
     }
     if (count_digits(comps) == 5) {
-      if (!closed) out.notes.push_back("digits found in the silhouette left unclosed (two fingers lie within ~4 mm)");
+      if (mode == Silhouette::Unclosed)
+        out.notes.push_back("digits found in the silhouette left unclosed (two fingers lie within ~4 mm)");
+      if (mode == Silhouette::Sheets)
+        out.notes.push_back("digits parted by the scans' sheets (two fingers overlap in the silhouette)");
+      parted_by = mode;
       break;
     }
   }
@@ -470,6 +610,11 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     for (int cidx : comps[k]) m += Eigen::Vector2d(g.u0 + (cidx % g.nx + 0.5) * g.cell, g.v0 + (cidx / g.nx + 0.5) * g.cell);
     m /= static_cast<double>(comps[k].size());
     dg.angle = std::atan2(m.y() - pc.y(), m.x() - pc.x());
+    if (parted_by == Silhouette::Sheets && sheet_groups.size() == comps.size()) {
+      dg.points = sheet_groups[k];
+      digits.push_back(dg);
+      continue;
+    }
     digits.push_back(dg);
     std::vector<std::uint8_t> mine(g.on.size(), 0);
     for (int cidx : comps[k]) mine[cidx] = 1;

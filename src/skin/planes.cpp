@@ -160,6 +160,7 @@ TubeBuild palm_planes(const HandFrame& H, const TubePoints& Pts, const Webs& web
 
 namespace {
 constexpr double kFingerTurnRadii = 2.0;
+constexpr double kMinSectionAspect = 0.55;
 }  // namespace
 
 TubeBuild digit_planes(const HandFrame& H, const TubePoints& Pts, int f, double h) {
@@ -216,19 +217,37 @@ TubeBuild digit_planes(const HandFrame& H, const TubePoints& Pts, int f, double 
     // WebXR hand model's own rig lies 6-8.5 mm off there. Its phalanges are measured, as a
     // finger's are (a finger's tube starts at its MCP).
     const double s_from = f == 0 ? (axis[1] - axis[0]).norm() : 0.0;
-    std::vector<double> off, rad;
+    std::vector<Eigen::Vector2d> mid, ext;  // per slab: the middle and the size of its extent
     for (const auto& g : t.slab) {
       if (g.size() < 20 || static_cast<double>(&g - t.slab.data()) * hs < s_from) continue;
       Eigen::Vector2d mn = g.front(), mx = mn;
       for (const auto& p : g) mn = mn.cwiseMin(p), mx = mx.cwiseMax(p);
-      off.push_back((0.5 * (mn + mx)).norm());
-      rad.push_back(0.25 * ((mx - mn).x() + (mx - mn).y()));
+      mid.push_back(0.5 * (mn + mx));
+      ext.push_back(mx - mn);
     }
     auto median = [](std::vector<double> v) {
       std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
       return v[v.size() / 2];
     };
-    if (off.size() >= 3) t.report.axis_offset_mm = median(off), t.report.section_radius_mm = median(rad);
+    if (mid.size() >= 3) {
+      // A section seen from one side only (a bent thumb's or a curled finger's far side,
+      // which neither scan sees) has no middle to measure: its extent falls short across
+      // the unseen side, to well under its extent along it. Only sections whose extent one
+      // way is at least kMinSectionAspect of the other count (all, when fewer than 3 do): a
+      // digit's section is round to oval (a thumb's ~0.75); the WebXR hand's own rig, its
+      // thumb bent 10/20/25 deg, lay 4.0-4.4 mm off by the median over all its sections, the
+      // one-sided ones 0.2-0.45 across. A rig beside the digit keeps its full sections and
+      // their offsets.
+      std::vector<double> off, rad;
+      for (size_t k = 0; k < mid.size(); ++k)
+        if (ext[k].minCoeff() >= kMinSectionAspect * ext[k].maxCoeff())
+          off.push_back(mid[k].norm()), rad.push_back(0.25 * ext[k].sum());
+      if (off.size() < 3) {
+        off.clear(), rad.clear();
+        for (size_t k = 0; k < mid.size(); ++k) off.push_back(mid[k].norm()), rad.push_back(0.25 * ext[k].sum());
+      }
+      t.report.axis_offset_mm = median(off), t.report.section_radius_mm = median(rad);
+    }
   }
   return t;
 }
