@@ -12,9 +12,8 @@ are reused. A failing stage is a row with its one-line error, not an abort.
 """
 import argparse
 import os
-import sys
 
-from study_util import measure_pair, no_baseline_pipeline, print_table, run as sh
+from study_util import no_baseline_pipeline, print_table, run as sh, study_pair
 
 # name: synth hand options
 HANDS = {
@@ -63,19 +62,10 @@ def main():
                 fails += 1
                 continue
         for seed, radius in PAIRS:
-            name = f"{h}-s{seed}-r{radius}"
-            d = os.path.join(a.work, name)
-            if not os.path.exists(os.path.join(d, "truth.json")):
-                rc, out = sh([a.bin, "-q", "synth", "scan", "--mesh", hand + "/hand.ply", "--rig", hand + "/hand_rig.json",
-                              "--out", d, "--seed", str(seed), "--marker-radius", radius, "--no-render"] + SCAN.get(h, []))
-                if rc:
-                    rows.append([name, "-", "synth scan: " + out.strip().splitlines()[-1]])
-                    fails += 1
-                    continue
-            row, failed = measure_pair(a.bin, name, d, os.path.join(a.work, "out-" + name), pipeline, stats, regs)
+            row, failed = study_pair(a.bin, f"{h}-s{seed}-r{radius}", a.work, hand, seed, radius, SCAN.get(h, []),
+                                     pipeline, stats, regs)
             rows.append(row)
             fails += failed
-            print(name, "done", file=sys.stderr)
     print_table(rows, fails, stats, regs)
 
 

@@ -65,6 +65,21 @@ def measure_pair(binary, name, d, out_dir, pipeline, stats, regs):
     return row, fails
 
 
+def study_pair(binary, name, work, mesh, seed, radius, scan_extra, pipeline, stats, regs):
+    """A scan pair of the replica in `mesh` (hand.ply, hand_rig.json) in work/name (made with
+    the seed and marker radius, unless it is there already), measured by measure_pair.
+    Returns the table row and the number of failed stages."""
+    d = os.path.join(work, name)
+    if not os.path.exists(os.path.join(d, "truth.json")):
+        rc, out = run([binary, "-q", "synth", "scan", "--mesh", mesh + "/hand.ply", "--rig", mesh + "/hand_rig.json",
+                       "--out", d, "--seed", str(seed), "--marker-radius", radius, "--no-render"] + scan_extra)
+        if rc:
+            return [name, "-", "synth scan: " + out.strip().splitlines()[-1]], 1
+    row, failed = measure_pair(binary, name, d, os.path.join(work, "out-" + name), pipeline, stats, regs)
+    print(name, "done", file=sys.stderr)
+    return row, failed
+
+
 def print_table(rows, fails, stats, regs):
     """The pairs' Markdown table, then the summary against issue 11's figures: closed,
     6 000-10 000 triangles, skin -> truth mean <= 0.1 mm, p95 <= 0.35 mm, >= 98.5 % of the true

@@ -18,7 +18,7 @@ import argparse
 import os
 import sys
 
-from study_util import measure_pair, no_baseline_pipeline, print_table, run as sh
+from study_util import no_baseline_pipeline, print_table, run as sh, study_pair
 
 FINGERS = ("index", "middle", "ring", "little")
 
@@ -68,20 +68,10 @@ def main():
                     fails += 1
                     continue
             for seed, radius in PAIRS:
-                name = f"{side}-{posture}-s{seed}-r{radius}"
-                d = os.path.join(a.work, name)
-                if not os.path.exists(os.path.join(d, "truth.json")):
-                    rc, out = sh([a.bin, "-q", "synth", "scan", "--mesh", mesh + "/hand.ply", "--rig", mesh + "/hand_rig.json",
-                                  "--out", d, "--seed", str(seed), "--marker-radius", radius, "--saw", "12", "--no-render",
-                                  "--no-photos"])
-                    if rc:
-                        rows.append([name, "-", "synth scan: " + out.strip().splitlines()[-1]])
-                        fails += 1
-                        continue
-                row, failed = measure_pair(a.bin, name, d, os.path.join(a.work, "out-" + name), pipeline, stats, regs)
+                row, failed = study_pair(a.bin, f"{side}-{posture}-s{seed}-r{radius}", a.work, mesh, seed, radius,
+                                         ["--saw", "12", "--no-photos"], pipeline, stats, regs)
                 rows.append(row)
                 fails += failed
-                print(name, "done", file=sys.stderr)
     print_table(rows, fails, stats, regs)
 
 
