@@ -17,6 +17,9 @@
 #    own axes: scripts/webxr_study.py's "curled", PIPs 25-32 deg, DIPs 10-15): its little
 #    finger runs under the ring finger's edge, one digit in every silhouette; the automatic
 #    placement found 4 digits, not 5, until it took each digit's points from the scans' sheets.
+#    And the left hand arched (MCPs 8-14 deg, PIPs 12-18, DIPs 8-10, thumb 10/10): parted
+#    by the sheets too, but the placement's own normal lay 21 deg off the MCPs' line in roll
+#    and the palm's last ring folded, until the rig's palm normal came from its joints.
 #    Both skins must meet the same figures.
 # Prints every figure. Usage: scripts/check_webxr_hand.sh <handskin-binary>
 set -euo pipefail
@@ -37,6 +40,13 @@ for dof in index.pip.flex=25 middle.pip.flex=28 ring.pip.flex=30 little.pip.flex
   curled+=(--set "$dof")
 done
 "$PY" scripts/webxr_hand.py --glb fixtures/webxr-hand/left.glb --side left --out "$work/left-curled" "${curled[@]}"
+arched=()
+for dof in index.mcp.flex=8 middle.mcp.flex=10 ring.mcp.flex=12 little.mcp.flex=14 index.pip.flex=12 \
+           middle.pip.flex=15 ring.pip.flex=15 little.pip.flex=18 index.dip.flex=8 middle.dip.flex=8 \
+           ring.dip.flex=10 little.dip.flex=10 thumb.mcp.flex=10 thumb.ip.flex=10; do
+  arched+=(--set "$dof")
+done
+"$PY" scripts/webxr_hand.py --glb fixtures/webxr-hand/left.glb --side left --out "$work/left-arched" "${arched[@]}"
 
 # The rounded forearm, unsawn: refused, and the message says what to do.
 set +e
@@ -63,7 +73,7 @@ check_skin() {
 
 pipeline="$work/no-baseline.json"
 "$PY" -c "import json; p=json.load(open('pipelines/cubist.json')); p['skin']['baseline']=False; json.dump(p, open('$pipeline','w'))"
-for spec in "right 1 3.0" "left 3 2.5" "left-curled 1 3.0"; do
+for spec in "right 1 3.0" "left 3 2.5" "left-curled 1 3.0" "left-arched 2 2.5"; do
   read -r side seed radius <<< "$spec"
   d="$work/$side-s$seed"
   "$BIN" -q synth scan --mesh "$work/$side/hand.ply" --rig "$work/$side/hand_rig.json" --out "$d" --seed "$seed" \
@@ -88,7 +98,7 @@ for spec in "right 1 3.0" "left 3 2.5" "left-curled 1 3.0"; do
   a="$d/auto/skin_report.json"
   check_skin "$side-s$seed automatic" "$a"
   echo "$side-s$seed automatic: joints $(jq_py "$a" "'%.2f' % d['skeleton']['automatic']['against_given_rig']['mean_joint_error_mm']") mm from the hand's own (mean)"
-  if [ "$side" = left-curled ]; then
+  if [ "$side" = left-curled ] || [ "$side" = left-arched ]; then
     notes=$(jq_py "$a" "'\n'.join(d['skeleton']['automatic']['notes'])")
     grep -q "parted by the scans' sheets" <<< "$notes" \
       || fail "$side-s$seed automatic: the report does not say the digits were parted by the scans' sheets"

@@ -899,7 +899,19 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     rig.joints[chain[0]] = to_cloud(cmc);
     for (size_t k2 = 0; k2 < chains[fi].size(); ++k2) rig.joints[chain[k2 + 1]] = to_cloud(chains[fi][k2]);
   }
-  rig.palm_normal = Z;
+  // The palm's normal from the placed joints, square to the wrist -> middle MCP line and to
+  // the index -> little MCP line (toward the back, as Z): the frame the skin stage slices in.
+  // Z itself, the cloud's thinnest axis (or the palm's mid-surface), can lie 20 deg off it
+  // in roll on an arched hand (the WebXR hand flexed 8-14 deg at the MCPs: 21 deg), and in
+  // that frame the little finger ran under the ring finger's edge: the ring-little web was
+  // found beyond the little finger's PIP and the palm's last ring folded.
+  {
+    const auto at = [&](const char* n) { return rig.joints[joint_index(n).value()]; };
+    const Eigen::Vector3d x = (at("middle-finger-phalanx-proximal") - at("wrist")).normalized();
+    Eigen::Vector3d n = x.cross(at("index-finger-phalanx-proximal") - at("pinky-finger-phalanx-proximal"));
+    n -= n.dot(x) * x;
+    rig.palm_normal = n.norm() > 1e-9 ? Eigen::Vector3d((n.dot(Z) < 0 ? -n : n).normalized()) : Z;
+  }
   {
     // The thumb's base on its own centre line: the metacarpal's length (chord) back from the
     // MCP along the curve, which runs on into the palm; straight on along its first chord
