@@ -371,10 +371,10 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
   // The silhouette is closed (2 cells) against the scans' small gaps. Fingers that lie within
   // ~4 mm of each other in it are closed into one digit too; when five digits are not found
   // that way, the search starts again from the principal frame with the silhouette unclosed
-  // (only its enclosed holes filled): the WebXR hand model with its fingers arched 8-14 deg
-  // at the MCPs and 12-18 deg at the PIPs brings its ring and little fingers ~2 mm apart in
-  // the silhouette. Where two fingers at different heights overlap in it (the same hand
-  // flexed about its joints' own axes: its little finger runs under the ring finger's edge),
+  // (only its enclosed holes filled): the WebXR hand model with its PIPs curled 25-32 deg
+  // (scripts/webxr_study.py, one pair of four) brings its ring and little fingers ~2 mm
+  // apart in the silhouette. Where two fingers at different heights overlap in it (the same
+  // hand's other pairs, and arched: its little finger runs under the ring finger's edge),
   // no silhouette parts them: the third try takes each digit's points from the scans'
   // sheets (below).
   enum class Silhouette { Closed, Unclosed, Sheets };
@@ -867,9 +867,9 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
   }
   // The thumb's MCP and IP on the middle of the cloud's sections through them. The centre
   // line's height is a quadratic fitted to the part beyond the palm's opening and carried on
-  // straight; a raised thumb bent at its MCP (the WebXR hand model, ~25 deg out of the palm's
-  // plane and flexed 10 deg) leaves its MCP there ~5 mm off the thumb's middle, and the skin
-  // then refused the skeleton (the thumb's links 4.8-6.1 mm from its sections' middles).
+  // straight; a raised thumb bent at its MCP (the WebXR hand model posed about parallel axes,
+  // ~25 deg out of the palm's plane and flexed 10 deg) had its MCP there 5.4 mm below the
+  // thumb's middle. On the family the skins' mean went 0.0748 -> 0.0746 mm with it.
   if (const double dg_thumb_width = digits[4].width; dg_thumb_width > 0) {
     std::vector<Eigen::Vector3d>& js = chains[0];  // MCP, IP, tip
     // Each joint moves as the middle of the section at `along` of the way from it to the
