@@ -11,7 +11,7 @@
 #    0.077-0.083 / 0.27-0.30 mm / 99.7-99.9 % since the unseen creases are made fair (the skin
 #    stage's step 12), 0.104-0.111 / 0.38-0.41 mm / 98.8-98.9 % before);
 #  - the automatic skeleton finds the five digits and places a skeleton the skin accepts, and
-#    that skin meets the same figures (measured 0.071-0.088 / 0.24-0.30 mm / 99.5-99.9 %;
+#    that skin meets the same figures (measured 0.073-0.087 / 0.25-0.29 mm / 99.6-99.9 %;
 #    0.095-0.103 / 0.34-0.37 mm before step 12);
 #  - the left hand posed through its own skin weights (webxr_hand.py --set, about its joints'
 #    own axes: scripts/webxr_study.py's "curled", PIPs 25-32 deg, DIPs 10-15): its little
