@@ -546,15 +546,15 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
     // that links their bases. Farther from the palm they part: the pieces found beyond the
     // first distance that gives five digits are grown back over the digits' cells (breadth
     // first from all of them at once: each cell goes to the piece it is nearest through them).
-    if (count_digits(comps) < 5) {
+    // (Not for the sheets' try: its silhouette is the unclosed one, already tried so.)
+    if (count_digits(comps) < 5 && mode != Silhouette::Sheets) {
       const long before = count_digits(comps);
       for (double t = r0 + 1; t <= 2 * r0; t += 1) {
         const std::vector<std::vector<int>> seeds = components(beyond(t));
         const long n = count_digits(seeds);
         if (n < before) break;  // a digit ends before the joined ones part
         if (n != 5) continue;
-        const std::vector<std::vector<int>> grown = grow_back(seeds);
-        comps = grown;
+        comps = grow_back(seeds);
         break;
       }
     }
