@@ -238,14 +238,11 @@ TubeBuild digit_planes(const HandFrame& H, const TubePoints& Pts, int f, double 
       // thumb bent 10/20/25 deg, lay 4.0-4.4 mm off by the median over all its sections, the
       // one-sided ones 0.2-0.45 across. A rig beside the digit keeps its full sections and
       // their offsets.
+      auto round = [&](size_t k) { return ext[k].minCoeff() >= kMinSectionAspect * ext[k].maxCoeff(); };
+      const bool every = std::count_if(ext.begin(), ext.end(), [&](const auto& e) { return round(&e - ext.data()); }) < 3;
       std::vector<double> off, rad;
       for (size_t k = 0; k < mid.size(); ++k)
-        if (ext[k].minCoeff() >= kMinSectionAspect * ext[k].maxCoeff())
-          off.push_back(mid[k].norm()), rad.push_back(0.25 * ext[k].sum());
-      if (off.size() < 3) {
-        off.clear(), rad.clear();
-        for (size_t k = 0; k < mid.size(); ++k) off.push_back(mid[k].norm()), rad.push_back(0.25 * ext[k].sum());
-      }
+        if (every || round(k)) off.push_back(mid[k].norm()), rad.push_back(0.25 * ext[k].sum());
       t.report.axis_offset_mm = median(off), t.report.section_radius_mm = median(rad);
     }
   }
