@@ -282,7 +282,9 @@ TEST(Family, MarkersMissedInOneScanAreFoundWhereThePatternPutsThem) {
               r["matching"]["pairs_back_palm"].size(), r["matching"]["recovered"].get<int>(),
               r["against_truth"]["chosen"]["rotation_deg"].get<double>(),
               r["against_truth"]["chosen"]["skin_mean_mm"].get<double>());
-  EXPECT_EQ(r["matching"]["recovered"].get<int>(), 2);
+  // 2 recovered until the caps' free radius came from their depth errors (2026-11-25): the
+  // estimate, nearer the truth, lets the detector keep one of the two itself.
+  EXPECT_GE(r["matching"]["recovered"].get<int>(), 1);
   EXPECT_EQ(r["matching"]["pairs_back_palm"].size(), 9u);
   EXPECT_LE(r["against_truth"]["chosen"]["rotation_deg"].get<double>(), 0.02);  // measured 0.0180; 0.0330 with 7
   EXPECT_LE(r["against_truth"]["chosen"]["skin_mean_mm"].get<double>(), 0.05);  // measured 0.0288; 0.0669 with 7

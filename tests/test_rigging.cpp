@@ -75,8 +75,9 @@ TEST(Rigging, SmoothWeightsWithTheCreaseGuardDoNotFoldAtBentJoints) {
   // A 90° PIP flexion of each finger and a fist (the anatomical model fills in the rest):
   // the rigid binding (the thesis's) folds the skin into the finger at every bent joint;
   // bone-heat weights with dual quaternions fold a few triangle pairs on the flexion side
-  // (21 in the fist); the crease guard after the blend (the planes, then the smoothing of
-  // what still crumples) leaves none, and the volume stays within 5 % (docs/rigging.md).
+  // (78 in the fist on the fixture's skin of 2026-11-25); the crease guard after the blend
+  // (the planes, then the smoothing of what still crumples) leaves none, and the volume stays
+  // within 5 % (docs/rigging.md).
   const RiggedSkin s = read_skin_glb(fixture_run() + "/skin.glb");
   const Skeleton skel(s.rig, "rig");
   const PostureSolver solver(s.model);

@@ -38,20 +38,26 @@ void transform_difference(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b
 
 namespace {
 
-// pose = (angle-axis, translation): q = R p + t.
+// pose = (angle-axis, translation): q = R p + t, back frame → palm frame. A back sample's
+// depth error is measured in the back scanner's frame, against the centre carried there:
+// c_back = Rᵀ (c − t).
 struct BackOnSphere {
-  BackOnSphere(const Eigen::Vector3d& p, double r, double w) : p_(p), r_(r), w_(w) {}
+  BackOnSphere(const Eigen::Vector3d& p, double r, double floor) : p_(p), r_(r), floor_(floor) {}
   template <typename T>
   bool operator()(const T* pose, const T* c, T* res) const {
+    const T inverse[3] = {-pose[0], -pose[1], -pose[2]};
+    const T shifted[3] = {c[0] - pose[3], c[1] - pose[4], c[2] - pose[5]};
+    T cb[3];
+    ceres::AngleAxisRotatePoint(inverse, shifted, cb);
     const T p[3] = {T(p_.x()), T(p_.y()), T(p_.z())};
-    T q[3];
-    ceres::AngleAxisRotatePoint(pose, p, q);
-    const T dx = q[0] + pose[3] - c[0], dy = q[1] + pose[4] - c[1], dz = q[2] + pose[5] - c[2];
-    res[0] = T(w_) * (ceres::sqrt(dx * dx + dy * dy + dz * dz) - T(r_));
+    res[0] = sphere_depth_error(p, cb, T(r_), floor_);
     return true;
   }
+  static ceres::CostFunction* Create(const Eigen::Vector3d& p, double r, double floor) {
+    return new ceres::AutoDiffCostFunction<BackOnSphere, 1, 6, 3>(new BackOnSphere(p, r, floor));
+  }
   Eigen::Vector3d p_;
-  double r_, w_;
+  double r_, floor_;
 };
 
 struct PointToPlane {
@@ -96,24 +102,24 @@ ceres::Solver::Options solver_options() {
 
 }  // namespace
 
-double marker_sphere_rms(const std::vector<MarkerSamples>& markers, const Eigen::Isometry3d& T, double r,
+double marker_sphere_rms(const std::vector<MarkerSamples>& markers, const Eigen::Isometry3d& T, double r, double floor,
                          std::vector<Eigen::Vector3d>* centres) {
   double ss = 0;
   size_t n = 0;
   if (centres) centres->clear();
+  double pose[6];
+  to_pose(T, pose);
   for (const auto& m : markers) {
-    // Start from the mean of the two caps' samples pushed inward is unnecessary: the palm
-    // cap's own fit is close, so start at the samples' mean and let the solver move it.
+    // Start at the samples' mean (the palm cap's own fit is close) and let the solver move it.
     Eigen::Vector3d start = Eigen::Vector3d::Zero();
     for (const auto& p : m.palm) start += p;
     for (const auto& p : m.back) start += T * p;
     start /= static_cast<double>(m.palm.size() + m.back.size());
     double c[3] = {start.x(), start.y(), start.z()};
     ceres::Problem problem;
-    for (size_t k = 0; k < m.palm.size(); ++k)
-      problem.AddResidualBlock(SphereResidual::Create(m.palm[k], r, m.palm_weight[k]), nullptr, c);
-    for (size_t k = 0; k < m.back.size(); ++k)
-      problem.AddResidualBlock(SphereResidual::Create(T * m.back[k], r, m.back_weight[k]), nullptr, c);
+    for (const auto& p : m.palm) problem.AddResidualBlock(SphereResidual::Create(p, r, floor), nullptr, c);
+    for (const auto& p : m.back) problem.AddResidualBlock(BackOnSphere::Create(p, r, floor), nullptr, pose, c);
+    if (!m.back.empty()) problem.SetParameterBlockConstant(pose);
     ceres::Solver::Options o;
     o.linear_solver_type = ceres::DENSE_QR;
     o.logging_type = ceres::SILENT;
@@ -130,13 +136,13 @@ double marker_sphere_rms(const std::vector<MarkerSamples>& markers, const Eigen:
 
 RefineResult refine_registration(const PreparedScan& back, const PreparedScan& palm, const std::vector<char>& back_skin,
                                  const std::vector<char>& palm_skin, const std::vector<MarkerSamples>& markers,
-                                 const Eigen::Isometry3d& T0, double r, const RefineOptions& o) {
+                                 const Eigen::Isometry3d& T0, double r, double floor, const RefineOptions& o) {
   std::string err;
   if (!o.IsValid(&err)) throw InputError("registration options", err);
   RefineResult out;
   out.T = T0;
   std::vector<Eigen::Vector3d> centres;
-  out.marker_rms_start = marker_sphere_rms(markers, T0, r, &centres);
+  out.marker_rms_start = marker_sphere_rms(markers, T0, r, floor, &centres);
 
   // Palm skin samples with normals in a k-d tree (PCL/FLANN), centred for float precision.
   std::vector<int> palm_ids;
@@ -208,13 +214,10 @@ RefineResult refine_registration(const PreparedScan& back, const PreparedScan& p
     std::vector<std::array<double, 3>> c(centres.size());
     for (size_t m = 0; m < centres.size(); ++m) c[m] = {centres[m].x(), centres[m].y(), centres[m].z()};
     for (size_t m = 0; m < markers.size(); ++m) {
-      for (size_t k = 0; k < markers[m].back.size(); ++k)
-        problem.AddResidualBlock(new ceres::AutoDiffCostFunction<BackOnSphere, 1, 6, 3>(
-                                     new BackOnSphere(markers[m].back[k], r, markers[m].back_weight[k])),
-                                 nullptr, pose, c[m].data());
-      for (size_t k = 0; k < markers[m].palm.size(); ++k)
-        problem.AddResidualBlock(SphereResidual::Create(markers[m].palm[k], r, markers[m].palm_weight[k]), nullptr,
-                                 c[m].data());
+      for (const auto& p : markers[m].back)
+        problem.AddResidualBlock(BackOnSphere::Create(p, r, floor), nullptr, pose, c[m].data());
+      for (const auto& p : markers[m].palm)
+        problem.AddResidualBlock(SphereResidual::Create(p, r, floor), nullptr, c[m].data());
     }
     if (use_surface)
       for (const auto& pr : pairs)
@@ -249,7 +252,7 @@ RefineResult refine_registration(const PreparedScan& back, const PreparedScan& p
   }
   out.overlap_fraction =
       out.surface_tried ? static_cast<double>(out.surface_pairs) / static_cast<double>(out.surface_tried) : 0.0;
-  out.marker_rms_end = marker_sphere_rms(markers, out.T, r, &out.centres);
+  out.marker_rms_end = marker_sphere_rms(markers, out.T, r, floor, &out.centres);
 
   // --- guard ---
   double deg, mm;

@@ -3,7 +3,7 @@
 ///
 /// One least-squares problem (Ceres) over the rigid transform and the matched markers'
 /// centres: every back and palm sample of a matched marker must lie on one sphere of the
-/// known radius (the markers are the anchors), plus point-to-plane ICP terms for back/palm
+/// known radius (the markers are the anchors; each sample's depth error in its own scanner's frame), plus point-to-plane ICP terms for back/palm
 /// sample pairs that are truly the same surface — within a distance gate, normals agreeing
 /// (a top-surface point never pairs with the bottom one across the hand), trimmed. The
 /// correspondences are re-found until the transform settles. A guard keeps the marker-only
@@ -30,18 +30,17 @@ struct RefineOptions {
   bool IsValid(std::string* error) const;
 };
 
-/// The samples of one matched marker in both scans (each in its own scanner frame), with
-/// their depth weights.
+/// The samples of one matched marker in both scans, each in its own scanner frame (where
+/// its depth error is measured: sphere_residual.hpp).
 struct MarkerSamples {
   std::vector<Eigen::Vector3d> back, palm;
-  std::vector<double> back_weight, palm_weight;
 };
 
-/// Depth-weighted RMS of all marker samples against one sphere per marker, with the back
-/// samples mapped by `T` and each centre re-fitted (`centres`, palm frame, if given).
-/// How well T makes the two caps of every marker one sphere.
+/// RMS depth error of all marker samples against one sphere per marker (each centre
+/// re-fitted: `centres`, palm frame, if given), the back scan placed by `T`: how well T
+/// makes the two caps of every marker one sphere. `floor` as SphereOptions::steep_floor.
 double marker_sphere_rms(const std::vector<MarkerSamples>& markers, const Eigen::Isometry3d& T, double radius,
-                         std::vector<Eigen::Vector3d>* centres = nullptr);
+                         double floor, std::vector<Eigen::Vector3d>* centres = nullptr);
 
 struct RefineResult {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();  ///< the refined back_to_palm (use only if accepted)
@@ -63,7 +62,7 @@ struct RefineResult {
 RefineResult refine_registration(const PreparedScan& back, const PreparedScan& palm,
                                  const std::vector<char>& back_skin, const std::vector<char>& palm_skin,
                                  const std::vector<MarkerSamples>& markers, const Eigen::Isometry3d& T0,
-                                 double radius, const RefineOptions& options);
+                                 double radius, double floor, const RefineOptions& options);
 
 /// Rotation angle (deg) and translation (mm) of a ∘ b⁻¹.
 void transform_difference(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double* deg, double* mm);

@@ -1,27 +1,92 @@
 #pragma once
-/// The residual shared by every sphere fit in registration: a sample's distance to a
-/// sphere of known radius about a centre (the parameter block), times its depth weight.
+/// The residual shared by every sphere fit in registration: a sample's depth error against
+/// a sphere, in the sample's own scanner frame.
+///
+/// A range scan measures depth along Z; X and Y are the exact grid position. So the error of
+/// a sample is z − (c_z + √(r² − ρ²)), ρ its distance from the centre across Z: the
+/// scanner's own error model. The geometric distance |p − c| − r, even divided by |n_z| to
+/// put it in depth units (as these fits did before), is that error only to first order: its
+/// second-order terms make a free-radius fit of a marker cap 0.005–0.04 mm small (simulated
+/// caps of 2.5–4 mm, σ 0.05–0.1 mm, step 0.2 mm), where the depth error is unbiased
+/// (docs/registration.md).
 #include <ceres/ceres.h>
 
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 
 namespace handskin {
 
+/// z − (c_z + √(r² − ρ²)). Near the sphere's outline, where a depth error stands for a
+/// sideways one of any size, the sphere's height is held at ≥ `floor` × r (the steepest
+/// surface a scanner returns: n_z ≥ floor) and continued as a straight line in r² − ρ²
+/// below it, so a sample just outside the outline (noise, a centre still moving) has a
+/// large but finite residual with a continuous derivative.
+template <typename T>
+T sphere_depth_error(const T* p, const T* c, const T& r, double floor) {
+  const T dx = p[0] - c[0], dy = p[1] - c[1];
+  const T h2 = r * r - dx * dx - dy * dy;
+  const T h2_min = T(floor * floor) * r * r;
+  const T h = h2 > h2_min ? ceres::sqrt(h2) : ceres::sqrt(h2_min) + (h2 - h2_min) / (T(2.0) * ceres::sqrt(h2_min));
+  return p[2] - c[2] - h;
+}
+
+/// A sample on a sphere of known radius about a centre (the parameter block).
 struct SphereResidual {
-  SphereResidual(const Eigen::Vector3d& p, double radius, double weight) : p_(p), r_(radius), w_(weight) {}
+  SphereResidual(const Eigen::Vector3d& p, double radius, double floor) : p_(p), r_(radius), floor_(floor) {}
+  template <typename T>
+  bool operator()(const T* c, T* res) const {
+    const T p[3] = {T(p_.x()), T(p_.y()), T(p_.z())};
+    res[0] = sphere_depth_error(p, c, T(r_), floor_);
+    return true;
+  }
+  static ceres::CostFunction* Create(const Eigen::Vector3d& p, double radius, double floor) {
+    return new ceres::AutoDiffCostFunction<SphereResidual, 1, 3>(new SphereResidual(p, radius, floor));
+  }
+
+ private:
+  Eigen::Vector3d p_;
+  double r_, floor_;
+};
+
+/// A sample's geometric distance to a sphere of known radius, |p − c| − r, divided by the
+/// sphere's slope max(floor, |n_z|) at the sample seen from `start` (so, in depth units, to
+/// first order): the coarse rounds that find a cap from a start millimetres off use it, where
+/// the depth error, steep near an outline that is still in the wrong place, has no wide basin.
+struct SphereDistanceResidual {
+  SphereDistanceResidual(const Eigen::Vector3d& p, double radius, double weight) : p_(p), r_(radius), w_(weight) {}
   template <typename T>
   bool operator()(const T* c, T* res) const {
     const T dx = T(p_.x()) - c[0], dy = T(p_.y()) - c[1], dz = T(p_.z()) - c[2];
     res[0] = T(w_) * (ceres::sqrt(dx * dx + dy * dy + dz * dz) - T(r_));
     return true;
   }
-  static ceres::CostFunction* Create(const Eigen::Vector3d& p, double radius, double weight) {
-    return new ceres::AutoDiffCostFunction<SphereResidual, 1, 3>(new SphereResidual(p, radius, weight));
+  static ceres::CostFunction* Create(const Eigen::Vector3d& p, const Eigen::Vector3d& start, double radius, double floor) {
+    const double w = 1.0 / std::max(floor, std::abs(p.z() - start.z()) / radius);
+    return new ceres::AutoDiffCostFunction<SphereDistanceResidual, 1, 3>(new SphereDistanceResidual(p, radius, w));
   }
 
  private:
   Eigen::Vector3d p_;
   double r_, w_;
+};
+
+/// A sample on a sphere whose centre and radius are both parameter blocks.
+struct FreeRadiusResidual {
+  FreeRadiusResidual(const Eigen::Vector3d& p, double floor) : p_(p), floor_(floor) {}
+  template <typename T>
+  bool operator()(const T* c, const T* r, T* res) const {
+    const T p[3] = {T(p_.x()), T(p_.y()), T(p_.z())};
+    res[0] = sphere_depth_error(p, c, r[0], floor_);
+    return true;
+  }
+  static ceres::CostFunction* Create(const Eigen::Vector3d& p, double floor) {
+    return new ceres::AutoDiffCostFunction<FreeRadiusResidual, 1, 3, 1>(new FreeRadiusResidual(p, floor));
+  }
+
+ private:
+  Eigen::Vector3d p_;
+  double floor_;
 };
 
 }  // namespace handskin

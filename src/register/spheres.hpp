@@ -16,7 +16,7 @@ struct SphereOptions {
   double radius_tolerance = 0.1;   ///< a free-radius fit must land within ± this fraction of it
   double inlier_mm = 0.25;         ///< |distance − r| for a point to belong to the sphere
   double normal_gate_deg = 40.0;   ///< ... and its normal within this of the sphere's
-  double weight_floor = 0.3;       ///< depth weights are 1 / max(this, |n_z|)
+  double steep_floor = 0.3;        ///< fits hold a sphere's height ≥ this × r near its outline (sphere_residual.hpp)
   double max_rms_mm = 0.2;         ///< fit residual above which a bump is not a marker
   long min_points = 10;            ///< fewest samples on a marker cap
   double min_spread_deg = 20.0;    ///< a cap must span this much of the sphere (a flat patch does not)
@@ -31,7 +31,8 @@ struct SphereFit {
   double radius_free = 0;      ///< radius of an unconstrained fit to the same samples
   double rms_mm = 0;           ///< geometric residual of the fixed-radius fit
   double spread_deg = 0;       ///< largest angle between a sample's direction and the cap's mean
-  std::vector<int> inliers;    ///< indices into PreparedScan::points
+  std::vector<int> inliers;    ///< the centre's samples: indices into PreparedScan::points
+  std::vector<int> shell;      ///< the free radius's samples (the distance gate, the visible outline, off the skin)
   bool manual = false;         ///< from a hint file rather than detection
 };
 
@@ -53,9 +54,13 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& scan, const SphereOpti
 std::optional<SphereFit> fit_sphere_near(const PreparedScan& scan, const Eigen::Vector3d& guess, double search_mm,
                                          const SphereOptions& options, std::string* why);
 
-/// Least-squares weight of a sample on a sphere: the scanner's noise is along Z, so a
-/// sample's error normal to the sphere is σ·|n_z|; its residual is divided by that
-/// (floored, 0.3 by default: about the steepest return). Shared by the marker fit and the joint refinement.
-double depth_weight(const Eigen::Vector3d& p, const Eigen::Vector3d& centre, double radius, double floor = 0.3);
+/// One radius shared by several marker caps, each with its own centre: least squares over
+/// every cap's `shell` samples, started at `radius`. A replica's markers share one size, so
+/// all their samples together pin it better than the median of the caps' own free fits.
+struct SharedRadiusCap {
+  const PreparedScan* scan;
+  const SphereFit* fit;
+};
+double fit_shared_radius(const std::vector<SharedRadiusCap>& caps, double radius, double floor);
 
 }  // namespace handskin
