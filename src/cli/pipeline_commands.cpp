@@ -118,6 +118,9 @@ void register_command(const RegisterArgs& a, const Progress& progress) {
               reg.warnings.empty() ? "ok" : "ok_with_warnings", reg.refined ? "refined" : "markers", f.markers_matched,
               f.markers_back, f.markers_palm, reg.marker_radius_mm, f.radius_estimated ? "estimated" : "given",
               f.marker_only_rms_mm, f.refined_rms_mm, f.merged_points);
+  if (f.rotation_sigma_deg > 0)
+    std::printf("its own error estimate (1 sigma): rotation %.4f deg, skin displacement %.4f mm\n", f.rotation_sigma_deg,
+                f.displacement_sigma_mm);
   const Json& r = report;
   if (r.contains("against_truth"))
     std::printf("against truth: rotation %.5f deg, skin mean %.4f mm, max %.4f mm\n",

@@ -293,7 +293,12 @@ std::string patch_report_html(const PatchStageResult& r, const PatchReportFigure
         h += "<p>Registration: " + html_escape(st.value("method", "")) + ", " +
              std::to_string(st.value("markers_matched", 0)) + " markers matched, marker RMS " +
              fmt("%.4f", st.value("refined_rms_mm", 0.0)) + " mm, marker radius " +
-             fmt("%.3f", st["marker_radius_mm"].value("value", 0.0)) + " mm.</p>\n";
+             fmt("%.3f", st["marker_radius_mm"].value("value", 0.0)) + " mm" +
+             (st.contains("uncertainty") && st["uncertainty"].is_object()
+                  ? "; its own error estimate (1σ): rotation " + fmt("%.3f", st["uncertainty"].value("rotation_deg", 0.0)) +
+                        "°, skin displacement " + fmt("%.3f", st["uncertainty"].value("displacement_mm", 0.0)) + " mm"
+                  : std::string()) +
+             ".</p>\n";
   }
   h += "<p>Fit: " + fmt("%.0f", 1000 * s.seconds) + " ms; this report's figures: " + fmt("%.0f", 1000 * f.seconds) +
        " ms. Made by handskin (docs/patches.md).</p>\n</body></html>\n";

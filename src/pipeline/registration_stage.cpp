@@ -44,6 +44,9 @@ Json registration_summary_json(const Registration& reg) {
           {"refined_rms_mm", f.refined_rms_mm},
           {"sphere_rms_mm", {{"marker_only", f.sphere_rms_marker_only_mm}, {"refined", f.sphere_rms_refined_mm}}},
           {"icp_overlap_fraction", f.icp_overlap_fraction},
+          {"uncertainty", f.rotation_sigma_deg > 0 ? Json{{"rotation_deg", f.rotation_sigma_deg},
+                                                          {"displacement_mm", f.displacement_sigma_mm}}
+                                                    : Json(nullptr)},
           {"merged_points", f.merged_points},
           {"timings_ms", timings}};
 }

@@ -7,6 +7,7 @@
 #include <pcl/point_types.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 
@@ -132,6 +133,62 @@ double marker_sphere_rms(const std::vector<MarkerSamples>& markers, const Eigen:
     if (centres) centres->emplace_back(c[0], c[1], c[2]);
   }
   return n ? std::sqrt(ss / static_cast<double>(n)) : 0.0;
+}
+
+PoseCovariance pose_covariance(const std::vector<MarkerSamples>& markers, const Eigen::Isometry3d& T,
+                               const std::vector<Eigen::Vector3d>& centres, double r, double floor) {
+  HS_CHECK(centres.size() == markers.size(), "one centre per marker");
+  PoseCovariance out;
+  double pose[6];
+  to_pose(T, pose);
+  std::vector<std::array<double, 3>> c(centres.size());
+  ceres::Problem problem;
+  size_t n = 0;
+  for (size_t m = 0; m < markers.size(); ++m) {
+    c[m] = {centres[m].x(), centres[m].y(), centres[m].z()};
+    for (const auto& p : markers[m].back)
+      problem.AddResidualBlock(BackOnSphere::Create(p, r, floor), nullptr, pose, c[m].data());
+    for (const auto& p : markers[m].palm) problem.AddResidualBlock(SphereResidual::Create(p, r, floor), nullptr, c[m].data());
+    n += markers[m].back.size() + markers[m].palm.size();
+  }
+  const size_t params = 6 + 3 * markers.size();
+  if (n <= params) return out;
+  double cost = 0;
+  problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, nullptr);
+  out.sigma_mm = std::sqrt(2.0 * cost / static_cast<double>(n - params));
+  ceres::Covariance::Options co;
+  co.algorithm_type = ceres::DENSE_SVD;  // ~40 parameters: small, and says when rank is lost
+  co.null_space_rank = -1;
+  co.min_reciprocal_condition_number = 1e-14;
+  ceres::Covariance cov(co);
+  const std::vector<std::pair<const double*, const double*>> blocks = {{pose, pose}};
+  if (!cov.Compute(blocks, &problem)) return out;
+  double C[36];
+  if (!cov.GetCovarianceBlock(pose, pose, C)) return out;
+  for (int i = 0; i < 6; ++i)
+    for (int j = 0; j < 6; ++j) out.covariance(i, j) = C[6 * i + j] * out.sigma_mm * out.sigma_mm;
+  out.valid = out.covariance.allFinite();
+  return out;
+}
+
+double displacement_sigma(const Eigen::Isometry3d& T, const Eigen::Matrix<double, 6, 6>& C,
+                          const std::vector<Eigen::Vector3d>& points) {
+  if (points.empty()) return 0;
+  double pose[6];
+  to_pose(T, pose);
+  double sum = 0;
+  for (const auto& p : points) {
+    // ∂(R(aa) p + t)/∂pose by automatic differentiation on the same rotation as the fit.
+    using Jet = ceres::Jet<double, 6>;
+    Jet jp[6], x[3], q[3];
+    for (int k = 0; k < 6; ++k) jp[k] = Jet(pose[k], k);
+    for (int k = 0; k < 3; ++k) x[k] = Jet(p(k));
+    ceres::AngleAxisRotatePoint(jp, x, q);
+    Eigen::Matrix<double, 3, 6> J;
+    for (int k = 0; k < 3; ++k) J.row(k) = (q[k] + jp[3 + k]).v.transpose();
+    sum += (J * C * J.transpose()).trace();
+  }
+  return std::sqrt(sum / static_cast<double>(points.size()));
 }
 
 RefineResult refine_registration(const PreparedScan& back, const PreparedScan& palm, const std::vector<char>& back_skin,

@@ -42,6 +42,24 @@ struct MarkerSamples {
 double marker_sphere_rms(const std::vector<MarkerSamples>& markers, const Eigen::Isometry3d& T, double radius,
                          double floor, std::vector<Eigen::Vector3d>* centres = nullptr);
 
+/// The marker fit's own estimate of its error: the covariance of the transform (angle-axis,
+/// then translation; rad² and mm²) in the joint problem of `marker_sphere_rms` (T and one
+/// centre per marker) at `T` and `centres`, (JᵀJ)⁻¹ scaled by the residuals' own variance
+/// (their sum of squares over residuals − parameters). Markers only: no skin is seen by both
+/// scans (docs/registration.md). `valid` is false when the problem is rank-deficient.
+struct PoseCovariance {
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  double sigma_mm = 0;  ///< the residuals' standard deviation (depth errors)
+  bool valid = false;
+};
+PoseCovariance pose_covariance(const std::vector<MarkerSamples>& markers, const Eigen::Isometry3d& T,
+                               const std::vector<Eigen::Vector3d>& centres, double radius, double floor);
+
+/// Expected RMS displacement (1σ) of `points` (back frame) mapped by T, for the transform's
+/// covariance `C` (as PoseCovariance): √(mean over the points of trace(J C Jᵀ)), J = ∂(T·p)/∂pose.
+double displacement_sigma(const Eigen::Isometry3d& T, const Eigen::Matrix<double, 6, 6>& C,
+                          const std::vector<Eigen::Vector3d>& points);
+
 struct RefineResult {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();  ///< the refined back_to_palm (use only if accepted)
   int iterations = 0;

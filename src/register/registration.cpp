@@ -253,6 +253,7 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
   // --- 2. markers in each scan (their radius first, when the pipeline does not fix it) ---
   t = Clock::now();
   Json radius_rep = {{"source", o.estimate_radius ? "estimated" : "given"}};
+  double radius_sd = 0;  // the estimate's standard deviation from its fit (0: given, or not known)
   if (o.estimate_radius) {
     progress("estimating the marker radius");
     const RadiusEstimate est = estimate_marker_radius(back, palm, o, hints);
@@ -271,6 +272,7 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
     // opposite to the palm scan's: the back scan lands twice that off along the hand's
     // normal, docs/registration.md.)
     Json steps = Json::array({est.radius_mm});
+    radius_sd = 0;
     for (int it = 0; it < 5; ++it) {
       const double rc = o.spheres.radius_mm;
       std::vector<SphereFit> fits[2];  // both scans at once: independent, each into its own slot
@@ -313,7 +315,7 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
         for (const SphereFit& f : fits[side])
           if (std::abs(f.radius_free - rc) <= 0.04 * rc && std::abs(f.radius_free - median) <= agree)
             caps.push_back({side == 0 ? &back : &palm, &f});
-      const double next = fit_shared_radius(caps, median, o.spheres.steep_floor);
+      const double next = fit_shared_radius(caps, median, o.spheres.steep_floor, &radius_sd);
       steps.push_back(next);
       o.spheres.radius_mm = next;
       if (std::abs(next - rc) < 0.002) break;
@@ -504,6 +506,31 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
     for (const auto& [b, p] : match.pairs) out.markers_palm.push_back(0.5 * (out.marker_only * cb[b] + cp[p]));
   }
 
+  // --- the fit's own error estimate (1σ): the joint marker fit's covariance at the chosen
+  // transform, mapped onto the back scan's skin samples; with the radius estimated, its
+  // error moves the back scan 2δr along the palm scanner's view on top (step 3 of
+  // docs/registration.md) ---
+  Json uncertainty = nullptr;
+  {
+    std::vector<Eigen::Vector3d> joint_centres;
+    marker_sphere_rms(samples, out.back_to_palm, r, o.spheres.steep_floor, &joint_centres);
+    const PoseCovariance pc = pose_covariance(samples, out.back_to_palm, joint_centres, r, o.spheres.steep_floor);
+    if (pc.valid) {
+      std::vector<Eigen::Vector3d> skin_points;
+      for (size_t k = 0; k < back.points.size(); k += 25)
+        if (skin_b[k]) skin_points.push_back(back.points[k]);
+      const double fit_mm = displacement_sigma(out.back_to_palm, pc.covariance, skin_points);
+      const double along_normal = 2.0 * radius_sd;
+      out.figures.rotation_sigma_deg = std::sqrt(pc.covariance.topLeftCorner<3, 3>().trace()) * 180.0 / M_PI;
+      out.figures.displacement_sigma_mm = std::sqrt(fit_mm * fit_mm + along_normal * along_normal);
+      uncertainty = {{"rotation_deg", out.figures.rotation_sigma_deg},
+                     {"displacement_mm", out.figures.displacement_sigma_mm},
+                     {"displacement_markers_mm", fit_mm},
+                     {"radius_mm", o.estimate_radius && radius_sd > 0 ? Json(radius_sd) : Json(nullptr)},
+                     {"residual_sigma_mm", pc.sigma_mm}};
+    }
+  }
+
   // --- 6. merge: palm frame, side labels, marker samples out ---
   progress("merging");
   t = Clock::now();
@@ -560,6 +587,7 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
   };
   rep["status"] = out.warnings.empty() ? "ok" : "ok_with_warnings";
   rep["marker_radius"] = radius_rep;
+  rep["uncertainty"] = uncertainty;
   rep["warnings"] = out.warnings;
   rep["back_to_palm"] = isometry_to_json(out.back_to_palm);
   rep["method"] = out.refined ? "refined" : "markers";

@@ -35,8 +35,8 @@ struct RegistrationOptions {
   bool refine_enabled = true;
   /// The markers' radius is not known: estimate it from the scans (spheres.radius_mm is
   /// then ignored). Each candidate radius is tried in both scans and its bumps matched
-  /// between them; the one that matches the most markers wins, the trimmed median of those
-  /// caps' free-radius fits is re-detected at itself until it settles (docs/registration.md).
+  /// between them; the one that matches the most markers wins, and one radius fitted to those
+  /// caps is re-detected at itself until it settles (docs/registration.md).
   bool estimate_radius = false;
   std::vector<double> radius_candidates_mm = {2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 6.0, 7.0, 8.0};
   bool IsValid(std::string* error) const;
@@ -77,6 +77,9 @@ struct RegistrationFigures {
   double marker_only_rms_mm = 0, refined_rms_mm = 0;        ///< matched centres' residuals
   double sphere_rms_marker_only_mm = 0, sphere_rms_refined_mm = 0;
   double icp_overlap_fraction = 0;
+  /// The fit's own error estimate (1σ; 0 when it could not be made): rotation angle, and
+  /// RMS displacement of the back scan's skin (with the radius estimate's share when estimated).
+  double rotation_sigma_deg = 0, displacement_sigma_mm = 0;
   size_t merged_points = 0;
   std::vector<std::pair<std::string, double>> timings_ms;  ///< per step, in order
 };

@@ -61,6 +61,8 @@ struct SharedRadiusCap {
   const PreparedScan* scan;
   const SphereFit* fit;
 };
-double fit_shared_radius(const std::vector<SharedRadiusCap>& caps, double radius, double floor);
+/// `sd` (if given): the radius's standard deviation from the fit's covariance, the residuals'
+/// own scatter standing for the noise.
+double fit_shared_radius(const std::vector<SharedRadiusCap>& caps, double radius, double floor, double* sd = nullptr);
 
 }  // namespace handskin
