@@ -450,17 +450,16 @@ TEST(Register, MarkerRadiusEstimateUnbiasedOverPairs) {
   EXPECT_LE(rms, 0.010);
   EXPECT_LE(worst, 0.022);
   // The registration's own error estimate (registration.json's `uncertainty`) is honest: the
-  // errors against the truth, over the pairs, are of its size (RMS of error / estimate
-  // within [0.5, 1.5], the rotation's [0.4, 1.5]; measured here 0.93, 0.95 and 0.55, on the
-  // family's 48 pairs 0.96, 0.93 and 0.69: the rotation's estimate is conservative).
+  // errors against the truth, over the pairs, are of its size (RMS of error / estimate within
+  // [0.5, 1.5]; measured here 0.93 (radius), 0.77 (rotation), 0.95 (displacement), on the
+  // family's 48 pairs 0.96, 0.98, 0.93. The rotation's estimate read 0.55 here and 0.69 there
+  // while it was taken in angle-axis coordinates, which near the turnover's 180° are not angles).
   const double rz = std::sqrt(radius_z2 / n), rr = std::sqrt(rotation_ratio2 / n), rd = std::sqrt(displacement_ratio2 / n);
   std::printf("error / own estimate, RMS over the pairs: radius %.2f, rotation %.2f, displacement %.2f\n", rz, rr, rd);
-  EXPECT_GE(rz, 0.5);
-  EXPECT_LE(rz, 1.5);
-  EXPECT_GE(rd, 0.5);
-  EXPECT_LE(rd, 1.5);
-  EXPECT_GE(rr, 0.4);
-  EXPECT_LE(rr, 1.5);
+  for (double x : {rz, rr, rd}) {
+    EXPECT_GE(x, 0.5);
+    EXPECT_LE(x, 1.5);
+  }
 }
 
 TEST(Register, ManualMarkersGiveTheSameResult) {

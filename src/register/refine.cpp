@@ -171,6 +171,28 @@ PoseCovariance pose_covariance(const std::vector<MarkerSamples>& markers, const 
   return out;
 }
 
+double rotation_sigma_deg(const Eigen::Isometry3d& T, const Eigen::Matrix<double, 6, 6>& C) {
+  double pose[6];
+  to_pose(T, pose);
+  using Jet = ceres::Jet<double, 3>;
+  Jet aa[3], R1[9], R0[9], M[9], d[3];
+  for (int k = 0; k < 3; ++k) aa[k] = Jet(pose[k], k);
+  ceres::AngleAxisToRotationMatrix(aa, ceres::ColumnMajorAdapter3x3(R1));
+  const Eigen::Matrix3d R = T.linear();
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) R0[i + 3 * j] = Jet(R(i, j));
+  for (int i = 0; i < 3; ++i)  // M = R1 R0ᵀ, column-major
+    for (int j = 0; j < 3; ++j) {
+      Jet m(0.0);
+      for (int k = 0; k < 3; ++k) m += R1[i + 3 * k] * R0[j + 3 * k];
+      M[i + 3 * j] = m;
+    }
+  ceres::RotationMatrixToAngleAxis(ceres::ColumnMajorAdapter3x3(static_cast<const Jet*>(M)), d);
+  Eigen::Matrix3d J;
+  for (int k = 0; k < 3; ++k) J.row(k) = d[k].v.transpose();
+  return std::sqrt((J * C.topLeftCorner<3, 3>() * J.transpose()).trace()) * 180.0 / M_PI;
+}
+
 double displacement_sigma(const Eigen::Isometry3d& T, const Eigen::Matrix<double, 6, 6>& C,
                           const std::vector<Eigen::Vector3d>& points) {
   if (points.empty()) return 0;

@@ -55,6 +55,12 @@ struct PoseCovariance {
 PoseCovariance pose_covariance(const std::vector<MarkerSamples>& markers, const Eigen::Isometry3d& T,
                                const std::vector<Eigen::Vector3d>& centres, double radius, double floor);
 
+/// RMS rotation angle (1σ, degrees) of the transform's covariance `C`: its angle-axis block
+/// carried into the rotation's own tangent space at T (δθ with R(aa + δ) = exp(δθ) R(aa)),
+/// where the angle is measured. (Near the turnover's 180°, angle-axis coordinates and
+/// angles differ by up to ~10 %.)
+double rotation_sigma_deg(const Eigen::Isometry3d& T, const Eigen::Matrix<double, 6, 6>& C);
+
 /// Expected RMS displacement (1σ) of `points` (back frame) mapped by T, for the transform's
 /// covariance `C` (as PoseCovariance): √(mean over the points of trace(J C Jᵀ)), J = ∂(T·p)/∂pose.
 double displacement_sigma(const Eigen::Isometry3d& T, const Eigen::Matrix<double, 6, 6>& C,

@@ -521,7 +521,7 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
         if (skin_b[k]) skin_points.push_back(back.points[k]);
       const double fit_mm = displacement_sigma(out.back_to_palm, pc.covariance, skin_points);
       const double along_normal = 2.0 * radius_sd;
-      out.figures.rotation_sigma_deg = std::sqrt(pc.covariance.topLeftCorner<3, 3>().trace()) * 180.0 / M_PI;
+      out.figures.rotation_sigma_deg = rotation_sigma_deg(out.back_to_palm, pc.covariance);
       out.figures.displacement_sigma_mm = std::sqrt(fit_mm * fit_mm + along_normal * along_normal);
       uncertainty = {{"rotation_deg", out.figures.rotation_sigma_deg},
                      {"displacement_mm", out.figures.displacement_sigma_mm},
