@@ -305,7 +305,7 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
       const double median = radii[radii.size() / 2];
       // One radius fitted to all the caps that agree with the median (within 3 robust sigmas;
       // a bump that is not a marker lies outside), each cap its own centre: on the family's 48
-      // pairs its error was 0.0076 mm (sd) against the median's 0.0097.
+      // pairs its error scattered 0.0073 mm against the median's 0.0097.
       std::vector<double> dev;
       for (double x : radii) dev.push_back(std::abs(x - median));
       std::nth_element(dev.begin(), dev.begin() + dev.size() / 2, dev.end());
