@@ -75,6 +75,17 @@ struct PointToPlane {
   Eigen::Vector3d p_, q_, n_;
 };
 
+// The joint marker problem's terms: every back sample of marker m (through the pose) and
+// every palm sample on one sphere about centres[m].
+void add_marker_terms(ceres::Problem* problem, const std::vector<MarkerSamples>& markers, double* pose,
+                      std::vector<std::array<double, 3>>* centres, double r, double floor) {
+  for (size_t m = 0; m < markers.size(); ++m) {
+    double* c = (*centres)[m].data();
+    for (const auto& p : markers[m].back) problem->AddResidualBlock(BackOnSphere::Create(p, r, floor), nullptr, pose, c);
+    for (const auto& p : markers[m].palm) problem->AddResidualBlock(SphereResidual::Create(p, r, floor), nullptr, c);
+  }
+}
+
 void to_pose(const Eigen::Isometry3d& T, double pose[6]) {
   const Eigen::Matrix3d R = T.linear();
   ceres::RotationMatrixToAngleAxis(ceres::ColumnMajorAdapter3x3(R.data()), pose);
@@ -142,31 +153,13 @@ PoseCovariance pose_covariance(const std::vector<MarkerSamples>& markers, const 
   double pose[6];
   to_pose(T, pose);
   std::vector<std::array<double, 3>> c(centres.size());
+  for (size_t m = 0; m < centres.size(); ++m) c[m] = {centres[m].x(), centres[m].y(), centres[m].z()};
   ceres::Problem problem;
-  size_t n = 0;
-  for (size_t m = 0; m < markers.size(); ++m) {
-    c[m] = {centres[m].x(), centres[m].y(), centres[m].z()};
-    for (const auto& p : markers[m].back)
-      problem.AddResidualBlock(BackOnSphere::Create(p, r, floor), nullptr, pose, c[m].data());
-    for (const auto& p : markers[m].palm) problem.AddResidualBlock(SphereResidual::Create(p, r, floor), nullptr, c[m].data());
-    n += markers[m].back.size() + markers[m].palm.size();
-  }
-  const size_t params = 6 + 3 * markers.size();
-  if (n <= params) return out;
-  double cost = 0;
-  problem.Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, nullptr);
-  out.sigma_mm = std::sqrt(2.0 * cost / static_cast<double>(n - params));
-  ceres::Covariance::Options co;
-  co.algorithm_type = ceres::DENSE_SVD;  // ~40 parameters: small, and says when rank is lost
-  co.null_space_rank = -1;
-  co.min_reciprocal_condition_number = 1e-14;
-  ceres::Covariance cov(co);
-  const std::vector<std::pair<const double*, const double*>> blocks = {{pose, pose}};
-  if (!cov.Compute(blocks, &problem)) return out;
+  add_marker_terms(&problem, markers, pose, &c, r, floor);
   double C[36];
-  if (!cov.GetCovarianceBlock(pose, pose, C)) return out;
+  if (!residual_scaled_covariance(&problem, pose, 6, C, &out.sigma_mm)) return out;
   for (int i = 0; i < 6; ++i)
-    for (int j = 0; j < 6; ++j) out.covariance(i, j) = C[6 * i + j] * out.sigma_mm * out.sigma_mm;
+    for (int j = 0; j < 6; ++j) out.covariance(i, j) = C[6 * i + j];
   out.valid = out.covariance.allFinite();
   return out;
 }
@@ -292,12 +285,7 @@ RefineResult refine_registration(const PreparedScan& back, const PreparedScan& p
     ceres::Problem problem;
     std::vector<std::array<double, 3>> c(centres.size());
     for (size_t m = 0; m < centres.size(); ++m) c[m] = {centres[m].x(), centres[m].y(), centres[m].z()};
-    for (size_t m = 0; m < markers.size(); ++m) {
-      for (const auto& p : markers[m].back)
-        problem.AddResidualBlock(BackOnSphere::Create(p, r, floor), nullptr, pose, c[m].data());
-      for (const auto& p : markers[m].palm)
-        problem.AddResidualBlock(SphereResidual::Create(p, r, floor), nullptr, c[m].data());
-    }
+    add_marker_terms(&problem, markers, pose, &c, r, floor);
     if (use_surface)
       for (const auto& pr : pairs)
         problem.AddResidualBlock(new ceres::AutoDiffCostFunction<PointToPlane, 1, 6>(new PointToPlane(

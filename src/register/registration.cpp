@@ -123,6 +123,20 @@ std::vector<SphereFit> find_markers(const PreparedScan& s, const RegistrationOpt
   return found;
 }
 
+// The marker caps of one scan at `so`'s radius: fitted at the manual positions when the
+// hints give this scan's, else detected (the strongest `max_found`). A hint with no sphere
+// near it is left out here; find_markers names it.
+std::vector<SphereFit> caps_in_scan(const PreparedScan& s, const std::optional<std::vector<Eigen::Vector3d>>* hints,
+                                    const SphereOptions& so, size_t max_found = static_cast<size_t>(-1)) {
+  if (!hints || !*hints) return detect_spheres(s, so, nullptr, max_found);
+  std::vector<SphereFit> out;
+  for (const auto& g : **hints) {
+    std::string why;
+    if (auto f = fit_sphere_near(s, g, so.hint_search_mm, so, &why)) out.push_back(*f);
+  }
+  return out;
+}
+
 // The markers' radius from the scans: every candidate radius is tried in both scans
 // (hints: at the hinted positions) and the bumps found are matched between the scans by
 // their distance pattern. Markers are the bumps that are spheres of one radius *and* sit in
@@ -154,17 +168,8 @@ RadiusEstimate estimate_marker_radius(const PreparedScan& back, const PreparedSc
     const int side = static_cast<int>(job % 2);
     try {
       const SphereOptions so = options_for(o.radius_candidates_mm[c]);
-      const PreparedScan& s = side == 0 ? palm : back;
       const std::optional<std::vector<Eigen::Vector3d>>* h = hints ? (side == 0 ? &hints->palm : &hints->back) : nullptr;
-      std::vector<SphereFit>& out = detected[c][side];
-      if (h && *h) {
-        for (const auto& g : **h) {
-          std::string why;
-          if (auto f = fit_sphere_near(s, g, so.hint_search_mm, so, &why)) out.push_back(*f);
-        }
-      } else {
-        out = detect_spheres(s, so, nullptr, keep);
-      }
+      detected[c][side] = caps_in_scan(side == 0 ? palm : back, h, so, keep);
     } catch (...) {
       failure[static_cast<size_t>(job)] = std::current_exception();
     }
@@ -272,7 +277,6 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
     // opposite to the palm scan's: the back scan lands twice that off along the hand's
     // normal, docs/registration.md.)
     Json steps = Json::array({est.radius_mm});
-    radius_sd = 0;
     for (int it = 0; it < 5; ++it) {
       const double rc = o.spheres.radius_mm;
       std::vector<SphereFit> fits[2];  // both scans at once: independent, each into its own slot
@@ -280,16 +284,9 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
 #pragma omp parallel for schedule(static, 1)
       for (int side = 0; side < 2; ++side) {
         try {
-          const PreparedScan& scan = side == 0 ? back : palm;
+          // With manual positions, the same caps as the final fit will take.
           const std::optional<std::vector<Eigen::Vector3d>>* h = hints ? (side == 0 ? &hints->back : &hints->palm) : nullptr;
-          if (h && *h) {  // the manual positions: the same caps as the final fit will take
-            for (const auto& g : **h) {
-              std::string why;
-              if (auto f = fit_sphere_near(scan, g, o.spheres.hint_search_mm, o.spheres, &why)) fits[side].push_back(*f);
-            }
-          } else {
-            fits[side] = detect_spheres(scan, o.spheres);
-          }
+          fits[side] = caps_in_scan(side == 0 ? back : palm, h, o.spheres);
         } catch (...) {
           failed[side] = std::current_exception();
         }
@@ -512,8 +509,9 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
   // docs/registration.md) ---
   Json uncertainty = nullptr;
   {
-    std::vector<Eigen::Vector3d> joint_centres;
-    marker_sphere_rms(samples, out.back_to_palm, r, o.spheres.steep_floor, &joint_centres);
+    // The refinement's centres are the joint fit's at its transform already.
+    std::vector<Eigen::Vector3d> joint_centres = ref.centres;
+    if (!out.refined) marker_sphere_rms(samples, out.back_to_palm, r, o.spheres.steep_floor, &joint_centres);
     const PoseCovariance pc = pose_covariance(samples, out.back_to_palm, joint_centres, r, o.spheres.steep_floor);
     if (pc.valid) {
       std::vector<Eigen::Vector3d> skin_points;
@@ -526,7 +524,7 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
       uncertainty = {{"rotation_deg", out.figures.rotation_sigma_deg},
                      {"displacement_mm", out.figures.displacement_sigma_mm},
                      {"displacement_markers_mm", fit_mm},
-                     {"radius_mm", o.estimate_radius && radius_sd > 0 ? Json(radius_sd) : Json(nullptr)},
+                     {"radius_mm", radius_sd > 0 ? Json(radius_sd) : Json(nullptr)},
                      {"residual_sigma_mm", pc.sigma_mm}};
     }
   }

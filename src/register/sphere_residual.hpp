@@ -14,6 +14,8 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <utility>
+#include <vector>
 
 namespace handskin {
 
@@ -88,5 +90,28 @@ struct FreeRadiusResidual {
   Eigen::Vector3d p_;
   double floor_;
 };
+
+/// The covariance of one parameter block (`size` values) of a solved problem, (JᵀJ)⁻¹ scaled
+/// by the residuals' own variance (their sum of squares over residuals − parameters), into
+/// `covariance` (row-major) and that standard deviation into `sigma`: the fit's error when
+/// its residuals are the noise. Dense SVD: these problems have tens of parameters, and it says
+/// when rank is lost. False when it cannot be formed.
+inline bool residual_scaled_covariance(ceres::Problem* problem, const double* block, int size, double* covariance,
+                                       double* sigma) {
+  const int n = problem->NumResiduals(), params = problem->NumParameters();
+  if (n <= params) return false;
+  double cost = 0;
+  if (!problem->Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, nullptr)) return false;
+  const double var = 2.0 * cost / static_cast<double>(n - params);
+  ceres::Covariance::Options co;
+  co.algorithm_type = ceres::DENSE_SVD;
+  co.null_space_rank = -1;
+  ceres::Covariance cov(co);
+  const std::vector<std::pair<const double*, const double*>> blocks = {{block, block}};
+  if (!cov.Compute(blocks, problem) || !cov.GetCovarianceBlock(block, block, covariance)) return false;
+  for (int k = 0; k < size * size; ++k) covariance[k] *= var;
+  *sigma = std::sqrt(var);
+  return true;
+}
 
 }  // namespace handskin

@@ -251,17 +251,8 @@ double fit_shared_radius(const std::vector<SharedRadiusCap>& caps, double r, dou
   o.linear_solver_type = ceres::SPARSE_SCHUR;  // independent centres, one shared radius
   ceres::Solver::Summary summary;
   ceres::Solve(o, &problem, &summary);
-  if (sd) {  // (JᵀJ)⁻¹ of the radius, scaled by the residuals' own variance
-    const int n = problem.NumResiduals(), params = problem.NumParameters();
-    ceres::Covariance::Options co;
-    co.algorithm_type = ceres::DENSE_SVD;
-    co.null_space_rank = -1;
-    ceres::Covariance cov(co);
-    double var = 0;
-    const std::vector<std::pair<const double*, const double*>> block = {{&radius, &radius}};
-    if (n > params && cov.Compute(block, &problem) && cov.GetCovarianceBlock(&radius, &radius, &var))
-      *sd = std::sqrt(std::max(0.0, var) * 2.0 * summary.final_cost / static_cast<double>(n - params));
-  }
+  double var = 0, sigma = 0;
+  if (sd && residual_scaled_covariance(&problem, &radius, 1, &var, &sigma)) *sd = std::sqrt(std::max(0.0, var));
   return radius;
 }
 
