@@ -412,6 +412,16 @@ TEST(Register, FixtureMarkerRadiusEstimatedWithinTheBounds) {
   EXPECT_NEAR(reg.marker_radius_mm, 4.0, 0.022);
   EXPECT_LT(e.rotation_deg, 0.02);
   EXPECT_LT(e.mean_mm, 0.05);
+  // Its own error estimate (measured 0.012 deg / 0.020 mm) is under the default warning
+  // figures (0.02 deg / 0.05 mm); asked to warn above 0.005 deg it says what it holds.
+  EXPECT_TRUE(reg.warnings.empty()) << reg.warnings.front();
+  o.warn_rotation_sigma_deg = 0.005;
+  const Registration strict = register_scans(back, palm, "back", "palm", o, nullptr, kQuiet);
+  ASSERT_EQ(strict.warnings.size(), 1u);
+  EXPECT_NE(strict.warnings[0].find("the scans hold this registration to 0.01"), std::string::npos)
+      << strict.warnings[0];
+  EXPECT_NE(strict.warnings[0].find("more or larger markers"), std::string::npos) << strict.warnings[0];
+  EXPECT_EQ(strict.report["status"], "ok_with_warnings");
 }
 
 // The estimate over pairs of two hands with 3 mm markers: its error is what moves the back
@@ -436,6 +446,11 @@ TEST(Register, MarkerRadiusEstimateUnbiasedOverPairs) {
       std::printf("hand %d seed %d: radius %+.4f mm off (its 1 sigma %.4f); registration %.4f deg (%.4f), %.4f mm mean (%.4f)\n",
                   hand == &default_hand() ? 1 : 2, static_cast<int>(seed), err, sd_r, o.chosen.rotation_deg, sd_rot,
                   o.chosen.mean_mm, sd_disp);
+      // The warning is given exactly when the estimate exceeds its figures.
+      bool warned = false;
+      for (const auto& w : o.reg.warnings) warned = warned || w.find("the scans hold this registration") != std::string::npos;
+      EXPECT_EQ(warned, sd_rot > opts.warn_rotation_sigma_deg || sd_disp > opts.warn_displacement_sigma_mm)
+          << "seed " << seed;
       sum += err;
       sum2 += err * err;
       worst = std::max(worst, std::abs(err));

@@ -39,6 +39,8 @@ const std::vector<KeySpec>& key_table() {
       {"registration", "icp_normal_deg", Kind::Real, 0, 90, true, HS_FIELD(registration.icp_normal_deg)},
       {"registration", "icp_trim", Kind::Real, 0, 1, true, HS_FIELD(registration.icp_trim)},
       {"registration", "icp_max_iterations", Kind::Int, 0, 200, false, HS_FIELD(registration.icp_max_iterations)},
+      {"registration", "warn_rotation_deg", Kind::Real, 0, 10, true, HS_FIELD(registration.warn_rotation_deg)},
+      {"registration", "warn_displacement_mm", Kind::Real, 0, 10, true, HS_FIELD(registration.warn_displacement_mm)},
       {"slicing", "planes", Kind::Int, 3, 1000, false, HS_FIELD(slicing.planes)},
       {"slicing", "points_per_segment", Kind::Int, 2, 200, false, HS_FIELD(slicing.points_per_segment)},
       {"skin", "thumb_overlap_mm", Kind::Real, 0, 20, false, HS_FIELD(skin.thumb_overlap_mm)},

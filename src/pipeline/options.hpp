@@ -28,6 +28,9 @@ struct PipelineOptions {
     double icp_normal_deg = 20.0;  ///< ... nor pairs whose normals differ more
     double icp_trim = 0.9;         ///< fraction of gated pairs kept
     long icp_max_iterations = 15;  ///< correspondence rounds
+    /// Warn when the fit's own error estimate (1σ) exceeds these (issue 11's bounds).
+    double warn_rotation_deg = 0.02;
+    double warn_displacement_mm = 0.05;
   } registration;
   struct Slicing {                 ///< skin strips (thesis §4.1.2–4.1.3)
     long planes = 50;              ///< cross-section planes along the hand

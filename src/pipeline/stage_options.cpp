@@ -18,6 +18,8 @@ RegistrationOptions registration_options(const PipelineOptions& o) {
   r.refine.normal_deg = o.registration.icp_normal_deg;
   r.refine.trim = o.registration.icp_trim;
   r.refine.max_iterations = static_cast<int>(o.registration.icp_max_iterations);
+  r.warn_rotation_sigma_deg = o.registration.warn_rotation_deg;
+  r.warn_displacement_sigma_mm = o.registration.warn_displacement_mm;
   return r;
 }
 

@@ -27,6 +27,9 @@ bool RegistrationOptions::IsValid(std::string* error) const {
   if (!(match_tolerance_mm > 0 && match_tolerance_mm <= 10)) return bad("match_tolerance_mm must be in (0, 10]");
   if (!(accept_residual_mm >= 0 && accept_residual_mm <= 10)) return bad("accept_residual_mm must be in [0, 10]");
   if (!(marker_clearance_mm >= 0 && marker_clearance_mm <= 10)) return bad("marker_clearance_mm must be in [0, 10]");
+  if (!(warn_rotation_sigma_deg > 0 && warn_rotation_sigma_deg <= 10)) return bad("warn_rotation_sigma_deg must be in (0, 10]");
+  if (!(warn_displacement_sigma_mm > 0 && warn_displacement_sigma_mm <= 10))
+    return bad("warn_displacement_sigma_mm must be in (0, 10]");
   return true;
 }
 
@@ -56,9 +59,10 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
-std::string fmt(const char* f, double a = 0, double b = 0, double c = 0) {
-  char buf[256];
-  std::snprintf(buf, sizeof buf, f, a, b, c);
+template <typename... Args>
+std::string fmt(const char* f, Args... args) {
+  char buf[512];
+  std::snprintf(buf, sizeof buf, f, args...);
   return buf;
 }
 
@@ -526,6 +530,21 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
                      {"displacement_markers_mm", fit_mm},
                      {"radius_mm", radius_sd > 0 ? Json(radius_sd) : Json(nullptr)},
                      {"residual_sigma_mm", pc.sigma_mm}};
+      // The scans cannot hold the transform to the bounds: say so, and what would help. The
+      // radius is named only where its share dominates (it moves the back scan along the
+      // normal; the rotation is the centres' sideways noise over their lever arms).
+      const double rot = out.figures.rotation_sigma_deg, disp = out.figures.displacement_sigma_mm;
+      if (rot > o.warn_rotation_sigma_deg || disp > o.warn_displacement_sigma_mm) {
+        const bool radius_dominates = disp > o.warn_displacement_sigma_mm && along_normal > fit_mm;
+        out.warnings.push_back(
+            fmt("the scans hold this registration to %.3f deg / %.3f mm only (1 sigma, the fit's own estimate; "
+                "warned above %.3f deg / %.3f mm): %d markers of radius %.2f mm matched; %s (docs/registration.md)",
+                rot, disp, o.warn_rotation_sigma_deg, o.warn_displacement_sigma_mm,
+                static_cast<int>(match.pairs.size()), r,
+                radius_dominates ? "most of it is the estimated radius's: give the markers' radius if it is known "
+                                   "(markers.radius_mm)"
+                                 : "more or larger markers, spread wider, would tighten it"));
+      }
     }
   }
 

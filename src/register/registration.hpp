@@ -33,6 +33,10 @@ struct RegistrationOptions {
   double accept_residual_mm = 0;
   double marker_clearance_mm = 0.5;  ///< samples within radius + this of a marker are not skin
   bool refine_enabled = true;
+  /// A warning when the fit's own error estimate (1σ, `uncertainty` in registration.json)
+  /// exceeds these: the scans do not hold the transform that well (docs/registration.md).
+  double warn_rotation_sigma_deg = 0.02;
+  double warn_displacement_sigma_mm = 0.05;
   /// The markers' radius is not known: estimate it from the scans (spheres.radius_mm is
   /// then ignored). Each candidate radius is tried in both scans and its bumps matched
   /// between them; the one that matches the most markers wins, and one radius fitted to those
