@@ -79,6 +79,10 @@ TEST(Patches, AClosedSurfaceOfKnownShapeIsFittedWithExactBordersAndSmoothJoins) 
   // The correction lowers the error from the first fit's.
   ASSERT_GE(s.rms_per_round.size(), 2u);
   EXPECT_LT(s.rms_per_round.back(), s.rms_per_round.front());
+  // The surface kept is the round's with the lowest RMS.
+  ASSERT_GE(s.kept_round, 0);
+  ASSERT_LT(s.kept_round, static_cast<int>(s.rms_per_round.size()));
+  EXPECT_EQ(s.rms_per_round[s.kept_round], *std::min_element(s.rms_per_round.begin(), s.rms_per_round.end()));
   // The surface itself is the ellipsoid: its tessellation's vertices lie on it.
   const TriMesh m = tessellate(s, 6);
   double worst = 0;

@@ -98,16 +98,19 @@ class DigitFrames {
 };
 
 // `next` reordered to run round its tube the way `prev` does (their Newell normals both along
-// the tube, from prev toward next), starting at the corner that puts the four pairs nearest.
+// the tube's `along`, the link from the joint below to the ring's), starting at the corner
+// that puts the four pairs nearest. (The rings' centres' difference, taken for `along` until
+// 2026-11-25, lies nearly in the plane of a thumb's base ring — the palm's radial flank — when
+// the thumb is raised and turned: the WebXR hand model's base ring then ran the other way
+// round and its first row of patches crossed over, 5 mm from the skin.)
 std::array<int, 4> match_ring(const std::vector<Eigen::Vector3d>& V, const std::array<int, 4>& prev,
-                              std::array<int, 4> next) {
+                              std::array<int, 4> next, const Eigen::Vector3d& along) {
   auto pos = [&](const std::array<int, 4>& r) {
     std::array<Eigen::Vector3d, 4> p;
     for (int i = 0; i < 4; ++i) p[i] = V[r[i]];
     return p;
   };
   const auto P = pos(prev), N = pos(next);
-  const Eigen::Vector3d along = (N[0] + N[1] + N[2] + N[3] - P[0] - P[1] - P[2] - P[3]) / 4;
   if ((newell(P).dot(along) > 0) != (newell(N).dot(along) > 0)) std::swap(next[1], next[3]);
   int best = 0;
   double bd = 1e300;
@@ -318,11 +321,58 @@ PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std:
     L.vertices.push_back(p);
     return static_cast<int>(L.vertices.size()) - 1;
   };
+  // Where a ray from inside digit `f` at `o` along `dir` leaves the digit's own skin. The
+  // digit's flesh opens into the palm's and into its webs, so a ray from a joint near them
+  // (a raised, turned thumb's MCP: its dorsal-ulnar ray points into the hand or the web to
+  // the index) can run on through the palm and leave it 20-60 mm away (the WebXR hand model,
+  // scripts/webxr_study.py). The digit's own section there is the ring of the skin's ring
+  // grid nearest `o`: where the ray's direction, taken in that ring's plane from its centre,
+  // crosses the ring. A hit more than 3 mm beyond that crossing is replaced by it (put on the
+  // skin).
+  auto digit_cast = [&](Finger f, const Eigen::Vector3d& o, const Eigen::Vector3d& dir) {
+    const Eigen::Vector3d hit = caster.cast(o, dir);
+    const RingGrid& g = skin.grid.at(static_cast<int>(SkinTube::Thumb) + static_cast<int>(f));
+    const std::vector<Eigen::Vector3d>* ring = nullptr;
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    double best = 1e300;
+    for (const auto& r : g.rings) {
+      if (r.size() < 3) continue;
+      Eigen::Vector3d m = Eigen::Vector3d::Zero();
+      for (const auto& p : r) m += p;
+      m /= static_cast<double>(r.size());
+      if ((m - o).squaredNorm() < best) best = (m - o).squaredNorm(), c = m, ring = &r;
+    }
+    if (ring == nullptr) return hit;
+    Eigen::Vector3d normal = Eigen::Vector3d::Zero();  // Newell's, of the ring
+    for (size_t k = 0; k < ring->size(); ++k) normal += ((*ring)[k] - c).cross((*ring)[(k + 1) % ring->size()] - c);
+    if (normal.norm() < 1e-9) return hit;
+    normal.normalize();
+    const Eigen::Vector3d e1 = dir - dir.dot(normal) * normal;
+    if (e1.norm() < 0.3) return hit;  // the ray runs along the digit: no crossing to compare with
+    const Eigen::Vector3d u = e1.normalized(), v = normal.cross(u);
+    std::optional<Eigen::Vector3d> cross;
+    double reach = 0;
+    for (size_t k = 0; k < ring->size(); ++k) {
+      const Eigen::Vector3d& a = (*ring)[k];
+      const Eigen::Vector3d& b = (*ring)[(k + 1) % ring->size()];
+      const double ya = (a - c).dot(v), yb = (b - c).dot(v);
+      if ((ya > 0) == (yb > 0) || ya == yb) continue;
+      const Eigen::Vector3d q = a + ya / (ya - yb) * (b - a);
+      if ((q - c).dot(u) > reach) reach = (q - c).dot(u), cross = q;
+    }
+    // Beyond 1.5 × the digit's median section radius a corner is not on the digit's own
+    // section either way: then the skin's point nearest to one radius out along the ray.
+    const double radius = skin.tubes[static_cast<int>(SkinTube::Thumb) + static_cast<int>(f)].section_radius_mm;
+    const double limit = radius > 0 ? 1.5 * radius : 1e300;
+    if ((hit - o).norm() <= limit && (!cross || (hit - o).norm() <= (*cross - o).norm() + 3.0)) return hit;
+    if (cross && (*cross - o).norm() <= limit) return caster.nearest(*cross);
+    return caster.nearest(o + (radius > 0 ? radius : 1.0) * dir.normalized());
+  };
   // A digit's ring of four corners at `o` (square to `axis`, ±45° from `dorsal`).
-  auto digit_ring = [&](const Eigen::Vector3d& o, const Eigen::Vector3d& axis, const Eigen::Vector3d& dorsal) {
+  auto digit_ring = [&](Finger f, const Eigen::Vector3d& o, const Eigen::Vector3d& axis, const Eigen::Vector3d& dorsal) {
     std::array<int, 4> r;
     const auto dirs = frames.ring_directions(axis, dorsal);
-    for (int i = 0; i < 4; ++i) r[i] = add(caster.cast(o, dirs[i]));
+    for (int i = 0; i < 4; ++i) r[i] = add(digit_cast(f, o, dirs[i]));
     return r;
   };
 
@@ -336,11 +386,19 @@ PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std:
         ((frames.joint(J(f1, 2)) - frames.joint(J(f1, 1))).normalized() + (frames.joint(J(f2, 2)) - frames.joint(J(f2, 1))).normalized())
             .normalized();
     const Eigen::Vector3d d = orthonormal_to(frames.dorsal(J(f1, 1), J(f1, 2)) + frames.dorsal(J(f2, 1), J(f2, 2)), u);
-    // From inside the web's flesh, a little proximal of where the web ends.
-    Eigen::Vector3d o = w - 3 * u;
-    for (double back = 3; back <= 15 && !caster.inside(o); back += 3) o = w - back * u;
-    web_b[k] = add(caster.cast(o, d));
-    web_p[k] = add(caster.cast(o, -d));
+    // From inside the web's flesh, a little proximal of where the web ends, and where the
+    // flesh is at least 2 mm thick along the rays: on curled fingers the web's sheet can be
+    // so thin 3 mm in that the back's and the palm's corners came out 0.3 mm apart (the
+    // WebXR hand model curled, scripts/webxr_study.py), a face with no area.
+    Eigen::Vector3d hb, hp;
+    for (double back = 3; back <= 15; back += 3) {
+      const Eigen::Vector3d o = w - back * u;
+      if (!caster.inside(o) && back < 15) continue;
+      hb = caster.cast(o, d), hp = caster.cast(o, -d);
+      if ((hb - hp).norm() >= 2.0) break;
+    }
+    web_b[k] = add(hb);
+    web_p[k] = add(hp);
   }
   // The index's radial flank and the little finger's ulnar flank at their webs' level.
   auto flank = [&](Finger f, const Eigen::Vector3d& web, bool radial_side, int* b, int* p) {
@@ -451,7 +509,8 @@ PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std:
       const Eigen::Vector3d out = (frames.joint(chain[i + 1]) - frames.joint(j)).normalized();
       const Eigen::Vector3d axis = (in + out).normalized();
       const Eigen::Vector3d d = frames.dorsal(chain[i - 1], j) + frames.dorsal(j, chain[i + 1]);
-      rings.push_back(match_ring(L.vertices, rings.back(), digit_ring(frames.joint(j), axis, d)));
+      rings.push_back(match_ring(L.vertices, rings.back(), digit_ring(f, frames.joint(j), axis, d),
+                                 frames.joint(j) - frames.joint(chain[i - 1])));
     }
     // The fingertip's ring is drawn forward over the dome (rays 45° toward the tip), so that
     // the cap and the last row's patches meet at about 120° each at its corners, as three
@@ -463,9 +522,9 @@ PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std:
     {
       const auto dirs = frames.ring_directions(axis, frames.dorsal(distal, tip));
       const Eigen::Vector3d o = a + 0.5 * (b - a);
-      for (int i = 0; i < 4; ++i) cap[i] = add(caster.cast(o, (dirs[i] + kCapTilt * axis).normalized()));
+      for (int i = 0; i < 4; ++i) cap[i] = add(digit_cast(f, o, (dirs[i] + kCapTilt * axis).normalized()));
     }
-    rings.push_back(match_ring(L.vertices, rings.back(), cap));
+    rings.push_back(match_ring(L.vertices, rings.back(), cap, b - a));
     const std::string name = finger_dof_name(f);
     for (size_t r = 0; r + 1 < rings.size(); ++r)
       for (int i = 0; i < 4; ++i) {

@@ -6,8 +6,8 @@
 
 #include <algorithm>
 #include <chrono>
-#include <limits>
 #include <cmath>
+#include <limits>
 #include <tuple>
 
 #include "core/errors.hpp"
@@ -870,6 +870,17 @@ PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector
         for (int g : fs) touches[f][g] = 1;
   }
   std::vector<double> moved(data.size(), -1);
+  // The surface of the round with the lowest RMS: a round whose refit raised the RMS (the
+  // first fit's parameters, taken from the layout's bilinear faces, lie far from the skin where
+  // a raised thumb leaves the palm: the WebXR hand model) does not end the correction, and the
+  // best surface is the one kept. (Its foot points are not kept: the final distances below look
+  // for every point's again, from the last round's parameters, the far ones on the whole surface.)
+  struct Kept {
+    double rms = std::numeric_limits<double>::infinity();
+    int round = -1;
+    std::vector<Eigen::Vector3d> control;
+    std::vector<BezierPatch> patches;
+  } best;
   for (int round = 0; round <= o.max_corrections; ++round) {
     // Newton from each point's last foot point; the few that leave the surface's reach (a
     // corner, the crossings spent) are looked for on the whole surface, whose samples are
@@ -912,6 +923,8 @@ PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector
         if (moved[k] < 0) ++reassigned;
       }
     out.rms_per_round.push_back(std::sqrt(sum2 / std::max(count, 1L)));
+    const bool rose = best.round >= 0 && out.rms_per_round.back() > best.rms;
+    if (!rose) best.rms = out.rms_per_round.back(), best.round = round, best.control = out.control, best.patches = out.patches;
     if (round == o.max_corrections) break;
     std::vector<double> m;
     for (double x : moved)
@@ -928,13 +941,18 @@ PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector
     out.reassigned_per_round.push_back(static_cast<size_t>(reassigned));
     // Settled: 99.9 % of the points moved less than the tolerance, or the round took less than
     // 0.5 % off the RMS (the points still moving are sliding along a surface that no longer
-    // comes nearer them).
+    // comes nearer them). A round that raised it settles nothing: the refits are still
+    // untangling parameters the first fit took from the layout.
     const size_t nr = out.rms_per_round.size();
     const bool settled = p999 < o.correction_tolerance ||
-                         (nr >= 2 && out.rms_per_round[nr - 1] > (1 - kSettledRms) * out.rms_per_round[nr - 2]);
+                         (nr >= 2 && !rose && out.rms_per_round[nr - 1] > (1 - kSettledRms) * out.rms_per_round[nr - 2]);
     if (settled) break;  // this round's foot points are the final surface's
     fit_net(&out, T, data, o, &solver);
   }
+  if (best.round >= 0 && best.round + 1 < static_cast<int>(out.rms_per_round.size())) {
+    out.control = std::move(best.control), out.patches = std::move(best.patches);
+  }
+  out.kept_round = best.round;
 
   // --- every measured point's foot point on the final surface: the exact distances ---
   // Denser samples than the rounds' (16 × 16 per patch): every point that lands farther than

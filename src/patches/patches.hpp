@@ -87,6 +87,9 @@ struct PatchSkin {
   /// Data → surface RMS at the start of each round (round 0: on the first fit), by the
   /// residuals of that round's foot-point search.
   std::vector<double> rms_per_round;
+  /// The round whose surface was kept: the one with the lowest RMS (the last, unless a round
+  /// raised it and the correction ended before it fell below that again).
+  int kept_round = -1;
   double g0_gap_mm = 0;                      ///< largest gap between neighbours' shared borders
   /// G1: angle between the two patches' normals along every shared border (deg), 9 samples
   /// per border; "away" leaves out the two samples nearest a corner where 3, 5 or 6 patches

@@ -54,6 +54,7 @@ Json to_json(const PatchStageResult& r) {
                             {"update_p999_mm", s.update_p999_per_round},
                             {"reassigned_points", s.reassigned_per_round},
                             {"rms_mm", s.rms_per_round},
+                            {"kept_round", s.kept_round},
                             {"tolerance_mm", r.options.correction_tolerance}}},
             {"continuity", {{"g0_gap_mm", s.g0_gap_mm},
                             {"g1_normal_jump_deg", {{"median", s.g1_median_deg}, {"p95", s.g1_p95_deg}, {"max", s.g1_max_deg}, {"max_where", s.g1_max_where}}},
