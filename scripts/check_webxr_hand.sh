@@ -100,19 +100,20 @@ for spec in "right 1 3.0" "left 3 2.5" "left-curled 1 3.0" "left-arched 2 2.5"; 
   echo "$side-s$seed automatic: joints $(jq_py "$a" "'%.2f' % d['skeleton']['automatic']['against_given_rig']['mean_joint_error_mm']") mm from the hand's own (mean)"
   # The Bezier patches on the hand's own rig. Before their digit corners kept to the digit's
   # own section (a raised thumb's MCP rays ran on through the palm or the web to the index),
-  # the thumb's first ring was matched along its link and a round that raised the RMS stopped
-  # the correction, the first row of thumb patches crossed over the thenar on 13 of the WebXR
-  # study's 16 pairs (scripts/webxr_study.py): surface -> truth mean 0.56-1.13 mm, p95 3.2-7.8
-  # mm, 93.4-98.5 % of the true skin within 1 mm, one pair refused. Held to a guard under that
-  # which the remaining fold in the thumb-index web passes (docs/patches.md; the issue's
-  # 98-patch accuracy bars are not met on any hand).
+  # the thumb's first ring was matched along its link, a round that raised the RMS no longer
+  # stopped the correction and a layout whose patches stray from the skin was tried again, the
+  # first row of thumb patches crossed over the thenar on 13 of the WebXR study's 16 pairs
+  # (scripts/webxr_study.py): surface -> truth mean 0.56-1.13 mm, p95 3.2-7.8 mm, 93.4-98.5 % of
+  # the true skin within 1 mm, and one pair was refused. Held to mean 0.2, p95 0.6 mm, 98.5 %
+  # within 1 mm (issue 13's share; its 98-patch mean and p95 bars, 0.08 / 0.25 mm, are met on no
+  # hand: docs/patches.md), and the report's own surface -> skin p95 to 0.6 mm.
   "$BIN" -q patches --skin-dir "$d/reg" --rig "$d/rig.json" --truth "$d/truth.json" --pipeline "$pipeline" \
     --out "$d/patches" >/dev/null
-  line=$(jq_py "$d/patches/report.json" "'%.4f %.4f %.4f' % (d['truth']['surface_to_truth_mm']['mean'], d['truth']['surface_to_truth_mm']['p95'], d['truth']['truth_to_surface_mm']['within_1mm'])")
-  read -r pmean pp95 pwithin <<< "$line"
-  echo "$side-s$seed patches: surface->truth mean $pmean p95 $pp95 mm, truth within 1 mm $pwithin"
-  "$PY" -c "import sys; sys.exit(0 if $pmean <= 0.5 and $pp95 <= 1.5 and $pwithin >= 0.98 else 1)" \
-    || fail "$side-s$seed patches: surface->truth mean $pmean / p95 $pp95 mm, $pwithin within 1 mm (guard: 0.5, 1.5, 0.98)"
+  line=$(jq_py "$d/patches/report.json" "'%.4f %.4f %.4f %.4f %d' % (d['truth']['surface_to_truth_mm']['mean'], d['truth']['surface_to_truth_mm']['p95'], d['truth']['truth_to_surface_mm']['within_1mm'], d['surface_to_skin_mm']['p95'], len(d['layout_tries']))")
+  read -r pmean pp95 pwithin pskin ptries <<< "$line"
+  echo "$side-s$seed patches: surface->truth mean $pmean p95 $pp95 mm, truth within 1 mm $pwithin; surface->skin p95 $pskin mm; layouts tried $ptries"
+  "$PY" -c "import sys; sys.exit(0 if $pmean <= 0.2 and $pp95 <= 0.6 and $pwithin >= 0.985 and $pskin <= 0.6 else 1)" \
+    || fail "$side-s$seed patches: surface->truth mean $pmean / p95 $pp95 mm, $pwithin within 1 mm, surface->skin p95 $pskin mm (bounds: 0.2, 0.6, 0.985, 0.6)"
   if [ "$side" = left-curled ] || [ "$side" = left-arched ]; then
     notes=$(jq_py "$a" "'\n'.join(d['skeleton']['automatic']['notes'])")
     grep -q "parted by the scans' sheets" <<< "$notes" \

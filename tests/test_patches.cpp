@@ -339,6 +339,32 @@ TEST(Patches, FollowThePostureAndTheirLayoutComesBack) {
   const MergedArrays m = merged_arrays(*load_merged(dir + "/merged.ply"));
   const SkinResult skin = build_skin(m.points, rig, skin_options(PipelineOptions{}));
   const PatchSkin s = fit_patch_skin(skin, rig, m.points, m.sides, patch_options(PipelineOptions{}));
+  // The fixture's patches lie near its polygon skin (5 x 5 samples per patch: p95 0.37 mm), so
+  // the layout is fitted once. Another layout moves the palm ring the thumb's base ends at:
+  // still closed and of 98 faces, the thumb's first row grown from another ring, the rest of
+  // the palm's rim where it was.
+  ASSERT_EQ(s.layout_tries.size(), 1u);
+  EXPECT_EQ(s.thumb_ring_shift, 0);
+  EXPECT_LT(s.layout_tries[0].second, 0.75);
+  {
+    const PatchLayout L0 = hand_patch_layout(skin, rig, m.points, m.sides);
+    auto corner = [](const PatchLayout& L, const std::string& face, int k) {
+      const auto it = std::find(L.names.begin(), L.names.end(), face);
+      return L.vertices[L.faces[it - L.names.begin()][k]];
+    };
+    for (int shift : {-2, 2}) {
+      const PatchLayout L = hand_patch_layout(skin, rig, m.points, m.sides, shift);
+      EXPECT_NO_THROW(layout_topology(L, "shifted"));
+      ASSERT_EQ(L.faces.size(), 98u);
+      double thumb_moved = 0, wrist_moved = 0;
+      for (int k = 0; k < 4; ++k) {
+        thumb_moved = std::max(thumb_moved, (corner(L, "palm.2.radial", k) - corner(L0, "palm.2.radial", k)).norm());
+        wrist_moved = std::max(wrist_moved, (corner(L, "wrist.0", k) - corner(L0, "wrist.0", k)).norm());
+      }
+      EXPECT_GT(thumb_moved, 3.0) << shift;  // two of the skin's rings: ~7 mm
+      EXPECT_LT(wrist_moved, 1e-9) << shift;
+    }
+  }
   // Every point's reported distance is its nearest foot point's: never more than its distance
   // to the nearest of 41 × 41 samples of every patch (an upper bound of the true distance).
   // Newton alone stopped short on folds, on ridges between two patches and on a groove's far

@@ -290,7 +290,7 @@ PatchLayout subdivide_layout(const PatchLayout& L, int k) {
 }
 
 PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
-                              const std::vector<std::uint32_t>& sides) {
+                              const std::vector<std::uint32_t>& sides, int thumb_ring_shift) {
   for (int t = 0; t < kSkinTubes; ++t)
     if (t >= static_cast<int>(skin.tubes.size()) || !skin.tubes[t].present)
       throw InputError("patches", std::string("the ") + skin_tube_name(t) +
@@ -438,7 +438,14 @@ PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std:
   }
   const size_t nr = palm.rings.size();
   for (int level = 0; level < 3; ++level) {
-    const auto& ring = palm.rings[level == 0 ? 0 : level * (nr - 1) / 3];
+    // Level 2 (where the thumb's base ends) moved by `thumb_ring_shift`, kept 2 rings clear of
+    // level 1 and of the webs' ring.
+    long at = static_cast<long>(level * (nr - 1) / 3);
+    if (level == 2 && thumb_ring_shift != 0) {
+      const long lo = static_cast<long>(nr - 1) / 3 + 2, hi = static_cast<long>(nr) - 3;
+      if (lo <= hi) at = std::clamp(at + thumb_ring_shift, lo, hi);
+    }
+    const auto& ring = palm.rings[static_cast<size_t>(at)];
     Eigen::Vector3d c;
     double A, B;
     section(ring, &c, &A, &B);

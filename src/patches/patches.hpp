@@ -90,6 +90,11 @@ struct PatchSkin {
   /// The round whose surface was kept: the one with the lowest RMS (the last, unless a round
   /// raised it and the correction ended before it fell below that again).
   int kept_round = -1;
+  /// The hand's layout tried (fit_patch_skin): per try, the shift of the palm ring the thumb's
+  /// base ends at (hand_patch_layout) and the 95th percentile of the surface's distance to the
+  /// polygon skin (mm); the first is the default. `thumb_ring_shift`: the one kept.
+  std::vector<std::pair<int, double>> layout_tries;
+  int thumb_ring_shift = 0;
   double g0_gap_mm = 0;                      ///< largest gap between neighbours' shared borders
   /// G1: angle between the two patches' normals along every shared border (deg), 9 samples
   /// per border; "away" leaves out the two samples nearest a corner where 3, 5 or 6 patches

@@ -268,6 +268,23 @@ std::string patch_report_html(const PatchStageResult& r, const PatchReportFigure
   h += row({"G1 jump next to those corners, median / max (deg)",
             fmt("%.2f", s.g1_near_median_deg) + " / " + fmt("%.2f", s.g1_near_max_deg)});
   h += "</table>\n";
+  {
+    const OneWayDistance& d = r.surface_to_skin;
+    auto signed_rings = [](int v) { return (v > 0 ? "+" : "") + std::to_string(v); };
+    h += "<h2>Against the polygon skin</h2>\n<p>How far the patches lie from the polygon skin they were laid on "
+         "(no truth needed): where they stray from it, a patch bridges what the skin follows.";
+    if (s.layout_tries.size() > 1) {
+      h += " The first layout's patches strayed (p95 of " + fmt("%.2f", s.layout_tries[0].second) +
+           " mm over 5 × 5 samples per patch): the palm ring the thumb's base ends at was moved";
+      for (size_t k = 1; k < s.layout_tries.size(); ++k)
+        h += std::string(k == 1 ? " " : ", ") + signed_rings(s.layout_tries[k].first) + " rings (" +
+             fmt("%.2f", s.layout_tries[k].second) + " mm)";
+      h += "; kept: " + signed_rings(s.thumb_ring_shift) + ".";
+    }
+    h += "</p>\n<table>\n" + row({"direction", "mean", "p95", "max", "within 1 mm"}, true);
+    h += row({"surface → skin", fmt("%.3f", d.mean), fmt("%.3f", d.p95), fmt("%.3f", d.max), fmt("%.2f %%", 100 * d.within_1mm)});
+    h += "</table>\n";
+  }
   if (r.surface_to_truth) {
     h += "<h2>Against the true skin</h2>\n<table>\n" + row({"direction", "mean", "p95", "max", "within 1 mm"}, true);
     for (const auto& [name, d] : {std::pair<const char*, OneWayDistance>{"surface → truth", *r.surface_to_truth},

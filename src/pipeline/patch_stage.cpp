@@ -26,6 +26,7 @@ PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const s
   r.options = options;
   r.patches = fit_patch_skin(skin, rig, points, sides, options);
   r.tessellation = tessellate(r.patches, options.tessellation);
+  r.surface_to_skin = one_way_distance(sample_surface(r.tessellation, 1.0), MeshDistance(skin.mesh));
   if (truth) {
     const MeshDistance to_truth(truth->skin), to_surface(r.tessellation);
     r.truth_file = truth->skin_path;
@@ -49,6 +50,13 @@ Json to_json(const PatchStageResult& r) {
                         {"given", r.options.layout.has_value()}}},
             {"data_to_surface_mm", {{"palm", figures_json(s.side[0])}, {"back", figures_json(s.side[1])}}},
             {"farthest_point_patch", {{"palm", s.worst_patch[0]}, {"back", s.worst_patch[1]}}},
+            {"surface_to_skin_mm", distance_json(r.surface_to_skin)},
+            {"layout_tries", [&] {
+               Json a = Json::array();
+               for (const auto& [shift, p95] : s.layout_tries) a.push_back({{"thumb_ring_shift", shift}, {"surface_to_skin_p95_mm", p95}});
+               return a;
+             }()},
+            {"thumb_ring_shift", s.thumb_ring_shift},
             {"correction", {{"rounds", s.max_update_per_round.size()},
                             {"max_update_mm", s.max_update_per_round},
                             {"update_p999_mm", s.update_p999_per_round},

@@ -40,6 +40,9 @@ struct PatchStageResult {
   PatchOptions options;
   TriMesh tessellation;                     ///< patches.ply
   std::optional<OneWayDistance> surface_to_truth, truth_to_surface;
+  /// The patches against the polygon skin they were laid on (samples every 4 mm², no truth
+  /// needed): where they stray from it, a patch bridges what the skin follows.
+  OneWayDistance surface_to_skin;
   std::string truth_file;
   PatchReportFigures figures;
   double seconds = 0;
