@@ -1,5 +1,4 @@
 // run, register, skin: the pipeline's commands.
-#include <algorithm>
 #include <filesystem>
 #include <memory>
 
@@ -196,18 +195,7 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
               out.final_path("report.json").c_str());
   std::printf("against the polygon skin: surface->skin mean %.3f p95 %.3f max %.2f mm\n", r.surface_to_skin.mean,
               r.surface_to_skin.p95, r.surface_to_skin.max);
-  if (s.layout_tries.size() > 1) {
-    const auto best = std::min_element(s.layout_tries.begin(), s.layout_tries.end(),
-                                       [](const auto& a, const auto& b) { return a.second < b.second; });
-    if (s.thumb_ring_shift != 0)
-      std::printf("layout: the first one's patches strayed from the skin (p95 %.2f mm); the one with the thumb's base "
-                  "moved %+d rings (p95 %.2f mm) was kept (docs/patches.md)\n",
-                  s.layout_tries[0].second, s.thumb_ring_shift, best->second);
-    else
-      std::printf("warning: the patches stray from the skin (p95 %.2f mm) and no other layout tried lay nearer "
-                  "(docs/patches.md)\n",
-                  s.layout_tries[0].second);
-  }
+  if (const auto note = layout_note(s)) std::printf("%s\n", note->c_str());
   if (r.surface_to_truth)
     std::printf("against the truth: surface->truth mean %.3f p95 %.3f mm; truth->surface within 1 mm %.2f %%\n",
                 r.surface_to_truth->mean, r.surface_to_truth->p95, 100 * r.truth_to_surface->within_1mm);

@@ -1,5 +1,6 @@
 #include "pipeline/patch_stage.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 
@@ -17,6 +18,25 @@ Json figures_json(const DistanceFigures& f) {
   return {{"mean", f.mean}, {"rms", f.rms}, {"p95", f.p95}, {"max", f.max}, {"points", f.points}};
 }
 }  // namespace
+
+std::optional<std::string> layout_note(const PatchSkin& s) {
+  if (s.layout_tries.size() < 2) return std::nullopt;
+  const double best = std::min_element(s.layout_tries.begin(), s.layout_tries.end(),
+                                       [](const auto& a, const auto& b) { return a.second < b.second; })
+                          ->second;
+  char buf[300];
+  if (s.thumb_ring_shift != 0)
+    std::snprintf(buf, sizeof buf,
+                  "layout: the first one's patches strayed from the skin (p95 %.2f mm); the one with the thumb's base "
+                  "moved %+d rings (p95 %.2f mm) was kept (docs/patches.md)",
+                  s.layout_tries[0].second, s.thumb_ring_shift, best);
+  else
+    std::snprintf(buf, sizeof buf,
+                  "warning: the patches stray from the skin (p95 %.2f mm) and no other layout tried lay nearer "
+                  "(docs/patches.md)",
+                  s.layout_tries[0].second);
+  return std::string(buf);
+}
 
 PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
                                  const std::vector<std::uint32_t>& sides, const PatchOptions& options,

@@ -35,6 +35,10 @@ struct PatchReportFigures {
 PatchReportFigures patch_report_figures(const PatchSkin& s, int error_grid);
 Json to_json(const PatchReportFigures& f);
 
+/// What the command and the run say when the hand's layout was fitted more than once (its
+/// patches strayed from the polygon skin: PatchSkin::layout_tries), else nothing.
+std::optional<std::string> layout_note(const PatchSkin& s);
+
 struct PatchStageResult {
   PatchSkin patches;
   PatchOptions options;

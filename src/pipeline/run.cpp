@@ -153,6 +153,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
     progress("patches: fitting and correcting the parameters");
     R.patches = run_patch_stage(R.skin.skin, R.skin.rig, si.points, si.sides, patch_options(in.options), truth ? &*truth : nullptr,
                                 static_cast<int>(in.options.patches.error_grid));
+    if (const auto note = layout_note(R.patches->patches)) progress("patches: " + *note);
   }
 
   // --- rigging: the skin bound to the skeleton, with the posture model (docs/rigging.md) ---
