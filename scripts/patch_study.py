@@ -18,6 +18,28 @@ from family_study import HANDS, SCAN  # noqa: E402
 from study_util import run as sh  # noqa: E402
 
 
+def make_pair(binary, work, h):
+    """One scan pair of family hand h, registered with the marker radius estimated, in
+    `work` (reused when there): (scan folder, registration folder, None) or (.., .., the
+    failing stage's last line)."""
+    hand = os.path.join(work, h)
+    d, o = os.path.join(work, h + "-scan"), os.path.join(work, h + "-out")
+    if not os.path.exists(os.path.join(hand, "hand.ply")):
+        rc, out = sh([binary, "-q", "synth", "hand", "--out", hand, "--no-render"] + HANDS[h])
+        if rc:
+            return d, o, "synth hand: " + out.strip().splitlines()[-1]
+    if not os.path.exists(os.path.join(d, "truth.json")):
+        rc, out = sh([binary, "-q", "synth", "scan", "--mesh", hand + "/hand.ply", "--rig", hand + "/hand_rig.json",
+                      "--out", d, "--seed", "1", "--marker-radius", "3", "--no-render"] + SCAN.get(h, []))
+        if rc:
+            return d, o, "synth scan: " + out.strip().splitlines()[-1]
+    if not os.path.exists(os.path.join(o, "merged.ply")):
+        rc, out = sh([binary, "-q", "register", "--back", d + "/back", "--palm", d + "/palm", "--out", o])
+        if rc:
+            return d, o, "register: " + out.strip().splitlines()[-1]
+    return d, o, None
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bin", default="build/handskin")
@@ -26,26 +48,11 @@ def main():
     a = ap.parse_args()
     os.makedirs(a.work, exist_ok=True)
     rows, figures = [], []
-    for h, opts in HANDS.items():
-        hand = os.path.join(a.work, h)
-        if not os.path.exists(os.path.join(hand, "hand.ply")):
-            rc, out = sh([a.bin, "-q", "synth", "hand", "--out", hand, "--no-render"] + opts)
-            if rc:
-                rows.append([h, "synth hand: " + out.strip().splitlines()[-1]])
-                continue
-        d = os.path.join(a.work, h + "-scan")
-        if not os.path.exists(os.path.join(d, "truth.json")):
-            rc, out = sh([a.bin, "-q", "synth", "scan", "--mesh", hand + "/hand.ply", "--rig", hand + "/hand_rig.json",
-                          "--out", d, "--seed", "1", "--marker-radius", "3", "--no-render"] + SCAN.get(h, []))
-            if rc:
-                rows.append([h, "synth scan: " + out.strip().splitlines()[-1]])
-                continue
-        o = os.path.join(a.work, h + "-out")
-        if not os.path.exists(os.path.join(o, "merged.ply")):
-            rc, out = sh([a.bin, "-q", "register", "--back", d + "/back", "--palm", d + "/palm", "--out", o])
-            if rc:
-                rows.append([h, "register: " + out.strip().splitlines()[-1]])
-                continue
+    for h in HANDS:
+        d, o, error = make_pair(a.bin, a.work, h)
+        if error:
+            rows.append([h, error])
+            continue
         rc, out = sh([a.bin, "-q", "patches", "--skin-dir", o, "--rig", d + "/rig.json", "--truth", d + "/truth.json",
                       "--count", a.count, "--out", o + "/patches"])
         if rc:

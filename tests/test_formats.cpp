@@ -287,4 +287,18 @@ TEST(Pipeline, BadFiles) {
   j = pipeline_to_json(PipelineOptions{});
   j["surfacing"] = Json::object();  // no such stage
   expect_input_error([&] { parse_pipeline(j, "p.json"); }, {"p.json", "surfacing"});
+  j = pipeline_to_json(PipelineOptions{});
+  j["patches"]["c1_weight"] = -1.0;
+  expect_input_error([&] { parse_pipeline(j, "p.json"); }, {"p.json", "patches.c1_weight"});
+}
+
+TEST(Pipeline, PatchContinuityReachesTheFit) {
+  Json j = pipeline_to_json(PipelineOptions{});
+  EXPECT_EQ(patch_options(PipelineOptions{}).c1_weight, PatchOptions{}.c1_weight);
+  EXPECT_EQ(patch_options(PipelineOptions{}).fairness, PatchOptions{}.fairness);
+  j["patches"]["c1_weight"] = 0.0;
+  j["patches"]["fairness"] = 0.01;
+  const PatchOptions p = patch_options(parse_pipeline(j, "p.json"));
+  EXPECT_EQ(p.c1_weight, 0.0);
+  EXPECT_EQ(p.fairness, 0.01);
 }

@@ -51,8 +51,10 @@ struct PipelineOptions {
   } skin;
   struct Patches {                 ///< Bézier skin (thesis §4.1.4, Table 4.1)
     bool enabled = true;           ///< run fits the patches (false: skin only, as before issue 13)
-    long count = 96;               ///< bicubic patches, palm 48 + back 48
+    long count = 96;               ///< bicubic patches wanted (the thesis: palm 48 + back 48); the closed layout has 98 k²
     long error_grid = 100;         ///< error measured against a grid of n x n surface cells
+    double c1_weight = 10;         ///< C1 across the borders, relative to the data's weight (0: G0 only)
+    double fairness = 1e-3;        ///< second differences inside each patch, relative to the data's weight
   } patches;
   struct Rigging {                 ///< the skin bound to the skeleton, skin.glb (docs/rigging.md)
     bool smooth = true;            ///< bone-heat weights (false: rigid, each vertex with its nearest link, as the thesis)

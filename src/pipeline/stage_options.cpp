@@ -46,6 +46,8 @@ PatchOptions patch_options(const PipelineOptions& o) {
   // The hand's layout has 98 faces; split k × k it has 98 k²: the k nearest the count.
   PatchOptions p;
   p.subdivision = std::clamp(static_cast<int>(std::lround(std::sqrt(static_cast<double>(o.patches.count) / 98.0))), 1, 8);
+  p.c1_weight = o.patches.c1_weight;
+  p.fairness = o.patches.fairness;
   return p;
 }
 
