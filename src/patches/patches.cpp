@@ -766,14 +766,22 @@ void BezierPatch::derivatives(double u, double v, Eigen::Vector3d* S, Eigen::Vec
   double Bu[4], Du[4], Bv[4], Dv[4];
   bernstein(u, Bu, Du);
   bernstein(v, Bv, Dv);
-  S->setZero(), Su->setZero(), Sv->setZero();
-  for (int i = 0; i < 4; ++i)
+  // Contracted along v first (each row's point and v-derivative), then along u: 44 vector
+  // multiply-adds instead of 48, in locals the compiler keeps in registers (the foot points'
+  // Newton steps spend most of their time here: the correction rounds' foot points went ~52 →
+  // ~34 ms on the fixture).
+  double s[3] = {0, 0, 0}, su[3] = {0, 0, 0}, sv[3] = {0, 0, 0};
+  for (int i = 0; i < 4; ++i) {
+    double q[3] = {0, 0, 0}, qv[3] = {0, 0, 0};
     for (int j = 0; j < 4; ++j) {
-      const Eigen::Vector3d& c = P[4 * i + j];
-      *S += Bu[i] * Bv[j] * c;
-      *Su += Du[i] * Bv[j] * c;
-      *Sv += Bu[i] * Dv[j] * c;
+      const double* c = P[4 * i + j].data();
+      for (int k = 0; k < 3; ++k) q[k] += Bv[j] * c[k], qv[k] += Dv[j] * c[k];
     }
+    for (int k = 0; k < 3; ++k) s[k] += Bu[i] * q[k], su[k] += Du[i] * q[k], sv[k] += Bu[i] * qv[k];
+  }
+  *S = Eigen::Vector3d(s[0], s[1], s[2]);
+  *Su = Eigen::Vector3d(su[0], su[1], su[2]);
+  *Sv = Eigen::Vector3d(sv[0], sv[1], sv[2]);
 }
 
 bool PatchOptions::IsValid(std::string* error) const {
