@@ -151,8 +151,14 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   // --- patches: bicubic Bézier patches over the whole skin (docs/patches.md) ---
   if (in.options.patches.enabled) {
     progress("patches: fitting and correcting the parameters");
-    R.patches = run_patch_stage(R.skin.skin, R.skin.rig, si.points, si.sides, patch_options(in.options), truth ? &*truth : nullptr,
-                                static_cast<int>(in.options.patches.error_grid));
+    try {
+      R.patches = run_patch_stage(R.skin.skin, R.skin.rig, si.points, si.sides, patch_options(in.options),
+                                  truth ? &*truth : nullptr, static_cast<int>(in.options.patches.error_grid));
+    } catch (const InputError& e) {
+      // The skin before it stands; say how to have it without the patches.
+      throw InputError(e.where(), e.detail() + " (the skin itself was built: set patches.enabled to false in a "
+                                                "--pipeline file to run without the patches)");
+    }
     if (const auto note = layout_note(R.patches->patches)) progress("patches: " + *note);
   }
 
