@@ -175,8 +175,14 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
   }
   progress("patches", std::string("fitting bicubic patches") + (a.layout.empty() ? "" : " on the layout of " + a.layout) +
                           ", correcting the parameters");
-  const PatchStageResult r =
+  PatchStageResult r =
       run_patch_stage(skin, *in.rig, m.points, m.sides, opts, truth ? &*truth : nullptr, static_cast<int>(po.patches.error_grid));
+  // Smooth weights for the control points, from the skin's binding as `run` makes it.
+  progress("patches", std::string("binding the control points (") + (po.rigging.smooth ? "bone-heat" : "rigid") +
+                          " weights of the skin)");
+  BindingOptions bo;
+  bo.mode = po.rigging.smooth ? "smooth" : "rigid";
+  bind_patch_controls(&r.patches, skin.mesh, bind_skin(skin.mesh, bones_from_rig(*in.rig), bo));
   Json report = to_json(r);
   report["format"] = "handskin-patches-report/1";
   report["inputs"] = {{"merged", merged}, {"rig", rig_path}, {"pipeline", a.pipeline.empty() ? "(built-in defaults)" : a.pipeline}};

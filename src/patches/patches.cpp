@@ -293,6 +293,8 @@ int net_edge_near(const PatchSkin& s, int v, int w) {
   return -1;
 }
 
+}  // namespace
+
 void rebuild_patches(PatchSkin* s) {
   for (size_t f = 0; f < s->patches.size(); ++f)
     for (int k = 0; k < 16; ++k) {
@@ -301,6 +303,8 @@ void rebuild_patches(PatchSkin* s) {
       s->patches[f].cp_link[k] = s->control_link.empty() ? -1 : s->control_link[id];
     }
 }
+
+namespace {
 
 // The least squares' weights (fit_net says what each term is).
 constexpr double kTangentWeight = 0.005;
@@ -1163,26 +1167,6 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
   return s;
 }
 
-PatchSkin pose_patch_skin(const PatchSkin& s, const Skeleton& skeleton, const Angles& angles) {
-  // Link k of bones_from_rig runs from joints()[k + 1].parent to joint k + 1: it moves with
-  // its first joint's frame.
-  const auto frames = skeleton.frames(angles);
-  std::vector<Eigen::Isometry3d> move;
-  for (int k = 0; k + 1 < kJointCount; ++k) {
-    const int j = joints()[k + 1].parent;
-    move.push_back(frames[j] * skeleton.rest_frame(j).inverse());
-  }
-  HS_CHECK(s.bones.size() == move.size(), "patches bound to another skeleton");
-  PatchSkin out = s;
-  out.samples.clear();
-  for (size_t k = 0; k < out.control.size(); ++k) {
-    const int l = out.control_link[k];
-    HS_CHECK(l >= 0 && l < static_cast<int>(move.size()), "a control point without its link");
-    out.control[k] = move[l] * out.control[k];
-  }
-  rebuild_patches(&out);
-  return out;
-}
 
 namespace {
 // The tessellation's vertex of each patch's (n + 1)² grid point: a layout corner's and a

@@ -24,6 +24,8 @@
 #include "mesh/trimesh.hpp"
 #include "patches/layout.hpp"
 #include "posture/skeleton.hpp"
+#include "rigging/binding.hpp"
+#include "rigging/deform.hpp"
 #include "skin/skin_mesh.hpp"
 
 namespace handskin {
@@ -66,6 +68,10 @@ struct PatchSkin {
   PatchLayout layout;                      ///< the faces fitted on, one patch each
   std::vector<Eigen::Vector3d> control;    ///< every control point once (shared borders shared)
   std::vector<int> control_link;           ///< per control point: its bone link (rigid binding, as the thesis)
+  /// Per control point: its smooth weights (bind_patch_controls, from the rigged polygon
+  /// skin's binding); empty when the patches are bound rigidly only (control_link).
+  std::vector<VertexWeights> control_weights;
+  std::string binding_mode;                ///< the polygon skin's binding the weights came from ("smooth", "rigid")
   std::vector<std::array<int, 16>> patch_control;  ///< per patch: its 16 control points (P00…P33)
   std::vector<BezierPatch> patches;
   std::vector<std::string> bones;   ///< link names (BezierPatch::link)
@@ -120,12 +126,25 @@ PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector
 PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
                          const std::vector<std::uint32_t>& sides, const PatchOptions& options);
 
-/// The patches moved to a posture: every net point moves rigidly with its bone link (the
-/// thesis's binding): the link from joint p moves by W_p(angles)·W_p(0)⁻¹ of `skeleton`,
-/// which must be the rig's the patches were fitted on. Shared borders stay shared (G0 holds in
-/// every posture). The fit's figures are kept as they were; its samples (the measured points)
-/// are not carried over.
-PatchSkin pose_patch_skin(const PatchSkin& s, const Skeleton& skeleton, const Angles& angles);
+/// The patches' control points bound smoothly: each takes the weights of the polygon skin's
+/// `binding` (rigging/binding.hpp, one entry per vertex of `skin`) at its nearest point on
+/// `skin` (the three corners' weights blended barycentrically, the 4 largest kept and
+/// normalised), into `control_weights`. Throws InputError when the binding does not fit the skin.
+void bind_patch_controls(PatchSkin* s, const TriMesh& skin, const SkinBinding& binding);
+
+/// The patches moved to a posture. With `control_weights`, every control point is blended
+/// from its links' motions as the polygon skin's vertices are (rigging/deform.hpp: dual
+/// quaternions by default, or linear); without, it moves rigidly with its bone link (the
+/// thesis's binding). The link from joint p moves by W_p(angles)·W_p(0)⁻¹ of `skeleton`, which
+/// must be the rig's the patches were fitted on. Shared borders stay shared (G0 holds in every
+/// posture). The fit's figures are kept as they were; its samples (the measured points) are
+/// not carried over.
+PatchSkin pose_patch_skin(const PatchSkin& s, const Skeleton& skeleton, const Angles& angles,
+                          Blend blend = Blend::DualQuaternion);
+
+/// Each patch's 16 control points (and their links) copied from the net (`control`,
+/// `control_link`, `patch_control`).
+void rebuild_patches(PatchSkin* s);
 
 /// Every patch tessellated at `n` × `n` quads (two triangles each), the vertices on shared
 /// borders and corners made once: a closed mesh without cracks.

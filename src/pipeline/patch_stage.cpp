@@ -120,13 +120,27 @@ Json patches_to_json(const PatchSkin& s) {
                        {"fit", {{"points", n}, {"palm_points", count[f][0]}, {"back_points", count[f][1]},
                                 {"mean_mm", n ? sum[f] / n : 0.0}, {"max_mm", worst[f]}}}});
   }
-  return {{"format", "handskin-patches/1"},
-          {"units", "mm"},
-          {"frame", "palm"},
-          {"bones", s.bones},
-          {"binding", "rigid: each control point moves with its link (control_point_links)"},
-          {"layout", layout_to_json(s.layout)},
-          {"patches", patches}};
+  Json j = {{"format", "handskin-patches/1"},
+            {"units", "mm"},
+            {"frame", "palm"},
+            {"bones", s.bones},
+            {"binding", "rigid: each control point moves with its link (control_point_links)"},
+            {"layout", layout_to_json(s.layout)},
+            {"patches", patches}};
+  if (!s.control_weights.empty()) {
+    j["binding"] = "smooth: each control point blends its links' motions by its control_point_weights (indexed by "
+                   "control_point_ids), the " + s.binding_mode + " weights of the polygon skin at its nearest point; "
+                   "control_point_links is each one's nearest link (the thesis's rigid binding)";
+    Json w = Json::array();
+    for (const VertexWeights& v : s.control_weights) {
+      Json one = Json::array();
+      for (int k = 0; k < kMaxInfluences; ++k)
+        if (v.link[k] >= 0) one.push_back({s.bones[v.link[k]], static_cast<double>(v.weight[k])});
+      w.push_back(one);
+    }
+    j["control_point_weights"] = w;
+  }
+  return j;
 }
 
 std::string patches_obj(const PatchSkin& s) {

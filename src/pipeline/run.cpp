@@ -172,6 +172,8 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   BindingOptions bo;
   bo.mode = in.options.rigging.smooth ? "smooth" : "rigid";
   R.rigged.binding = bind_skin(mesh, bones_from_rig(R.skin.rig), bo);
+  // The patches' control points take the skin's weights (a posture moves them as it moves the skin).
+  if (R.patches) bind_patch_controls(&R.patches->patches, mesh, R.rigged.binding);
   R.rigged.model = posture_model;
   R.rigging_seconds = t_rig.seconds();
 
