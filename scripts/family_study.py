@@ -42,25 +42,40 @@ PAIRS = [(1, "2.5"), (2, "3.0"), (3, "3.5"), (4, "4.0")]  # seed, marker radius 
 SCAN = {"H04": ["--x-extent", "300", "--y-extent", "240"]}
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def family_args(doc):
+    """The family studies' options (--bin, --work, --hands), parsed; the work folder made."""
+    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bin", default="build/handskin")
     ap.add_argument("--work", default="/tmp/family-study")
     ap.add_argument("--hands", default=",".join(HANDS))
     a = ap.parse_args()
     os.makedirs(a.work, exist_ok=True)
+    return a
+
+
+def family_hand(binary, work, h):
+    """Hand h of the family in work/h (made unless it is there): (its folder, None), or
+    (its folder, the synth command's last line) when it could not be made."""
+    hand = os.path.join(work, h)
+    if not os.path.exists(os.path.join(hand, "hand.ply")):
+        rc, out = sh([binary, "-q", "synth", "hand", "--out", hand, "--no-render"] + HANDS[h])
+        if rc:
+            return hand, "synth hand: " + out.strip().splitlines()[-1]
+    return hand, None
+
+
+def main():
+    a = family_args(__doc__)
     pipeline = no_baseline_pipeline(a.work)
     rows, fails = [], 0
     stats = {"given": [], "auto": []}  # (pair, watertight, triangles, mean, p95, within 1 mm, seconds)
     regs = []  # (pair, rotation deg, skin mean mm)
     for h in a.hands.split(","):
-        hand = os.path.join(a.work, h)
-        if not os.path.exists(os.path.join(hand, "hand.ply")):
-            rc, out = sh([a.bin, "-q", "synth", "hand", "--out", hand, "--no-render"] + HANDS[h])
-            if rc:
-                rows.append([h, "-", "synth hand: " + out.strip().splitlines()[-1]])
-                fails += 1
-                continue
+        hand, error = family_hand(a.bin, a.work, h)
+        if error:
+            rows.append([h, "-", error])
+            fails += 1
+            continue
         for seed, radius in PAIRS:
             row, failed = study_pair(a.bin, f"{h}-s{seed}-r{radius}", a.work, hand, seed, radius, SCAN.get(h, []),
                                      pipeline, stats, regs)

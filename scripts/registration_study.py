@@ -13,38 +13,30 @@ its own 1 sigma) and the summary: pairs within issue 11's 0.02 deg / 0.05 mm, th
 error / estimate (near 1 when the estimate is right), and, of the pairs over a bound, how far
 over in their own sigmas. Pairs already in --work are reused (scripts/family_study.py's too).
 """
-import argparse
 import json
 import math
 import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from family_study import HANDS, PAIRS, SCAN  # noqa: E402
+from family_study import PAIRS, SCAN, family_args, family_hand  # noqa: E402
 from study_util import run as sh  # noqa: E402
 
 BOUND_DEG, BOUND_MM = 0.02, 0.05
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--bin", default="build/handskin")
-    ap.add_argument("--work", default="/tmp/family-study")
-    ap.add_argument("--hands", default=",".join(HANDS))
-    a = ap.parse_args()
-    os.makedirs(a.work, exist_ok=True)
+    a = family_args(__doc__)
     print("| pair | marker radius: true / estimated (mm) | rotation error (deg) / 1 sigma | skin displacement (mm) "
           "/ 1 sigma | within 0.02 deg / 0.05 mm |")
     print("|---|---|---|---|---|")
     rows, failed = [], 0
     for h in a.hands.split(","):
-        hand = os.path.join(a.work, h)
-        if not os.path.exists(os.path.join(hand, "hand.ply")):
-            rc, out = sh([a.bin, "-q", "synth", "hand", "--out", hand, "--no-render"] + HANDS[h])
-            if rc:
-                print(f"| {h} | synth hand: {out.strip().splitlines()[-1]} |")
-                failed += len(PAIRS)
-                continue
+        hand, error = family_hand(a.bin, a.work, h)
+        if error:
+            print(f"| {h} | {error} |")
+            failed += len(PAIRS)
+            continue
         for seed, radius in PAIRS:
             name = f"{h}-s{seed}-r{radius}"
             d = os.path.join(a.work, name)
