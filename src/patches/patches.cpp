@@ -415,7 +415,7 @@ constexpr double kCgTolerance = 1e-7;  // relative residual; the control points 
 // again, and a solve to 1e-7 there bought nothing. On the fixture and five family pairs (H01,
 // H02, H05, H07, H10) every figure of the report stayed within 0.001 mm (means) and 0.02 mm
 // (maxima) of solves to 1e-7, the G1 p95 within 0.07°; the fit took 10–25 % less time (392
-// patches: 1.71 → 1.19 s). The surface kept is then solved again to kCgTolerance
+// patches on the fixture, with the final solve below: 1.67 → 1.27 s). The surface kept is then solved again to kCgTolerance
 // (polish_net): the least squares of the final parameters, exactly.
 constexpr double kCgRoundTolerance = 1e-4;
 
@@ -1175,7 +1175,6 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
   s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return s;
 }
-
 
 namespace {
 // The tessellation's vertex of each patch's (n + 1)² grid point: a layout corner's and a
