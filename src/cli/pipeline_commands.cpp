@@ -180,9 +180,7 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
   // Smooth weights for the control points, from the skin's binding as `run` makes it.
   progress("patches", std::string("binding the control points (") + (po.rigging.smooth ? "bone-heat" : "rigid") +
                           " weights of the skin)");
-  BindingOptions bo;
-  bo.mode = po.rigging.smooth ? "smooth" : "rigid";
-  bind_patch_controls(&r.patches, skin.mesh, bind_skin(skin.mesh, bones_from_rig(*in.rig), bo));
+  bind_patch_controls(&r.patches, skin.mesh, bind_skin(skin.mesh, bones_from_rig(*in.rig), binding_options(po)));
   Json report = to_json(r);
   report["format"] = "handskin-patches-report/1";
   report["inputs"] = {{"merged", merged}, {"rig", rig_path}, {"pipeline", a.pipeline.empty() ? "(built-in defaults)" : a.pipeline}};

@@ -39,21 +39,9 @@ void bind_patch_controls(PatchSkin* s, const TriMesh& skin, const SkinBinding& b
       for (int j = 0; j < kMaxInfluences; ++j)
         if (w.link[j] >= 0) mix[w.link[j]] += bary[i] * w.weight[j];
     }
-    std::vector<std::pair<double, int>> order;
-    for (const auto& [link, w] : mix) order.push_back({w, link});
-    std::sort(order.begin(), order.end(), [](const auto& x, const auto& y) {
-      return x.first != y.first ? x.first > y.first : x.second < y.second;
-    });
-    if (order.size() > static_cast<size_t>(kMaxInfluences)) order.resize(kMaxInfluences);
-    double total = 0;
-    for (const auto& o : order) total += o.first;
-    if (!(total > 0))
-      throw InputError("patches", "the skin's binding gives no weight near control point " + std::to_string(k));
-    VertexWeights& out = s->control_weights[k];
-    for (size_t j = 0; j < order.size(); ++j) {
-      out.link[j] = order[j].second;
-      out.weight[j] = static_cast<float>(order[j].first / total);
-    }
+    std::vector<std::pair<double, int>> pairs;
+    for (const auto& [link, w] : mix) pairs.push_back({w, link});
+    s->control_weights[k] = top_weights(std::move(pairs), 0.0);  // the skin's already dropped its small ones
   }
   s->binding_mode = binding.mode;
 }

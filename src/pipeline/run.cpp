@@ -169,9 +169,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   R.rigged.vertices = mesh_vertices(mesh);
   R.rigged.faces = mesh_faces(mesh);
   R.rigged.rig = R.skin.rig;
-  BindingOptions bo;
-  bo.mode = in.options.rigging.smooth ? "smooth" : "rigid";
-  R.rigged.binding = bind_skin(mesh, bones_from_rig(R.skin.rig), bo);
+  R.rigged.binding = bind_skin(mesh, bones_from_rig(R.skin.rig), binding_options(in.options));
   // The patches' control points take the skin's weights (a posture moves them as it moves the skin).
   if (R.patches) bind_patch_controls(&R.patches->patches, mesh, R.rigged.binding);
   R.rigged.model = posture_model;

@@ -51,4 +51,10 @@ PatchOptions patch_options(const PipelineOptions& o) {
   return p;
 }
 
+BindingOptions binding_options(const PipelineOptions& o) {
+  BindingOptions b;
+  b.mode = o.rigging.smooth ? "smooth" : "rigid";
+  return b;
+}
+
 }  // namespace handskin

@@ -12,8 +12,12 @@ namespace handskin {
 RegistrationOptions registration_options(const PipelineOptions& o);
 /// The skin stage's options from the pipeline's `slicing` and `skin` sections.
 SkinOptions skin_options(const PipelineOptions& o);
-/// The patch stage's options from `patches.count`: the layout nearest to that many patches
-/// (palm 8 × 4 and 4 × 3 per digit make 92 for the thesis's 96, docs/patches.md).
+/// The patch stage's options from the `patches` section: the hand's layout split k × k, the
+/// 98 k² nearest `patches.count` (98 for the thesis's 96, docs/patches.md), and the fit's
+/// `c1_weight` and `fairness`.
 PatchOptions patch_options(const PipelineOptions& o);
+/// The skin's binding options from `rigging.smooth` (bone heat, or the thesis's rigid binding):
+/// the skin's in `run`, and the patches' control points' weights come from it.
+BindingOptions binding_options(const PipelineOptions& o);
 
 }  // namespace handskin

@@ -28,9 +28,6 @@ bool BindingOptions::IsValid(std::string* error) const {
 
 int link_joint(int link) { return joints()[link + 1].parent; }
 
-namespace {
-
-// Keep the largest kMaxInfluences weights above min_weight, normalised, largest first.
 VertexWeights top_weights(std::vector<std::pair<double, int>> w, double min_weight) {
   std::sort(w.begin(), w.end(), [](const auto& a, const auto& b) { return a.first > b.first || (a.first == b.first && a.second < b.second); });
   VertexWeights out;
@@ -51,8 +48,6 @@ VertexWeights top_weights(std::vector<std::pair<double, int>> w, double min_weig
   for (int k = 0; k < n; ++k) out.weight[k] = static_cast<float>(out.weight[k] / sum);
   return out;
 }
-
-}  // namespace
 
 SkinBinding bind_skin(const TriMesh& mesh, const std::vector<Bone>& bones, const BindingOptions& o) {
   std::string err;

@@ -38,6 +38,11 @@ struct SkinBinding {
   double seconds = 0;
 };
 
+/// Of (weight, link) pairs, the kMaxInfluences largest (ties: the lower link first), those
+/// after the first only when at least min_weight, normalised, largest first. Where they sum to
+/// nothing, the first pair's link alone.
+VertexWeights top_weights(std::vector<std::pair<double, int>> w, double min_weight);
+
 /// Throws InputError if the mesh has no vertices or the rig gives no links.
 SkinBinding bind_skin(const TriMesh& mesh, const std::vector<Bone>& bones, const BindingOptions& options);
 
