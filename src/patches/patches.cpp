@@ -414,7 +414,8 @@ constexpr double kCgTolerance = 1e-7;  // relative residual; the control points 
 // alternation between foot points and control points, whose next round moves the parameters
 // again, and a solve to 1e-7 there bought nothing. On the fixture and five family pairs (H01,
 // H02, H05, H07, H10) every figure of the report stayed within 0.001 mm (means) and 0.02 mm
-// (maxima) of solves to 1e-7, the G1 p95 within 0.07°; the fit took 10–25 % less time (392
+// (maxima) of solves to 1e-7, the G1 p95 within 0.07° (with G0 alone, c1_weight 0, 0.002–0.006 mm
+// farther from the truth); the fit took 10–25 % less time (392
 // patches on the fixture, with the final solve below: 1.67 → 1.27 s). The surface kept is then solved again to kCgTolerance
 // (polish_net): the least squares of the final parameters, exactly.
 constexpr double kCgRoundTolerance = 1e-4;
@@ -475,6 +476,24 @@ struct NetSolver {
   Eigen::VectorXd rhs;  ///< the last right-hand side (A x = rhs)
   bool exact = false;  ///< x solves the last system directly or to kCgTolerance
 };
+
+// A direct solve of A x = b with A the solver's matrix; the factor is kept (later rounds'
+// conjugate gradients are preconditioned by it).
+Eigen::VectorXd solve_directly(NetSolver* solver, const Eigen::VectorXd& b) {
+  solver->llt.factorize(solver->A);
+  HS_CHECK(solver->llt.info() == Eigen::Success, "patch fit: the normal equations could not be factored");
+  solver->factored = true;
+  return solver->llt.solve(b);
+}
+
+// A solution of the solver's system (`exact`: directly or to kCgTolerance) into the net's
+// control points and the patches.
+void take_solution(PatchSkin* out, NetSolver* solver, Eigen::VectorXd X, bool exact) {
+  solver->x = std::move(X);
+  solver->exact = exact;
+  for (size_t k = 0; k < out->control.size(); ++k) out->control[k] = solver->x.segment<3>(3 * static_cast<long>(k));
+  rebuild_patches(out);
+}
 
 // The penalties that are the same every round, as triplets: fairness, C1 across borders, G1
 // at the corners where other than four patches meet.
@@ -724,19 +743,11 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
       // round (the early rounds), so the next round factors without trying.
       solver->stalled = direct && iterations <= kCgStalled;
     }
-    if (direct) {
-      solver->llt.factorize(As);
-      HS_CHECK(solver->llt.info() == Eigen::Success, "patch fit: the normal equations could not be factored");
-      solver->factored = true;
-      X = solver->llt.solve(R);
-    }
+    if (direct) X = solve_directly(solver, R);
     exact = direct;
   }
-  solver->exact = exact;
-  solver->x = X;
   solver->rhs = std::move(R);
-  for (int k = 0; k < n; ++k) out->control[k] = X.segment<3>(3 * k);
-  rebuild_patches(out);
+  take_solution(out, solver, std::move(X), exact);
 }
 
 // The last system solved again to kCgTolerance (the correction rounds stop theirs at
@@ -745,15 +756,9 @@ void polish_net(PatchSkin* out, NetSolver* solver) {
   if (solver->exact) return;
   Eigen::VectorXd X = solver->x;
   int iterations = 0;
-  if (!preconditioned_cg(solver->A, solver->llt, solver->rhs, kCgTolerance, &X, &iterations)) {
-    solver->llt.factorize(solver->A);
-    HS_CHECK(solver->llt.info() == Eigen::Success, "patch fit: the normal equations could not be factored");
-    X = solver->llt.solve(solver->rhs);
-  }
-  solver->x = X;
-  solver->exact = true;
-  for (size_t k = 0; k < out->control.size(); ++k) out->control[k] = X.segment<3>(3 * static_cast<long>(k));
-  rebuild_patches(out);
+  if (!preconditioned_cg(solver->A, solver->llt, solver->rhs, kCgTolerance, &X, &iterations))
+    X = solve_directly(solver, solver->rhs);
+  take_solution(out, solver, std::move(X), true);
 }
 
 }  // namespace
