@@ -27,49 +27,10 @@ from scipy.spatial import cKDTree
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from patch_study import make_pair  # noqa: E402
+from ply_util import read_ply, xyz  # noqa: E402
 from study_util import run as sh  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
-def read_ply(path):
-    """A binary little-endian PLY: (header lines, vertex record array, faces or None)."""
-    with open(path, "rb") as f:
-        header = []
-        while True:
-            line = f.readline().decode("ascii").strip()
-            header.append(line)
-            if line == "end_header":
-                break
-        types = {"float": "<f4", "double": "<f8", "uint": "<u4", "int": "<i4", "uchar": "u1"}
-        elements, cur = [], None
-        for h in header:
-            w = h.split()
-            if w[0] == "element":
-                cur = [w[1], int(w[2]), []]
-                elements.append(cur)
-            elif w[0] == "property" and w[1] != "list":
-                cur[2].append((w[2], types[w[1]]))
-            elif w[0] == "property":
-                cur[2].append(("list", w))
-        if "binary_little_endian" not in header[1]:
-            raise SystemExit(f"{path}: not a binary little-endian PLY")
-        verts = faces = None
-        for name, count, props in elements:
-            if name == "vertex":
-                verts = np.frombuffer(f.read(count * np.dtype(props).itemsize), dtype=props, count=count)
-            elif name == "face" and count:
-                if props != [("list", ["property", "list", "uchar", "int", "vertex_indices"])]:
-                    raise SystemExit(f"{path}: faces other than 'list uchar int vertex_indices'")
-                raw = np.frombuffer(f.read(13 * count), dtype=np.uint8).reshape(count, 13)
-                if np.any(raw[:, 0] != 3):
-                    raise SystemExit(f"{path}: a face that is not a triangle")
-                faces = raw[:, 1:].copy().view("<i4").reshape(count, 3)
-            elif count:
-                break  # what follows (PCL's camera) is not needed
-            else:
-                continue
-    return verts, faces
 
 
 def closest_on_triangles(p, a, b, c):
@@ -102,10 +63,12 @@ def closest_on_triangles(p, a, b, c):
 def exact_cloud(truth_ply, merged_ply, out_ply):
     """merged_ply's points moved to their closest points on truth_ply (its x, y, z and label
     kept), written to out_ply; returns the mean move (the data's own error, mm)."""
-    V, F = read_ply(truth_ply)
-    V = np.stack([V["x"], V["y"], V["z"]], 1).astype(float)
-    rec, _ = read_ply(merged_ply)
-    P = np.stack([rec["x"], rec["y"], rec["z"]], 1).astype(float)
+    V, F = read_ply(truth_ply, "patch_bound")
+    if F is None:
+        sys.exit(f"patch_bound: {truth_ply}: no triangles")
+    V = xyz(V)
+    rec, _ = read_ply(merged_ply, "patch_bound")
+    P = xyz(rec)
     # The closest point lies on one of the triangles whose centroids are nearest (the skin's
     # triangles are ~1.6 mm; 16 candidates reach well past the data's 0.3 mm from the skin).
     _, cand = cKDTree(V[F].mean(1)).query(P, k=16)

@@ -12,54 +12,23 @@ points within 0.3 mm of the plane blue, a 5 mm grid grey. Binary little-endian P
 (what handskin and synth write). Needs numpy (Debian's python3-numpy) and nothing else.
 """
 import argparse
+import os
 import struct
 import sys
 import zlib
 
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import ply_util  # noqa: E402
+
 SCALE = 16  # pixels per mm
-TYPES = {"float": "<f4", "float32": "<f4", "double": "<f8", "uchar": "u1", "uint8": "u1", "char": "i1",
-         "int": "<i4", "int32": "<i4", "uint": "<u4", "uint32": "<u4", "short": "<i2", "ushort": "<u2"}
 
 
 def read_ply(path):
     """Vertices (n x 3) and triangles (m x 3, or None) of a binary little-endian PLY."""
-    with open(path, "rb") as f:
-        if f.readline().strip() != b"ply":
-            sys.exit(f"section_plot: {path}: not a PLY file")
-        elements = []
-        while True:
-            line = f.readline()
-            if not line:
-                sys.exit(f"section_plot: {path}: header has no end_header")
-            words = line.decode("ascii", "replace").split()
-            if words[:1] == ["format"] and words[1] != "binary_little_endian":
-                sys.exit(f"section_plot: {path}: format {words[1]}, only binary_little_endian is read")
-            if words[:1] == ["element"]:
-                elements.append((words[1], int(words[2]), []))
-            elif words[:1] == ["property"]:
-                elements[-1][2].append(words[1:])
-            elif words[:1] == ["end_header"]:
-                break
-        verts, faces = None, None
-        for name, count, props in elements:
-            if props and props[0][0] == "list":
-                dt = np.dtype([("n", TYPES[props[0][1]]), ("v", TYPES[props[0][2]], (3,))] +
-                              [(p[1], TYPES[p[0]]) for p in props[1:]])
-                a = np.frombuffer(f.read(count * dt.itemsize), dtype=dt, count=count)
-                if name == "face":
-                    if np.any(a["n"] != 3):
-                        sys.exit(f"section_plot: {path}: faces must be triangles")
-                    faces = a["v"].astype(np.int64)
-            else:
-                dt = np.dtype([(p[1], TYPES[p[0]]) for p in props])
-                a = np.frombuffer(f.read(count * dt.itemsize), dtype=dt, count=count)
-                if name == "vertex":
-                    verts = np.stack([a["x"], a["y"], a["z"]], 1).astype(float)
-    if verts is None:
-        sys.exit(f"section_plot: {path}: no vertices")
-    return verts, faces
+    verts, faces = ply_util.read_ply(path, "section_plot")
+    return ply_util.xyz(verts), faces
 
 
 def section_segments(verts, faces, axis, value):
