@@ -1,14 +1,15 @@
 #!/usr/bin/env python3
-"""Hand-family study (issue 11): scan pairs of a varied synthetic hand family — right and
-left hands, 160-215 mm, thin and thick, relaxed, curled and flat postures, raised and
-pronated thumbs, forearm stubs of 0-40 mm, marker radii 2.5-4 mm — each registered with the
-marker radius estimated (not given) and skinned with the pair's rig and with the automatic
-skeleton, measured against its truth.
+"""Hand-family study (issues 11 and 35): scan pairs of a varied synthetic hand family — right
+and left hands, 160-215 mm, thin and thick, relaxed, curled and flat postures, raised and
+pronated thumbs, forearm stubs of 0-40 mm, marker radii 2.5-4 mm — each run through
+`handskin run` (the marker radius estimated, not given) with the pair's rig and with the
+automatic skeleton, its skin and its patch surface measured against its truth.
 
     python3 scripts/family_study.py [--bin build/handskin] [--work /tmp/family-study] [--hands H01,H02]
 
-Prints a Markdown table and the summary (median and slowest pair); pairs already in --work
-are reused. A failing stage is a row with its one-line error, not an abort.
+Prints a Markdown table and the summary against issue 35's bars (scripts/study_util.py) and
+writes every pair's figures to <work>/family_study.json; scan pairs already in --work are
+reused. A failing run is a row with its one-line error, not an abort.
 """
 import argparse
 import os
@@ -68,7 +69,7 @@ def main():
     a = family_args(__doc__)
     pipeline = no_baseline_pipeline(a.work)
     rows, fails = [], 0
-    stats = {"given": [], "auto": []}  # (pair, watertight, triangles, mean, p95, within 1 mm, seconds)
+    stats = {"given": [], "auto": []}  # (pair, figures)
     regs = []  # (pair, rotation deg, skin mean mm)
     for h in a.hands.split(","):
         hand, error = family_hand(a.bin, a.work, h)
@@ -81,7 +82,7 @@ def main():
                                      pipeline, stats, regs)
             rows.append(row)
             fails += failed
-    print_table(rows, fails, stats, regs)
+    print_table(rows, fails, stats, regs, os.path.join(a.work, "family_study.json"))
 
 
 if __name__ == "__main__":

@@ -29,39 +29,89 @@ def no_baseline_pipeline(work):
     return path
 
 
+# Issue 35's bars, per pair and mode: the skin closed, manifold, not self-intersecting (in the
+# written file, as the report's gates say), within mean / p95 of the true skin, that share of
+# the true skin within 1 mm; the same for the patch surface, and its largest distance.
+SKIN_BARS = {"mean": 0.10, "p95": 0.35, "within_1mm": 0.985}
+PATCH_BARS = {"mean": 0.15, "p95": 0.40, "max": 3.0, "within_1mm": 0.985}
+
+
+def stage(report, name):
+    return next((s for s in report["stages"] if s["name"] == name), None)
+
+
+def pair_figures(report):
+    """The figures of one run's report.json that the study holds to the bars."""
+    sk, pa = stage(report, "skin"), stage(report, "patches")
+    gates = {g["name"]: g for g in report.get("gates", [])}
+    f = {"skin_closed": sk["mesh"]["closed"] and sk["mesh"]["manifold"] and sk["mesh"]["outward"],
+         "skin_self_intersections": sk["mesh"]["self_intersections"],
+         "skin_mean": sk["truth"]["skin_to_truth_mm"]["mean"], "skin_p95": sk["truth"]["skin_to_truth_mm"]["p95"],
+         "skin_within_1mm": sk["truth"]["truth_to_skin_mm"]["within_1mm"],
+         "gates_failed": [n for n, g in gates.items() if not g["pass"]],
+         "seconds": report["total_seconds"]}
+    if pa:
+        t = pa["truth"]
+        f.update({"patch_mean": t["surface_to_truth_mm"]["mean"], "patch_p95": t["surface_to_truth_mm"]["p95"],
+                  "patch_max": t["surface_to_truth_mm"]["max"], "patch_within_1mm": t["truth_to_surface_mm"]["within_1mm"],
+                  "patch_worst": pa.get("farthest_point_patch")})
+    return f
+
+
+def misses(f):
+    """The bars a pair's figures miss (names), none when it meets them all."""
+    m = []
+    if not f["skin_closed"]:
+        m.append("skin not closed")
+    if f["skin_self_intersections"]:
+        m.append("skin self-intersects")
+    for k, bar in SKIN_BARS.items():
+        v = f["skin_" + k]
+        if (v < bar) if k == "within_1mm" else (v > bar):
+            m.append(f"skin {k} {v:.3f}")
+    if "patch_mean" not in f:
+        m.append("no patches")
+        return m
+    for k, bar in PATCH_BARS.items():
+        v = f["patch_" + k]
+        if (v < bar) if k == "within_1mm" else (v > bar):
+            m.append(f"patches {k} {v:.3f}")
+    return m
+
+
 def measure_pair(binary, name, d, out_dir, pipeline, stats, regs):
-    """Register the scan pair in `d` (the marker radius estimated) and skin it with the pair's
-    rig and with the automatic skeleton, each measured against d/truth.json. Returns the
-    table row and the number of failed stages; appends to stats[mode] (pair, watertight,
-    triangles, mean, p95, within 1 mm, seconds) and regs (pair, rotation deg, skin mean mm)."""
-    rc, out = run([binary, "-q", "register", "--back", d + "/back", "--palm", d + "/palm", "--truth",
-                   d + "/truth.json", "--out", out_dir])
-    if rc:
-        return [name, "-", "register: " + out.strip().splitlines()[-1]], 1
-    reg = json.load(open(out_dir + "/registration.json"))
-    tr = reg["against_truth"]["chosen"]
-    row = [name, f'{reg["marker_radius"]["radius_mm"]:.3f}', f'{tr["rotation_deg"]:.4f} / {tr["skin_mean_mm"]:.4f}']
-    regs.append((name, tr["rotation_deg"], tr["skin_mean_mm"]))
-    fails = 0
+    """Run the scan pair in `d` through `handskin run` (the marker radius estimated, patches
+    and all) with the pair's rig and with the automatic skeleton, each measured against
+    d/truth.json. Returns the table row and the number of failed runs; appends to
+    stats[mode] (pair, figures) and regs (pair, rotation deg, skin mean mm)."""
+    row, fails = [name], 0
     for mode, extra in (("given", ["--rig", d + "/rig.json"]), ("auto", ["--rig", d + "/rig.json", "--auto-rig"])):
-        sk = os.path.join(out_dir, mode)
-        rc, out = run([binary, "-q", "skin", "--merged", out_dir + "/merged.ply", "--truth", d + "/truth.json",
-                       "--pipeline", pipeline, "--out", sk] + extra)
+        out = os.path.join(out_dir, mode)
+        rc, text = run([binary, "-q", "run", "--back", d + "/back", "--palm", d + "/palm", "--truth", d + "/truth.json",
+                        "--pipeline", pipeline, "--out", out] + extra)
         if rc:
-            row += ["FAIL: " + out.strip().splitlines()[-1]]
+            row += ["FAIL: " + text.strip().splitlines()[-1]]
             fails += 1
             continue
-        r = json.load(open(sk + "/skin_report.json"))
-        t = r["truth"]
-        stats[mode].append((name, r["mesh"]["watertight"], r["mesh"]["triangles"], t["skin_to_truth_mm"]["mean"],
-                            t["skin_to_truth_mm"]["p95"], t["truth_to_skin_mm"]["within_1mm"], r["build_seconds"]))
-        cell = (f'{"ok" if r["mesh"]["watertight"] else "NOT watertight"} {r["mesh"]["triangles"]} tri, '
-                f'{t["skin_to_truth_mm"]["mean"]:.3f} / {t["skin_to_truth_mm"]["p95"]:.3f} / '
-                f'{100 * t["truth_to_skin_mm"]["within_1mm"]:.2f} %, {1000 * r["build_seconds"]:.0f} ms')
-        if mode == "auto":
-            e = r["skeleton"]["automatic"]["against_given_rig"]
-            cell += f', joints {e["mean_joint_error_mm"]:.2f} / {e["max_joint_error_mm"]:.1f} mm'
+        r = json.load(open(out + "/report.json"))
+        if mode == "given":
+            tr = stage(r, "registration")["against_truth"]["chosen"]
+            row.insert(1, f'{tr["rotation_deg"]:.4f} / {tr["skin_mean_mm"]:.4f}')
+            regs.append((name, tr["rotation_deg"], tr["skin_mean_mm"]))
+        f = pair_figures(r)
+        stats[mode].append((name, f))
+        cell = (f'skin {f["skin_mean"]:.3f} / {f["skin_p95"]:.3f} / {100 * f["skin_within_1mm"]:.2f} %'
+                f'{"" if f["skin_closed"] and not f["skin_self_intersections"] else " NOT CLEAN"}')
+        if "patch_mean" in f:
+            cell += (f'; patches {f["patch_mean"]:.3f} / {f["patch_p95"]:.3f} / {f["patch_max"]:.2f} / '
+                     f'{100 * f["patch_within_1mm"]:.2f} %')
+        m = misses(f)
+        cell += "; " + ("ok" if not m else "MISSES " + ", ".join(m))
+        if f["gates_failed"]:
+            cell += "; gates failed: " + ", ".join(f["gates_failed"])
         row.append(cell)
+    if len(row) == 3:
+        row.insert(1, "-")
     return row, fails
 
 
@@ -80,30 +130,38 @@ def study_pair(binary, name, work, mesh, seed, radius, scan_extra, pipeline, sta
     return row, failed
 
 
-def print_table(rows, fails, stats, regs):
-    """The pairs' Markdown table, then the summary against issue 11's figures: closed,
-    6 000-10 000 triangles, skin -> truth mean <= 0.1 mm, p95 <= 0.35 mm, >= 98.5 % of the true
-    skin within 1 mm; registration within 0.02 deg and 0.05 mm (mean skin displacement)."""
-    head = ["pair", "marker radius (est.)", "registration deg / mm",
-            "given rig: skin→truth mean / p95 / truth within 1 mm, build_skin time",
-            "automatic: the same, joint error mean / max"]
+def print_table(rows, fails, stats, regs, json_path=None):
+    """The pairs' Markdown table, then the summary against issue 35's bars (SKIN_BARS,
+    PATCH_BARS) per mode and issue 11's registration bound (0.02 deg, 0.05 mm); with
+    `json_path`, every pair's figures written there too."""
+    head = ["pair", "registration deg / mm",
+            "given rig: skin→truth mean / p95 / truth within 1 mm; patches mean / p95 / max / within 1 mm",
+            "automatic placement: the same"]
     print("| " + " | ".join(head) + " |")
     print("|" + "---|" * len(head))
     for r in rows:
         print("| " + " | ".join(str(x) for x in r) + " |")
-    print(f"\n{len(rows)} pairs, {fails} failed stages")
+    print(f"\n{len(rows)} pairs, {fails} failed runs")
     for mode, st in stats.items():
         if not st:
             continue
-        miss = [x[0] for x in st if not (x[1] and 6000 <= x[2] <= 10000 and x[3] <= 0.1 and x[4] <= 0.35 and x[5] >= 0.985)]
-        times = sorted(st, key=lambda x: x[6])
-        print(f"- {mode}: {len(st) - len(miss)} of {len(st)} skins meet the issue's figures"
-              + (f" (not: {', '.join(miss)})" if miss else "")
-              + f"; mean over the pairs {statistics.mean(x[3] for x in st):.4f} mm, worst mean {max(x[3] for x in st):.4f},"
-              f" worst p95 {max(x[4] for x in st):.3f}, worst within 1 mm {100 * min(x[5] for x in st):.2f} %;"
-              f" build_skin median {1000 * statistics.median(x[6] for x in st):.0f} ms, slowest {times[-1][0]}"
-              f" {1000 * times[-1][6]:.0f} ms")
+        miss = [n for n, f in st if misses(f)]
+        fs = [f for _, f in st]
+        line = (f"- {mode}: {len(st) - len(miss)} of {len(st)} pairs meet every bar"
+                + (f" (not: {', '.join(miss)})" if miss else "")
+                + f"; skin mean worst {max(f['skin_mean'] for f in fs):.4f}, p95 worst {max(f['skin_p95'] for f in fs):.3f},"
+                f" within 1 mm worst {100 * min(f['skin_within_1mm'] for f in fs):.2f} %")
+        pf = [f for f in fs if "patch_mean" in f]
+        if pf:
+            line += (f"; patches mean median {statistics.median(f['patch_mean'] for f in pf):.4f} worst "
+                     f"{max(f['patch_mean'] for f in pf):.4f}, p95 worst {max(f['patch_p95'] for f in pf):.3f},"
+                     f" max worst {max(f['patch_max'] for f in pf):.2f}, within 1 mm worst "
+                     f"{100 * min(f['patch_within_1mm'] for f in pf):.2f} %")
+        line += f"; run median {statistics.median(f['seconds'] for f in fs):.2f} s"
+        print(line)
     if regs:
         over = [f"{n} ({r:.4f} deg / {m:.4f} mm)" for n, r, m in regs if r > 0.02 or m > 0.05]
         print(f"- registration: {len(regs) - len(over)} of {len(regs)} pairs within 0.02 deg / 0.05 mm"
               + (f" (not: {', '.join(over)})" if over else ""))
+    if json_path:
+        json.dump({mode: {n: f for n, f in st} for mode, st in stats.items()}, open(json_path, "w"), indent=1)

@@ -10,6 +10,7 @@
 #include "core/rig.hpp"
 #include "scan/cloud.hpp"
 #include "scan/cubist_io.hpp"
+#include "core/output_set.hpp"
 #include "test_util.hpp"
 
 using namespace handskin;
@@ -91,10 +92,12 @@ TEST(Cli, RunOnTheFixtureWritesItsOutputs) {
   EXPECT_EQ(report["stages"][6]["name"], "write");
   EXPECT_EQ(report["outputs"]["report"], dir + "/report.json");
   EXPECT_EQ(load_json_object(dir + "/slices.json")["format"], "handskin-slices/1");
-  // Only what the run wrote is in the folder: no staging folder left beside it.
+  // Only what the run wrote is in the folder (and the manifest of it, listing each): no
+  // staging folder left beside it.
   size_t files = 0;
-  for (const auto& e : fs::directory_iterator(dir)) files += e.is_regular_file();
+  for (const auto& e : fs::directory_iterator(dir)) files += e.is_regular_file() && e.path().filename() != kManifestName;
   EXPECT_EQ(files, report["outputs"].size());
+  EXPECT_EQ(read_manifest(dir).size(), files);
   for (const auto& e : fs::directory_iterator(fs::path(dir).parent_path()))
     EXPECT_EQ(e.path().filename().string().find(".handskin-staging"), std::string::npos) << e.path();
   // A run without --baseline does not make one, and takes the earlier run's away with it:

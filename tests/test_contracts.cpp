@@ -173,23 +173,34 @@ TEST(Contracts, FailedRegisterSkinAndSynthLeaveTheirFoldersAsTheyWere) {
 
 TEST(Contracts, OutputSetCommitsAllOrNothing) {
   const std::string dir = test::temp_dir("set") + "/out";
-  fs::create_directories(dir);
-  test::write_text(dir + "/a.txt", "old a");
-  test::write_text(dir + "/stale.txt", "stale");
-  test::write_text(dir + "/user.txt", "mine");
   {
     OutputSet set(dir);
+    set.claim({"a.txt", "stale.txt"});
+    write_file_atomic(set.stage("a.txt"), "old a");
+    write_file_atomic(set.stage("stale.txt"), "stale");
+    set.commit();
+  }
+  test::write_text(dir + "/user.txt", "mine");
+  const std::string manifest = read_file(dir + "/.handskin-manifest.json");
+  {
+    OutputSet set(dir);
+    set.claim({"a.txt", "b.txt"}, {"stale.txt"});
     write_file_atomic(set.stage("a.txt"), "new a");
     write_file_atomic(set.stage("b.txt"), "new b");
     EXPECT_EQ(read_file(dir + "/a.txt"), "old a");  // nothing moves before the commit
   }  // destroyed uncommitted: discarded
-  EXPECT_EQ(snapshot(dir), (std::map<std::string, std::string>{{"a.txt", "old a"}, {"stale.txt", "stale"}, {"user.txt", "mine"}}));
+  EXPECT_EQ(snapshot(dir), (std::map<std::string, std::string>{{".handskin-manifest.json", manifest},
+                                                               {"a.txt", "old a"},
+                                                               {"stale.txt", "stale"},
+                                                               {"user.txt", "mine"}}));
   OutputSet set(dir);
-  set.retire({"stale.txt", "a.txt"});
+  set.claim({"a.txt", "b.txt"}, {"stale.txt"});
   write_file_atomic(set.stage("a.txt"), "new a");
   write_file_atomic(set.stage("b.txt"), "new b");
   set.commit();
-  EXPECT_EQ(snapshot(dir), (std::map<std::string, std::string>{{"a.txt", "new a"}, {"b.txt", "new b"}, {"user.txt", "mine"}}));
+  auto after = snapshot(dir);
+  after.erase(".handskin-manifest.json");
+  EXPECT_EQ(after, (std::map<std::string, std::string>{{"a.txt", "new a"}, {"b.txt", "new b"}, {"user.txt", "mine"}}));
   EXPECT_TRUE(no_staging_left(fs::path(dir).parent_path().string()));
   // An output path that is a file is refused before any work.
   EXPECT_NE(test::input_error_of([&] { OutputSet s(dir + "/user.txt"); }).find("not a folder"), std::string::npos);

@@ -4,6 +4,10 @@
 /// call the stages, write through an OutputSet and print; no computing here.
 #include <CLI/CLI.hpp>
 
+#include "core/errors.hpp"
+#include "core/output_set.hpp"
+#include "pipeline/gates.hpp"
+
 #include <chrono>
 #include <cstdio>
 #include <functional>
@@ -22,6 +26,37 @@ struct Progress {
     std::fprintf(stderr, "[%6.2fs] %s: %s\n", s, tag.c_str(), msg.c_str());
   }
 };
+
+/// How a command's OutputSet treats things in the way (--force) and says what it moved aside
+/// (always, on stderr: a user's file moved is never silent).
+inline OutputSetOptions output_options(bool force) {
+  OutputSetOptions o;
+  o.force = force;
+  o.say = [](const std::string& m) { std::fprintf(stderr, "warning: %s\n", m.c_str()); };
+  return o;
+}
+
+/// Each failed gate as one warning line on stderr (always, -q or not); with `strict` and a
+/// failed gate, a GateFailure naming them (the caller has not committed: nothing is written).
+inline void settle_gates(const QualityGates& g, bool strict, const std::string& out_dir) {
+  for (const auto& q : g.gates)
+    if (!q.pass) std::fprintf(stderr, "warning: %s\n", gate_warning(q).c_str());
+  if (strict && !g.all_pass()) {
+    std::string names;
+    for (const auto& n : g.failed()) names += (names.empty() ? "" : ", ") + n;
+    throw GateFailure(out_dir + ": " + std::to_string(g.failed().size()) + " quality gate(s) failed (" + names +
+                      "); --strict: nothing was written");
+  }
+}
+
+/// One stdout line: how many gates passed, and which failed.
+inline void print_gates(const QualityGates& g) {
+  const auto failed = g.failed();
+  std::string names;
+  for (const auto& n : failed) names += (names.empty() ? "" : ", ") + n;
+  std::printf("quality gates: %zu of %zu passed%s\n", g.gates.size() - failed.size(), g.gates.size(),
+              failed.empty() ? "" : (" (failed: " + names + ")").c_str());
+}
 
 /// A subcommand and what to do when it was given.
 struct Command {

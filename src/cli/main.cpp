@@ -1,6 +1,7 @@
 // handskin: range scans of a hand -> rigged skin. The command-line front end: it parses
 // options, calls the stages (one file per command group, cli/*_commands.cpp), prints progress
-// to stderr and turns errors into one line: exit 1 for bad data, 2 for bad usage, 3 for a bug.
+// to stderr and turns errors into one line: exit 1 for bad data, 2 for bad usage, 3 for a
+// quality gate failed under --strict (nothing written), 4 for a bug.
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
@@ -46,9 +47,12 @@ int main(int argc, char** argv) {
   } catch (const InputError& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return 1;
+  } catch (const GateFailure& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 3;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: internal: %s\n", e.what());
-    return 3;
+    return 4;
   }
   return 0;
 }

@@ -21,31 +21,43 @@ namespace {
 struct RunArgs {
   RunInputs in;
   std::string out_dir;
+  bool force = false, strict = false;
 };
 
 void run_command(RunArgs a, const Progress& progress) {
   RunInputs& in = a.in;
-  OutputSet out(a.out_dir);  // an output path that cannot be a folder fails before any work
+  OutputSet out(a.out_dir, output_options(a.force));  // an output path that cannot be a folder fails before any work
   if (!in.pipeline_path.empty()) in.options = load_pipeline(in.pipeline_path);
+  out.claim(run_output_plan(in), run_output_names());  // the folder writable, locked, its names ours
   const RunResult r = run_pipeline(in, [&](const std::string& m) { progress("run", m); });
   progress("run", "writing the outputs");
-  out.retire(run_output_names());
-  const Json report = write_run_outputs(out, r);
+  const RunWritten w = write_run_outputs(out, r);
+  const Json& report = w.report;
+  settle_gates(w.gates, a.strict, a.out_dir);
   out.commit();
   progress("run", "done in " + std::to_string(report["total_seconds"].get<double>()).substr(0, 5) + " s");
   std::printf("outputs in %s (report: %s)\n", a.out_dir.c_str(), out.final_path("report.json").c_str());
+  print_gates(w.gates);
 }
 
 // ---------------- skin ----------------
 struct SkinArgs {
   std::string merged, rig, out = "skin", pipeline, truth;
-  bool auto_rig = false, baseline = false;
+  bool auto_rig = false, baseline = false, force = false, strict = false;
 };
 
 void skin_command(const SkinArgs& a, const Progress& progress) {
-  OutputSet out(a.out);
+  OutputSet out(a.out, output_options(a.force));
   PipelineOptions po;
   if (!a.pipeline.empty()) po = load_pipeline(a.pipeline);
+  {
+    std::vector<std::string> plan = skin_output_plan(a.auto_rig || a.rig.empty(), po.skin.slices_json,
+                                                     a.baseline || po.skin.baseline);
+    plan.push_back("skin_report.json");
+    std::vector<std::string> all = skin_output_names();
+    all.push_back("skin_report.json");
+    out.claim(plan, all);
+  }
   SkinStageInputs in;
   if (!a.rig.empty()) {
     in.rig = load_palm_rig(a.rig);
@@ -66,12 +78,18 @@ void skin_command(const SkinArgs& a, const Progress& progress) {
   report["format"] = "handskin-skin-report/1";
   report["inputs"] = {{"merged", a.merged}, {"rig", a.rig.empty() ? "(placed automatically)" : a.rig},
                       {"pipeline", a.pipeline.empty() ? "(built-in defaults)" : a.pipeline}};
-  std::vector<std::string> names = skin_output_names();
-  names.push_back("skin_report.json");
-  out.retire(names);
   report["outputs"] = write_skin_outputs(out, r);
   report["outputs"]["report"] = out.final_path("skin_report.json");
+  GateInputs gi;
+  gi.skin_file = out.staged_path("skin.ply");
+  gi.skin_name = out.final_path("skin.ply");
+  gi.cloud = &in.points;
+  const QualityGates gates = check_gates(gi, po);
+  describe_written_skin(gates, &report);
+  report["gates"] = to_json(gates);
+  report["gates_passed"] = gates.all_pass();
   save_json(out.stage("skin_report.json"), report);
+  settle_gates(gates, a.strict, a.out);
   out.commit();
   const MeshHealth& h = r.skin.health;
   std::printf("skin: %zu vertices, %zu triangles, watertight %s, cloud to skin mean %.3f p95 %.3f max %.2f mm, %.0f ms -> %s\n",
@@ -83,18 +101,20 @@ void skin_command(const SkinArgs& a, const Progress& progress) {
   if (r.truth)
     std::printf("against the truth: skin->truth mean %.3f p95 %.3f mm; truth->skin within 1 mm %.2f %%\n",
                 r.truth->skin_to_truth.mean, r.truth->skin_to_truth.p95, 100 * r.truth->truth_to_skin.within_1mm);
+  print_gates(gates);
 }
 
 // ---------------- register ----------------
 struct RegisterArgs {
   std::string back, palm, out = "registration", markers, pipeline, truth;
-  bool no_refine = false;
+  bool no_refine = false, force = false, strict = false;
 };
 
 void register_command(const RegisterArgs& a, const Progress& progress) {
-  OutputSet out(a.out);
+  OutputSet out(a.out, output_options(a.force));
   PipelineOptions po;
   if (!a.pipeline.empty()) po = load_pipeline(a.pipeline);
+  out.claim(registration_output_names());
   RegistrationOptions ro = registration_options(po);
   if (a.no_refine) ro.refine_enabled = false;
   const RangeScan back = load_scan_side(a.back, ScanSide::Back, "--back");
@@ -109,8 +129,13 @@ void register_command(const RegisterArgs& a, const Progress& progress) {
   for (const auto& w : reg.warnings) progress("register", "warning: " + w);
   Json report = reg.report;
   if (truth) report["against_truth"] = registration_against_truth(reg, *truth);
-  out.retire(registration_output_names());
+  GateInputs gi;
+  gi.registration = &reg;
+  const QualityGates gates = check_gates(gi, po);
+  report["gates"] = to_json(gates);
+  report["gates_passed"] = gates.all_pass();
   write_registration_outputs(out, reg, report);
+  settle_gates(gates, a.strict, a.out);
   out.commit();
   const RegistrationFigures& f = reg.figures;
   std::printf("%s: %s, %zu of %zu/%zu markers matched (radius %.3f mm, %s), marker rms %.4f mm (refined %.4f mm), %zu "
@@ -133,15 +158,21 @@ void register_command(const RegisterArgs& a, const Progress& progress) {
 struct PatchesArgs {
   std::string skin_dir, rig, out, pipeline, truth, layout;
   std::optional<long> count;
+  bool force = false, strict = false;
 };
 
 void patches_command(const PatchesArgs& a, const Progress& progress) {
   namespace fs = std::filesystem;
   // Its own folder by default: report.json there is the patches' report, not the run's.
   const std::string out_dir = a.out.empty() ? (fs::path(a.skin_dir) / "patches").string() : a.out;
-  OutputSet out(out_dir);
+  OutputSet out(out_dir, output_options(a.force));
   PipelineOptions po;
   if (!a.pipeline.empty()) po = load_pipeline(a.pipeline);
+  {
+    std::vector<std::string> names = patch_output_names();
+    names.push_back("report.json");
+    out.claim(names);
+  }
   if (a.count) {
     po.patches.count = *a.count;
     std::string err;
@@ -184,12 +215,15 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
   Json report = to_json(r);
   report["format"] = "handskin-patches-report/1";
   report["inputs"] = {{"merged", merged}, {"rig", rig_path}, {"pipeline", a.pipeline.empty() ? "(built-in defaults)" : a.pipeline}};
-  std::vector<std::string> names = patch_output_names();
-  names.push_back("report.json");
-  out.retire(names);
-  report["outputs"] = write_patch_outputs(out, r, *in.rig);
+  GateInputs gi;
+  gi.patches = &r;
+  const QualityGates gates = check_gates(gi, po);
+  report["gates"] = to_json(gates);
+  report["gates_passed"] = gates.all_pass();
+  report["outputs"] = write_patch_outputs(out, r, *in.rig, Json{{"gates", report["gates"]}});
   report["outputs"]["report"] = out.final_path("report.json");
   save_json(out.stage("report.json"), report);
+  settle_gates(gates, a.strict, out_dir);
   out.commit();
   const PatchSkin& s = r.patches;
   std::printf("patches: %zu bicubic patches, %zu control points; data to surface: palm mean %.3f max %.2f mm, back mean "
@@ -203,6 +237,7 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
   if (r.surface_to_truth)
     std::printf("against the truth: surface->truth mean %.3f p95 %.3f mm; truth->surface within 1 mm %.2f %%\n",
                 r.surface_to_truth->mean, r.surface_to_truth->p95, 100 * r.truth_to_surface->within_1mm);
+  print_gates(gates);
 }
 
 }  // namespace
@@ -215,8 +250,8 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
   run->add_option("--palm", in->palm_stem, "Palm scan stem")->required();
   run->add_option("--rig", in->rig_path, "hand-rig/1 file, joints in the palm frame (default: placed automatically)");
   run->add_flag("--auto-rig", in->auto_rig, "Place the skeleton automatically even with --rig, and report its joint error");
-  run->add_option("--out", ra->out_dir, "Output folder (created if needed; only our files in it are replaced, all "
-                                        "at once when every stage succeeded)")
+  run->add_option("--out", ra->out_dir, "Output folder (created if needed; only files handskin wrote there and that are unchanged "
+                                        "are replaced, all at once when every stage succeeded)")
       ->required();
   run->add_option("--pipeline", in->pipeline_path, "Pipeline parameters (default: built-in = pipelines/cubist.json)");
   run->add_option("--markers", in->markers_path,
@@ -229,6 +264,9 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
                   "The back scan's photo (8-bit RGB PNG on the scan's grid) for the texture (default: <back stem>.photo.png if "
                   "both photos are there)");
   run->add_option("--palm-photo", in->palm_photo, "The palm scan's photo (default: <palm stem>.photo.png)");
+  run->add_flag("--force", ra->force, "Move things of yours in the way of an output (same name, not written by "
+                                      "handskin) aside into <out>/handskin-backup-<date>/ instead of refusing");
+  run->add_flag("--strict", ra->strict, "A failed quality gate (report.json \"gates\") writes nothing and exits 3");
   run->add_flag("--baseline", in->baseline, "Also a Poisson reconstruction of the cloud (baseline.ply and its figures, for comparison; ~0.5 s)");
   out->push_back({run, [ra, &progress] { run_command(*ra, progress); }});
 
@@ -240,6 +278,8 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
   regc->add_option("--markers", rg->markers, "Manual marker positions (handskin-markers/1), replacing detection");
   regc->add_option("--pipeline", rg->pipeline, "Pipeline parameters (markers, registration sections)");
   regc->add_option("--truth", rg->truth, "truth.json of a synthetic pair: add the errors against it to the report");
+  regc->add_flag("--force", rg->force, "Move things in the way of an output aside into a dated backup folder instead of refusing");
+  regc->add_flag("--strict", rg->strict, "A failed quality gate (the registration's own 1 sigma over its limit) writes nothing and exits 3");
   regc->add_flag("--no-refine", rg->no_refine, "Keep the marker-only fit (no joint sphere/ICP refinement)");
   out->push_back({regc, [rg, &progress] { register_command(*rg, progress); }});
 
@@ -253,6 +293,8 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
       ->capture_default_str();
   skinc->add_option("--pipeline", sk->pipeline, "Pipeline parameters (slicing, skin sections)");
   skinc->add_option("--truth", sk->truth, "truth.json of a synthetic pair: add the errors against its true skin");
+  skinc->add_flag("--force", sk->force, "Move things in the way of an output aside into a dated backup folder instead of refusing");
+  skinc->add_flag("--strict", sk->strict, "A failed quality gate (skin_report.json \"gates\") writes nothing and exits 3");
   skinc->add_flag("--baseline", sk->baseline, "Also a Poisson reconstruction of the cloud (baseline.ply and its figures, for comparison; ~0.5 s)");
   out->push_back({skinc, [sk, &progress] { skin_command(*sk, progress); }});
 
@@ -266,6 +308,8 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
   pc->add_option("--count", pa->count, "Patches wanted, [24, 1500] (default: patches.count, 96); the hand's layout has 98, split k x k: 98 k^2 nearest");
   pc->add_option("--layout", pa->layout,
                  "A layout given back: a patches.json (or handskin-patch-layout/1) whose 'layout' (corners, four-sided faces) is fitted on instead of the hand's; --count is then ignored");
+  pc->add_flag("--strict", pa->strict, "A failed quality gate (report.json \"gates\") writes nothing and exits 3");
+  pc->add_flag("--force", pa->force, "Move things in the way of an output aside into a dated backup folder instead of refusing");
   pc->add_option("--truth", pa->truth, "truth.json of a synthetic pair: add the surface's distances to the true skin");
   out->push_back({pc, [pa, &progress] { patches_command(*pa, progress); }});
 }

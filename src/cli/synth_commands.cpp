@@ -34,11 +34,12 @@ struct SynthHandArgs {
   std::optional<double> thumb_pronation, index_ring_ratio, forearm;
   HandMeshOptions mesh;
   bool render = true;
+  bool force = false;
 };
 
 void synth_hand(const SynthHandArgs& args, const Progress& progress) {
   SynthHandArgs a = args;
-  OutputSet out(a.out);
+  OutputSet out(a.out, output_options(a.force));
   if (a.side != "right" && a.side != "left") throw InputError("--side", "'" + a.side + "': must be right or left");
   a.shape.side = a.side == "left" ? HandSide::Left : HandSide::Right;
   a.shape.posture = parse_posture(a.posture, a.sets);
@@ -49,11 +50,14 @@ void synth_hand(const SynthHandArgs& args, const Progress& progress) {
   std::string err;
   check_options(a.shape.IsValid(&err), "hand options", err);
   check_options(a.mesh.IsValid(&err), "mesh options", err);
+  {
+    const std::vector<std::string> all = {"hand.ply", "hand_rig.json", "hand_back.png", "hand_side.png"};
+    out.claim(a.render ? all : std::vector<std::string>(all.begin(), all.begin() + 2), all);
+  }
   progress("synth hand", "building the skeleton and implicit surface");
   const HandModel model = build_hand_model(a.shape);
   progress("synth hand", "meshing with CGAL's surface mesher (a few seconds)");
   const HandMeshResult r = mesh_hand(model, a.mesh);
-  out.retire({"hand.ply", "hand_rig.json", "hand_back.png", "hand_side.png"});
   save_mesh(out.stage("hand.ply"), r.mesh);
   save_rig(out.stage("hand_rig.json"), model.rig);
   if (a.render) {
@@ -80,19 +84,27 @@ struct SynthScanArgs {
   ScannerOptions scanner;
   bool render = true;
   bool photos = true;
+  bool force = false;
 };
 
 void synth_scan(const SynthScanArgs& a, const Progress& progress) {
-  OutputSet out(a.out);
+  OutputSet out(a.out, output_options(a.force));
   std::string err;
   check_options(a.replica.IsValid(&err), "replica options", err);
   check_options(a.scanner.IsValid(&err), "scanner options", err);
+  {
+    const std::vector<std::string> all = {"back.png", "back.json", "palm.png", "palm.json", "rig.json", "truth.json",
+                                          "truth_skin.ply", "back_preview.png", "palm_preview.png", "back.photo.png",
+                                          "palm.photo.png"};
+    std::vector<std::string> plan(all.begin(), all.begin() + 7);
+    if (a.render) plan.insert(plan.end(), {"back_preview.png", "palm_preview.png"});
+    if (a.photos) plan.insert(plan.end(), {"back.photo.png", "palm.photo.png"});
+    out.claim(plan, all);
+  }
   const TriMesh hand = load_mesh(a.mesh);
   const Rig rig = load_rig(a.rig);
   progress("synth scan", "placing markers and scanning both sides (seed " + std::to_string(a.seed) + ")");
   const ScanPair pair = synthesize_scan_pair(hand, rig, a.replica, a.scanner, a.seed, !progress.quiet);
-  out.retire({"back.png", "back.json", "palm.png", "palm.json", "rig.json", "truth.json", "truth_skin.ply",
-              "back_preview.png", "palm_preview.png", "back.photo.png", "palm.photo.png"});
   for (const auto& [stem, sim] : {std::pair<const char*, const ScanSimulation*>{"back", &pair.back}, {"palm", &pair.palm}}) {
     const std::string png = out.stage(std::string(stem) + ".png");
     out.stage(std::string(stem) + ".json");
@@ -172,6 +184,7 @@ void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) 
   shc->add_option("--facet-distance", sh->mesh.facet_distance_mm, "Mesher facet distance bound, mm")->capture_default_str();
   shc->add_option("--seed", sh->mesh.seed, "Mesher seed")->capture_default_str();
   shc->add_flag("!--no-render", sh->render, "Do not write preview pictures");
+  shc->add_flag("--force", sh->force, "Move things in the way of an output aside into a dated backup folder instead of refusing");
   out->push_back({shc, [sh, &progress] { synth_hand(*sh, progress); }});
 
   auto ss = std::make_shared<SynthScanArgs>();
@@ -204,6 +217,7 @@ void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) 
       ->capture_default_str();
   ssc->add_option("--y-extent", ss->scanner.y_extent_mm, "Table width a scanline covers, mm")->capture_default_str();
   ssc->add_flag("!--no-render", ss->render, "Do not write preview pictures");
+  ssc->add_flag("--force", ss->force, "Move things in the way of an output aside into a dated backup folder instead of refusing");
   ssc->add_flag("!--no-photos", ss->photos,
                 "Do not write the scans' photos (back.photo.png, palm.photo.png: the camera's colour image on each "
                 "range image's grid, which run projects onto the skin as its texture)");

@@ -2,7 +2,8 @@
 /// Error kinds shared by every stage.
 ///  - InputError: bad user input (a file, a key, an option). The CLI prints it as one line
 ///    `error: <where>: <what>` and exits non-zero.
-///  - InternalError: a broken invariant (a bug), raised by HS_CHECK with file and line.
+///  - GateFailure: a quality gate failed under --strict (exit 3; nothing was written).
+///  - InternalError: a broken invariant (a bug), raised by HS_CHECK with file and line (exit 4).
 #include <stdexcept>
 #include <string>
 
@@ -18,6 +19,12 @@ class InputError : public std::runtime_error {
  private:
   std::string where_;
   std::string detail_;
+};
+
+/// A quality gate failed under --strict: the command wrote nothing (exit 3).
+class GateFailure : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
 };
 
 class InternalError : public std::logic_error {

@@ -1,16 +1,26 @@
 #include "core/output_set.hpp"
 
+#include <openssl/evp.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <csignal>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <filesystem>
+#include <fstream>
+#include <fcntl.h>
+#include <set>
+#include <sys/file.h>
+#include <sys/stat.h>
 #include <thread>
 #include <unistd.h>
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
+#include "core/json_util.hpp"
 
 namespace fs = std::filesystem;
 
@@ -20,11 +30,15 @@ namespace {
 
 // --- what a signal handler may clean up: fixed storage, async-signal-safe calls only ---
 constexpr int kMaxPaths = 256;
+constexpr int kMaxCreated = 32;
 constexpr int kPathLen = 4096;
 char g_paths[kMaxPaths][kPathLen];
 char g_staging[kPathLen];
+char g_lock[kPathLen];
+char g_created[kMaxCreated][kPathLen];
 volatile std::sig_atomic_t g_path_count = 0;
-volatile std::sig_atomic_t g_active = 0;      // a set is staging
+volatile std::sig_atomic_t g_created_count = 0;
+volatile std::sig_atomic_t g_active = 0;      // a set has claimed its folder and not committed
 volatile std::sig_atomic_t g_committing = 0;  // its files are being moved: hold signals
 volatile std::sig_atomic_t g_pending = 0;     // a signal that arrived during the moves
 constexpr int kSignals[] = {SIGINT, SIGTERM, SIGHUP};
@@ -37,7 +51,9 @@ extern "C" void on_signal(int sig) {
   }
   if (g_active) {
     for (int i = 0; i < g_path_count; ++i) ::unlink(g_paths[i]);
-    ::rmdir(g_staging);
+    if (g_staging[0]) ::rmdir(g_staging);
+    if (g_lock[0]) ::unlink(g_lock);
+    for (int i = 0; i < g_created_count; ++i) ::rmdir(g_created[i]);  // deepest first; only if empty
   }
   std::signal(sig, SIG_DFL);
   std::raise(sig);
@@ -60,13 +76,15 @@ void restore_handlers() {
 }
 
 // HANDSKIN_FAULT=<kind>:<n> (tests only; see the header).
-bool fault(const char* kind, int n) {
+int fault_value(const char* kind) {
   const char* f = std::getenv("HANDSKIN_FAULT");
-  if (!f) return false;
+  if (!f) return -1;
   const std::string s(f);
   const size_t colon = s.find(':');
-  return colon != std::string::npos && s.substr(0, colon) == kind && std::atoi(s.c_str() + colon + 1) == n;
+  if (colon == std::string::npos || s.substr(0, colon) != kind) return -1;
+  return std::atoi(s.c_str() + colon + 1);
 }
+bool fault(const char* kind, int n) { return fault_value(kind) == n; }
 
 // The folder the staging folder goes in: beside the output folder, in its nearest existing
 // ancestor (so that the moves are renames on one file system).
@@ -79,9 +97,80 @@ fs::path staging_parent(const fs::path& out) {
   return p;
 }
 
+bool contains(const std::vector<std::string>& v, const std::string& s) {
+  return std::find(v.begin(), v.end(), s) != v.end();
+}
+
+std::string utc_stamp() {
+  const std::time_t t = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y%m%d-%H%M%S", &tm);
+  return buf;
+}
+
+std::string refuse_hint() {
+  return std::string("; handskin replaces only the files it wrote there (listed in ") + kManifestName +
+         ", unchanged since): move it away, choose another --out, or give --force to have it moved aside into a "
+         "dated backup folder";
+}
+
 }  // namespace
 
-OutputSet::OutputSet(std::string out_dir) : out_dir_(std::move(out_dir)) {
+OwnedFile describe_file(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw InputError(path, "cannot read: " + std::string(std::strerror(errno)));
+  EVP_MD_CTX* ctx = EVP_MD_CTX_new();
+  HS_CHECK(ctx && EVP_DigestInit_ex(ctx, EVP_sha256(), nullptr) == 1, "SHA-256 unavailable");
+  OwnedFile d;
+  std::vector<char> buf(1 << 16);
+  while (f) {
+    f.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+    const std::streamsize n = f.gcount();
+    if (n > 0) {
+      EVP_DigestUpdate(ctx, buf.data(), static_cast<size_t>(n));
+      d.size += static_cast<std::uintmax_t>(n);
+    }
+  }
+  const bool bad = f.bad();
+  unsigned char md[EVP_MAX_MD_SIZE];
+  unsigned int len = 0;
+  EVP_DigestFinal_ex(ctx, md, &len);
+  EVP_MD_CTX_free(ctx);
+  if (bad) throw InputError(path, "cannot read");
+  static const char* hex = "0123456789abcdef";
+  for (unsigned i = 0; i < len; ++i) d.sha256 += {hex[md[i] >> 4], hex[md[i] & 15]};
+  return d;
+}
+
+std::map<std::string, OwnedFile> read_manifest(const std::string& dir) {
+  std::map<std::string, OwnedFile> m;
+  const std::string path = (fs::path(dir) / kManifestName).string();
+  std::error_code ec;
+  if (!fs::exists(fs::symlink_status(path, ec))) return m;
+  if (!fs::is_regular_file(fs::symlink_status(path, ec)))
+    throw InputError(path, "is not a handskin manifest (not a plain file)");
+  Json j;
+  try {
+    j = Json::parse(read_file(path));
+  } catch (const Json::exception&) {
+    throw InputError(path, "is not a handskin manifest (not JSON)");
+  }
+  if (!j.is_object() || j.value("format", std::string()) != "handskin-manifest/1" || !j.contains("files") ||
+      !j["files"].is_object())
+    throw InputError(path, "is not a handskin manifest (format handskin-manifest/1)");
+  for (const auto& [name, f] : j["files"].items()) {
+    if (!f.is_object() || !f.contains("size") || !f["size"].is_number_unsigned() || !f.contains("sha256") ||
+        !f["sha256"].is_string())
+      throw InputError(path, "key 'files." + name + "': needs 'size' and 'sha256'");
+    m[name] = {f["size"].get<std::uintmax_t>(), f["sha256"].get<std::string>()};
+  }
+  return m;
+}
+
+OutputSet::OutputSet(std::string out_dir, OutputSetOptions options)
+    : out_dir_(std::move(out_dir)), options_(std::move(options)) {
   std::error_code ec;
   if (out_dir_.empty()) throw InputError("--out", "no output folder given");
   if (fs::exists(out_dir_, ec) && !fs::is_directory(out_dir_, ec))
@@ -92,9 +181,141 @@ OutputSet::~OutputSet() {
   if (!committed_) discard();
 }
 
+void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<std::string>& others) {
+  HS_CHECK(!claimed_done_, "an output set is claimed once");
+  HS_CHECK(!g_active, "one output set at a time");
+  for (const auto& n : writes)
+    HS_CHECK(n.find('/') == std::string::npos && !n.empty() && n[0] != '.', "output names are plain file names");
+  writes_ = writes;
+  others_ = others;
+  std::error_code ec;
+  // --- the folder: every missing level creatable, the first existing one a folder ---
+  const fs::path out = fs::absolute(out_dir_).lexically_normal();
+  std::vector<fs::path> missing;
+  fs::path p = out;
+  if (!p.has_filename()) p = p.parent_path();
+  while (!p.empty() && !fs::exists(fs::symlink_status(p, ec))) {
+    missing.push_back(p);
+    if (p == p.root_path()) break;
+    p = p.parent_path();
+  }
+  if (!p.empty() && fs::exists(p, ec) && !fs::is_directory(p, ec))
+    throw InputError(out_dir_, "cannot be created: '" + p.string() + "' is a file, not a folder");
+  if (!missing.empty() && ::access(p.c_str(), W_OK | X_OK) != 0)
+    throw InputError(out_dir_, "cannot be created: '" + p.string() + "' is not writable");
+  for (auto it = missing.rbegin(); it != missing.rend(); ++it) {
+    if (!fs::create_directory(*it, ec) && !fs::is_directory(*it)) {
+      discard();
+      throw InputError(out_dir_, "cannot be created: " + (ec ? ec.message() : it->string()));
+    }
+    created_.insert(created_.begin(), it->string());
+  }
+  if (::access(out.c_str(), W_OK | X_OK) != 0) {
+    discard();
+    throw InputError(out_dir_, "is not writable");
+  }
+  const fs::path beside = staging_parent(out);
+  if (::access(beside.c_str(), W_OK | X_OK) != 0) {
+    discard();
+    throw InputError(out_dir_, "cannot write beside it: '" + beside.string() +
+                                   "' is not writable (the outputs are staged there and moved in together)");
+  }
+  // --- the signal handlers clean up what the claim made from now on ---
+  g_path_count = 0;
+  g_staging[0] = 0;
+  g_created_count = 0;
+  for (const auto& c : created_)
+    if (g_created_count < kMaxCreated) copy_path(g_created[g_created_count], c), g_created_count = g_created_count + 1;
+  const std::string lock = (out / kLockName).string();
+  copy_path(g_lock, lock);
+  g_active = 1;
+  install_handlers();
+  // --- the lock: one command writes a folder at a time ---
+  for (int attempt = 0; attempt < 8 && lock_fd_ < 0; ++attempt) {
+    const int fd = ::open(lock.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd < 0) {
+      const std::string why = std::strerror(errno);
+      g_lock[0] = 0;
+      discard();
+      throw InputError(out_dir_, "cannot lock: " + why);
+    }
+    if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+      char pid[32] = {0};
+      const ssize_t n = ::pread(fd, pid, sizeof pid - 1, 0);
+      ::close(fd);
+      g_lock[0] = 0;  // not ours to remove
+      discard();
+      throw InputError(out_dir_, std::string("another handskin command") +
+                                     (n > 0 ? " (pid " + std::string(pid, static_cast<size_t>(n)) + ")" : "") +
+                                     " is writing into this folder; try again when it has finished");
+    }
+    // The holder before us may have removed the file after we opened it: lock the file
+    // that is there now.
+    struct stat a {}, b {};
+    if (::fstat(fd, &a) == 0 && ::stat(lock.c_str(), &b) == 0 && a.st_ino == b.st_ino && a.st_dev == b.st_dev) {
+      lock_fd_ = fd;
+      const std::string pid = std::to_string(::getpid());
+      if (::ftruncate(fd, 0) == 0 && ::pwrite(fd, pid.data(), pid.size(), 0) < 0) {
+      }
+    } else {
+      ::close(fd);
+    }
+  }
+  if (lock_fd_ < 0) {
+    g_lock[0] = 0;
+    discard();
+    throw InputError(out_dir_, "cannot lock: the lock file keeps changing");
+  }
+  if (const int hold = fault_value("hold"); hold > 0) std::this_thread::sleep_for(std::chrono::seconds(hold));
+  // --- ownership: each name in the way must be ours (or, with --force, is moved aside) ---
+  try {
+    manifest_ = read_manifest(out_dir_);
+  } catch (const InputError&) {
+    if (!options_.force) {
+      discard();
+      throw;
+    }
+    in_the_way_.push_back(kManifestName);  // not ours: aside with the rest
+  }
+  auto check = [&](const std::string& name, bool writing) {
+    const fs::path f = out / name;
+    const auto st = fs::symlink_status(f, ec);
+    if (!fs::exists(st)) return;
+    std::string why;
+    if (fs::is_directory(st)) why = "is a folder";
+    else if (fs::is_symlink(st)) why = "is a symbolic link";
+    else if (!fs::is_regular_file(st)) why = "is not a plain file";
+    else if (!manifest_.count(name)) why = "was not written by handskin";
+    else {
+      OwnedFile d;
+      try {
+        d = describe_file(f.string());
+      } catch (const InputError&) {
+        why = "cannot be read";
+      }
+      if (why.empty() && d == manifest_.at(name)) {
+        ours_[name] = d;
+        return;
+      }
+      if (why.empty()) why = "was changed since handskin wrote it";
+    }
+    if (!writing) return;  // not ours and not in the way: left alone
+    if (options_.force) {
+      in_the_way_.push_back(name);
+      return;
+    }
+    discard();
+    throw InputError((fs::path(out_dir_) / name).string(), "is in the way: it " + why + refuse_hint());
+  };
+  for (const auto& n : writes) check(n, true);
+  for (const auto& n : others)
+    if (!contains(writes, n)) check(n, false);
+  claimed_done_ = true;
+}
+
 std::string OutputSet::stage(const std::string& name) {
-  HS_CHECK(name.find('/') == std::string::npos && !name.empty() && name[0] != '.', "output names are plain file names");
-  HS_CHECK(!g_active || staging_ == g_staging, "one output set stages at a time");
+  HS_CHECK(claimed_done_, "an output set is claimed before it stages");
+  HS_CHECK(contains(writes_, name), "output '" + name + "' was not claimed");
   ensure_staging();
   for (const auto& n : names_) HS_CHECK(n != name, "output '" + name + "' staged twice");
   names_.push_back(name);
@@ -102,9 +323,9 @@ std::string OutputSet::stage(const std::string& name) {
   if (fault("stall", n)) std::this_thread::sleep_for(std::chrono::seconds(30));
   if (fault("stage", n)) throw InputError(final_path(name), "cannot write: injected fault (HANDSKIN_FAULT)");
   const std::string path = (fs::path(staging_) / name).string();
-  for (const std::string& p : {path, temp_name_for(path)}) {
+  for (const std::string& q : {path, temp_name_for(path)}) {
     HS_CHECK(g_path_count < kMaxPaths, "too many outputs in one set");
-    copy_path(g_paths[g_path_count], p);
+    copy_path(g_paths[g_path_count], q);
     g_path_count = g_path_count + 1;
   }
   return path;
@@ -119,100 +340,176 @@ void OutputSet::ensure_staging() {
                  .string();
   std::error_code ec;
   fs::remove_all(staging_, ec);
-  if (!fs::create_directory(staging_, ec) || ec)
+  if (!fs::create_directory(staging_, ec) || ec) {
+    const std::string s = staging_;
+    staging_.clear();
     throw InputError(out_dir_, "cannot write: cannot create a staging folder in '" + parent.string() + "'" +
                                    (ec ? ": " + ec.message() : std::string()));
+  }
   copy_path(g_staging, staging_);
-  g_path_count = 0;
-  g_active = 1;
-  install_handlers();
+}
+
+std::string OutputSet::staged_path(const std::string& name) const {
+  HS_CHECK(contains(names_, name) && !staging_.empty(), "output '" + name + "' was not staged");
+  return (fs::path(staging_) / name).string();
 }
 
 std::string OutputSet::final_path(const std::string& name) const { return (fs::path(out_dir_) / name).string(); }
 
-void OutputSet::retire(const std::vector<std::string>& names) {
-  retired_.insert(retired_.end(), names.begin(), names.end());
+void OutputSet::release() noexcept {
+  if (lock_fd_ >= 0) {
+    std::error_code ec;
+    fs::remove(fs::path(out_dir_) / kLockName, ec);  // while still held: see claim()
+    ::close(lock_fd_);
+    lock_fd_ = -1;
+  }
+  if (g_active) {
+    g_active = 0;
+    g_lock[0] = 0;
+    g_staging[0] = 0;
+    g_path_count = 0;
+    g_created_count = 0;
+    restore_handlers();
+  }
 }
 
 void OutputSet::discard() noexcept {
-  if (staging_.empty()) return;
   std::error_code ec;
-  fs::remove_all(staging_, ec);
-  if (g_active && staging_ == g_staging) {
-    g_active = 0;
-    restore_handlers();
-  }
+  if (!staging_.empty()) fs::remove_all(staging_, ec);
   staging_.clear();
+  release();
+  for (const auto& d : created_) fs::remove(d, ec);  // deepest first; only if empty
+  created_.clear();
 }
 
 void OutputSet::commit() {
   HS_CHECK(!committed_, "an output set is committed once");
-  if (staging_.empty() && retired_.empty()) {
-    committed_ = true;
-    return;
-  }
+  HS_CHECK(claimed_done_, "an output set is claimed before it commits");
   g_committing = 1;
   std::error_code ec;
-  // Folders we create for the output are removed again if the commit fails.
-  std::vector<fs::path> created;
-  for (fs::path p = fs::absolute(out_dir_).lexically_normal(); !p.empty() && !fs::exists(p, ec); p = p.parent_path()) {
-    created.push_back(p);
-    if (p == p.root_path()) break;
-  }
+  const fs::path out(out_dir_);
+  // The new manifest: the old one's entries, the files staged now, less what goes.
+  std::map<std::string, OwnedFile> manifest = manifest_;
+  ensure_staging();
+  for (const auto& n : names_) manifest[n] = describe_file((fs::path(staging_) / n).string());
   struct Move {
     std::string name;
-    bool had_old = false, placed = false;
+    fs::path kept;  // where the file that was there went (aside or backup); empty: none
+    bool placed = false;
   };
   std::vector<Move> done;
-  ensure_staging();
   const fs::path aside = fs::path(staging_) / ".replaced";
+  fs::path backup;
+  bool backup_made = false;
   auto undo = [&] {
     std::error_code ignored;
     for (auto it = done.rbegin(); it != done.rend(); ++it) {
-      if (it->placed) fs::remove(fs::path(out_dir_) / it->name, ignored);
-      if (it->had_old) fs::rename(aside / it->name, fs::path(out_dir_) / it->name, ignored);
+      if (it->placed) fs::remove(out / it->name, ignored);
+      if (!it->kept.empty()) fs::rename(it->kept, out / it->name, ignored);
     }
-    for (const auto& d : created) fs::remove(d, ignored);  // deepest first; only if empty
+    if (backup_made) fs::remove(backup, ignored);
   };
   auto fail = [&](const std::string& name, const std::string& why) {
     undo();
     g_committing = 0;
+    moved_aside_.clear();
     discard();
     const int pending = g_pending;
     if (pending) std::raise(pending);
     throw InputError(final_path(name), "cannot move into place: " + why + "; " + out_dir_ + " is as it was");
   };
-  fs::create_directories(out_dir_, ec);
-  if (ec || !fs::is_directory(out_dir_)) fail(".", "cannot create the output folder" + (ec ? ": " + ec.message() : ""));
+  if (!fs::is_directory(out, ec)) fail(".", "the output folder is gone");
   fs::create_directory(aside, ec);
   if (ec) fail(".", "cannot create " + aside.string() + ": " + ec.message());
-  std::vector<std::pair<std::string, bool>> moves;  // name, has a new file
-  for (const auto& n : names_) moves.emplace_back(n, true);
-  for (const auto& n : retired_)
-    if (std::find(names_.begin(), names_.end(), n) == names_.end()) moves.emplace_back(n, false);
-  int count = 0;
-  for (const auto& [name, fresh] : moves) {
-    const fs::path dst = fs::path(out_dir_) / name;
-    Move m{name};
-    if (fs::exists(fs::symlink_status(dst, ec))) {
+  // What is there under a name we touch: ours (unchanged since the claim) goes aside and is
+  // dropped after the commit; with --force, anything else goes into the backup; a thing that
+  // appeared or changed during the run stops the commit.
+  auto take_away = [&](const std::string& name, bool writing, Move* m) {
+    const fs::path dst = out / name;
+    if (!fs::exists(fs::symlink_status(dst, ec))) return;
+    const bool forced = contains(in_the_way_, name);
+    if (name == kManifestName && !forced) {  // read and found ours at the claim
       fs::rename(dst, aside / name, ec);
       if (ec) fail(name, ec.message());
-      m.had_old = true;
+      m->kept = aside / name;
+      return;
     }
-    done.push_back(m);
-    if (!fresh) continue;
+    if (!forced) {
+      const auto it = ours_.find(name);
+      bool unchanged = false;
+      if (it != ours_.end() && fs::is_regular_file(fs::symlink_status(dst, ec))) {
+        try {
+          unchanged = describe_file(dst.string()) == it->second;
+        } catch (const InputError&) {
+        }
+      }
+      if (!unchanged) {
+        if (!writing) {  // not ours (or no longer): left alone, and no longer in the manifest
+          manifest.erase(name);
+          return;
+        }
+        fail(name, it == ours_.end() ? "it appeared during the run and is not handskin's"
+                                     : "it was changed during the run");
+      }
+      fs::rename(dst, aside / name, ec);
+      if (ec) fail(name, ec.message());
+      m->kept = aside / name;
+      return;
+    }
+    if (!backup_made) {
+      const std::string stamp = "handskin-backup-" + utc_stamp();
+      backup = out / stamp;
+      for (int k = 2; fs::exists(fs::symlink_status(backup, ec)); ++k) backup = out / (stamp + "-" + std::to_string(k));
+      fs::create_directory(backup, ec);
+      if (ec) fail(name, "cannot create the backup folder " + backup.string() + ": " + ec.message());
+      backup_made = true;
+    }
+    fs::rename(dst, backup / name, ec);
+    if (ec) fail(name, ec.message());
+    m->kept = backup / name;
+    moved_aside_.push_back((backup / name).string());
+  };
+  // Names of ours that this run does not write: removed when still ours (left alone, and
+  // out of the manifest, when not).
+  std::vector<std::string> gone;
+  for (const auto* list : {&writes_, &others_})
+    for (const auto& name : *list) {
+      if (contains(names_, name) || contains(gone, name)) continue;
+      gone.push_back(name);
+      done.push_back(Move{name});
+      take_away(name, false, &done.back());
+      manifest.erase(name);
+    }
+  {
+    Json files = Json::object();
+    for (const auto& [n, f] : manifest) files[n] = {{"size", f.size}, {"sha256", f.sha256}};
+    try {
+      write_file_atomic((fs::path(staging_) / kManifestName).string(),
+                        Json{{"format", "handskin-manifest/1"}, {"files", files}}.dump(1) + "\n");
+    } catch (const InputError& e) {
+      fail(kManifestName, e.detail());
+    }
+  }
+  int count = 0;
+  std::vector<std::string> moves = names_;
+  moves.push_back(kManifestName);  // last: it describes the others
+  for (const auto& name : moves) {
+    done.push_back(Move{name});
+    take_away(name, true, &done.back());
     ++count;
     if (fault("commit", count)) fail(name, "injected fault (HANDSKIN_FAULT)");
-    fs::rename(fs::path(staging_) / name, dst, ec);
+    fs::rename(fs::path(staging_) / name, out / name, ec);
     if (ec) fail(name, ec.message());
     done.back().placed = true;
   }
   committed_ = true;
   fs::remove_all(staging_, ec);
-  g_active = 0;
-  restore_handlers();
   staging_.clear();
+  created_.clear();
+  release();
   g_committing = 0;
+  if (options_.say)
+    for (const auto& m : moved_aside_) options_.say("moved aside (not handskin's): " + m);
   const int pending = g_pending;
   if (pending) std::raise(pending);  // the files are in place: now die as asked
 }

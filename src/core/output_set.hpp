@@ -1,45 +1,97 @@
 #pragma once
-/// A command's output files, written as one set: every file is first written into a staging
-/// folder beside the output folder; `commit()` moves them all into place, or none of them.
+/// A command's output files, written as one set into a folder that handskin owns only in part.
 ///
-///  - Until `commit()`, the output folder is not touched (not even created).
-///  - `commit()` moves each file over its destination; a file it replaces is kept aside and
-///    put back if a later move fails, so a failed commit leaves the folder as it was.
-///    SIGINT, SIGTERM and SIGHUP are held during the moves (a few renames) and delivered after.
+/// Ownership (docs/formats.md "Files handskin writes"): the folder holds a manifest,
+/// `.handskin-manifest.json` (format handskin-manifest/1), listing every file handskin put
+/// there with its size and SHA-256. A file is *ours* when the manifest lists it and it is
+/// unchanged since (same size, same hash). Only our files are ever replaced or removed.
+///
+///  - `claim(names)` comes first, before any work: every name the command may write or
+///    retire is checked. One that is in the way and not ours (a user's file, a folder, a file
+///    changed since we wrote it) is refused with an InputError naming it — or, with `force`,
+///    marked to be moved aside at commit into a dated backup folder
+///    (`handskin-backup-YYYYMMDD-HHMMSS/`), never deleted. The output folder is created here
+///    if needed (so "cannot be created / is not writable" is known before any work) and
+///    locked: a second command claiming the same folder is refused at once while the first
+///    holds it (flock on `.handskin-lock`). A set destroyed without a commit removes the lock
+///    and the folders it created.
+///  - Every file is then written into a staging folder beside the output folder; `commit()`
+///    moves them all into place, or none of them. A file it replaces is kept aside and put back
+///    if a later move fails, so a failed commit leaves the folder as it was. The manifest is
+///    written last. SIGINT, SIGTERM and SIGHUP are held during the moves (a few renames) and
+///    delivered after.
 ///  - A set destroyed without a commit (an exception, a failed stage) removes its staging
-///    folder. A SIGINT/SIGTERM/SIGHUP while files are being staged removes them too, then
-///    ends the process as the signal would have.
-///  - Files in the output folder that the set does not write are never touched, except the
-///    names given to `retire()` (outputs of an earlier run that this one does not make: left
-///    beside the new report they would look like part of it).
+///    folder. A SIGINT/SIGTERM/SIGHUP before the commit removes it too (and the lock, and the
+///    folders the set created), then ends the process as the signal would have.
+///  - The `others` given to `claim()` (outputs of an earlier run that this one does not make:
+///    left beside the new report they would look like part of it) are removed when ours, left
+///    alone otherwise.
 ///
 /// Fault injection for tests (docs/architecture.md): HANDSKIN_FAULT=stage:N makes the N-th
 /// staged file fail, commit:N the N-th move of the commit, stall:N waits 30 s before staging
-/// the N-th file (so a test can send a signal mid-write).
+/// the N-th file (so a test can send a signal mid-write), hold:N waits N seconds after the
+/// claim (so a test can start a second command on the same folder).
+#include <cstdint>
+#include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
 namespace handskin {
 
+/// The manifest's name in an output folder.
+inline constexpr const char* kManifestName = ".handskin-manifest.json";
+/// The lock's name in an output folder.
+inline constexpr const char* kLockName = ".handskin-lock";
+
+/// A file as the manifest records it.
+struct OwnedFile {
+  std::uintmax_t size = 0;
+  std::string sha256;  ///< lowercase hex
+  bool operator==(const OwnedFile& o) const { return size == o.size && sha256 == o.sha256; }
+};
+
+/// Size and SHA-256 of a regular file (OpenSSL). Throws InputError when it cannot be read.
+OwnedFile describe_file(const std::string& path);
+
+/// The manifest of `dir` (name → file); empty when there is none. A manifest that is not
+/// handskin-manifest/1 is an InputError naming it (it is not ours to overwrite).
+std::map<std::string, OwnedFile> read_manifest(const std::string& dir);
+
+struct OutputSetOptions {
+  bool force = false;  ///< move things in the way aside into a dated backup instead of refusing
+  std::function<void(const std::string&)> say;  ///< one progress line (what was moved aside)
+};
+
 class OutputSet {
  public:
   /// `out_dir` is where the files go; it may not exist yet. Nothing is created here.
-  explicit OutputSet(std::string out_dir);
+  explicit OutputSet(std::string out_dir, OutputSetOptions options = {});
   ~OutputSet();
   OutputSet(const OutputSet&) = delete;
   OutputSet& operator=(const OutputSet&) = delete;
 
-  /// The path to write output `name` (a plain file name) to now; its final path is
+  /// Before any work: lock the folder (creating it if needed) and check every name the
+  /// command will write (`writes`: each must be free or ours; see above). `others` are names
+  /// of earlier runs' outputs that this one does not write: removed at the commit when ours,
+  /// left alone otherwise (a claimed write that is not staged is treated the same). Throws
+  /// InputError naming the first name in the way, or the folder when it cannot be created,
+  /// written or locked.
+  void claim(const std::vector<std::string>& writes, const std::vector<std::string>& others = {});
+  /// The path to write output `name` (a claimed plain file name) to now; its final path is
   /// `final_path(name)`. Creates the staging folder on first use. Throws InputError when the
   /// staging folder cannot be made (the output folder's parent is not writable).
   std::string stage(const std::string& name);
+  /// Where staged output `name` is now (to read it back before the commit).
+  std::string staged_path(const std::string& name) const;
   /// Where `name` will be once committed (for reports and messages).
   std::string final_path(const std::string& name) const;
-  /// Names of ours to remove from the output folder at commit if this set does not write them.
-  void retire(const std::vector<std::string>& names);
-  /// Move every staged file into the output folder (created if needed). Throws InputError
-  /// naming the file when a move fails, after putting everything back.
+  /// Move every staged file into the output folder, things in the way that `force` moves
+  /// aside into the backup, and write the manifest. Throws InputError naming the file when a
+  /// move fails (or a file of ours was changed during the run), after putting everything back.
   void commit();
+  /// What commit moved aside (final paths in the backup folder).
+  const std::vector<std::string>& moved_aside() const { return moved_aside_; }
 
   const std::string& out_dir() const { return out_dir_; }
   const std::vector<std::string>& names() const { return names_; }
@@ -47,9 +99,16 @@ class OutputSet {
  private:
   void ensure_staging();
   void discard() noexcept;
+  void release() noexcept;
   std::string out_dir_, staging_;
-  std::vector<std::string> names_, retired_;
-  bool committed_ = false;
+  OutputSetOptions options_;
+  std::vector<std::string> names_, writes_, others_, moved_aside_;
+  std::map<std::string, OwnedFile> manifest_;  ///< as read at the claim
+  std::map<std::string, OwnedFile> ours_;      ///< the claimed names that exist and are ours
+  std::vector<std::string> in_the_way_;        ///< claimed names that exist and are not ours (force)
+  std::vector<std::string> created_;           ///< folders the claim made, deepest first
+  int lock_fd_ = -1;
+  bool claimed_done_ = false, committed_ = false;
 };
 
 }  // namespace handskin

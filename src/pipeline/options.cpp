@@ -65,6 +65,11 @@ const std::vector<KeySpec>& key_table() {
       {"texture", "size", Kind::Int, 64, 8192, false, HS_FIELD(texture.size)},
       {"texture", "blend_deg", Kind::Real, 0, 60, true, HS_FIELD(texture.blend_deg)},
       {"texture", "weight", Kind::Real, 0, 1, false, HS_FIELD(texture.weight)},
+      {"gates", "cloud_to_skin_p95_mm", Kind::Real, 0, 100, true, HS_FIELD(gates.cloud_to_skin_p95_mm)},
+      {"gates", "cloud_to_skin_max_mm", Kind::Real, 0, 100, true, HS_FIELD(gates.cloud_to_skin_max_mm)},
+      {"gates", "patches_to_skin_p95_mm", Kind::Real, 0, 100, true, HS_FIELD(gates.patches_to_skin_p95_mm)},
+      {"gates", "patches_to_skin_max_mm", Kind::Real, 0, 100, true, HS_FIELD(gates.patches_to_skin_max_mm)},
+      {"gates", "g0_gap_mm", Kind::Real, 0, 1, true, HS_FIELD(gates.g0_gap_mm)},
   };
   return t;
 }

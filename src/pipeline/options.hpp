@@ -66,6 +66,14 @@ struct PipelineOptions {
     double weight = 0.7;           ///< pictures: colour = (1 - weight) shading + weight texture (thesis 0.3 : 0.7)
   } texture;
 
+  struct Gates {                   ///< quality gates on the written outputs (docs/architecture.md "Quality gates")
+    double cloud_to_skin_p95_mm = 0.35;     ///< the merged cloud's points to skin.ply
+    double cloud_to_skin_max_mm = 3.0;
+    double patches_to_skin_p95_mm = 0.75;   ///< the patch surface to skin.ply
+    double patches_to_skin_max_mm = 3.0;
+    double g0_gap_mm = 1e-6;                ///< largest gap between neighbouring patches
+  } gates;
+
   /// False with a message naming the key when a value is out of range.
   bool IsValid(std::string* error) const;
 };

@@ -225,6 +225,20 @@ std::string patch_report_html(const PatchStageResult& r, const PatchReportFigure
   h += "<h1>Bézier patch fitting error</h1>\n";
   h += "<p>" + std::to_string(s.patches.size()) + " bicubic patches, " + std::to_string(s.control_points) +
        " control points over the whole closed hand, neighbours sharing their borders' control points (thesis §4.1.4, Table 4.1). Distances in mm, from the measured points to the surface.</p>\n";
+  if (run_report.is_object() && run_report.contains("gates") && run_report["gates"].is_array()) {
+    // Measured on the outputs as written (pipeline/gates.hpp); a failed gate in red.
+    h += "<h2>Quality gates</h2>\n<p>Measured on the files as written (skin.ply read back); each limit is a pipeline "
+         "key, or fixed for the skin's structure.</p>\n<table>\n" +
+         row({"gate", "value", "limit", "unit", "", "measured"}, true);
+    for (const auto& g : run_report["gates"]) {
+      const bool pass = g.value("pass", false);
+      const std::string key = g.contains("key") && g["key"].is_string() ? " (" + g["key"].get<std::string>() + ")" : "";
+      h += row({html_escape(g.value("name", "")), fmt("%.4g", g.value("value", 0.0)),
+                fmt("%.4g", g.value("limit", 0.0)) + html_escape(key), html_escape(g.value("unit", "")),
+                pass ? "pass" : "<b style=\"color:#c00\">FAIL</b>", html_escape(g.value("measure", ""))});
+    }
+    h += "</table>\n";
+  }
   h += "<h2>Table 4.1: fitting error per side</h2>\n<table>\n";
   h += row({"side", "points", "mean (foot points)", "max (foot points)",
             "mean (" + std::to_string(f.error_grid) + "×" + std::to_string(f.error_grid) + " cells)", "max (cells)",

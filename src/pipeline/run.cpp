@@ -12,6 +12,7 @@
 #include "rigging/crease.hpp"
 #include "rigging/deform.hpp"
 #include "render/preview.hpp"
+#include "pipeline/gates.hpp"
 #include "pipeline/registration_stage.hpp"
 #include "pipeline/stage_options.hpp"
 
@@ -106,19 +107,9 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   const PostureSolver model_check(posture_model);  // refused now, not after the stages
   // The photos: given, or found beside the scans.
   std::optional<ScanPhoto> back_photo, palm_photo;
-  if (in.options.texture.enabled) {
-    const auto exists = [](const std::string& f) { return std::filesystem::exists(f); };
-    const std::string bp = in.back_photo.empty() ? in.back_stem + ".photo.png" : in.back_photo;
-    const std::string pp = in.palm_photo.empty() ? in.palm_stem + ".photo.png" : in.palm_photo;
-    const bool given = !in.back_photo.empty() || !in.palm_photo.empty();
-    if (given || (exists(bp) && exists(pp))) {
-      back_photo = load_scan_photo(bp, back);
-      palm_photo = load_scan_photo(pp, palm);
-    } else {
-      R.texture_note = "no texture: " + (exists(bp) ? pp : bp) + " not found";
-    }
-  } else {
-    R.texture_note = "no texture: texture.enabled is false";
+  if (const auto photos = run_photo_paths(in, &R.texture_note)) {
+    back_photo = load_scan_photo(photos->first, back);
+    palm_photo = load_scan_photo(photos->second, palm);
   }
   R.back = scan_figures(back, in.back_stem);
   R.palm = scan_figures(palm, in.palm_stem);
@@ -193,6 +184,31 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   return R;
 }
 
+std::optional<std::pair<std::string, std::string>> run_photo_paths(const RunInputs& in, std::string* note) {
+  if (!in.options.texture.enabled) {
+    if (note) *note = "no texture: texture.enabled is false";
+    return std::nullopt;
+  }
+  const auto exists = [](const std::string& f) { return std::filesystem::exists(f); };
+  const std::string bp = in.back_photo.empty() ? in.back_stem + ".photo.png" : in.back_photo;
+  const std::string pp = in.palm_photo.empty() ? in.palm_stem + ".photo.png" : in.palm_photo;
+  const bool given = !in.back_photo.empty() || !in.palm_photo.empty();
+  if (given || (exists(bp) && exists(pp))) return std::pair{bp, pp};
+  if (note) *note = "no texture: " + (exists(bp) ? pp : bp) + " not found";
+  return std::nullopt;
+}
+
+std::vector<std::string> run_output_plan(const RunInputs& in) {
+  std::vector<std::string> n = {"back.ply", "palm.ply", "report.json", "skin.glb"};
+  if (run_photo_paths(in)) n.push_back("texture.png");
+  n.insert(n.end(), registration_output_names().begin(), registration_output_names().end());
+  const auto skin = skin_output_plan(in.auto_rig || in.rig_path.empty(), in.options.skin.slices_json,
+                                     in.baseline || in.options.skin.baseline);
+  n.insert(n.end(), skin.begin(), skin.end());
+  if (in.options.patches.enabled) n.insert(n.end(), patch_output_names().begin(), patch_output_names().end());
+  return n;
+}
+
 std::vector<std::string> run_output_names() {
   std::vector<std::string> n = {"back.ply", "palm.ply", "report.json", "skin.glb", "texture.png"};
   n.insert(n.end(), registration_output_names().begin(), registration_output_names().end());
@@ -201,7 +217,7 @@ std::vector<std::string> run_output_names() {
   return n;
 }
 
-Json write_run_outputs(OutputSet& out, const RunResult& r) {
+RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
   const StageTimer t_write;
   const RunInputs& in = r.inputs;
   Json outputs;
@@ -214,6 +230,18 @@ Json write_run_outputs(OutputSet& out, const RunResult& r) {
   outputs.update(write_registration_outputs(out, r.registration, reg_report));
   outputs.update(write_skin_outputs(out, r.skin, r.texture ? &r.rigged.texture : nullptr,
                                     static_cast<float>(in.options.texture.weight)));
+  // The quality gates, on the skin as written (skin.ply read back) and the other outputs.
+  RunWritten W;
+  {
+    const MergedArrays merged = merged_arrays(*r.registration.merged);
+    GateInputs gi;
+    gi.skin_file = out.staged_path("skin.ply");
+    gi.skin_name = out.final_path("skin.ply");
+    gi.cloud = &merged.points;
+    gi.registration = &r.registration;
+    gi.patches = r.patches ? &*r.patches : nullptr;
+    W.gates = check_gates(gi, in.options);
+  }
 
   Json report;
   report["format"] = "handskin-report/1";
@@ -230,6 +258,7 @@ Json write_run_outputs(OutputSet& out, const RunResult& r) {
                     {"palm", to_json(r.palm)}});
   stages.push_back(reg_stage);
   stages.push_back(to_json(r.skin));
+  describe_written_skin(W.gates, &stages.back());
   if (r.patches) stages.push_back(to_json(*r.patches));
   {
     size_t influences = 0;
@@ -264,6 +293,8 @@ Json write_run_outputs(OutputSet& out, const RunResult& r) {
   outputs["skin_glb"] = out.final_path("skin.glb");
   report["inputs"]["posture_model"] = in.posture_model;
   report["stages"] = stages;  // the computing stages, for the patch report's page
+  report["gates"] = to_json(W.gates);
+  report["gates_passed"] = W.gates.all_pass();
   if (r.patches) outputs.update(write_patch_outputs(out, *r.patches, r.skin.rig, report, r.posed));
   stages.push_back({{"name", "write"}, {"seconds", t_write.seconds()}});
   report["stages"] = stages;
@@ -271,7 +302,8 @@ Json write_run_outputs(OutputSet& out, const RunResult& r) {
   report["outputs"] = outputs;
   report["total_seconds"] = r.seconds + t_write.seconds();
   save_json(out.stage("report.json"), report);
-  return report;
+  W.report = std::move(report);
+  return W;
 }
 
 }  // namespace handskin

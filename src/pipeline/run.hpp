@@ -13,6 +13,7 @@
 
 #include "core/json_util.hpp"
 #include "core/output_set.hpp"
+#include "pipeline/gates.hpp"
 #include "pipeline/options.hpp"
 #include "pipeline/patch_stage.hpp"
 #include "rigging/gltf.hpp"
@@ -70,11 +71,24 @@ struct RunResult {
 /// Run every stage. Reads the inputs, writes nothing. Bad input throws InputError naming it.
 RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress);
 
-/// Every output name `run` writes (for OutputSet::retire).
+/// Every output name `run` can write (an earlier run's outputs this one does not make go).
 std::vector<std::string> run_output_names();
+/// The outputs `run` will write with these inputs (their options read): what
+/// OutputSet::claim checks before any work.
+std::vector<std::string> run_output_plan(const RunInputs& in);
+
+/// The two photos the texture is baked from: given, or `<stem>.photo.png` beside both scans;
+/// none when texture.enabled is false or they are not both there (`note` says why).
+std::optional<std::pair<std::string, std::string>> run_photo_paths(const RunInputs& in, std::string* note = nullptr);
+
+struct RunWritten {
+  Json report;         ///< report.json as staged (handskin-report/1)
+  QualityGates gates;  ///< measured on the staged files (also in the report)
+};
 
 /// Stage every output of `r` into `out` — back.ply, palm.ply, the registration's, the skin's,
-/// and report.json last — and return the report (handskin-report/1). The caller commits.
-Json write_run_outputs(OutputSet& out, const RunResult& r);
+/// and report.json last — with the quality gates measured on the staged files (skin.ply read
+/// back). The caller commits (or, with --strict and a failed gate, does not).
+RunWritten write_run_outputs(OutputSet& out, const RunResult& r);
 
 }  // namespace handskin

@@ -280,6 +280,14 @@ const std::vector<std::string>& skin_output_names() {
   return names;
 }
 
+std::vector<std::string> skin_output_plan(bool automatic, bool slices, bool baseline) {
+  std::vector<std::string> n = {"skin.ply", "skin.obj", "skin.png"};
+  if (automatic) n.push_back("rig_auto.json");
+  if (slices) n.push_back("slices.json");
+  if (baseline) n.push_back("baseline.ply");
+  return n;
+}
+
 Json write_skin_outputs(OutputSet& out, const SkinStageResult& r, const TextureMap* texture, float texture_weight) {
   Json outputs;
   save_skin_ply(out.stage("skin.ply"), r.skin);

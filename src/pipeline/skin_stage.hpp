@@ -86,8 +86,11 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
 /// The report's "skin" stage (no output paths).
 Json to_json(const SkinStageResult& r);
 
-/// Every output name the skin stage can write (for OutputSet::retire).
+/// Every output name the skin stage can write.
 const std::vector<std::string>& skin_output_names();
+/// The names it writes: with the skeleton placed automatically (rig_auto.json), the
+/// sections (slices.json), the Poisson baseline (baseline.ply).
+std::vector<std::string> skin_output_plan(bool automatic, bool slices, bool baseline);
 
 /// Stage skin.ply (labels), skin.obj, skin.png, and as computed rig_auto.json, slices.json,
 /// baseline.ply into `out`. Returns {key: final path} for the report's "outputs".

@@ -156,7 +156,16 @@ DataFit fit_to_data(SM* sm, const std::vector<Eigen::Vector3d>& points, const Da
 
 // Where a move made the skin cross itself (a thin web pulled through its other side), those
 // triangles' corners go back, until nothing crosses (the stage's own check, done here).
-Crossings take_back_crossings(SM* sm, const std::vector<K::Point_3>& before) {
+Crossings take_back_crossings(SM* sm, const std::vector<K::Point_3>& before_exact) {
+  // The skin is written in single precision (skin.ply's floats): the test is made on the
+  // positions as they will be written, so that what it says is true of the file. Two
+  // triangles a few micrometres apart in double can cross once rounded.
+  const auto as_written = [](const K::Point_3& p) {
+    return K::Point_3(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
+  };
+  for (const auto v : sm->vertices()) sm->point(v) = as_written(sm->point(v));
+  std::vector<K::Point_3> before(before_exact.size());
+  for (size_t i = 0; i < before.size(); ++i) before[i] = as_written(before_exact[i]);
   Crossings c;
   for (int round = 0; round < 10; ++round) {
     std::vector<std::pair<SM::Face_index, SM::Face_index>> pairs;

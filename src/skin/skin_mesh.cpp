@@ -1,5 +1,7 @@
 #include "skin/skin_mesh.hpp"
 
+#include <cstdlib>
+
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 
 #include <algorithm>
@@ -194,8 +196,8 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
     const double cut_d = R.wrist_cut.d + cut_n.dot(Ti.translation());
     Moves faired;
     R.fair_unseen = fair_unseen(&skin, points, cut_n, cut_d, o.fair_unseen, &faired);
-    if (o.data_fit.enabled || o.fair_unseen.enabled) {
-      const Crossings c = take_back_crossings(&skin, before);
+    if (o.check_self_intersections || o.data_fit.enabled || o.fair_unseen.enabled) {
+      const Crossings c = take_back_crossings(&skin, before);  // also rounds to the written floats
       R.data_fit.reverted = c.reverted;
       R.data_fit.self_intersects = c.self_intersects;
     }
@@ -207,9 +209,8 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   // --- checks, labels, the OpenMesh result ---
   const auto t3 = Clock::now();
   if (o.check_self_intersections) {
-    // The take-back after steps 8 and 9 ends with the same test when either ran.
-    R.self_intersects =
-        o.data_fit.enabled || o.fair_unseen.enabled ? R.data_fit.self_intersects : PMP::does_self_intersect(skin);
+    // The take-back after steps 8 and 9 ends with the test, on the positions as written.
+    R.self_intersects = R.data_fit.self_intersects;
     R.self_intersection_checked = true;
   }
   R.health = mesh_health(R.mesh);
@@ -233,7 +234,16 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
 }
 
 void save_skin_ply(const std::string& path, const SkinResult& skin) {
-  const auto V = mesh_vertices(skin.mesh);
+  auto V = mesh_vertices(skin.mesh);
+  // Fault injection for tests (docs/architecture.md): HANDSKIN_FAULT=cross:1 writes the skin
+  // with its first vertex pushed through the hand to the far side, so that its triangles
+  // cross the skin: the report's checks of the written file must say so.
+  if (const char* f = std::getenv("HANDSKIN_FAULT"); f && std::string(f) == "cross:1" && !V.empty()) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const auto& p : V) c += p;
+    c /= static_cast<double>(V.size());
+    V[0] = 2 * c - V[0];
+  }
   const auto F = mesh_faces(skin.mesh);
   HS_CHECK(skin.vertex_bone.size() == V.size(), "skin labels do not match its vertices");
   std::string out = "ply\nformat binary_little_endian 1.0\ncomment handskin skin, palm frame, mm\n";

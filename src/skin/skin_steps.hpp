@@ -192,9 +192,10 @@ DataFit fit_to_data(SM* sm, const std::vector<Eigen::Vector3d>& points, const Da
 using Moves = std::vector<std::pair<SM::Vertex_index, K::Point_3>>;
 FairUnseen fair_unseen(SM* sm, const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& cut_n, double cut_d,
                        const FairUnseenOptions& options, Moves* moved = nullptr);
-/// After steps 8 and 9: the corners of triangles that cross another go back to `before`
-/// (positions by vertex index), until nothing crosses; the last self-intersection test is
-/// reported (the stage's own check).
+/// After steps 8 and 9: every position rounded to single precision (as skin.ply holds it),
+/// then the corners of triangles that cross another go back to `before` (positions by vertex
+/// index, rounded the same), until nothing crosses; the last self-intersection test is
+/// reported (the stage's own check, true of the written file).
 struct Crossings {
   size_t reverted = 0;
   bool self_intersects = false;

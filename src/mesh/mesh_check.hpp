@@ -1,0 +1,34 @@
+#pragma once
+/// Checks of a mesh file as written: what the report's quality gates say of a skin is
+/// measured here, on the file read back, not on the mesh in memory before it was written.
+#include <cstddef>
+#include <string>
+
+#include "mesh/trimesh.hpp"
+
+namespace handskin {
+
+struct WrittenMeshCheck {
+  std::string path;
+  TriMesh mesh;                      ///< the file as read back
+  MeshHealth health;                 ///< of the mesh read back
+  size_t declared_vertices = 0, declared_faces = 0;  ///< as the PLY header says (0 for other formats)
+  size_t faces_dropped = 0;          ///< faces the reader could not add (non-manifold edges)
+  size_t vertices_split = 0;         ///< vertices the reader had to duplicate to add a face (non-manifold)
+  size_t crossing_pairs = 0;         ///< pairs of triangles that cross (CGAL's exact predicates)
+  bool closed() const { return health.closed() && faces_dropped == 0; }
+  bool manifold() const { return health.manifold() && faces_dropped == 0 && vertices_split == 0; }
+  bool outward() const { return health.volume_mm3 > 0; }
+  bool self_intersects() const { return crossing_pairs > 0; }
+  bool watertight() const { return closed() && manifold() && health.components == 1 && outward() && !self_intersects(); }
+};
+
+/// Read `path` back and check it: closed, manifold, one component, outward, no two triangles
+/// crossing (CGAL::Polygon_mesh_processing::self_intersections, exact predicates, on the
+/// coordinates as stored). Throws InputError when the file cannot be read.
+WrittenMeshCheck check_written_mesh(const std::string& path);
+
+/// Pairs of crossing triangles of `mesh` (CGAL's exact test).
+size_t crossing_pairs(const TriMesh& mesh);
+
+}  // namespace handskin

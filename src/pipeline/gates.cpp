@@ -1,0 +1,127 @@
+#include "pipeline/gates.hpp"
+
+#include <cstdio>
+
+#include "mesh/mesh_distance.hpp"
+#include "pipeline/patch_stage.hpp"
+#include "register/registration.hpp"
+#include "skin/baseline.hpp"
+
+namespace handskin {
+
+namespace {
+std::string num(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.4g", v);
+  return b;
+}
+
+// At most 20 000 points of the cloud, every k-th (as the skin stage measures it).
+std::vector<Eigen::Vector3d> thinned(const std::vector<Eigen::Vector3d>& p) {
+  const size_t step = thinning_step(p.size(), 20000);
+  std::vector<Eigen::Vector3d> out;
+  for (size_t i = 0; i < p.size(); i += step) out.push_back(p[i]);
+  return out;
+}
+}  // namespace
+
+bool QualityGates::all_pass() const {
+  for (const auto& g : gates)
+    if (!g.pass) return false;
+  return true;
+}
+
+std::vector<std::string> QualityGates::failed() const {
+  std::vector<std::string> f;
+  for (const auto& g : gates)
+    if (!g.pass) f.push_back(g.name);
+  return f;
+}
+
+QualityGates check_gates(const GateInputs& in, const PipelineOptions& o) {
+  QualityGates R;
+  auto at_most = [&](std::string name, std::string measure, double value, double limit, std::string unit, std::string key) {
+    R.gates.push_back({std::move(name), std::move(measure), value, limit, std::move(unit), std::move(key), value <= limit});
+  };
+  if (!in.skin_file.empty()) {
+    R.skin = check_written_mesh(in.skin_file);
+    const WrittenMeshCheck& c = *R.skin;
+    const std::string file = in.skin_name.empty() ? in.skin_file : in.skin_name;
+    at_most("skin.closed", "boundary edges of " + file + " (and faces its reader could not add)",
+            static_cast<double>(c.health.boundary_edges + c.faces_dropped), 0, "edges", "");
+    at_most("skin.manifold", "non-manifold vertices of " + file,
+            static_cast<double>(c.health.nonmanifold_vertices + c.vertices_split + c.faces_dropped), 0, "vertices", "");
+    at_most("skin.one_component", "face-connected components of " + file + " beyond the first",
+            static_cast<double>(c.health.components > 0 ? c.health.components - 1 : 1), 0, "components", "");
+    R.gates.push_back({"skin.outward", "enclosed volume of " + file + " (positive: faces oriented outward)",
+                       c.health.volume_mm3, 0, "mm3", "", c.health.volume_mm3 > 0});
+    at_most("skin.self_intersections", "pairs of crossing triangles in " + file + " (CGAL, exact predicates)",
+            static_cast<double>(c.crossing_pairs), 0, "pairs", "");
+    if (in.cloud && !in.cloud->empty()) {
+      const MeshDistance to_skin(c.mesh);
+      R.cloud_to_skin = one_way_distance(thinned(*in.cloud), to_skin);
+      at_most("cloud_to_skin.p95", "merged cloud's points to " + file + ", 95th percentile", R.cloud_to_skin->p95,
+              o.gates.cloud_to_skin_p95_mm, "mm", "gates.cloud_to_skin_p95_mm");
+      at_most("cloud_to_skin.max", "merged cloud's points to " + file + ", largest", R.cloud_to_skin->max,
+              o.gates.cloud_to_skin_max_mm, "mm", "gates.cloud_to_skin_max_mm");
+    }
+  }
+  if (in.patches) {
+    const PatchStageResult& p = *in.patches;
+    at_most("patches_to_skin.p95", "the patch surface (as patches.json holds it) to the polygon skin, 95th percentile",
+            p.surface_to_skin.p95, o.gates.patches_to_skin_p95_mm, "mm", "gates.patches_to_skin_p95_mm");
+    at_most("patches_to_skin.max", "the patch surface to the polygon skin, largest", p.surface_to_skin.max,
+            o.gates.patches_to_skin_max_mm, "mm", "gates.patches_to_skin_max_mm");
+    at_most("patches.g0_gap", "largest gap between neighbouring patches along their shared borders", p.patches.g0_gap_mm,
+            o.gates.g0_gap_mm, "mm", "gates.g0_gap_mm");
+  }
+  if (in.registration) {
+    const RegistrationFigures& f = in.registration->figures;
+    if (f.rotation_sigma_deg > 0) {
+      at_most("registration.rotation_1sigma", "the registration's own error estimate (1 sigma), rotation",
+              f.rotation_sigma_deg, o.registration.warn_rotation_deg, "deg", "registration.warn_rotation_deg");
+      at_most("registration.displacement_1sigma",
+              "the registration's own error estimate (1 sigma), mean displacement of the back scan's skin",
+              f.displacement_sigma_mm, o.registration.warn_displacement_mm, "mm", "registration.warn_displacement_mm");
+    }
+  }
+  return R;
+}
+
+std::string gate_warning(const QualityGate& g) {
+  return "quality gate " + g.name + " failed: " + num(g.value) + " " + g.unit + " (limit " + num(g.limit) +
+         (g.key.empty() ? "" : ", " + g.key) + "): " + g.measure;
+}
+
+Json to_json(const QualityGates& g) {
+  Json a = Json::array();
+  for (const auto& q : g.gates)
+    a.push_back({{"name", q.name}, {"measure", q.measure}, {"value", q.value}, {"limit", q.limit},
+                 {"unit", q.unit}, {"key", q.key.empty() ? Json(nullptr) : Json(q.key)}, {"pass", q.pass}});
+  return a;
+}
+
+void describe_written_skin(const QualityGates& g, Json* j) {
+  if (!g.skin) return;
+  const WrittenMeshCheck& c = *g.skin;
+  Json& m = (*j)["mesh"];
+  m["vertices"] = c.mesh.n_vertices();
+  m["triangles"] = c.mesh.n_faces();
+  m["closed"] = c.closed();
+  m["manifold"] = c.manifold();
+  m["components"] = c.health.components;
+  m["outward"] = c.outward();
+  m["volume_mm3"] = c.health.volume_mm3;
+  m["area_mm2"] = c.health.area_mm2;
+  m["self_intersections"] = c.self_intersects();
+  m["crossing_pairs"] = c.crossing_pairs;
+  m["watertight"] = c.watertight();
+  m["measured_on"] = "the written file";
+  if (g.cloud_to_skin) {
+    const OneWayDistance& d = *g.cloud_to_skin;
+    (*j)["cloud_to_skin_mm"] = {{"mean", d.mean}, {"median", d.median}, {"p95", d.p95}, {"max", d.max},
+                                {"within_1mm", d.within_1mm}, {"samples", d.samples}};
+  }
+}
+
+}  // namespace handskin
