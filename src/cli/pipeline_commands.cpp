@@ -198,6 +198,8 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
   if (!a.truth.empty()) truth = load_truth_skin(a.truth);
   progress("patches", "reading " + merged);
   MergedArrays m = merged_arrays(*load_merged(merged));
+  if (const auto note = orient_rig_to_cloud(&*in.rig, m.points, m.sides); note && !note->empty())
+    progress("patches", rig_path + ": " + *note);
   progress("patches", "rebuilding the skin on " + rig_path);
   const SkinResult skin = build_skin(m.points, *in.rig, skin_options(po));
   PatchOptions opts = patch_options(po);

@@ -47,6 +47,23 @@ Rig load_palm_rig(const std::string& path) {
   return rig;
 }
 
+std::optional<std::string> orient_rig_to_cloud(Rig* rig, const std::vector<Eigen::Vector3d>& points,
+                                               const std::vector<std::uint32_t>& sides) {
+  const Eigen::Vector3d z = hand_frame_from_rig(*rig).linear().row(2).transpose();
+  double back = 0, palm = 0;
+  size_t nb = 0, np = 0;
+  for (size_t k = 0; k < points.size() && k < sides.size(); ++k)
+    (sides[k] == 1 ? back : palm) += points[k].dot(z), ++(sides[k] == 1 ? nb : np);
+  if (nb < 100 || np < 100) return std::nullopt;
+  const bool agrees = back / nb > palm / np;
+  const bool given = rig->palm_normal.has_value();
+  rig->palm_normal = agrees ? z : Eigen::Vector3d(-z);
+  if (agrees) return given ? std::string() : std::string("palm_normal not given: taken from the joints, as the scans agree");
+  return given ? std::string("its palm_normal points into the palm (the back scan's points lie the other way): turned")
+               : std::string("palm_normal not given: taken from the scans (the joints alone point it into the palm, "
+                             "as for a left hand)");
+}
+
 SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
                                const std::function<void(const std::string&)>& progress) {
   const auto t_stage = std::chrono::steady_clock::now();
@@ -120,6 +137,10 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
     }
   } else {
     R.rig = *in.rig;
+    if (const auto note = orient_rig_to_cloud(&R.rig, in.points, in.sides); note && !note->empty()) {
+      R.rig_orientation = *note;
+      progress(in.rig_name + ": " + *note);
+    }
 #pragma omp parallel sections
     {
 #pragma omp section
@@ -210,6 +231,7 @@ Json to_json(const SkinStageResult& r) {
     skeleton["automatic"] = {{"failed", r.placement_failed}};
   }
   skeleton["used"] = r.automatic ? "automatic" : "given";
+  if (!r.rig_orientation.empty()) skeleton["given_rig_orientation"] = r.rig_orientation;
   Json j;
   j["name"] = "skin";
   j["seconds"] = r.seconds;

@@ -28,6 +28,16 @@ namespace handskin {
 /// merged cloud's); another frame is an InputError naming the file.
 Rig load_palm_rig(const std::string& path);
 
+/// The rig's back-of-hand direction made to agree with the scans. Without `palm_normal` the
+/// direction comes from the joints (x × (index MCP − little MCP)), which points into the palm
+/// for a left hand; a planar skeleton cannot tell a left hand back up from a right hand palm
+/// up. The merged cloud can: the back scan's points (sides 1) lie out of the back. The rig gets
+/// the normal the data say (a rig's own `palm_normal` that points into the palm is turned).
+/// Returns a note saying what was done (empty when the rig already agreed), or nothing when
+/// the cloud cannot tell (one side only).
+std::optional<std::string> orient_rig_to_cloud(Rig* rig, const std::vector<Eigen::Vector3d>& points,
+                                               const std::vector<std::uint32_t>& sides);
+
 struct SkinStageInputs {
   std::vector<Eigen::Vector3d> points, normals;  ///< merged cloud, palm frame (markers removed)
   std::vector<std::uint32_t> sides;               ///< per point: 0 palm scan, 1 back scan
@@ -68,6 +78,7 @@ struct SkinStageResult {
   std::string placement_failed;           ///< why it failed (a given rig was then used unchecked)
   double placement_seconds = 0;
   std::optional<JointError> against_given;  ///< the placement against the given rig
+  std::string rig_orientation;            ///< what orient_rig_to_cloud did to the given rig
   std::vector<std::string> warnings;
   double build_seconds = 0, seconds = 0;  ///< the skin build; the whole stage
   OneWayDistance cloud_to_skin;
