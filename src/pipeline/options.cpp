@@ -60,6 +60,7 @@ const std::vector<KeySpec>& key_table() {
       {"patches", "error_grid", Kind::Int, 2, 2000, false, HS_FIELD(patches.error_grid)},
       {"patches", "c1_weight", Kind::Real, 0, 1e4, false, HS_FIELD(patches.c1_weight)},
       {"patches", "fairness", Kind::Real, 0, 10, false, HS_FIELD(patches.fairness)},
+      {"patches", "skin_weight", Kind::Real, 0, 10, true, HS_FIELD(patches.skin_weight)},
       {"rigging", "smooth", Kind::Bool, 0, 1, false, HS_FIELD(rigging.smooth)},
       {"texture", "enabled", Kind::Bool, 0, 1, false, HS_FIELD(texture.enabled)},
       {"texture", "size", Kind::Int, 64, 8192, false, HS_FIELD(texture.size)},

@@ -55,6 +55,7 @@ struct PipelineOptions {
     long error_grid = 100;         ///< error measured against a grid of n x n surface cells
     double c1_weight = 10;         ///< C1 across the borders, relative to the data's weight (0: G0 only)
     double fairness = 1e-3;        ///< second differences inside each patch, relative to the data's weight
+    double skin_weight = 0.05;     ///< the polygon skin's samples as data where the scans saw nothing, relative to a measured point
   } patches;
   struct Rigging {                 ///< the skin bound to the skeleton, skin.glb (docs/rigging.md)
     bool smooth = true;            ///< bone-heat weights (false: rigid, each vertex with its nearest link, as the thesis)

@@ -48,6 +48,7 @@ PatchOptions patch_options(const PipelineOptions& o) {
   p.subdivision = std::clamp(static_cast<int>(std::lround(std::sqrt(static_cast<double>(o.patches.count) / 98.0))), 1, 8);
   p.c1_weight = o.patches.c1_weight;
   p.fairness = o.patches.fairness;
+  p.skin_weight = o.patches.skin_weight;
   return p;
 }
 
