@@ -28,14 +28,7 @@ namespace {
 const std::string kBin = HANDSKIN_BINARY;
 const std::string kFix = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
 
-// Every file under `dir`: relative name -> bytes. A missing folder is {"(absent)": ""}.
-std::map<std::string, std::string> snapshot(const std::string& dir) {
-  std::map<std::string, std::string> s;
-  if (!fs::exists(dir)) return {{"(absent)", ""}};
-  for (const auto& e : fs::recursive_directory_iterator(dir))
-    s[fs::relative(e.path(), dir).string()] = e.is_regular_file() ? read_file(e.path().string()) : "(folder)";
-  return s;
-}
+using test::snapshot;
 
 // No staging folder of ours left in `parent`.
 bool no_staging_left(const std::string& parent) {

@@ -204,14 +204,7 @@ void expect_verdicts_hold(const std::string& run_dir) {
   EXPECT_EQ((*gate(report, "skin.closed"))["pass"].get<bool>(), v.closed_and_oriented);
 }
 
-// Every file under `dir`: relative name -> bytes ("(folder)" for folders).
-std::map<std::string, std::string> snapshot(const std::string& dir) {
-  std::map<std::string, std::string> s;
-  if (!fs::exists(dir)) return {{"(absent)", ""}};
-  for (const auto& e : fs::recursive_directory_iterator(dir))
-    s[fs::relative(e.path(), dir).string()] = e.is_regular_file() ? read_file(e.path().string()) : "(folder)";
-  return s;
-}
+using test::snapshot;
 
 std::string run_cmd(const std::string& out, const std::string& extra = "") {
   return kBin + " -q run --back " + kFix + "back --palm " + kFix + "palm --rig " + kFix + "rig.json --out " + out + " " + extra;

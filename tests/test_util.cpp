@@ -1,4 +1,5 @@
 #include "test_util.hpp"
+#include "core/atomic_file.hpp"
 
 #include <gtest/gtest.h>
 
@@ -99,6 +100,15 @@ void add_sphere(Scene* s, const Eigen::Vector3d& centre, double radius, int obje
   std::vector<std::array<int, 3>> f;
   icosphere(centre, radius, 5, &v, &f);
   s->add(v, f, object);
+}
+
+std::map<std::string, std::string> snapshot(const std::string& dir) {
+  namespace fs = std::filesystem;
+  std::map<std::string, std::string> s;
+  if (!fs::exists(dir)) return {{"(absent)", ""}};
+  for (const auto& e : fs::recursive_directory_iterator(dir))
+    s[fs::relative(e.path(), dir).string()] = e.is_regular_file() ? read_file(e.path().string()) : "(folder)";
+  return s;
 }
 
 const std::string& default_fixture_run() {

@@ -1,6 +1,7 @@
 #pragma once
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -22,6 +23,9 @@ const std::string& default_fixture_run();
 /// Generalised winding number of point p w.r.t. a closed triangle mesh (≈1 inside, ≈0 outside).
 double winding_number(const TriMesh& mesh, const Eigen::Vector3d& p);
 void write_text(const std::string& path, const std::string& text);
+/// Every file under `dir`: relative name -> bytes ("(folder)" for a folder); a missing folder
+/// is {"(absent)": ""}. For comparing an output folder before and after a command.
+std::map<std::string, std::string> snapshot(const std::string& dir);
 /// Scene objects with exact geometry for the scanner and registration tests.
 /// The message of the InputError `f` throws, or "(no error)".
 template <class F>
