@@ -255,8 +255,9 @@ void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<
     if (::fstat(fd, &a) == 0 && ::stat(lock.c_str(), &b) == 0 && a.st_ino == b.st_ino && a.st_dev == b.st_dev) {
       lock_fd_ = fd;
       const std::string pid = std::to_string(::getpid());
-      if (::ftruncate(fd, 0) == 0 && ::pwrite(fd, pid.data(), pid.size(), 0) < 0) {
-      }
+      // The holder's pid, for the message a second command gives (best effort: a lock
+      // without it still locks).
+      if (::ftruncate(fd, 0) == 0) (void)!::pwrite(fd, pid.data(), pid.size(), 0);
     } else {
       ::close(fd);
     }
@@ -341,7 +342,6 @@ void OutputSet::ensure_staging() {
   std::error_code ec;
   fs::remove_all(staging_, ec);
   if (!fs::create_directory(staging_, ec) || ec) {
-    const std::string s = staging_;
     staging_.clear();
     throw InputError(out_dir_, "cannot write: cannot create a staging folder in '" + parent.string() + "'" +
                                    (ec ? ": " + ec.message() : std::string()));
@@ -476,7 +476,7 @@ void OutputSet::commit() {
     for (const auto& name : *list) {
       if (contains(names_, name) || contains(gone, name)) continue;
       gone.push_back(name);
-      done.push_back(Move{name});
+      done.push_back(Move{name, {}, false});
       take_away(name, false, &done.back());
       manifest.erase(name);
     }
@@ -494,7 +494,7 @@ void OutputSet::commit() {
   std::vector<std::string> moves = names_;
   moves.push_back(kManifestName);  // last: it describes the others
   for (const auto& name : moves) {
-    done.push_back(Move{name});
+    done.push_back(Move{name, {}, false});
     take_away(name, true, &done.back());
     ++count;
     if (fault("commit", count)) fail(name, "injected fault (HANDSKIN_FAULT)");
