@@ -41,21 +41,16 @@ inline OutputSetOptions output_options(bool force) {
 inline void settle_gates(const QualityGates& g, bool strict, const std::string& out_dir) {
   for (const auto& q : g.gates)
     if (!q.pass) std::fprintf(stderr, "warning: %s\n", gate_warning(q).c_str());
-  if (strict && !g.all_pass()) {
-    std::string names;
-    for (const auto& n : g.failed()) names += (names.empty() ? "" : ", ") + n;
-    throw GateFailure(out_dir + ": " + std::to_string(g.failed().size()) + " quality gate(s) failed (" + names +
-                      "); --strict: nothing was written");
-  }
+  if (strict && !g.all_pass())
+    throw GateFailure(out_dir + ": " + std::to_string(g.failed().size()) + " quality gate(s) failed (" +
+                      g.failed_list() + "); --strict: nothing was written");
 }
 
 /// One stdout line: how many gates passed, and which failed.
 inline void print_gates(const QualityGates& g) {
-  const auto failed = g.failed();
-  std::string names;
-  for (const auto& n : failed) names += (names.empty() ? "" : ", ") + n;
-  std::printf("quality gates: %zu of %zu passed%s\n", g.gates.size() - failed.size(), g.gates.size(),
-              failed.empty() ? "" : (" (failed: " + names + ")").c_str());
+  const size_t failed = g.failed().size();
+  std::printf("quality gates: %zu of %zu passed%s\n", g.gates.size() - failed, g.gates.size(),
+              failed == 0 ? "" : (" (failed: " + g.failed_list() + ")").c_str());
 }
 
 /// A subcommand and what to do when it was given.

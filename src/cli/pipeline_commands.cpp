@@ -86,8 +86,7 @@ void skin_command(const SkinArgs& a, const Progress& progress) {
   gi.cloud = &in.points;
   const QualityGates gates = check_gates(gi, po);
   describe_written_skin(gates, &report);
-  report["gates"] = to_json(gates);
-  report["gates_passed"] = gates.all_pass();
+  put_gates(gates, &report);
   save_json(out.stage("skin_report.json"), report);
   settle_gates(gates, a.strict, a.out);
   out.commit();
@@ -132,8 +131,7 @@ void register_command(const RegisterArgs& a, const Progress& progress) {
   GateInputs gi;
   gi.registration = &reg;
   const QualityGates gates = check_gates(gi, po);
-  report["gates"] = to_json(gates);
-  report["gates_passed"] = gates.all_pass();
+  put_gates(gates, &report);
   write_registration_outputs(out, reg, report);
   settle_gates(gates, a.strict, a.out);
   out.commit();
@@ -220,8 +218,7 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
   GateInputs gi;
   gi.patches = &r;
   const QualityGates gates = check_gates(gi, po);
-  report["gates"] = to_json(gates);
-  report["gates_passed"] = gates.all_pass();
+  put_gates(gates, &report);
   report["outputs"] = write_patch_outputs(out, r, *in.rig, Json{{"gates", report["gates"]}});
   report["outputs"]["report"] = out.final_path("report.json");
   save_json(out.stage("report.json"), report);

@@ -12,7 +12,6 @@
 #include <filesystem>
 #include <fstream>
 #include <fcntl.h>
-#include <set>
 #include <sys/file.h>
 #include <sys/stat.h>
 #include <thread>
@@ -444,10 +443,7 @@ void OutputSet::commit() {
         }
       }
       if (!unchanged) {
-        if (!writing) {  // not ours (or no longer): left alone, and no longer in the manifest
-          manifest.erase(name);
-          return;
-        }
+        if (!writing) return;  // not ours (or no longer): left alone (the caller drops it from the manifest)
         fail(name, it == ours_.end() ? "it appeared during the run and is not handskin's"
                                      : "it was changed during the run");
       }

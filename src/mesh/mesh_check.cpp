@@ -31,26 +31,21 @@ void ply_counts(const std::string& bytes, size_t* vertices, size_t* faces) {
 }
 }  // namespace
 
-size_t crossing_pairs(const TriMesh& mesh) {
-  // Built face by face from the vertex indices (not through a polygon-soup repair): the
-  // triangles tested are the file's.
+std::vector<std::array<int, 2>> crossing_face_pairs(const std::vector<Eigen::Vector3d>& v,
+                                                    const std::vector<std::array<int, 3>>& faces) {
   using K = CGAL::Exact_predicates_inexact_constructions_kernel;
   using SM = CGAL::Surface_mesh<K::Point_3>;
-  SM sm;
+  SM m;
   std::vector<SM::Vertex_index> h;
-  h.reserve(mesh.n_vertices());
-  for (const auto v : mesh.vertices()) {
-    const auto& p = mesh.point(v);
-    h.push_back(sm.add_vertex(K::Point_3(p[0], p[1], p[2])));
-  }
-  for (const auto f : mesh.faces()) {
-    std::vector<SM::Vertex_index> t;
-    for (const auto v : mesh.fv_range(f)) t.push_back(h[v.idx()]);
-    sm.add_face(t);
-  }
+  h.reserve(v.size());
+  for (const auto& p : v) h.push_back(m.add_vertex(K::Point_3(p.x(), p.y(), p.z())));
+  for (const auto& f : faces) m.add_face(h[f[0]], h[f[1]], h[f[2]]);
   std::vector<std::pair<SM::Face_index, SM::Face_index>> pairs;
-  CGAL::Polygon_mesh_processing::self_intersections(sm, std::back_inserter(pairs));
-  return pairs.size();
+  CGAL::Polygon_mesh_processing::self_intersections(m, std::back_inserter(pairs));
+  std::vector<std::array<int, 2>> out;
+  out.reserve(pairs.size());
+  for (const auto& [f, g] : pairs) out.push_back({static_cast<int>(f.idx()), static_cast<int>(g.idx())});
+  return out;
 }
 
 WrittenMeshCheck check_written_mesh(const std::string& path) {
@@ -63,7 +58,7 @@ WrittenMeshCheck check_written_mesh(const std::string& path) {
   if (c.declared_faces > c.mesh.n_faces()) c.faces_dropped = c.declared_faces - c.mesh.n_faces();
   if (c.declared_vertices > 0 && c.mesh.n_vertices() > c.declared_vertices)
     c.vertices_split = c.mesh.n_vertices() - c.declared_vertices;
-  c.crossing_pairs = crossing_pairs(c.mesh);
+  c.crossing_pairs = crossing_face_pairs(mesh_vertices(c.mesh), mesh_faces(c.mesh)).size();
   return c;
 }
 

@@ -1,8 +1,11 @@
 #pragma once
 /// Checks of a mesh file as written: what the report's quality gates say of a skin is
 /// measured here, on the file read back, not on the mesh in memory before it was written.
+#include <Eigen/Core>
+#include <array>
 #include <cstddef>
 #include <string>
+#include <vector>
 
 #include "mesh/trimesh.hpp"
 
@@ -28,7 +31,11 @@ struct WrittenMeshCheck {
 /// coordinates as stored). Throws InputError when the file cannot be read.
 WrittenMeshCheck check_written_mesh(const std::string& path);
 
-/// Pairs of crossing triangles of `mesh` (CGAL's exact test).
-size_t crossing_pairs(const TriMesh& mesh);
+/// Every pair of faces that cross (CGAL's self-intersection test, exact predicates; faces
+/// sharing a vertex or an edge count only if they overlap beyond it), as face indices. The
+/// CGAL mesh is built face by face from the indices given (no repair): the triangles tested are
+/// these.
+std::vector<std::array<int, 2>> crossing_face_pairs(const std::vector<Eigen::Vector3d>& vertices,
+                                                    const std::vector<std::array<int, 3>>& faces);
 
 }  // namespace handskin

@@ -5,6 +5,8 @@
 #include "mesh/mesh_distance.hpp"
 #include "pipeline/patch_stage.hpp"
 #include "register/registration.hpp"
+#include "pipeline/figures_json.hpp"
+#include "pipeline/skin_stage.hpp"
 #include "skin/baseline.hpp"
 
 namespace handskin {
@@ -14,14 +16,6 @@ std::string num(double v) {
   char b[32];
   std::snprintf(b, sizeof b, "%.4g", v);
   return b;
-}
-
-// At most 20 000 points of the cloud, every k-th (as the skin stage measures it).
-std::vector<Eigen::Vector3d> thinned(const std::vector<Eigen::Vector3d>& p) {
-  const size_t step = thinning_step(p.size(), 20000);
-  std::vector<Eigen::Vector3d> out;
-  for (size_t i = 0; i < p.size(); i += step) out.push_back(p[i]);
-  return out;
 }
 }  // namespace
 
@@ -36,6 +30,12 @@ std::vector<std::string> QualityGates::failed() const {
   for (const auto& g : gates)
     if (!g.pass) f.push_back(g.name);
   return f;
+}
+
+std::string QualityGates::failed_list() const {
+  std::string s;
+  for (const auto& n : failed()) s += (s.empty() ? "" : ", ") + n;
+  return s;
 }
 
 QualityGates check_gates(const GateInputs& in, const PipelineOptions& o) {
@@ -59,7 +59,7 @@ QualityGates check_gates(const GateInputs& in, const PipelineOptions& o) {
             static_cast<double>(c.crossing_pairs), 0, "pairs", "");
     if (in.cloud && !in.cloud->empty()) {
       const MeshDistance to_skin(c.mesh);
-      R.cloud_to_skin = one_way_distance(thinned(*in.cloud), to_skin);
+      R.cloud_to_skin = one_way_distance(thinned_points(*in.cloud, kCloudToSkinPoints), to_skin);  // as the skin stage
       at_most("cloud_to_skin.p95", "merged cloud's points to " + file + ", 95th percentile", R.cloud_to_skin->p95,
               o.gates.cloud_to_skin_p95_mm, "mm", "gates.cloud_to_skin_p95_mm");
       at_most("cloud_to_skin.max", "merged cloud's points to " + file + ", largest", R.cloud_to_skin->max,
@@ -101,6 +101,11 @@ Json to_json(const QualityGates& g) {
   return a;
 }
 
+void put_gates(const QualityGates& g, Json* report) {
+  (*report)["gates"] = to_json(g);
+  (*report)["gates_passed"] = g.all_pass();
+}
+
 void describe_written_skin(const QualityGates& g, Json* j) {
   if (!g.skin) return;
   const WrittenMeshCheck& c = *g.skin;
@@ -117,11 +122,7 @@ void describe_written_skin(const QualityGates& g, Json* j) {
   m["crossing_pairs"] = c.crossing_pairs;
   m["watertight"] = c.watertight();
   m["measured_on"] = "the written file";
-  if (g.cloud_to_skin) {
-    const OneWayDistance& d = *g.cloud_to_skin;
-    (*j)["cloud_to_skin_mm"] = {{"mean", d.mean}, {"median", d.median}, {"p95", d.p95}, {"max", d.max},
-                                {"within_1mm", d.within_1mm}, {"samples", d.samples}};
-  }
+  if (g.cloud_to_skin) (*j)["cloud_to_skin_mm"] = to_json(*g.cloud_to_skin);
 }
 
 }  // namespace handskin

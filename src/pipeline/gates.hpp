@@ -34,6 +34,7 @@ struct QualityGates {
   std::optional<OneWayDistance> cloud_to_skin; ///< the cloud to the skin as read back
   bool all_pass() const;
   std::vector<std::string> failed() const;     ///< names of the failed gates
+  std::string failed_list() const;             ///< the same, joined by ", "
 };
 
 /// What to check; every part optional.
@@ -52,6 +53,8 @@ std::string gate_warning(const QualityGate& g);
 
 /// The gates as the reports hold them: [{name, measure, value, limit, unit, key, pass}, ...].
 Json to_json(const QualityGates& g);
+/// `report`'s "gates" (to_json) and "gates_passed".
+void put_gates(const QualityGates& g, Json* report);
 
 /// The skin stage's report entries ("mesh", "cloud_to_skin_mm") replaced by what was measured
 /// on the written file, with "written_file" naming it.

@@ -5,15 +5,12 @@
 #include <cstdio>
 
 #include "core/atomic_file.hpp"
+#include "pipeline/figures_json.hpp"
 #include "pipeline/patch_report.hpp"
 
 namespace handskin {
 
 namespace {
-Json distance_json(const OneWayDistance& d) {
-  return {{"mean", d.mean}, {"median", d.median}, {"p95", d.p95}, {"max", d.max},
-          {"within_1mm", d.within_1mm}, {"samples", d.samples}};
-}
 Json figures_json(const DistanceFigures& f) {
   return {{"mean", f.mean}, {"rms", f.rms}, {"p95", f.p95}, {"max", f.max}, {"points", f.points}};
 }
@@ -70,7 +67,7 @@ Json to_json(const PatchStageResult& r) {
                         {"given", r.options.layout.has_value()}}},
             {"data_to_surface_mm", {{"palm", figures_json(s.side[0])}, {"back", figures_json(s.side[1])}}},
             {"farthest_point_patch", {{"palm", s.worst_patch[0]}, {"back", s.worst_patch[1]}}},
-            {"surface_to_skin_mm", distance_json(r.surface_to_skin)},
+            {"surface_to_skin_mm", to_json(r.surface_to_skin)},
             {"layout_tries", [&] {
                Json a = Json::array();
                for (const auto& [shift, p95] : s.layout_tries) a.push_back({{"thumb_ring_shift", shift}, {"surface_to_skin_p95_mm", p95}});
@@ -92,8 +89,8 @@ Json to_json(const PatchStageResult& r) {
                          {"skin_weight", r.options.skin_weight}, {"tessellation", r.options.tessellation}}}};
   if (r.surface_to_truth)
     j["truth"] = {{"file", r.truth_file},
-                  {"surface_to_truth_mm", distance_json(*r.surface_to_truth)},
-                  {"truth_to_surface_mm", distance_json(*r.truth_to_surface)}};
+                  {"surface_to_truth_mm", to_json(*r.surface_to_truth)},
+                  {"truth_to_surface_mm", to_json(*r.truth_to_surface)}};
   return j;
 }
 

@@ -293,8 +293,7 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
   outputs["skin_glb"] = out.final_path("skin.glb");
   report["inputs"]["posture_model"] = in.posture_model;
   report["stages"] = stages;  // the computing stages, for the patch report's page
-  report["gates"] = to_json(W.gates);
-  report["gates_passed"] = W.gates.all_pass();
+  put_gates(W.gates, &report);
   if (r.patches) outputs.update(write_patch_outputs(out, *r.patches, r.skin.rig, report, r.posed));
   stages.push_back({{"name", "write"}, {"seconds", t_write.seconds()}});
   report["stages"] = stages;

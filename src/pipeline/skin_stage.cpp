@@ -6,6 +6,7 @@
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
 #include "render/preview.hpp"
+#include "pipeline/figures_json.hpp"
 #include "pipeline/stage_options.hpp"
 
 namespace handskin {
@@ -14,20 +15,6 @@ namespace {
 
 double since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-}
-
-Json distance_json(const OneWayDistance& d) {
-  return {{"mean", d.mean}, {"median", d.median}, {"p95", d.p95}, {"max", d.max},
-          {"within_1mm", d.within_1mm}, {"samples", d.samples}};
-}
-
-// At most `limit` points, every k-th: distances from the whole cloud would cost more than
-// building the skin.
-std::vector<Eigen::Vector3d> thinned(const std::vector<Eigen::Vector3d>& p, size_t limit) {
-  const size_t step = thinning_step(p.size(), limit);
-  std::vector<Eigen::Vector3d> out;
-  for (size_t i = 0; i < p.size(); i += step) out.push_back(p[i]);
-  return out;
 }
 
 Json health_json(const MeshHealth& h) {
@@ -182,7 +169,7 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
                                         (skin.self_intersects ? ", self-intersecting" : "") + ")");
   progress("measuring the cloud against the skin");
   const MeshDistance to_skin(skin.mesh);
-  const auto cloud = thinned(in.points, 20000);
+  const auto cloud = thinned_points(in.points, kCloudToSkinPoints);
   R.cloud_to_skin = one_way_distance(cloud, to_skin);
   if (in.slices) R.slices = slice_cloud(in.points, R.rig, so.slicing);
 
@@ -272,7 +259,7 @@ Json to_json(const SkinStageResult& r) {
   for (const auto& b : skin.bones) bones.push_back(b.name());
   j["bones"] = bones;
   j["warnings"] = r.warnings;
-  j["cloud_to_skin_mm"] = distance_json(r.cloud_to_skin);
+  j["cloud_to_skin_mm"] = to_json(r.cloud_to_skin);
   if (r.baseline) {
     const auto& b = *r.baseline;
     j["baseline"] = {{"method", "PCL Poisson (Kazhdan), depth 7, one thread"},
@@ -280,17 +267,17 @@ Json to_json(const SkinStageResult& r) {
                      {"points_used", b.result.points_used},
                      {"faces_dropped", b.result.faces_dropped},
                      {"mesh", health_json(b.health)},
-                     {"cloud_to_baseline_mm", distance_json(b.cloud_to_baseline)}};
+                     {"cloud_to_baseline_mm", to_json(b.cloud_to_baseline)}};
   }
   if (r.truth) {
     const auto& t = *r.truth;
     j["truth"] = {{"file", t.skin_path},
                   {"excluded_within_mm_of_markers", t.exclude_mm},
-                  {"skin_to_truth_mm", distance_json(t.skin_to_truth)},
-                  {"truth_to_skin_mm", distance_json(t.truth_to_skin)}};
+                  {"skin_to_truth_mm", to_json(t.skin_to_truth)},
+                  {"truth_to_skin_mm", to_json(t.truth_to_skin)}};
     if (t.baseline_to_truth) {
-      j["truth"]["baseline_to_truth_mm"] = distance_json(*t.baseline_to_truth);
-      j["truth"]["truth_to_baseline_mm"] = distance_json(*t.truth_to_baseline);
+      j["truth"]["baseline_to_truth_mm"] = to_json(*t.baseline_to_truth);
+      j["truth"]["truth_to_baseline_mm"] = to_json(*t.truth_to_baseline);
     }
   }
   return j;

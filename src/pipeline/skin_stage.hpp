@@ -50,6 +50,10 @@ struct SkinStageInputs {
   std::optional<TruthSkin> truth;                 ///< a synthetic pair's true skin: figures against it
 };
 
+/// The cloud → skin figures take at most this many of the cloud's points, every k-th
+/// (distances from the whole cloud would cost more than building the skin).
+constexpr size_t kCloudToSkinPoints = 20000;
+
 /// A given rig whose joints lie farther than this (mean) from the skeleton placed in the
 /// cloud is refused: the placement is within ~6 mm on every hand of the family
 /// (docs/skin.md), a rig of another hand or with its digits swapped is tens of mm off.

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "mesh/mesh_check.hpp"  // crossing_face_pairs
 #include "posture/skeleton.hpp"
 #include "rigging/binding.hpp"
 
@@ -45,10 +46,6 @@ struct PoseQuality {
 PoseQuality pose_quality(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& faces,
                          const SkinBinding* binding = nullptr);
 
-/// Every pair of faces that cross (CGAL's self-intersection test; faces sharing a vertex or an
-/// edge count only if they overlap beyond it), as face indices.
-std::vector<std::array<int, 2>> crossing_face_pairs(const std::vector<Eigen::Vector3d>& vertices,
-                                                    const std::vector<std::array<int, 3>>& faces);
 /// Each face's dominant link: the most weight summed over its three corners.
 std::vector<int> dominant_links(const std::vector<std::array<int, 3>>& faces, const SkinBinding& binding);
 /// Whether two faces with these dominant links fold (one link, or a link and its parent)

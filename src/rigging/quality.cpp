@@ -1,30 +1,8 @@
-#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
-#include <CGAL/Polygon_mesh_processing/self_intersections.h>
-#include <CGAL/Surface_mesh.h>
-
-#include <iterator>
 #include <map>
 
 #include "rigging/deform.hpp"
 
 namespace handskin {
-
-std::vector<std::array<int, 2>> crossing_face_pairs(const std::vector<Eigen::Vector3d>& v,
-                                                    const std::vector<std::array<int, 3>>& faces) {
-  using K = CGAL::Exact_predicates_inexact_constructions_kernel;
-  using Mesh = CGAL::Surface_mesh<K::Point_3>;
-  Mesh m;
-  std::vector<Mesh::Vertex_index> h;
-  h.reserve(v.size());
-  for (const auto& p : v) h.push_back(m.add_vertex(K::Point_3(p.x(), p.y(), p.z())));
-  for (const auto& f : faces) m.add_face(h[f[0]], h[f[1]], h[f[2]]);
-  std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> pairs;
-  CGAL::Polygon_mesh_processing::self_intersections(m, std::back_inserter(pairs));
-  std::vector<std::array<int, 2>> out;
-  out.reserve(pairs.size());
-  for (const auto& [f, g] : pairs) out.push_back({static_cast<int>(f.idx()), static_cast<int>(g.idx())});
-  return out;
-}
 
 std::vector<int> dominant_links(const std::vector<std::array<int, 3>>& faces, const SkinBinding& binding) {
   std::vector<int> dominant;

@@ -15,6 +15,14 @@ size_t thinning_step(size_t n, size_t max_points) {
   return std::max<size_t>(1, (n + max_points - 1) / std::max<size_t>(max_points, 1));
 }
 
+std::vector<Eigen::Vector3d> thinned_points(const std::vector<Eigen::Vector3d>& points, size_t max_points) {
+  const size_t step = thinning_step(points.size(), max_points);
+  std::vector<Eigen::Vector3d> out;
+  out.reserve(points.size() / step + 1);
+  for (size_t i = 0; i < points.size(); i += step) out.push_back(points[i]);
+  return out;
+}
+
 BaselineResult poisson_baseline(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& normals,
                                 size_t max_points) {
   HS_CHECK(points.size() == normals.size(), "points and normals differ in length");

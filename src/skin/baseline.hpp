@@ -19,6 +19,8 @@ struct BaselineResult {
 
 /// Every how many points to take so that at most `max_points` of `n` are used (≥ 1).
 size_t thinning_step(size_t n, size_t max_points);
+/// At most `max_points` of `points`, every thinning_step-th.
+std::vector<Eigen::Vector3d> thinned_points(const std::vector<Eigen::Vector3d>& points, size_t max_points);
 
 /// Poisson reconstruction (CGAL, Delaunay refinement meshing of the implicit function) of
 /// oriented points; every k-th point is used so that at most `max_points` go in.
