@@ -75,15 +75,15 @@ BENCHMARK(BM_SynthScanPair)->Unit(benchmark::kMillisecond)->Iterations(3);
 static void time_fixture_registration(benchmark::State& st, const RegistrationOptions& o) {
   const std::string dir = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
   const RangeScan back = load_scan(dir + "back"), palm = load_scan(dir + "palm");
-  Json timings;
+  std::vector<std::pair<std::string, double>> timings;
   double radius = 0;
   for (auto _ : st) {
     const Registration reg = register_scans(back, palm, "back", "palm", o, nullptr, [](const std::string&) {});
-    timings = reg.report["timings_ms"];
+    timings = reg.figures.timings_ms;
     radius = reg.marker_radius_mm;
     benchmark::DoNotOptimize(reg.back_to_palm);
   }
-  for (const auto& [k, v] : timings.items()) st.counters[k] = v.get<double>();
+  for (const auto& [k, v] : timings) st.counters[k] = v;
   st.counters["radius_mm"] = radius;
 }
 

@@ -9,6 +9,7 @@
 #include "core/json_util.hpp"
 #include "core/random.hpp"
 #include "core/transform.hpp"
+#include "pipeline/registration_stage.hpp"
 #include "register/registration.hpp"
 #include "synth/replica.hpp"
 #include "synth/scanner.hpp"
@@ -380,7 +381,7 @@ TEST(Register, FixtureAgainstTruth) {
   EXPECT_LT(e.mean_mm, 0.05);
   EXPECT_LT(e.max_mm, 0.1);
   EXPECT_TRUE(reg.warnings.empty());
-  EXPECT_EQ(reg.report["matching"]["pairs_back_palm"].size(), 9u);
+  EXPECT_EQ(reg.detail.match.pairs.size(), 9u);
   // Merged cloud: both sides, no sample near a marker.
   size_t sides[2] = {0, 0};
   for (const auto& p : *reg.merged) {
@@ -421,7 +422,7 @@ TEST(Register, FixtureMarkerRadiusEstimatedWithinTheBounds) {
   EXPECT_NE(strict.warnings[0].find("the scans hold this registration to 0.01"), std::string::npos)
       << strict.warnings[0];
   EXPECT_NE(strict.warnings[0].find("more or larger markers"), std::string::npos) << strict.warnings[0];
-  EXPECT_EQ(strict.report["status"], "ok_with_warnings");
+  EXPECT_EQ(registration_to_json(strict)["status"], "ok_with_warnings");
 }
 
 // The estimate over pairs of two hands with 3 mm markers: its error is what moves the back
@@ -439,10 +440,10 @@ TEST(Register, MarkerRadiusEstimateUnbiasedOverPairs) {
     for (std::uint64_t seed = 201; seed <= 206; ++seed) {
       const Outcome o = register_pair(*hand, seed, ro, ScannerOptions{}, opts);
       const double err = o.reg.marker_radius_mm - ro.marker_radius_mm;
-      const Json& u = o.reg.report["uncertainty"];
-      ASSERT_TRUE(u.is_object()) << "seed " << seed;
-      const double sd_r = u["radius_mm"].get<double>(), sd_rot = u["rotation_deg"].get<double>(),
-                   sd_disp = u["displacement_mm"].get<double>();
+      const RegistrationUncertainty& u = o.reg.detail.uncertainty;
+      ASSERT_TRUE(u.valid) << "seed " << seed;
+      ASSERT_GT(u.radius_mm, 0) << "seed " << seed;
+      const double sd_r = u.radius_mm, sd_rot = u.rotation_deg, sd_disp = u.displacement_mm;
       std::printf("hand %d seed %d: radius %+.4f mm off (its 1 sigma %.4f); registration %.4f deg (%.4f), %.4f mm mean (%.4f)\n",
                   hand == &default_hand() ? 1 : 2, static_cast<int>(seed), err, sd_r, o.chosen.rotation_deg, sd_rot,
                   o.chosen.mean_mm, sd_disp);
@@ -496,7 +497,7 @@ TEST(Register, ManualMarkersGiveTheSameResult) {
   const Registration manual = register_scans(back, palm, "back", "palm", RegistrationOptions{}, &h, kQuiet);
   const Registration automatic = register_scans(back, palm, "back", "palm", RegistrationOptions{}, nullptr, kQuiet);
   EXPECT_LT(rotation_difference_deg(manual.back_to_palm, automatic.back_to_palm), 1e-3);
-  EXPECT_EQ(manual.report["scans"]["back"]["marker_source"], "manual");
+  EXPECT_TRUE(manual.detail.back.manual_markers);
 
   // A position with no marker near it is an error naming the file and the entry.
   hints["palm"][4] = {10.0, 10.0, 10.0};
@@ -634,6 +635,6 @@ TEST(Register, ABumpyObjectIsBoundedNotStuck) {
   palm.meta.side = ScanSide::Palm;
   const Registration reg = register_scans(sim.scan, palm, "b", "p", RegistrationOptions{}, nullptr, kQuiet);
   EXPECT_LT(rotation_difference_deg(reg.back_to_palm, Eigen::Isometry3d::Identity()), 1e-6);
-  EXPECT_GT(reg.report["scans"]["back"]["candidates_dropped"].get<size_t>(), 0u);
-  EXPECT_EQ(reg.report["scans"]["back"]["markers"].size(), 15u);
+  EXPECT_GT(reg.detail.back.candidates_dropped, 0u);
+  EXPECT_EQ(reg.detail.back.markers.size(), 15u);
 }

@@ -126,7 +126,7 @@ void register_command(const RegisterArgs& a, const Progress& progress) {
                                           a.markers.empty() ? nullptr : &hints,
                                           [&](const std::string& m) { progress("register", m); });
   for (const auto& w : reg.warnings) progress("register", "warning: " + w);
-  Json report = reg.report;
+  Json report = registration_to_json(reg);
   if (truth) report["against_truth"] = registration_against_truth(reg, *truth);
   GateInputs gi;
   gi.registration = &reg;

@@ -11,7 +11,7 @@
 #include "mesh/mesh_distance.hpp"
 #include "core/rig.hpp"
 #include "patches/patches.hpp"
-#include "synth/truth.hpp"
+#include "scan/truth_io.hpp"
 
 namespace handskin {
 

@@ -7,7 +7,7 @@
 #include "core/json_util.hpp"
 #include "core/output_set.hpp"
 #include "register/registration.hpp"
-#include "synth/truth.hpp"
+#include "scan/truth_io.hpp"
 
 namespace handskin {
 
@@ -18,6 +18,10 @@ std::string merged_preview_png(const MergedArrays& merged, const std::vector<Eig
 /// The marker-only and the chosen transform against the true one, over the true skin:
 /// {"marker_only": {rotation_deg, skin_mean_mm, skin_max_mm}, "chosen": {...}, "file": ...}.
 Json registration_against_truth(const Registration& reg, const TruthSkin& truth);
+
+/// registration.json (handskin-registration/1, docs/formats.md): every detail of the
+/// registration, from its typed result.
+Json registration_to_json(const Registration& reg);
 
 /// The registration's figures for a run report's "registration" stage (typed figures → JSON).
 Json registration_summary_json(const Registration& reg);

@@ -225,7 +225,7 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
   outputs["back_cloud"] = out.final_path("back.ply");
   save_cloud(out.stage("palm.ply"), *r.palm_cloud);
   outputs["palm_cloud"] = out.final_path("palm.ply");
-  Json reg_report = r.registration.report;
+  Json reg_report = registration_to_json(r.registration);
   if (r.registration_truth) reg_report["against_truth"] = *r.registration_truth;
   outputs.update(write_registration_outputs(out, r.registration, reg_report));
   outputs.update(write_skin_outputs(out, r.skin, r.texture ? &r.rigged.texture : nullptr,

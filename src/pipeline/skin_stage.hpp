@@ -20,7 +20,7 @@
 #include "skin/baseline.hpp"
 #include "skin/skin_mesh.hpp"
 #include "skin/slices.hpp"
-#include "synth/truth.hpp"
+#include "scan/truth_io.hpp"
 
 namespace handskin {
 

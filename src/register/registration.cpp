@@ -68,11 +68,6 @@ std::string fmt(const char* f, Args... args) {
 
 std::string where(const Eigen::Vector3d& p) { return fmt("(%.1f, %.1f, %.1f)", p.x(), p.y(), p.z()); }
 
-Json round_vec(const Eigen::Vector3d& v) {
-  auto r = [](double x) { return std::round(x * 1e4) / 1e4; };
-  return Json::array({r(v.x()), r(v.y()), r(v.z())});
-}
-
 // Samples that are not within (radius + clearance) of any of `centres` (scan frame).
 std::vector<char> skin_mask(const PreparedScan& s, const std::vector<Eigen::Vector3d>& centres, double reach) {
   std::vector<char> skin(s.points.size(), 1);
@@ -85,9 +80,11 @@ std::vector<char> skin_mask(const PreparedScan& s, const std::vector<Eigen::Vect
   return skin;
 }
 
-std::vector<SphereFit> find_markers(const PreparedScan& s, const RegistrationOptions& o,
-                                    const std::optional<std::vector<Eigen::Vector3d>>& hints,
-                                    const std::string& hints_file, const std::string& scan_file, Json* side_report) {
+// Markers of one scan: fitted at the hint file's positions for this side, else detected (the
+// strongest expected + 6). Fills the side's marker fields of `d`.
+void find_markers(const PreparedScan& s, const RegistrationOptions& o,
+                  const std::optional<std::vector<Eigen::Vector3d>>& hints, const std::string& hints_file,
+                  const std::string& scan_file, ScanRegistrationDetail* d) {
   std::vector<SphereFit> found;
   if (hints) {
     for (size_t k = 0; k < hints->size(); ++k) {
@@ -99,17 +96,13 @@ std::vector<SphereFit> find_markers(const PreparedScan& s, const RegistrationOpt
       f->manual = true;
       found.push_back(std::move(*f));
     }
-    (*side_report)["marker_source"] = "manual";
+    d->manual_markers = true;
   } else {
     std::vector<SphereCandidateReport> cands;
     found = detect_spheres(s, o.spheres, &cands);
-    (*side_report)["marker_source"] = "detected";
-    (*side_report)["candidates_examined"] = cands.size();
-    Json rej = Json::array();
-    for (const auto& c : cands)
-      if (!c.rejected_because.empty() && rej.size() < 20)
-        rej.push_back({{"near", round_vec(c.centre)}, {"votes", c.votes}, {"reason", c.rejected_because}});
-    (*side_report)["rejected_candidates"] = rej;
+    d->candidates_examined = cands.size();
+    for (auto& c : cands)
+      if (!c.rejected_because.empty() && d->rejected.size() < 20) d->rejected.push_back(std::move(c));
   }
   if (found.size() < 3)
     throw InputError(scan_file, "found " + std::to_string(found.size()) + " marker sphere(s) of radius " +
@@ -121,10 +114,10 @@ std::vector<SphereFit> find_markers(const PreparedScan& s, const RegistrationOpt
   // keep the strongest candidates when a bumpy object yields many sphere-like bumps.
   const size_t keep = static_cast<size_t>(o.expected_markers) + 6;
   if (!hints && found.size() > keep) {
-    (*side_report)["candidates_dropped"] = found.size() - keep;
+    d->candidates_dropped = found.size() - keep;
     found.resize(keep);
   }
-  return found;
+  d->markers = std::move(found);
 }
 
 // The marker caps of one scan at `so`'s radius: fitted at the manual positions when the
@@ -141,16 +134,32 @@ std::vector<SphereFit> caps_in_scan(const PreparedScan& s, const std::optional<s
   return out;
 }
 
-// The markers' radius from the scans: every candidate radius is tried in both scans
+// job(0) and job(1) at once (independent, each into its own slot); the first one's error first.
+template <typename Job>
+void both_sides(const Job& job) {
+  std::exception_ptr failed[2];
+#pragma omp parallel for schedule(static, 1)
+  for (int side = 0; side < 2; ++side) {
+    try {
+      job(side);
+    } catch (...) {
+      failed[side] = std::current_exception();
+    }
+  }
+  for (const auto& e : failed)
+    if (e) std::rethrow_exception(e);
+}
+
+// The marker radius's first estimate from the scans (fills radius_mm, spread_mm,
+// candidate_mm, caps and tried of `d`): every candidate radius is tried in both scans
 // (hints: at the hinted positions) and the bumps found are matched between the scans by
 // their distance pattern. Markers are the bumps that are spheres of one radius *and* sit in
 // the same pattern in both scans; a fingertip or a knuckle of about the candidate's size is
 // sphere-like too, but seen from the other side it fits elsewhere and matches nothing. The
 // candidate with the most matched markers wins (ties: the tighter cluster of free-radius
 // fits); the estimate is the median free-radius fit over its matched caps.
-RadiusEstimate estimate_marker_radius(const PreparedScan& back, const PreparedScan& palm, const RegistrationOptions& o,
-                                      const MarkerHints* hints) {
-  RadiusEstimate best;
+void estimate_marker_radius(const PreparedScan& back, const PreparedScan& palm, const RegistrationOptions& o,
+                            const MarkerHints* hints, MarkerRadiusDetail* d) {
   double best_score = -1;
   const size_t keep = static_cast<size_t>(o.expected_markers) + 6;  // as find_markers: matching cost grows fast
   // The detections (every candidate in both scans) are independent: they run in parallel,
@@ -183,17 +192,17 @@ RadiusEstimate estimate_marker_radius(const PreparedScan& back, const PreparedSc
   for (size_t c = 0; c < nc; ++c) {
     const double rc = o.radius_candidates_mm[c];
     const std::vector<SphereFit>* fits = detected[c].data();
-    Json row = {{"radius_mm", rc}, {"palm", fits[0].size()}, {"back", fits[1].size()}, {"matched", 0}};
+    RadiusTry row{rc, fits[0].size(), fits[1].size(), 0};
     if (fits[0].size() < 3 || fits[1].size() < 3) {
-      best.tried.push_back(row);
+      d->tried.push_back(row);
       continue;
     }
     std::vector<Eigen::Vector3d> cb, cp;
     for (const auto& f : fits[1]) cb.push_back(f.centre);
     for (const auto& f : fits[0]) cp.push_back(f.centre);
     const MarkerMatch m = match_markers(cb, cp, o.match_tolerance_mm);
-    row["matched"] = m.pairs.size();
-    best.tried.push_back(row);
+    row.matched = m.pairs.size();
+    d->tried.push_back(row);
     if (m.pairs.size() < 3) continue;
     std::vector<double> radii;
     for (const auto& [b, p] : m.pairs) radii.push_back(fits[1][b].radius_free), radii.push_back(fits[0][p].radius_free);
@@ -214,170 +223,141 @@ RadiusEstimate estimate_marker_radius(const PreparedScan& back, const PreparedSc
     const double score = static_cast<double>(m.pairs.size()) - std::min(0.99, mad / med);
     if (score > best_score) {
       best_score = score;
-      best.radius_mm = med;
-      best.spread_mm = mad;
-      best.candidate_mm = rc;
-      best.caps = static_cast<int>(radii.size());
+      d->radius_mm = med;
+      d->spread_mm = mad;
+      d->candidate_mm = rc;
+      d->caps = static_cast<int>(radii.size());
     }
   }
-  return best;
 }
 
-}  // namespace
+// One shared radius refitted to the caps detected at `rc` that agree with it: the next
+// estimate, or none when fewer than 6 caps agree (then `*sd` is left as it is).
+std::optional<double> refit_shared_radius(const PreparedScan& back, const PreparedScan& palm, const RegistrationOptions& o,
+                           const MarkerHints* hints, double rc, double* sd) {
+  std::vector<SphereFit> fits[2];  // both scans at once: independent, each into its own slot
+  both_sides([&](int side) {
+    // With manual positions, the same caps as the final fit will take.
+    const std::optional<std::vector<Eigen::Vector3d>>* h = hints ? (side == 0 ? &hints->back : &hints->palm) : nullptr;
+    SphereOptions so = o.spheres;
+    so.radius_mm = rc;
+    fits[side] = caps_in_scan(side == 0 ? back : palm, h, so);
+  });
+  std::vector<double> radii;
+  for (const auto& side : fits)
+    for (const SphereFit& f : side)
+      if (std::abs(f.radius_free - rc) <= 0.04 * rc) radii.push_back(f.radius_free);
+  if (radii.size() < 6) return std::nullopt;
+  std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
+  const double median = radii[radii.size() / 2];
+  // One radius fitted to all the caps that agree with the median (within 3 robust sigmas;
+  // a bump that is not a marker lies outside), each cap its own centre: on the family's 48
+  // pairs its error scattered 0.0073 mm against the median's 0.0097.
+  std::vector<double> dev;
+  for (double x : radii) dev.push_back(std::abs(x - median));
+  std::nth_element(dev.begin(), dev.begin() + dev.size() / 2, dev.end());
+  const double agree = std::max(3 * 1.4826 * dev[dev.size() / 2], 0.002 * rc);
+  std::vector<SharedRadiusCap> caps;
+  for (int side = 0; side < 2; ++side)
+    for (const SphereFit& f : fits[side])
+      if (std::abs(f.radius_free - rc) <= 0.04 * rc && std::abs(f.radius_free - median) <= agree)
+        caps.push_back({side == 0 ? &back : &palm, &f});
+  return fit_shared_radius(caps, median, o.spheres.steep_floor, sd);
+}
 
-Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_scan, const std::string& back_file,
-                            const std::string& palm_file, const RegistrationOptions& options, const MarkerHints* hints,
-                            const RegisterProgress& progress) {
-  std::string err;
-  if (!options.IsValid(&err)) throw InputError("registration options", err);
-  RegistrationOptions o = options;
-  Registration out;
-  Json rep;
-  rep["format"] = "handskin-registration/1";
-  Json timings;
+// --- 1. table, speckle, normals: both scans at once (PCL's RANSAC has its own fixed seed
+// per model); the back scan's error first. ---
+std::array<PreparedScan, 2> prepare_both(const RangeScan& back_scan, const RangeScan& palm_scan,
+                                         const std::string& back_file, const std::string& palm_file,
+                                         const PrepareOptions& o) {
+  std::array<PreparedScan, 2> prepared;
+  both_sides([&](int side) {
+    prepared[side] = side == 0 ? prepare_scan(back_scan, o, back_file) : prepare_scan(palm_scan, o, palm_file);
+  });
+  return prepared;
+}
 
-  // --- 1. table, speckle, normals ---
-  progress("removing the table and speckle");
-  auto t = Clock::now();
-  // Both scans at once (independent; PCL's RANSAC has its own fixed seed per model); the
-  // back scan's error first.
-  PreparedScan prepared[2];
-  {
-    std::exception_ptr failed[2];
-#pragma omp parallel for schedule(static, 1)
-    for (int side = 0; side < 2; ++side) {
-      try {
-        prepared[side] = side == 0 ? prepare_scan(back_scan, o.prepare, back_file) : prepare_scan(palm_scan, o.prepare, palm_file);
-      } catch (...) {
-        failed[side] = std::current_exception();
-      }
-    }
-    for (const auto& e : failed)
-      if (e) std::rethrow_exception(e);
-  }
-  const PreparedScan& back = prepared[0];
-  const PreparedScan& palm = prepared[1];
-  timings["prepare_ms"] = ms_since(t);
-
-  // --- 2. markers in each scan (their radius first, when the pipeline does not fix it) ---
-  t = Clock::now();
-  Json radius_rep = {{"source", o.estimate_radius ? "estimated" : "given"}};
-  double radius_sd = 0;  // the estimate's standard deviation from its fit (0: given, or not known)
-  if (o.estimate_radius) {
+// --- 2. the markers' radius: given (o->spheres.radius_mm), or estimated from the scans and
+// set there ---
+void settle_radius(const PreparedScan& back, const PreparedScan& palm, RegistrationOptions* o, const MarkerHints* hints,
+                   const std::string& both, const RegisterProgress& progress, MarkerRadiusDetail* d) {
+  d->estimated = o->estimate_radius;
+  if (o->estimate_radius) {
     progress("estimating the marker radius");
-    const RadiusEstimate est = estimate_marker_radius(back, palm, o, hints);
-    radius_rep["tried"] = est.tried;
-    if (est.caps == 0) {
+    estimate_marker_radius(back, palm, *o, hints, d);
+    if (d->caps == 0) {
       std::string tried;
-      for (double rc : o.radius_candidates_mm) tried += (tried.empty() ? "" : ", ") + fmt("%.1f", rc);
-      throw InputError(back_file + " + " + palm_file,
-                       "no radius finds 3 marker spheres in both scans (tried " + tried +
-                           " mm); set markers.radius_mm in the pipeline file or give approximate positions with --markers");
+      for (double rc : o->radius_candidates_mm) tried += (tried.empty() ? "" : ", ") + fmt("%.1f", rc);
+      throw InputError(both, "no radius finds 3 marker spheres in both scans (tried " + tried +
+                                 " mm); set markers.radius_mm in the pipeline file or give approximate positions with "
+                                 "--markers");
     }
-    o.spheres.radius_mm = est.radius_mm;
+    o->spheres.radius_mm = d->radius_mm;
     // The candidate's inlier gate pulls the caps' free fits toward it: detect again at the
     // estimate and fit one radius to the caps that agree with it (within 4 %), until it
     // settles. (A radius error moves every centre along its scan's view, the back scan's
     // opposite to the palm scan's: the back scan lands twice that off along the hand's
     // normal, docs/registration.md.)
-    Json steps = Json::array({est.radius_mm});
+    d->refinement_mm = {d->radius_mm};
     for (int it = 0; it < 5; ++it) {
-      const double rc = o.spheres.radius_mm;
-      std::vector<SphereFit> fits[2];  // both scans at once: independent, each into its own slot
-      std::exception_ptr failed[2];
-#pragma omp parallel for schedule(static, 1)
-      for (int side = 0; side < 2; ++side) {
-        try {
-          // With manual positions, the same caps as the final fit will take.
-          const std::optional<std::vector<Eigen::Vector3d>>* h = hints ? (side == 0 ? &hints->back : &hints->palm) : nullptr;
-          fits[side] = caps_in_scan(side == 0 ? back : palm, h, o.spheres);
-        } catch (...) {
-          failed[side] = std::current_exception();
-        }
-      }
-      for (const auto& e : failed)
-        if (e) std::rethrow_exception(e);
-      std::vector<double> radii;
-      for (const auto& side : fits)
-        for (const SphereFit& f : side)
-          if (std::abs(f.radius_free - rc) <= 0.04 * rc) radii.push_back(f.radius_free);
-      if (radii.size() < 6) break;
-      std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
-      const double median = radii[radii.size() / 2];
-      // One radius fitted to all the caps that agree with the median (within 3 robust sigmas;
-      // a bump that is not a marker lies outside), each cap its own centre: on the family's 48
-      // pairs its error scattered 0.0073 mm against the median's 0.0097.
-      std::vector<double> dev;
-      for (double x : radii) dev.push_back(std::abs(x - median));
-      std::nth_element(dev.begin(), dev.begin() + dev.size() / 2, dev.end());
-      const double agree = std::max(3 * 1.4826 * dev[dev.size() / 2], 0.002 * rc);
-      std::vector<SharedRadiusCap> caps;
-      for (int side = 0; side < 2; ++side)
-        for (const SphereFit& f : fits[side])
-          if (std::abs(f.radius_free - rc) <= 0.04 * rc && std::abs(f.radius_free - median) <= agree)
-            caps.push_back({side == 0 ? &back : &palm, &f});
-      const double next = fit_shared_radius(caps, median, o.spheres.steep_floor, &radius_sd);
-      steps.push_back(next);
-      o.spheres.radius_mm = next;
+      const double rc = o->spheres.radius_mm;
+      const std::optional<double> refit = refit_shared_radius(back, palm, *o, hints, rc, &d->sd_mm);
+      if (!refit) break;  // too few caps agree
+      const double next = *refit;
+      d->refinement_mm.push_back(next);
+      o->spheres.radius_mm = next;
       if (std::abs(next - rc) < 0.002) break;
     }
-    radius_rep["refinement_mm"] = steps;
-    radius_rep["candidate_mm"] = est.candidate_mm;
-    radius_rep["caps"] = est.caps;
-    radius_rep["spread_mm"] = est.spread_mm;
   }
-  const double r = o.spheres.radius_mm;
-  radius_rep["radius_mm"] = r;
-  out.marker_radius_mm = r;
-  progress("finding the marker spheres (radius " + fmt("%.2f", r) + " mm)");
-  Json side_rep[2];
+  d->radius_mm = o->spheres.radius_mm;
+}
+
+// --- 3. markers in each scan (both at once; the back scan's error first); with the radius
+// estimated, a bump whose own free fit strays from it (a fingertip of about the markers'
+// size) is not a marker: the markers share one radius ---
+void find_both_markers(const PreparedScan& back, const PreparedScan& palm, const RegistrationOptions& o,
+                       const MarkerHints* hints, const std::string& back_file, const std::string& palm_file,
+                       RegistrationDetail* d, std::vector<std::string>* warnings) {
   const std::string hints_file = hints ? hints->file : "";
-  // Both scans at once (independent, each into its own slot); the back scan's error first.
-  std::vector<SphereFit> found[2];
-  std::exception_ptr failed[2];
-#pragma omp parallel for schedule(static, 1)
-  for (int side = 0; side < 2; ++side) {
-    try {
-      found[side] = side == 0 ? find_markers(back, o, hints ? hints->back : std::nullopt, hints_file, back_file, &side_rep[1])
-                              : find_markers(palm, o, hints ? hints->palm : std::nullopt, hints_file, palm_file, &side_rep[0]);
-    } catch (...) {
-      failed[side] = std::current_exception();
-    }
-  }
-  for (const auto& e : failed)
-    if (e) std::rethrow_exception(e);
-  std::vector<SphereFit> mb = std::move(found[0]), mp = std::move(found[1]);
-  timings["markers_ms"] = ms_since(t);
-  // With the radius estimated, a bump whose own free fit strays from it (a fingertip of
-  // about the markers' size) is not a marker: the markers share one radius.
+  both_sides([&](int side) {
+    if (side == 0)
+      find_markers(back, o, hints ? hints->back : std::nullopt, hints_file, back_file, &d->back);
+    else
+      find_markers(palm, o, hints ? hints->palm : std::nullopt, hints_file, palm_file, &d->palm);
+  });
+  const double r = o.spheres.radius_mm;
   if (o.estimate_radius && !hints) {
-    const double tol = std::max(0.04 * r, 5 * 1.4826 * radius_rep.value("spread_mm", 0.0));
-    for (auto* side : {&mb, &mp}) {
+    const double tol = std::max(0.04 * r, 5 * 1.4826 * d->radius.spread_mm);
+    for (auto* side : {&d->back.markers, &d->palm.markers}) {
       std::vector<SphereFit> kept;
       for (auto& f : *side)
         if (std::abs(f.radius_free - r) <= tol) kept.push_back(std::move(f));
       if (kept.size() >= 3) *side = std::move(kept);
     }
-    radius_rep["free_fit_tolerance_mm"] = tol;
+    d->radius.free_fit_tolerance_mm = tol;
   }
-  for (const auto* side : {&mb, &mp})
-    if (static_cast<long>(side->size()) != o.expected_markers)
-      out.warnings.push_back(std::string(side == &mb ? "back" : "palm") + " scan: " + std::to_string(side->size()) +
-                             " marker spheres found, " + std::to_string(o.expected_markers) + " expected");
+  for (const auto* side : {&d->back, &d->palm})
+    if (static_cast<long>(side->markers.size()) != o.expected_markers)
+      warnings->push_back(std::string(side == &d->back ? "back" : "palm") + " scan: " +
+                          std::to_string(side->markers.size()) + " marker spheres found, " +
+                          std::to_string(o.expected_markers) + " expected");
+}
 
-  // --- 3. matching by distance pattern, 4. rigid fit ---
-  progress("matching the markers");
-  t = Clock::now();
-  std::vector<Eigen::Vector3d> cb, cp;
-  for (const auto& f : mb) cb.push_back(f.centre);
-  for (const auto& f : mp) cp.push_back(f.centre);
-  MarkerMatch match = match_markers(cb, cp, o.match_tolerance_mm);
-  timings["match_ms"] = ms_since(t);
-  const std::string both = back_file + " + " + palm_file;
+std::vector<Eigen::Vector3d> centres_of(const std::vector<SphereFit>& fits) {
+  std::vector<Eigen::Vector3d> c;
+  for (const auto& f : fits) c.push_back(f.centre);
+  return c;
+}
+
+// --- 4. matching by distance pattern and the rigid fit; a match that a mirror image,
+// another object or a regular layout could give stops the registration ---
+MarkerMatch match_checked(const std::vector<Eigen::Vector3d>& cb, const std::vector<Eigen::Vector3d>& cp,
+                          double tolerance_mm, const std::string& both) {
+  MarkerMatch match = match_markers(cb, cp, tolerance_mm);
   if (match.pairs.size() < 3)
     throw InputError(both, "the marker patterns do not match: no 3 of the back scan's " + std::to_string(cb.size()) +
                                " markers have the distances of 3 of the palm scan's " + std::to_string(cp.size()) +
-                               fmt(" within %.2f mm (scans of two different objects?)", o.match_tolerance_mm));
+                               fmt(" within %.2f mm (scans of two different objects?)", tolerance_mm));
   // Most markers seen on both sides must take part: a match of a small subset is what a
   // mirror image or another object's pattern can give by chance.
   const size_t seen_both = std::min(cb.size(), cp.size());
@@ -390,175 +370,180 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
                                std::to_string(match.pairs.size()) +
                                fmt(" markers (residual %.3f and %.3f mm); give the markers an irregular layout",
                                    match.rms_mm, match.runner_up_rms_mm));
-  // A marker found in one scan but not the other (its cap there partly hidden by the flank
-  // it sits on, or its free fit strayed from the estimated radius) is looked for where the
-  // pattern's fit puts it: a fixed-radius fit within the matching tolerance of that spot. On
-  // the family's 48 pairs 4 lost one or two markers this way (H04-s1 kept 7 of 9).
-  int recovered = 0;
-  if (!hints) {
-    // The free radius only within the detector's own ±10 %: where the pattern puts a marker
-    // within the matching tolerance, a cap half hidden by its flank (free fits 4-5 % large on
-    // the family's H03-s3 and H10-s2) is still that marker.
-    const double tol_r = 0.1 * r;
-    auto recover = [&](bool in_palm) {
-      const auto& from = in_palm ? cb : cp;
-      auto& to = in_palm ? cp : cb;
-      auto& fits = in_palm ? mp : mb;
-      const PreparedScan& scan = in_palm ? palm : back;
-      const Eigen::Isometry3d T = in_palm ? match.back_to_palm : match.back_to_palm.inverse();
-      std::vector<char> paired(from.size(), 0);
-      for (const auto& [b, p] : match.pairs) paired[static_cast<size_t>(in_palm ? b : p)] = 1;
-      int found_here = 0;
-      for (size_t k = 0; k < from.size(); ++k) {
-        if (paired[k]) continue;
-        const Eigen::Vector3d guess = T * from[k];
-        bool taken = false;  // a bump already there (one matching left unpaired) is not a new marker
-        for (const auto& c : to) taken = taken || (c - guess).norm() < r;
-        std::string why;
-        const auto f = taken ? std::nullopt : fit_sphere_near(scan, guess, o.match_tolerance_mm, o.spheres, &why);
-        if (!f || (f->centre - guess).norm() > o.match_tolerance_mm || std::abs(f->radius_free - r) > tol_r) continue;
-        fits.push_back(*f);
-        to.push_back(f->centre);
-        const int j = static_cast<int>(to.size()) - 1;
-        match.pairs.emplace_back(in_palm ? static_cast<int>(k) : j, in_palm ? j : static_cast<int>(k));
-        ++found_here;
-      }
-      return found_here;
-    };
-    recovered = recover(true) + recover(false);
-    if (recovered > 0) {
-      std::sort(match.pairs.begin(), match.pairs.end());
-      match.back_to_palm = fit_rigid(cb, cp, match.pairs);
-      out.warnings.push_back(std::to_string(recovered) + " marker(s) found in one scan were found in the other where " +
-                             "the others' fit put them");
+  return match;
+}
+
+// --- 5. a marker found in one scan but not the other (its cap there partly hidden by the
+// flank it sits on, or its free fit strayed from the estimated radius) is looked for where
+// the pattern's fit puts it: a fixed-radius fit within the matching tolerance of that spot.
+// On the family's 48 pairs 4 lost one or two markers this way (H04-s1 kept 7 of 9). The
+// found ones join `d`'s markers and its match, whose fit is redone. Returns their count. ---
+int recover_missed(const PreparedScan& back, const PreparedScan& palm, const RegistrationOptions& o,
+                   std::vector<Eigen::Vector3d>* cb, std::vector<Eigen::Vector3d>* cp, RegistrationDetail* d) {
+  MarkerMatch& match = d->match;
+  const double r = o.spheres.radius_mm;
+  // The free radius only within the detector's own ±10 %: where the pattern puts a marker
+  // within the matching tolerance, a cap half hidden by its flank (free fits 4-5 % large on
+  // the family's H03-s3 and H10-s2) is still that marker.
+  const double tol_r = 0.1 * r;
+  auto recover = [&](bool in_palm) {
+    const auto& from = in_palm ? *cb : *cp;
+    auto& to = in_palm ? *cp : *cb;
+    auto& fits = in_palm ? d->palm.markers : d->back.markers;
+    const PreparedScan& scan = in_palm ? palm : back;
+    const Eigen::Isometry3d T = in_palm ? match.back_to_palm : match.back_to_palm.inverse();
+    std::vector<char> paired(from.size(), 0);
+    for (const auto& [b, p] : match.pairs) paired[static_cast<size_t>(in_palm ? b : p)] = 1;
+    int found_here = 0;
+    for (size_t k = 0; k < from.size(); ++k) {
+      if (paired[k]) continue;
+      const Eigen::Vector3d guess = T * from[k];
+      bool taken = false;  // a bump already there (one matching left unpaired) is not a new marker
+      for (const auto& c : to) taken = taken || (c - guess).norm() < r;
+      std::string why;
+      const auto f = taken ? std::nullopt : fit_sphere_near(scan, guess, o.match_tolerance_mm, o.spheres, &why);
+      if (!f || (f->centre - guess).norm() > o.match_tolerance_mm || std::abs(f->radius_free - r) > tol_r) continue;
+      fits.push_back(*f);
+      to.push_back(f->centre);
+      const int j = static_cast<int>(to.size()) - 1;
+      match.pairs.emplace_back(in_palm ? static_cast<int>(k) : j, in_palm ? j : static_cast<int>(k));
+      ++found_here;
     }
+    return found_here;
+  };
+  const int recovered = recover(true) + recover(false);
+  if (recovered > 0) {
+    std::sort(match.pairs.begin(), match.pairs.end());
+    match.back_to_palm = fit_rigid(*cb, *cp, match.pairs);
   }
-  if (match.pairs.size() == 3)
-    out.warnings.push_back("only 3 markers matched: the fit has no redundancy to check it");
-  std::vector<int> partner_b(cb.size(), -1), partner_p(cp.size(), -1);
-  for (const auto& [b, p] : match.pairs) {
-    partner_b[b] = p;
-    partner_p[p] = b;
+  return recovered;
+}
+
+// Each marker's partner in the other scan (-1: none), and a warning for each marker unused.
+void pair_partners(const std::vector<Eigen::Vector3d>& cb, const std::vector<Eigen::Vector3d>& cp,
+                   RegistrationDetail* d, std::vector<std::string>* warnings) {
+  d->back.partner.assign(cb.size(), -1);
+  d->palm.partner.assign(cp.size(), -1);
+  for (const auto& [b, p] : d->match.pairs) {
+    d->back.partner[b] = p;
+    d->palm.partner[p] = b;
   }
   for (size_t k = 0; k < cb.size(); ++k)
-    if (partner_b[k] < 0)
-      out.warnings.push_back("back marker " + std::to_string(k) + " at " + where(cb[k]) +
-                             " has no partner in the palm scan and is not used");
+    if (d->back.partner[k] < 0)
+      warnings->push_back("back marker " + std::to_string(k) + " at " + where(cb[k]) +
+                          " has no partner in the palm scan and is not used");
   for (size_t k = 0; k < cp.size(); ++k)
-    if (partner_p[k] < 0)
-      out.warnings.push_back("palm marker " + std::to_string(k) + " at " + where(cp[k]) +
-                             " has no partner in the back scan and is not used");
-  out.marker_only = match.back_to_palm;
+    if (d->palm.partner[k] < 0)
+      warnings->push_back("palm marker " + std::to_string(k) + " at " + where(cp[k]) +
+                          " has no partner in the back scan and is not used");
+}
 
-  // --- 5. guarded refinement ---
-  std::vector<MarkerSamples> samples;
+MarkerResiduals marker_residuals(const Eigen::Isometry3d& T, const MarkerMatch& match,
+                                 const std::vector<Eigen::Vector3d>& cb, const std::vector<Eigen::Vector3d>& cp) {
+  MarkerResiduals m;
+  double ss = 0;
   for (const auto& [b, p] : match.pairs) {
-    MarkerSamples m;
-    for (int k : mb[b].inliers) m.back.push_back(back.points[k]);
-    for (int k : mp[p].inliers) m.palm.push_back(palm.points[k]);
-    samples.push_back(std::move(m));
+    const double d = (T * cb[b] - cp[p]).norm();
+    m.per_pair_mm.push_back(d);
+    ss += d * d;
+    m.max_mm = std::max(m.max_mm, d);
   }
-  // Marker neighbourhoods are not skin, in either scan: own detections and the other side's
-  // mapped across (a marker missed on one side still must not pass for skin).
-  const double reach = r + o.marker_clearance_mm;
-  std::vector<Eigen::Vector3d> all_b = cb, all_p = cp;
-  for (const auto& c : cp) all_b.push_back(out.marker_only.inverse() * c);
-  for (const auto& c : cb) all_p.push_back(out.marker_only * c);
-  const std::vector<char> skin_b = skin_mask(back, all_b, reach), skin_p = skin_mask(palm, all_p, reach);
+  m.rms_mm = std::sqrt(ss / static_cast<double>(match.pairs.size()));
+  return m;
+}
 
-  progress("refining (markers as anchors, gated ICP)");
-  t = Clock::now();
+// --- 6. the guarded refinement from the marker-only fit (markers as anchors, gated ICP on
+// the skin: `skin_b` / `skin_p`), then the check against the marker radius and the
+// scanner's resolution. Sets out's transform, markers and warnings. ---
+void refine_checked(const PreparedScan& back, const PreparedScan& palm, const std::vector<char>& skin_b,
+                    const std::vector<char>& skin_p, const std::vector<MarkerSamples>& samples,
+                    const std::vector<Eigen::Vector3d>& cb, const std::vector<Eigen::Vector3d>& cp,
+                    const std::string& both, Registration* out) {
+  RegistrationDetail& d = out->detail;
+  const RegistrationOptions& o = d.used;
+  const double r = o.spheres.radius_mm;
   RefineOptions ro = o.refine;
   if (!o.refine_enabled) ro.max_iterations = 0;
-  const RefineResult ref = refine_registration(back, palm, skin_b, skin_p, samples, out.marker_only, r, o.spheres.steep_floor, ro);
-  timings["refine_ms"] = ms_since(t);
-  out.refined = o.refine_enabled && ref.accepted;
-  out.back_to_palm = out.refined ? ref.T : out.marker_only;
-  if (o.refine_enabled && !ref.accepted) out.warnings.push_back("refinement refused, marker-only fit kept: " + ref.note);
+  d.refinement = refine_registration(back, palm, skin_b, skin_p, samples, out->marker_only, r, o.spheres.steep_floor, ro);
+  const RefineResult& ref = d.refinement;
+  out->refined = o.refine_enabled && ref.accepted;
+  out->back_to_palm = out->refined ? ref.T : out->marker_only;
+  if (o.refine_enabled && !ref.accepted) out->warnings.push_back("refinement refused, marker-only fit kept: " + ref.note);
+  transform_difference(ref.T, out->marker_only, &d.change_rotation_deg, &d.change_translation_mm);
 
-  // --- checks against the marker radius and the scanner's resolution ---
-  const double accept = o.accept_residual_mm > 0 ? o.accept_residual_mm : std::max(2.0 * palm.z_step, 0.1 * r);
-  auto residuals = [&](const Eigen::Isometry3d& T, double* rms, double* mx) {
-    Json a = Json::array();
-    double ss = 0;
-    *mx = 0;
-    for (const auto& [b, p] : match.pairs) {
-      const double d = (T * cb[b] - cp[p]).norm();
-      a.push_back(std::round(d * 1e5) / 1e5);
-      ss += d * d;
-      *mx = std::max(*mx, d);
-    }
-    *rms = std::sqrt(ss / static_cast<double>(match.pairs.size()));
-    return a;
-  };
-  double rms_m, max_m, rms_r, max_r;
-  const Json res_m = residuals(out.marker_only, &rms_m, &max_m);
-  const Json res_r = residuals(ref.T, &rms_r, &max_r);
-  const double max_final = out.refined ? max_r : max_m;
-  if (max_final > accept)
+  d.accept_residual_mm = o.accept_residual_mm > 0 ? o.accept_residual_mm : std::max(2.0 * palm.z_step, 0.1 * r);
+  d.marker_only = marker_residuals(out->marker_only, d.match, cb, cp);
+  d.refined = marker_residuals(ref.T, d.match, cb, cp);
+  const double max_final = out->refined ? d.refined.max_mm : d.marker_only.max_mm;
+  if (max_final > d.accept_residual_mm)
     throw InputError(both, fmt("registration rejected: a matched marker's centres disagree by %.3f mm after the fit "
                                "(allowed %.3f mm: 2 depth steps or 10%% of the marker radius)",
-                               max_final, accept));
+                               max_final, d.accept_residual_mm));
   // Marker centres in the palm frame: the joint fit's when refined, else the midpoint of
   // each pair's two centres.
-  if (out.refined) {
-    out.markers_palm = ref.centres;
+  if (out->refined) {
+    out->markers_palm = ref.centres;
   } else {
-    for (const auto& [b, p] : match.pairs) out.markers_palm.push_back(0.5 * (out.marker_only * cb[b] + cp[p]));
+    for (const auto& [b, p] : d.match.pairs) out->markers_palm.push_back(0.5 * (out->marker_only * cb[b] + cp[p]));
   }
+}
 
-  // --- the fit's own error estimate (1σ): the joint marker fit's covariance at the chosen
-  // transform, mapped onto the back scan's skin samples; with the radius estimated, its
-  // error moves the back scan 2δr along the palm scanner's view on top (step 3 of
-  // docs/registration.md) ---
-  Json uncertainty = nullptr;
-  {
-    // The refinement's centres are the joint fit's at its transform already.
-    std::vector<Eigen::Vector3d> joint_centres = ref.centres;
-    if (!out.refined) marker_sphere_rms(samples, out.back_to_palm, r, o.spheres.steep_floor, &joint_centres);
-    const PoseCovariance pc = pose_covariance(samples, out.back_to_palm, joint_centres, r, o.spheres.steep_floor);
-    if (pc.valid) {
-      std::vector<Eigen::Vector3d> skin_points;
-      for (size_t k = 0; k < back.points.size(); k += 25)
-        if (skin_b[k]) skin_points.push_back(back.points[k]);
-      const double fit_mm = displacement_sigma(out.back_to_palm, pc.covariance, skin_points);
-      const double along_normal = 2.0 * radius_sd;
-      out.figures.rotation_sigma_deg = rotation_sigma_deg(out.back_to_palm, pc.covariance);
-      out.figures.displacement_sigma_mm = std::sqrt(fit_mm * fit_mm + along_normal * along_normal);
-      uncertainty = {{"rotation_deg", out.figures.rotation_sigma_deg},
-                     {"displacement_mm", out.figures.displacement_sigma_mm},
-                     {"displacement_markers_mm", fit_mm},
-                     {"radius_mm", radius_sd > 0 ? Json(radius_sd) : Json(nullptr)},
-                     {"residual_sigma_mm", pc.sigma_mm}};
-      // The scans cannot hold the transform to the bounds: say so, and what would help. The
-      // radius is named only where its share dominates (it moves the back scan along the
-      // normal; the rotation is the centres' sideways noise over their lever arms).
-      const double rot = out.figures.rotation_sigma_deg, disp = out.figures.displacement_sigma_mm;
-      if (rot > o.warn_rotation_sigma_deg || disp > o.warn_displacement_sigma_mm) {
-        const bool radius_dominates = disp > o.warn_displacement_sigma_mm && along_normal > fit_mm;
-        out.warnings.push_back(
-            fmt("the scans hold this registration to %.3f deg / %.3f mm only (1 sigma, the fit's own estimate; "
-                "warned above %.3f deg / %.3f mm): %d markers of radius %.2f mm matched; %s (docs/registration.md)",
-                rot, disp, o.warn_rotation_sigma_deg, o.warn_displacement_sigma_mm,
-                static_cast<int>(match.pairs.size()), r,
-                radius_dominates ? "most of it is the estimated radius's: give the markers' radius if it is known "
-                                   "(markers.radius_mm)"
-                                 : "more or larger markers, spread wider, would tighten it"));
-      }
-    }
+// --- 7. the fit's own error estimate (1σ): the joint marker fit's covariance at the chosen
+// transform, mapped onto the back scan's skin samples; with the radius estimated, its error
+// moves the back scan 2δr along the palm scanner's view on top (step 3 of
+// docs/registration.md). A warning when the scans cannot hold the transform to the bounds. ---
+void estimate_uncertainty(const PreparedScan& back, const std::vector<char>& skin_b,
+                          const std::vector<MarkerSamples>& samples, Registration* out) {
+  RegistrationDetail& d = out->detail;
+  const RegistrationOptions& o = d.used;
+  const double r = o.spheres.radius_mm;
+  // The refinement's centres are the joint fit's at its transform already.
+  std::vector<Eigen::Vector3d> joint_centres = d.refinement.centres;
+  if (!out->refined) marker_sphere_rms(samples, out->back_to_palm, r, o.spheres.steep_floor, &joint_centres);
+  const PoseCovariance pc = pose_covariance(samples, out->back_to_palm, joint_centres, r, o.spheres.steep_floor);
+  if (!pc.valid) return;
+  std::vector<Eigen::Vector3d> skin_points;
+  for (size_t k = 0; k < back.points.size(); k += 25)
+    if (skin_b[k]) skin_points.push_back(back.points[k]);
+  const double fit_mm = displacement_sigma(out->back_to_palm, pc.covariance, skin_points);
+  const double along_normal = 2.0 * d.radius.sd_mm;
+  RegistrationUncertainty& u = d.uncertainty;
+  u.valid = true;
+  u.rotation_deg = rotation_sigma_deg(out->back_to_palm, pc.covariance);
+  u.displacement_mm = std::sqrt(fit_mm * fit_mm + along_normal * along_normal);
+  u.displacement_markers_mm = fit_mm;
+  u.radius_mm = d.radius.sd_mm;
+  u.residual_sigma_mm = pc.sigma_mm;
+  out->figures.rotation_sigma_deg = u.rotation_deg;
+  out->figures.displacement_sigma_mm = u.displacement_mm;
+  // The scans cannot hold the transform to the bounds: say so, and what would help. The
+  // radius is named only where its share dominates (it moves the back scan along the
+  // normal; the rotation is the centres' sideways noise over their lever arms).
+  const double rot = u.rotation_deg, disp = u.displacement_mm;
+  if (rot > o.warn_rotation_sigma_deg || disp > o.warn_displacement_sigma_mm) {
+    const bool radius_dominates = disp > o.warn_displacement_sigma_mm && along_normal > fit_mm;
+    out->warnings.push_back(
+        fmt("the scans hold this registration to %.3f deg / %.3f mm only (1 sigma, the fit's own estimate; "
+            "warned above %.3f deg / %.3f mm): %d markers of radius %.2f mm matched; %s (docs/registration.md)",
+            rot, disp, o.warn_rotation_sigma_deg, o.warn_displacement_sigma_mm,
+            static_cast<int>(d.match.pairs.size()), r,
+            radius_dominates ? "most of it is the estimated radius's: give the markers' radius if it is known "
+                               "(markers.radius_mm)"
+                             : "more or larger markers, spread wider, would tighten it"));
   }
+}
 
-  // --- 6. merge: palm frame, side labels, marker samples out ---
-  progress("merging");
-  t = Clock::now();
-  std::vector<Eigen::Vector3d> all_b2 = cb, all_p2 = cp;
-  for (const auto& c : cp) all_b2.push_back(out.back_to_palm.inverse() * c);
-  for (const auto& c : cb) all_p2.push_back(out.back_to_palm * c);
-  const std::vector<char> keep_b = skin_mask(back, all_b2, reach), keep_p = skin_mask(palm, all_p2, reach);
-  out.merged.reset(new MergedCloud);
-  size_t n_palm = 0, n_back = 0;
-  auto add = [&](const PreparedScan& s, const std::vector<char>& keep, const Eigen::Isometry3d& T, std::uint32_t label,
-                 size_t* count) {
+// --- 8. merge: palm frame, side labels, marker samples out (each scan's own markers and the
+// other's mapped across, within `reach` of a centre) ---
+void merge_scans(const PreparedScan& back, const PreparedScan& palm, const std::vector<Eigen::Vector3d>& cb,
+                 const std::vector<Eigen::Vector3d>& cp, double reach, Registration* out) {
+  std::vector<Eigen::Vector3d> all_b = cb, all_p = cp;
+  for (const auto& c : cp) all_b.push_back(out->back_to_palm.inverse() * c);
+  for (const auto& c : cb) all_p.push_back(out->back_to_palm * c);
+  const std::vector<char> keep_b = skin_mask(back, all_b, reach), keep_p = skin_mask(palm, all_p, reach);
+  out->merged.reset(new MergedCloud);
+  auto add = [&](const PreparedScan& s, const std::vector<char>& keep, const Eigen::Isometry3d& T, std::uint32_t label) {
+    size_t count = 0;
     for (size_t k = 0; k < s.points.size(); ++k) {
       if (!keep[k]) continue;
       const Eigen::Vector3d p = T * s.points[k];
@@ -572,102 +557,118 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
       q.normal_z = static_cast<float>(n.z());
       q.curvature = 0;
       q.label = label;
-      out.merged->push_back(q);
-      ++*count;
+      out->merged->push_back(q);
+      ++count;
     }
+    return count;
   };
-  add(palm, keep_p, Eigen::Isometry3d::Identity(), kSidePalm, &n_palm);
-  add(back, keep_b, out.back_to_palm, kSideBack, &n_back);
-  timings["merge_ms"] = ms_since(t);
+  RegistrationDetail& d = out->detail;
+  d.merged_palm = add(palm, keep_p, Eigen::Isometry3d::Identity(), kSidePalm);
+  d.merged_back = add(back, keep_b, out->back_to_palm, kSideBack);
+  d.marker_samples_removed = (back.points.size() - d.merged_back) + (palm.points.size() - d.merged_palm);
+}
 
-  // --- report ---
-  auto side_json = [&](const PreparedScan& s, const std::vector<SphereFit>& m, const std::vector<int>& partner,
-                       Json j) {
-    j["returns"] = s.returns;
-    j["table"] = {{"plane", {s.table_plane(0), s.table_plane(1), s.table_plane(2), s.table_plane(3)}},
-                  {"tilt_deg", s.table_tilt_deg},
-                  {"rms_mm", s.table_rms_mm},
-                  {"points", s.table_points}};
-    j["below_table"] = s.below_table;
-    j["speckle"] = {{"islands", s.speckle_islands}, {"points", s.speckle_points}};
-    j["object_points"] = s.points.size();
-    Json a = Json::array();
-    for (size_t k = 0; k < m.size(); ++k)
-      a.push_back({{"centre", round_vec(m[k].centre)},
-                   {"radius_free_fit_mm", m[k].radius_free},
-                   {"rms_mm", m[k].rms_mm},
-                   {"samples", m[k].inliers.size()},
-                   {"spread_deg", m[k].spread_deg},
-                   {"matched_with", partner[k] >= 0 ? Json(partner[k]) : Json(nullptr)}});
-    j["markers"] = a;
-    return j;
-  };
-  rep["status"] = out.warnings.empty() ? "ok" : "ok_with_warnings";
-  rep["marker_radius"] = radius_rep;
-  rep["uncertainty"] = uncertainty;
-  rep["warnings"] = out.warnings;
-  rep["back_to_palm"] = isometry_to_json(out.back_to_palm);
-  rep["method"] = out.refined ? "refined" : "markers";
-  rep["scans"] = {{"back", side_json(back, mb, partner_b, side_rep[1])},
-                  {"palm", side_json(palm, mp, partner_p, side_rep[0])}};
-  Json pairs = Json::array();
-  for (const auto& [b, p] : match.pairs) pairs.push_back({b, p});
-  rep["matching"] = {{"pairs_back_palm", pairs},
-                     {"tolerance_mm", o.match_tolerance_mm},
-                     {"recovered", recovered},
-                     {"hypotheses", match.hypotheses},
-                     {"runner_up_pairs", match.runner_up_pairs},
-                     {"runner_up_rms_mm", match.runner_up_rms_mm}};
-  rep["marker_only"] = {{"back_to_palm", isometry_to_json(out.marker_only)},
-                        {"marker_residuals_mm", res_m},
-                        {"rms_mm", rms_m},
-                        {"max_mm", max_m},
-                        {"sphere_rms_mm", ref.marker_rms_start}};
-  double d_deg, d_mm;
-  transform_difference(ref.T, out.marker_only, &d_deg, &d_mm);
-  rep["refined"] = {{"enabled", o.refine_enabled},
-                    {"accepted", out.refined},
-                    {"note", ref.note},
-                    {"back_to_palm", isometry_to_json(ref.T)},
-                    {"marker_residuals_mm", res_r},
-                    {"rms_mm", rms_r},
-                    {"max_mm", max_r},
-                    {"sphere_rms_mm", ref.marker_rms_end},
-                    {"icp",
-                     {{"iterations", ref.iterations},
-                      {"converged", ref.converged},
-                      {"surface_pairs", ref.surface_pairs},
-                      {"gated_pairs", ref.gated_pairs},
-                      {"min_surface_pairs", o.refine.min_surface_pairs},
-                      {"tried", ref.surface_tried},
-                      {"overlap_fraction", ref.overlap_fraction},
-                      {"inlier_rms_mm", ref.surface_rms_mm},
-                      {"gate_mm", o.refine.gate_mm},
-                      {"normal_deg", o.refine.normal_deg},
-                      {"trim", o.refine.trim}}},
-                    {"change_from_marker_only", {{"rotation_deg", d_deg}, {"translation_mm", d_mm}}}};
-  rep["accept_residual_mm"] = accept;
-  Json mk = Json::array();
-  for (const auto& c : out.markers_palm) mk.push_back(round_vec(c));
-  rep["markers_palm"] = mk;
-  rep["merged"] = {{"points", out.merged->size()},
-                   {"palm", n_palm},
-                   {"back", n_back},
-                   {"marker_samples_removed", (back.points.size() - n_back) + (palm.points.size() - n_palm)}};
-  rep["timings_ms"] = timings;
-  RegistrationFigures& f = out.figures;
-  f.radius_estimated = o.estimate_radius;
-  f.markers_back = mb.size();
-  f.markers_palm = mp.size();
-  f.markers_matched = match.pairs.size();
-  f.marker_only_rms_mm = rms_m;
-  f.refined_rms_mm = rms_r;
-  f.sphere_rms_marker_only_mm = ref.marker_rms_start;
-  f.sphere_rms_refined_mm = ref.marker_rms_end;
-  f.icp_overlap_fraction = ref.overlap_fraction;
-  f.merged_points = out.merged->size();
-  for (auto it = timings.begin(); it != timings.end(); ++it) f.timings_ms.emplace_back(it.key(), it.value().get<double>());
-  out.report = rep;
+// A scan's preparation figures into its detail.
+void describe_scan(const PreparedScan& s, ScanRegistrationDetail* d) {
+  d->returns = s.returns;
+  d->table_plane = s.table_plane;
+  d->table_tilt_deg = s.table_tilt_deg;
+  d->table_rms_mm = s.table_rms_mm;
+  d->table_points = s.table_points;
+  d->below_table = s.below_table;
+  d->speckle_islands = s.speckle_islands;
+  d->speckle_points = s.speckle_points;
+  d->object_points = s.points.size();
+}
+
+// The run report's summary figures from the detail.
+void sum_up(Registration* out, const std::vector<std::pair<std::string, double>>& timings) {
+  const RegistrationDetail& d = out->detail;
+  RegistrationFigures& f = out->figures;
+  f.radius_estimated = d.used.estimate_radius;
+  f.markers_back = d.back.markers.size();
+  f.markers_palm = d.palm.markers.size();
+  f.markers_matched = d.match.pairs.size();
+  f.marker_only_rms_mm = d.marker_only.rms_mm;
+  f.refined_rms_mm = d.refined.rms_mm;
+  f.sphere_rms_marker_only_mm = d.refinement.marker_rms_start;
+  f.sphere_rms_refined_mm = d.refinement.marker_rms_end;
+  f.icp_overlap_fraction = d.refinement.overlap_fraction;
+  f.merged_points = out->merged->size();
+  f.timings_ms = timings;
+  std::sort(f.timings_ms.begin(), f.timings_ms.end());
+}
+
+}  // namespace
+
+Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_scan, const std::string& back_file,
+                            const std::string& palm_file, const RegistrationOptions& options, const MarkerHints* hints,
+                            const RegisterProgress& progress) {
+  std::string err;
+  if (!options.IsValid(&err)) throw InputError("registration options", err);
+  Registration out;
+  RegistrationDetail& d = out.detail;
+  d.used = options;
+  RegistrationOptions& o = d.used;
+  const std::string both = back_file + " + " + palm_file;
+  std::vector<std::pair<std::string, double>> timings;
+
+  progress("removing the table and speckle");
+  auto t = Clock::now();
+  const std::array<PreparedScan, 2> prepared = prepare_both(back_scan, palm_scan, back_file, palm_file, o.prepare);
+  const PreparedScan& back = prepared[0];
+  const PreparedScan& palm = prepared[1];
+  describe_scan(back, &d.back);
+  describe_scan(palm, &d.palm);
+  timings.emplace_back("prepare_ms", ms_since(t));
+
+  t = Clock::now();
+  settle_radius(back, palm, &o, hints, both, progress, &d.radius);
+  const double r = o.spheres.radius_mm;
+  out.marker_radius_mm = r;
+  progress("finding the marker spheres (radius " + fmt("%.2f", r) + " mm)");
+  find_both_markers(back, palm, o, hints, back_file, palm_file, &d, &out.warnings);
+  timings.emplace_back("markers_ms", ms_since(t));
+
+  progress("matching the markers");
+  t = Clock::now();
+  std::vector<Eigen::Vector3d> cb = centres_of(d.back.markers), cp = centres_of(d.palm.markers);
+  d.match = match_checked(cb, cp, o.match_tolerance_mm, both);
+  timings.emplace_back("match_ms", ms_since(t));
+  if (!hints) d.recovered = recover_missed(back, palm, o, &cb, &cp, &d);
+  if (d.recovered > 0)
+    out.warnings.push_back(std::to_string(d.recovered) + " marker(s) found in one scan were found in the other where " +
+                           "the others' fit put them");
+  if (d.match.pairs.size() == 3) out.warnings.push_back("only 3 markers matched: the fit has no redundancy to check it");
+  pair_partners(cb, cp, &d, &out.warnings);
+  out.marker_only = d.match.back_to_palm;
+
+  std::vector<MarkerSamples> samples;
+  for (const auto& [b, p] : d.match.pairs) {
+    MarkerSamples m;
+    for (int k : d.back.markers[b].inliers) m.back.push_back(back.points[k]);
+    for (int k : d.palm.markers[p].inliers) m.palm.push_back(palm.points[k]);
+    samples.push_back(std::move(m));
+  }
+  // Marker neighbourhoods are not skin, in either scan: own detections and the other side's
+  // mapped across (a marker missed on one side still must not pass for skin).
+  const double reach = r + o.marker_clearance_mm;
+  std::vector<Eigen::Vector3d> all_b = cb, all_p = cp;
+  for (const auto& c : cp) all_b.push_back(out.marker_only.inverse() * c);
+  for (const auto& c : cb) all_p.push_back(out.marker_only * c);
+  const std::vector<char> skin_b = skin_mask(back, all_b, reach), skin_p = skin_mask(palm, all_p, reach);
+
+  progress("refining (markers as anchors, gated ICP)");
+  t = Clock::now();
+  refine_checked(back, palm, skin_b, skin_p, samples, cb, cp, both, &out);
+  timings.emplace_back("refine_ms", ms_since(t));
+  estimate_uncertainty(back, skin_b, samples, &out);
+
+  progress("merging");
+  t = Clock::now();
+  merge_scans(back, palm, cb, cp, reach, &out);
+  timings.emplace_back("merge_ms", ms_since(t));
+  sum_up(&out, timings);
   return out;
 }
 

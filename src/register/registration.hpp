@@ -1,9 +1,18 @@
 #pragma once
-/// Registration of the back scan into the palm scan's frame (thesis §4.1.1), automatic:
-///   prepare (table and speckle removed, normals) → marker spheres in each scan →
-///   matching by distance pattern → rigid fit of the centres → guarded refinement →
-///   checks against the marker radius and the scanner's resolution → merged cloud.
-/// Stages live in prepare/spheres/match/refine; this file runs them and reports.
+/// Registration of the back scan into the palm scan's frame (thesis §4.1.1), automatic.
+/// register_scans runs these steps in order (registration.cpp), each a function of its own:
+///   1. prepare_both        table and speckle removed, normals (prepare.cpp), both scans at once
+///   2. settle_radius       the markers' radius estimated from the scans, unless it is given
+///   3. find_both_markers   marker spheres in each scan (spheres.cpp), or at a hint file's places
+///   4. match_checked       matching by distance pattern and the rigid fit of the centres
+///                          (match.cpp); a match that cannot be trusted stops here
+///   5. recover_missed      a marker found in one scan looked for where the pattern puts it
+///   6. refine_checked      guarded refinement (refine.cpp), checked against the marker radius
+///                          and the scanner's resolution
+///   7. estimate_uncertainty  the fit's own error estimate (1σ)
+///   8. merge_scans         one cloud in the palm frame, side labels, marker samples out
+/// The result is typed (RegistrationDetail); registration.json is made from it in
+/// pipeline/registration_stage.
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 
@@ -13,7 +22,6 @@
 #include <string>
 #include <vector>
 
-#include "core/json_util.hpp"
 #include "register/match.hpp"
 #include "register/prepare.hpp"
 #include "register/refine.hpp"
@@ -46,13 +54,68 @@ struct RegistrationOptions {
   bool IsValid(std::string* error) const;
 };
 
-/// The markers' radius as found in the scans.
-struct RadiusEstimate {
-  double radius_mm = 0;      ///< trimmed median free-radius fit over the best candidate's matched caps
-  double spread_mm = 0;      ///< median absolute deviation of those fits
-  double candidate_mm = 0;   ///< the candidate radius that found them
-  int caps = 0;              ///< caps (both scans) the estimate rests on
-  Json tried = Json::array();  ///< per candidate: bumps found in each scan, and matched
+/// One candidate radius tried: the bumps it found in each scan, and how many of them matched.
+struct RadiusTry {
+  double radius_mm = 0;
+  size_t palm = 0, back = 0, matched = 0;
+};
+
+/// The markers' radius used: given, or estimated from the scans (registration.json
+/// "marker_radius").
+struct MarkerRadiusDetail {
+  bool estimated = false;
+  double radius_mm = 0;             ///< the radius used
+  // Estimated only:
+  std::vector<RadiusTry> tried;     ///< per candidate
+  double candidate_mm = 0;          ///< the candidate radius that found the most markers
+  int caps = 0;                     ///< caps (both scans) its estimate rests on
+  double spread_mm = 0;             ///< median absolute deviation of their free fits
+  std::vector<double> refinement_mm;  ///< the estimate, then each shared-radius refit
+  double sd_mm = 0;                 ///< the last refit's standard deviation (0: not known)
+  double free_fit_tolerance_mm = 0; ///< > 0: detections whose free fit strays further were dropped
+};
+
+/// One scan's part of the registration (registration.json "scans").
+struct ScanRegistrationDetail {
+  size_t returns = 0, table_points = 0, below_table = 0, speckle_points = 0, speckle_islands = 0, object_points = 0;
+  Eigen::Vector4d table_plane = Eigen::Vector4d::Zero();  ///< n·p + d = 0, scan frame
+  double table_tilt_deg = 0, table_rms_mm = 0;
+  bool manual_markers = false;      ///< fitted at a hint file's positions (else detected)
+  size_t candidates_examined = 0;   ///< detected: Hough candidates examined
+  std::vector<SphereCandidateReport> rejected;  ///< detected: the first 20 rejected, with why
+  size_t candidates_dropped = 0;    ///< detected: weakest left out beyond the expected count + 6
+  std::vector<SphereFit> markers;   ///< the markers, scan frame (recovered ones appended)
+  std::vector<int> partner;         ///< per marker: its match's index in the other scan, or -1
+};
+
+/// The matched centres' residuals after a fit: per pair (in match order), RMS and largest.
+struct MarkerResiduals {
+  std::vector<double> per_pair_mm;
+  double rms_mm = 0, max_mm = 0;
+};
+
+/// The fit's own error estimate (1σ), when the joint marker fit's covariance could be made.
+struct RegistrationUncertainty {
+  bool valid = false;
+  double rotation_deg = 0, displacement_mm = 0;
+  double displacement_markers_mm = 0;  ///< the markers' share of the displacement
+  double radius_mm = 0;                ///< the estimated radius's sd (0: given, or not known)
+  double residual_sigma_mm = 0;
+};
+
+/// Everything registration.json tells (docs/formats.md), typed.
+struct RegistrationDetail {
+  RegistrationOptions used;          ///< the options as applied (spheres.radius_mm: the radius used)
+  MarkerRadiusDetail radius;
+  ScanRegistrationDetail back, palm;
+  MarkerMatch match;                 ///< the matching, with the recovered markers' pairs
+  int recovered = 0;                 ///< markers found in one scan where the pattern put them
+  MarkerResiduals marker_only, refined;  ///< at the marker-only and at the refined transform
+  RefineResult refinement;
+  double change_rotation_deg = 0, change_translation_mm = 0;  ///< refined against marker-only
+  double accept_residual_mm = 0;     ///< the largest matched-centre disagreement allowed
+  RegistrationUncertainty uncertainty;
+  size_t merged_palm = 0, merged_back = 0, marker_samples_removed = 0;
 };
 
 /// Approximate marker centres per scan for a replica whose bumps the detector misses
@@ -97,7 +160,7 @@ struct Registration {
   std::vector<std::string> warnings;
   MergedCloud::Ptr merged;
   RegistrationFigures figures;
-  Json report;                                ///< registration.json: every detail (docs/formats.md)
+  RegistrationDetail detail;                  ///< every detail (registration.json)
 };
 
 using RegisterProgress = std::function<void(const std::string&)>;

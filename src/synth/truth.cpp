@@ -1,8 +1,5 @@
 #include "synth/truth.hpp"
 
-#include <filesystem>
-
-#include "core/errors.hpp"
 #include "core/transform.hpp"
 
 namespace handskin {
@@ -40,24 +37,6 @@ Json truth_to_json(const ScanPair& pair, const Rig& hand_rig, std::uint64_t seed
                       {"table_tilt_deg", scanner.table_tilt_deg}};
   truth["placement_attempts"] = pair.placement_attempts;
   return truth;
-}
-
-TruthSkin load_truth_skin(const std::string& path) {
-  namespace fs = std::filesystem;
-  TruthSkin t;
-  t.path = path;
-  t.json = load_json_object(path);
-  if (get_string(t.json, "format", path) != "handskin-truth/1")
-    throw InputError(path, "key 'format' must be \"handskin-truth/1\"");
-  t.back_to_palm = isometry_from_json(require(t.json, "back_to_palm", path), "back_to_palm", path);
-  t.skin_path = (fs::path(path).parent_path() / get_string(t.json, "skin", path)).string();
-  t.skin = load_mesh(t.skin_path);
-  if (t.json.contains("markers_palm")) {
-    if (!t.json["markers_palm"].is_array()) throw InputError(path, "key 'markers_palm' must be an array");
-    for (const auto& m : t.json["markers_palm"]) t.markers.push_back(to_vec3(m, "markers_palm", path));
-  }
-  t.exclude_mm = get_finite_or(t.json, "marker_radius_mm", 4.0, path) + 3.0;
-  return t;
 }
 
 }  // namespace handskin
