@@ -8,6 +8,7 @@
 
 #include "core/atomic_file.hpp"
 #include "core/json_util.hpp"
+#include "pipeline/layout_json.hpp"
 #include "mesh/mesh_distance.hpp"
 #include "mesh/point_grid.hpp"
 #include "patches/patches.hpp"

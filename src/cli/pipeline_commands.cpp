@@ -5,6 +5,7 @@
 #include "cli/commands.hpp"
 #include "core/errors.hpp"
 #include "core/output_set.hpp"
+#include "pipeline/layout_json.hpp"
 #include "pipeline/options.hpp"
 #include "pipeline/patch_stage.hpp"
 #include "pipeline/stage_options.hpp"

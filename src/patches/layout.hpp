@@ -21,7 +21,6 @@
 #include <string>
 #include <vector>
 
-#include "core/json_util.hpp"
 #include "core/rig.hpp"
 #include "skin/skin_mesh.hpp"
 
@@ -66,10 +65,5 @@ PatchLayout subdivide_layout(const PatchLayout& layout, int k);
 /// Faces turned so that every edge is run both ways and the enclosed volume is positive.
 /// Throws InputError (naming `what`) when the faces cannot be oriented (not a closed surface).
 void orient_layout(PatchLayout* layout, const std::string& what);
-
-/// `{"vertices": [[x, y, z]…], "faces": [[a, b, c, d]…], "names": […], "creases": [[a, b]…]}`.
-Json layout_to_json(const PatchLayout& layout);
-/// The inverse; every error names `file` and the entry. The layout must be closed (checked).
-PatchLayout layout_from_json(const Json& j, const std::string& file);
 
 }  // namespace handskin

@@ -818,15 +818,6 @@ bool PatchOptions::IsValid(std::string* error) const {
   return true;
 }
 
-PatchLayout parse_patch_layout(const Json& j, const std::string& file) {
-  const std::string format = get_string(j, "format", file);
-  if (format != "handskin-patches/1" && format != "handskin-patch-layout/1")
-    throw InputError(file, "key 'format' must be \"handskin-patches/1\" or \"handskin-patch-layout/1\" (got \"" + format + "\")");
-  const Json& layout = require(j, "layout", file);
-  if (!layout.is_object()) throw InputError(file, "key 'layout' must be an object");
-  return layout_from_json(layout, file + ": layout");
-}
-
 PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector3d>& points,
                       const std::vector<std::uint32_t>& sides, const std::vector<Eigen::Vector3d>& support,
                       const std::vector<Bone>& bones, const PatchOptions& o) {

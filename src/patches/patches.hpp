@@ -19,7 +19,6 @@
 #include <string>
 #include <vector>
 
-#include "core/json_util.hpp"
 #include "core/rig.hpp"
 #include "mesh/trimesh.hpp"
 #include "patches/layout.hpp"
@@ -43,10 +42,6 @@ struct PatchOptions {
   std::optional<PatchLayout> layout;
   bool IsValid(std::string* error) const;
 };
-
-/// The layout of a patches file (`handskin-patches/1`, its "layout") or of a layout file
-/// (`handskin-patch-layout/1`, the same key). Throws InputError naming `file` and the entry.
-PatchLayout parse_patch_layout(const Json& j, const std::string& file);
 
 /// A bicubic Bézier patch: P[4 * i + j], i along u (the face's corner 0 → 1), j along v
 /// (corner 0 → 3); (u, v) in [0, 1]², the normal Su × Sv pointing out of the hand.

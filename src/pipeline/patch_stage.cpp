@@ -6,6 +6,7 @@
 
 #include "core/atomic_file.hpp"
 #include "pipeline/figures_json.hpp"
+#include "pipeline/layout_json.hpp"
 #include "pipeline/patch_report.hpp"
 
 namespace handskin {

@@ -11,6 +11,37 @@
 
 namespace handskin {
 
+Json slicing_to_json(const Slicing& s) {
+  Json j;
+  j["format"] = "handskin-slices/1";
+  j["spacing_mm"] = s.spacing;
+  j["plane_x_mm"] = s.plane_x;
+  j["hand_from_rig"] = Json::array();
+  for (int r = 0; r < 4; ++r) {
+    Json row = Json::array();
+    for (int c = 0; c < 4; ++c) row.push_back(s.T_hand_rig.matrix()(r, c));
+    j["hand_from_rig"].push_back(row);
+  }
+  Json bones = Json::array();
+  for (const auto& b : s.bones) bones.push_back(b.name());
+  j["bones"] = bones;
+  Json secs = Json::array();
+  for (const auto& sec : s.sections) {
+    Json pts = Json::array(), phi = Json::array(), rho = Json::array();
+    for (size_t i = 0; i < sec.points.size(); ++i) {
+      pts.push_back(to_json(sec.points[i]));
+      phi.push_back(sec.phi[i] * 180.0 / M_PI);
+      rho.push_back(sec.rho[i]);
+    }
+    secs.push_back({{"plane", sec.plane}, {"bone", sec.bone}, {"closed", sec.closed}, {"measured", sec.measured},
+                    {"largest_gap_deg", sec.largest_gap_deg}, {"centre", to_json(sec.centre)}, {"phi_deg", phi},
+                    {"rho_mm", rho}, {"points", pts}});
+  }
+  j["sections"] = secs;
+  return j;
+}
+
+
 namespace {
 
 double since(std::chrono::steady_clock::time_point t) {

@@ -24,6 +24,9 @@
 
 namespace handskin {
 
+/// slices.json (`handskin-slices/1`, docs/formats.md): the sections the skin was built from.
+Json slicing_to_json(const Slicing& s);
+
 /// A rig for the skin stage: a hand-rig/1 file whose joints are in the palm frame (the
 /// merged cloud's); another frame is an InputError naming the file.
 Rig load_palm_rig(const std::string& path);

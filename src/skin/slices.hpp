@@ -8,7 +8,6 @@
 #include <string>
 #include <vector>
 
-#include "core/json_util.hpp"
 #include "core/rig.hpp"
 
 namespace handskin {
@@ -53,7 +52,5 @@ Slicing slice_cloud(const std::vector<Eigen::Vector3d>& points, const Rig& rig, 
 /// The same with explicit bones and slicing frame (for tests and other skeletons).
 Slicing slice_cloud(const std::vector<Eigen::Vector3d>& points, const std::vector<Bone>& bones,
                     const Eigen::Isometry3d& T_hand_rig, const SliceOptions& options);
-
-Json slicing_to_json(const Slicing& s);
 
 }  // namespace handskin

@@ -1,0 +1,68 @@
+#include "pipeline/layout_json.hpp"
+
+#include "core/errors.hpp"
+
+namespace handskin {
+
+Json layout_to_json(const PatchLayout& L) {
+  Json v = Json::array(), f = Json::array();
+  for (const auto& p : L.vertices) v.push_back(to_json(p));
+  for (const auto& c : L.faces) f.push_back({c[0], c[1], c[2], c[3]});
+  Json c = Json::array();
+  for (const auto& e : L.creases) c.push_back({e[0], e[1]});
+  return {{"vertices", v}, {"faces", f}, {"names", L.names}, {"creases", c}};
+}
+
+namespace {
+// N vertex indices (a face's corners, a crease's ends) from a JSON array, each in [0, nv).
+template <size_t N>
+std::array<int, N> vertex_indices(const Json& a, const std::string& where, size_t nv, const std::string& file) {
+  if (!a.is_array() || a.size() != N) throw InputError(file, where + " must be " + std::to_string(N) + " vertex indices");
+  std::array<int, N> out;
+  for (size_t s = 0; s < N; ++s) {
+    if (!a[s].is_number_integer() || a[s].get<long>() < 0 || a[s].get<long>() >= static_cast<long>(nv))
+      throw InputError(file, where + " must hold vertex indices in [0, " + std::to_string(nv - 1) + "]");
+    out[s] = static_cast<int>(a[s].get<long>());
+  }
+  return out;
+}
+}  // namespace
+
+PatchLayout layout_from_json(const Json& j, const std::string& file) {
+  PatchLayout L;
+  const Json& v = require(j, "vertices", file);
+  const Json& f = require(j, "faces", file);
+  if (!v.is_array() || v.size() < 8 || v.size() > 200000)
+    throw InputError(file, "key 'vertices' must be an array of 8 to 200000 points");
+  if (!f.is_array() || f.size() < 6 || f.size() > 200000) throw InputError(file, "key 'faces' must be an array of 6 to 200000 faces");
+  for (size_t k = 0; k < v.size(); ++k) L.vertices.push_back(to_vec3(v[k], "vertices[" + std::to_string(k) + "]", file));
+  for (size_t k = 0; k < f.size(); ++k) L.faces.push_back(vertex_indices<4>(f[k], "faces[" + std::to_string(k) + "]", v.size(), file));
+  if (j.contains("names")) {
+    const Json& n = j["names"];
+    if (!n.is_array() || n.size() != f.size()) throw InputError(file, "key 'names' must name every face");
+    for (const auto& s : n) {
+      if (!s.is_string()) throw InputError(file, "key 'names' must hold strings");
+      L.names.push_back(s.get<std::string>());
+    }
+  } else {
+    for (size_t k = 0; k < f.size(); ++k) L.names.push_back("face" + std::to_string(k));
+  }
+  if (j.contains("creases")) {
+    const Json& c = j["creases"];
+    if (!c.is_array()) throw InputError(file, "key 'creases' must be an array of corner pairs");
+    for (size_t k = 0; k < c.size(); ++k) L.creases.push_back(vertex_indices<2>(c[k], "creases[" + std::to_string(k) + "]", v.size(), file));
+  }
+  layout_topology(L, file);  // closed and oriented alike, or an error naming the edge
+  return L;
+}
+
+PatchLayout parse_patch_layout(const Json& j, const std::string& file) {
+  const std::string format = get_string(j, "format", file);
+  if (format != "handskin-patches/1" && format != "handskin-patch-layout/1")
+    throw InputError(file, "key 'format' must be \"handskin-patches/1\" or \"handskin-patch-layout/1\" (got \"" + format + "\")");
+  const Json& layout = require(j, "layout", file);
+  if (!layout.is_object()) throw InputError(file, "key 'layout' must be an object");
+  return layout_from_json(layout, file + ": layout");
+}
+
+}  // namespace handskin
