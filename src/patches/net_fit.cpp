@@ -1,0 +1,497 @@
+// The patch net's least squares (patch_steps.hpp, step 4 of the fit): the data at their foot
+// points, C1 and G1 across the borders, fairness, solved by sparse Cholesky and
+// preconditioned conjugate gradients.
+#include <Eigen/CholmodSupport>
+#include <Eigen/Dense>
+#include <Eigen/Sparse>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "core/errors.hpp"
+#include "patches/patch_steps.hpp"
+
+namespace handskin::patch_steps {
+
+namespace {
+
+// The control point on the layout edge (v, w) next to corner v.
+int net_edge_near(const PatchSkin& s, int v, int w) {
+  const auto& faces = s.layout.faces;
+  for (size_t f = 0; f < faces.size(); ++f)
+    for (int k = 0; k < 4; ++k)
+      if (faces[f][k] == v && faces[f][(k + 1) % 4] == w) {
+        std::array<std::array<int, 2>, 4> on, in;
+        border(k, &on, &in);
+        return s.patch_control[f][4 * on[1][0] + on[1][1]];
+      }
+  HS_CHECK(false, "patch net: no face runs an edge of the layout");
+  return -1;
+}
+
+
+// The least squares' weights (NetFit::fit says what each term is).
+constexpr double kTangentWeight = 0.005;
+// The G1 rows' weight against a C1 row's. On 12 hands of the family at 0.1 the G1 p95 is
+// 0.41–0.62° (8.4–9.5° without), the surface → true skin mean as before (median 0.1643 →
+// 0.1633 mm). On one of them 0.03 leaves the p95 at 1.27°, 0.3 takes it to 0.33° with the
+// surface → true skin mean 1.6 % larger than at 0.1.
+constexpr double kG1Weight = 0.1;
+
+// G1 along the borders that end where other than four patches meet, where C1 cannot hold (it
+// is left out next to such a corner). At samples along the border, with n the mean of the two
+// patches' normals and D_f, D_g their derivatives across it (each into its own patch), the kink
+// is sin α_f + sin α_g = n·D_f/|D_f| + n·D_g/|D_g|: zero when the two cross directions are
+// one line, whatever the plane's tilt (to first order a turn of both about the border leaves
+// it zero, so the penalty does not pin the tangent plane where the last round left it). With
+// n and the lengths from the last round the rows are linear; they couple the border's control
+// points with both inner rows (12 control points, 36 unknowns).
+struct G1Border {
+  int f, s, g, gs;
+  std::array<int, 12> ids;  ///< the border (f's order), f's inner row, g's inner row (g's order)
+};
+std::vector<G1Border> g1_borders(const PatchSkin& out, const LayoutTopology& T) {
+  std::vector<G1Border> list;
+  const auto& faces = out.layout.faces;
+  for (int f = 0; f < static_cast<int>(out.patches.size()); ++f)
+    for (int s = 0; s < 4; ++s) {
+      const int g = T.neighbour[f][s], gs = T.neighbour_side[f][s];
+      if (g < f || (g == f && gs < s)) continue;  // each border once
+      if (out.layout.is_crease(faces[f][s], faces[f][(s + 1) % 4])) continue;
+      if (T.regular(faces[f][s]) && T.regular(faces[f][(s + 1) % 4])) continue;
+      G1Border b{f, s, g, gs, {}};
+      std::array<std::array<int, 2>, 4> on_f, in_f, on_g, in_g;
+      border(s, &on_f, &in_f);
+      border(gs, &on_g, &in_g);
+      for (int k = 0; k < 4; ++k) {
+        b.ids[k] = out.patch_control[f][4 * on_f[k][0] + on_f[k][1]];
+        b.ids[4 + k] = out.patch_control[f][4 * in_f[k][0] + in_f[k][1]];
+        b.ids[8 + k] = out.patch_control[g][4 * in_g[k][0] + in_g[k][1]];
+      }
+      list.push_back(b);
+    }
+  return list;
+}
+// The border's kink penalty, Σ over samples of w·(L·kink)² (L the cross derivatives' mean
+// length / 3, so that it weighs like a C1 row in mm²), as a 36 × 36 matrix on its ids.
+Eigen::Matrix<double, 36, 36> g1_block(const PatchSkin& out, const G1Border& b, double w) {
+  constexpr int kSamples = 9;
+  Eigen::Matrix<double, 36, 36> M = Eigen::Matrix<double, 36, 36>::Zero();
+  for (int q = 1; q <= kSamples; ++q) {
+    const double t = q / (kSamples + 1.0);
+    const Eigen::Vector2d a = on_side(b.s, t), c = on_side(b.gs, 1 - t);
+    Eigen::Vector3d Sa, Sau, Sav, Sc, Scu, Scv;
+    out.patches[b.f].derivatives(a.x(), a.y(), &Sa, &Sau, &Sav);
+    out.patches[b.g].derivatives(c.x(), c.y(), &Sc, &Scu, &Scv);
+    const Eigen::Vector3d na = Sau.cross(Sav), nc = Scu.cross(Scv);
+    if (na.norm() < 1e-12 || nc.norm() < 1e-12) continue;
+    const Eigen::Vector3d nm = na.normalized() + nc.normalized();
+    if (nm.norm() < 1e-6) continue;
+    const Eigen::Vector3d n = nm.normalized();
+    double Bf[4], Bg[4];
+    bernstein(t, Bf, nullptr);
+    bernstein(1 - t, Bg, nullptr);
+    Eigen::Vector3d Df = Eigen::Vector3d::Zero(), Dg = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 4; ++k) {
+      Df += 3 * Bf[k] * (out.control[b.ids[4 + k]] - out.control[b.ids[k]]);
+      Dg += 3 * Bg[k] * (out.control[b.ids[8 + k]] - out.control[b.ids[3 - k]]);  // g runs the border the other way
+    }
+    const double lf = Df.norm(), lg = Dg.norm();
+    if (lf < 1e-9 || lg < 1e-9) continue;
+    const double L = (lf + lg) / 6;
+    Eigen::Matrix<double, 36, 1> row = Eigen::Matrix<double, 36, 1>::Zero();
+    for (int k = 0; k < 4; ++k) {
+      row.segment<3>(3 * (4 + k)) += 3 * Bf[k] * L / lf * n;
+      row.segment<3>(3 * k) -= 3 * Bf[k] * L / lf * n;
+      row.segment<3>(3 * (8 + k)) += 3 * Bg[k] * L / lg * n;
+      row.segment<3>(3 * (3 - k)) -= 3 * Bg[k] * L / lg * n;
+    }
+    M.noalias() += w * row * row.transpose();
+  }
+  return M;
+}
+
+// The normal equations' solver, kept from round to round. The matrix's pattern is the same
+// every round (the same net, blocks and penalties), and so are the penalties' values: the
+// first round builds the pattern, keeps the penalties' share of the values and where each
+// patch's 48 × 48 block lands; later rounds copy the one and add the others there.
+//
+// Sparse Cholesky of the normal equations; never an inverse. CHOLMOD's supernodal Cholesky
+// (SuiteSparse, through Eigen): 6–8 times faster here than Eigen's simplicial LDLᵀ. A
+// correction round changes the matrix only a little (the points' parameters and normals move),
+// so a round first tries conjugate gradients preconditioned by the last factor, from the last
+// round's control points (`preconditioned_cg`): iterations of one sparse product and two
+// triangular solves (~0.26 ms each on the fixture) against a new factorisation (~17 ms). Where
+// they would not converge within kCgBudget iterations the round factors its own matrix, which
+// later rounds then use. The G1 rows and the normals change most in the early rounds, which
+// factor; the later ones converge so as the surface settles.
+constexpr int kCgBudget = 40;  // iterations; a factorisation costs about 65 on the fixture (a budget of 60 took as long)
+constexpr int kCgCheck = 6;    // iterations between two predictions of the iterations still needed
+constexpr int kCgStalled = 12;  // given up within this many: the next round factors at once
+constexpr double kCgTolerance = 1e-7;  // relative residual; the control points then agree with direct solves within ~3e-4 mm
+// The correction rounds' solves stop at a relative residual of 1e-4: each is one step of the
+// alternation between foot points and control points, whose next round moves the parameters
+// again, and a solve to 1e-7 there bought nothing. On the fixture and five family pairs (H01,
+// H02, H05, H07, H10) every figure of the report stayed within 0.001 mm (means) and 0.02 mm
+// (maxima) of solves to 1e-7, the G1 p95 within 0.07° (with G0 alone, c1_weight 0, 0.002–0.006 mm
+// farther from the truth); the fit took 10–25 % less time (392
+// patches on the fixture, with the final solve below: 1.67 → 1.27 s). The surface kept is then solved again to kCgTolerance
+// (polish_net): the least squares of the final parameters, exactly.
+constexpr double kCgRoundTolerance = 1e-4;
+
+// Conjugate gradients on A x = b (A holding both halves) from x, preconditioned by M (the
+// Cholesky factor of an earlier round's matrix). Written out rather than Eigen's
+// ConjugateGradient so that it can give up early and deterministically: every kCgCheck
+// iterations the residual's rate of decrease over the last ones predicts how many more
+// convergence needs, and when the total would pass kCgBudget it stops (the caller then
+// factors). Returns true when the relative residual reached `tolerance`.
+bool preconditioned_cg(const Eigen::SparseMatrix<double>& A,
+                       const Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>>& M, const Eigen::VectorXd& b,
+                       double tolerance, Eigen::VectorXd* x, int* iterations) {
+  *iterations = 0;
+  const double bn = b.norm();
+  if (bn == 0) {
+    x->setZero();
+    return true;
+  }
+  Eigen::VectorXd r = b - A * *x;
+  double err = r.norm() / bn, err_checked = err;
+  Eigen::VectorXd z = M.solve(r);
+  Eigen::VectorXd p = z, Ap(b.size());
+  double rz = r.dot(z);
+  for (int it = 1; it <= kCgBudget && err > tolerance; ++it) {
+    Ap.noalias() = A.transpose() * p;  // A is symmetric: its transpose is row-major, whose product Eigen runs on every thread
+    const double pAp = p.dot(Ap);
+    if (!(pAp > 0)) return false;  // not positive definite to working precision: factor
+    const double alpha = rz / pAp;
+    *x += alpha * p;
+    r -= alpha * Ap;
+    err = r.norm() / bn;
+    *iterations = it;
+    if (err <= tolerance) break;
+    if (it % kCgCheck == 0) {
+      const double rate = std::pow(err / err_checked, 1.0 / kCgCheck);
+      if (!(rate < 1) || it + std::log(tolerance / err) / std::log(rate) > kCgBudget) return false;
+      err_checked = err;
+    }
+    z = M.solve(r);
+    const double rz_next = r.dot(z);
+    p = z + (rz_next / rz) * p;
+    rz = rz_next;
+  }
+  return err <= tolerance;
+}
+
+}  // namespace
+
+struct NetSolver {
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
+  bool factored = false;  ///< llt holds a factor (of a round with normals: the first fit solves its own)
+  bool stalled = false;  ///< the last round's conjugate gradients gave up early
+  Eigen::SparseMatrix<double> A;  ///< the normal equations (both halves)
+  std::vector<double> penalty_values;  ///< the penalties' share of A's values
+  std::vector<int> block_slot;  ///< per patch, its 48 × 48 block's entries' indices in A's values
+  std::vector<G1Border> g1;  ///< the borders held G1 (their kink rows change every round)
+  std::vector<int> g1_slot;  ///< per such border, its 36 × 36 block's entries' indices in A's values
+  Eigen::VectorXd x;  ///< the last solution
+  Eigen::VectorXd rhs;  ///< the last right-hand side (A x = rhs)
+  bool exact = false;  ///< x solves the last system directly or to kCgTolerance
+};
+
+namespace {
+
+// A direct solve of A x = b with A the solver's matrix; the factor is kept (later rounds'
+// conjugate gradients are preconditioned by it).
+Eigen::VectorXd solve_directly(NetSolver* solver, const Eigen::VectorXd& b) {
+  solver->llt.factorize(solver->A);
+  HS_CHECK(solver->llt.info() == Eigen::Success, "patch fit: the normal equations could not be factored");
+  solver->factored = true;
+  return solver->llt.solve(b);
+}
+
+// A solution of the solver's system (`exact`: directly or to kCgTolerance) into the net's
+// control points and the patches.
+void take_solution(PatchSkin* out, NetSolver* solver, Eigen::VectorXd X, bool exact) {
+  solver->x = std::move(X);
+  solver->exact = exact;
+  for (size_t k = 0; k < out->control.size(); ++k) out->control[k] = solver->x.segment<3>(3 * static_cast<long>(k));
+  rebuild_patches(out);
+}
+
+// The penalties that are the same every round, as triplets: fairness, C1 across borders, G1
+// at the corners where other than four patches meet.
+std::vector<Eigen::Triplet<double>> net_penalties(const PatchSkin& out, const LayoutTopology& T, const PatchOptions& o,
+                                                  double per_point) {
+  const int patches = static_cast<int>(out.patches.size());
+  std::vector<Eigen::Triplet<double>> A;
+  // A penalty row Σ w_k e_k on control points (the same for x, y and z): its normal-equation entries.
+  auto penalty = [&](std::initializer_list<int> ids, std::initializer_list<double> coef, double w) {
+    const int* id = ids.begin();
+    const double* cf = coef.begin();
+    const size_t m = ids.size();
+    for (size_t x = 0; x < m; ++x)
+      for (size_t y = 0; y < m; ++y)
+        for (int c = 0; c < 3; ++c) A.emplace_back(3 * id[x] + c, 3 * id[y] + c, w * cf[x] * cf[y]);
+  };
+  auto triple = [&](int i0, int i1, int i2, double w) { penalty({i0, i1, i2}, {1, -2, 1}, w); };
+  // Fairness: second differences along both directions inside each patch.
+  for (int f = 0; f < patches; ++f) {
+    const auto& id = out.patch_control[f];
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 2; ++b) {
+        triple(id[4 * a + b], id[4 * a + b + 1], id[4 * a + b + 2], per_point * o.fairness);
+        triple(id[4 * b + a], id[4 * (b + 1) + a], id[4 * (b + 2) + a], per_point * o.fairness);
+      }
+  }
+  // C1: each border's control points midway between their inner neighbours on either side.
+  const auto& faces = out.layout.faces;
+  for (int f = 0; f < patches; ++f)
+    for (int s = 0; s < 4; ++s) {
+      const int g = T.neighbour[f][s], gs = T.neighbour_side[f][s];
+      if (g < f || (g == f && gs < s)) continue;  // each border once
+      std::array<std::array<int, 2>, 4> on_f, in_f, on_g, in_g;
+      border(s, &on_f, &in_f);
+      border(gs, &on_g, &in_g);
+      const auto& idf = out.patch_control[f];
+      const auto& idg = out.patch_control[g];
+      for (int k = 0; k < 4; ++k) {
+        const auto& b = on_f[k];
+        const auto& a = in_f[k];
+        const auto& c = in_g[3 - k];  // g runs the border the other way
+        HS_CHECK(idf[4 * b[0] + b[1]] == idg[4 * on_g[3 - k][0] + on_g[3 - k][1]], "patch net: a border not shared");
+        if (out.layout.is_crease(faces[f][s], faces[f][(s + 1) % 4])) break;
+        // Next to a corner where other than four patches meet C1 cannot hold; from the second
+        // round the border is held G1 instead (g1_block), and only the row at a regular end
+        // keeps its C1 condition.
+        if (k <= 2 && !T.regular(faces[f][s])) continue;
+        if (k >= 1 && !T.regular(faces[f][(s + 1) % 4])) continue;
+        triple(idf[4 * a[0] + a[1]], idf[4 * b[0] + b[1]], idg[4 * c[0] + c[1]], per_point * (o.c1_weight + o.fairness));
+      }
+    }
+  // Where other than four patches meet, the control points next to the corner along its
+  // edges, taken in turn round it (v_i = e_i − corner), are held to an affine image of a
+  // regular n-gon: v_{i−1} + v_{i+1} = 2 cos(2π/n) v_i. They then lie in one plane — one
+  // tangent plane for all the patches there (G1 at the corner) — and the condition is linear
+  // and the same for x, y and z (for n = 4 it is the C1 condition above). Corners on a crease
+  // are left free.
+  for (size_t v = 0; v < T.valence.size(); ++v) {
+    if (T.regular(static_cast<int>(v)) || T.around[v].empty()) continue;
+    bool on_crease = false;
+    for (int w : T.around[v]) on_crease = on_crease || out.layout.is_crease(static_cast<int>(v), w);
+    if (on_crease) continue;
+    const int m = static_cast<int>(T.around[v].size());
+    const double c = std::cos(2 * M_PI / m);
+    std::vector<int> e(m);
+    for (int i = 0; i < m; ++i) e[i] = net_edge_near(out, static_cast<int>(v), T.around[v][i]);
+    for (int i = 0; i < m; ++i) {
+      penalty({e[(i + m - 1) % m], e[(i + 1) % m], e[i], static_cast<int>(v)}, {1, 1, -2 * c, -2 * (1 - c)},
+              per_point * o.corner_weight);
+    }
+  }
+  return A;
+}
+
+// The unknowns (x, y, z of each) of `count` control points, in that order.
+std::vector<int> unknowns_of(const int* ids, int count) {
+  std::vector<int> u(3 * static_cast<size_t>(count));
+  for (int a = 0; a < 3 * count; ++a) u[a] = 3 * ids[a / 3] + a % 3;
+  return u;
+}
+
+// Where the entries (u[a], u[b]) of a dense block on the distinct unknowns u sit in A's values:
+// slot[|u| a + b]. One walk down each of the block's columns (A's row indices are sorted in
+// each column) instead of a binary search per entry: the first round's pattern took 9 ms so.
+void block_slots(const Eigen::SparseMatrix<double>& A, const std::vector<int>& u, int* slot) {
+  const int m = static_cast<int>(u.size());
+  std::vector<int> order(m);
+  for (int a = 0; a < m; ++a) order[a] = a;
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return u[a] < u[b]; });
+  const int* inner = A.innerIndexPtr();
+  for (int b = 0; b < m; ++b) {
+    int p = A.outerIndexPtr()[u[b]];
+    const int end = A.outerIndexPtr()[u[b] + 1];
+    for (int a : order) {
+      while (p < end && inner[p] < u[a]) ++p;
+      HS_CHECK(p < end && inner[p] == u[a], "patch fit: a block entry is missing from the matrix's pattern");
+      slot[m * a + b] = p;
+    }
+  }
+}
+
+// Least squares for every control point at once (eq. 4.5): the data, C1 across every border
+// but next to a corner where other than four patches meet (there it would flatten the corner's
+// tangents): those borders are held G1 (g1_block) from the second round on, the corner itself
+// by its own condition (net_penalties); fairness inside each patch. The normal equations are
+// assembled from per-patch blocks.
+//
+// Once the points have foot points with normals, each point's error is measured the way
+// squared-distance minimisation does (Wang, Pottmann & Liu 2006): its distance along the
+// surface's normal there in full, its offset along the surface at kTangentWeight. The
+// thesis's point-to-point error (eq. 4.5 with the parameters held) makes the fit drag the
+// surface along with the points' old parameters: the parameter correction then creeps (on an
+// ellipsoid the RMS still fell by a third from the tenth round to the thirtieth); with the
+// normal error the correction settles in a few rounds. The normal term couples x, y and z,
+// so the system has three unknowns per control point.
+void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& data, const PatchOptions& o,
+             NetSolver* solver) {
+  const int n = static_cast<int>(out->control.size());
+  const int patches = static_cast<int>(out->patches.size());
+  std::vector<std::vector<int>> of_patch(patches);
+  double wsum = 0;
+  bool normals = false;
+  for (size_t k = 0; k < data.size(); ++k)
+    if (data[k].fit) {
+      of_patch[data[k].patch].push_back(static_cast<int>(k)), wsum += data[k].w;
+      normals = normals || data[k].n.squaredNorm() > 0.5;
+    }
+  // Per patch: the point term's 16 × 16 block (the same for x, y, z) and the normal term's
+  // 48 × 48 block, each one product C·Cᵀ of its data's columns.
+  std::vector<Eigen::Matrix<double, 16, 16>> block(patches);
+  std::vector<Eigen::Matrix<double, 16, 3>> rhs(patches);
+  std::vector<Eigen::Matrix<double, 48, 48>> nblock(patches);
+  std::vector<Eigen::Matrix<double, 48, 1>> nrhs(patches);
+#pragma omp parallel for schedule(dynamic)
+  for (int f = 0; f < patches; ++f) {
+    const std::vector<int>& ids = of_patch[f];
+    if (ids.empty()) {  // no point on it (a small patch over a hole): the penalties alone hold it
+      block[f].setZero(), rhs[f].setZero(), nblock[f].setZero(), nrhs[f].setZero();
+      continue;  // (and Eigen's product blocking divides by the empty depth)
+    }
+    Eigen::Matrix<double, 16, Eigen::Dynamic> C(16, ids.size());
+    Eigen::Matrix<double, Eigen::Dynamic, 3> Y(ids.size(), 3);
+    Eigen::Matrix<double, 48, Eigen::Dynamic> Cn = Eigen::Matrix<double, 48, Eigen::Dynamic>::Zero(48, ids.size());
+    Eigen::Matrix<double, Eigen::Dynamic, 1> Yn = Eigen::Matrix<double, Eigen::Dynamic, 1>::Zero(ids.size());
+    for (size_t q = 0; q < ids.size(); ++q) {
+      const Datum& d = data[ids[q]];
+      double Bu[4], Bv[4];
+      bernstein(d.s, Bu, nullptr);
+      bernstein(d.t, Bv, nullptr);
+      const bool with_normal = d.n.squaredNorm() > 0.5;
+      const double sp = std::sqrt(d.w * (with_normal ? kTangentWeight : 1.0)), sn = std::sqrt(d.w);
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) {
+          const double b = Bu[i] * Bv[j];
+          C(4 * i + j, q) = sp * b;
+          if (with_normal) Cn.block<3, 1>(3 * (4 * i + j), q) = sn * b * d.n;
+        }
+      Y.row(q) = sp * d.p.transpose();
+      if (with_normal) Yn(q) = sn * d.n.dot(d.p);
+    }
+    block[f].noalias() = C * C.transpose();
+    rhs[f].noalias() = C * Y;
+    // Cn·Cnᵀ is symmetric: its lower half by a rank update (half the products), mirrored.
+    nblock[f].setZero();
+    nblock[f].selfadjointView<Eigen::Lower>().rankUpdate(Cn);
+    nblock[f].triangularView<Eigen::StrictlyUpper>() = nblock[f].transpose();
+    // The point term's block on the diagonal of each control point pair's 3 × 3.
+    for (int x = 0; x < 16; ++x)
+      for (int y = 0; y < 16; ++y)
+        for (int c = 0; c < 3; ++c) nblock[f](3 * x + c, 3 * y + c) += block[f](x, y);
+    nrhs[f].noalias() = Cn * Yn;
+  }
+  Eigen::VectorXd R = Eigen::VectorXd::Zero(3 * n);
+  for (int f = 0; f < patches; ++f) {
+    const auto& idx = out->patch_control[f];
+    for (int x = 0; x < 16; ++x)
+      for (int c = 0; c < 3; ++c) R(3 * idx[x] + c) += rhs[f](x, c) + nrhs[f](3 * x + c);
+  }
+  Eigen::SparseMatrix<double>& As = solver->A;
+  if (solver->block_slot.empty()) {
+    // The pattern: every patch's 48 × 48 block (as zeros) and the penalties.
+    // Each dense block's unknowns: every patch's 48, then every G1 border's 36.
+    solver->g1 = g1_borders(*out, T);
+    std::vector<std::vector<int>> blocks;
+    for (int f = 0; f < patches; ++f) blocks.push_back(unknowns_of(out->patch_control[f].data(), 16));
+    for (const G1Border& g : solver->g1) blocks.push_back(unknowns_of(g.ids.data(), 12));
+    std::vector<Eigen::Triplet<double>> A = net_penalties(*out, T, o, wsum / n);
+    A.reserve(A.size() + static_cast<size_t>(patches) * 48 * 48 + solver->g1.size() * 36 * 36);
+    for (const auto& u : blocks)
+      for (int a : u)
+        for (int b : u) A.emplace_back(a, b, 0.0);
+    As.resize(3 * n, 3 * n);
+    As.setFromTriplets(A.begin(), A.end());  // sums duplicates, keeps the zeros
+    As.makeCompressed();
+    solver->penalty_values.assign(As.valuePtr(), As.valuePtr() + As.nonZeros());
+    solver->block_slot.resize(static_cast<size_t>(patches) * 48 * 48);
+    solver->g1_slot.resize(solver->g1.size() * 36 * 36);
+    for (size_t k = 0; k < blocks.size(); ++k)
+      block_slots(As, blocks[k],
+                  k < static_cast<size_t>(patches) ? &solver->block_slot[k * 48 * 48]
+                                                   : &solver->g1_slot[(k - patches) * 36 * 36]);
+    solver->llt.analyzePattern(As);
+  }
+  std::copy(solver->penalty_values.begin(), solver->penalty_values.end(), As.valuePtr());
+  for (int f = 0; f < patches; ++f) {
+    const int* slot = &solver->block_slot[static_cast<size_t>(f) * 48 * 48];
+    for (int a = 0; a < 48; ++a)
+      for (int b = 0; b < 48; ++b) As.valuePtr()[slot[48 * a + b]] += nblock[f](a, b);
+  }
+  if (normals) {
+    const double w = wsum / n * (o.c1_weight + o.fairness) * kG1Weight;
+    std::vector<Eigen::Matrix<double, 36, 36>> gb(solver->g1.size());
+#pragma omp parallel for schedule(static)
+    for (long k = 0; k < static_cast<long>(gb.size()); ++k) gb[k] = g1_block(*out, solver->g1[k], w);
+    for (size_t k = 0; k < gb.size(); ++k) {
+      const int* slot = &solver->g1_slot[k * 36 * 36];
+      for (int a = 0; a < 36; ++a)
+        for (int b = 0; b < 36; ++b) As.valuePtr()[slot[36 * a + b]] += gb[k](a, b);
+    }
+  }
+  Eigen::VectorXd X;
+  bool exact = true;  // the first fit and a factored round are direct solves
+  if (!normals) {
+    // The first fit (no foot point normals yet, no G1 rows) is the same system for x, y and z:
+    // A = A₁ ⊗ I₃ (the unknowns interleaved). One factorisation of A₁ (n × n, ~1 ms on the
+    // fixture) serves the three coordinates instead of one of A (3n × 3n, ~17 ms).
+    std::vector<Eigen::Triplet<double>> t;
+    t.reserve(static_cast<size_t>(As.nonZeros()) / 9 + 1);
+    for (int c = 0; c < As.outerSize(); c += 3)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(As, c); it; ++it)
+        if (it.row() % 3 == 0) t.emplace_back(it.row() / 3, c / 3, it.value());
+    Eigen::SparseMatrix<double> A1(n, n);
+    A1.setFromTriplets(t.begin(), t.end());
+    Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt1(A1);
+    HS_CHECK(llt1.info() == Eigen::Success, "patch fit: the normal equations could not be factored");
+    const Eigen::MatrixXd X1 = llt1.solve(Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(R.data(), n, 3));
+    X.resize(3 * n);
+    for (int k = 0; k < n; ++k) X.segment<3>(3 * k) = X1.row(k).transpose();
+  } else {
+    bool direct = !solver->factored || solver->stalled;
+    solver->stalled = false;
+    if (!direct) {
+      X = solver->x;
+      int iterations = 0;
+      direct = !preconditioned_cg(As, solver->llt, R, kCgRoundTolerance, &X, &iterations);
+      // Given up within kCgStalled iterations: the matrices still change fast from round to
+      // round (the early rounds), so the next round factors without trying.
+      solver->stalled = direct && iterations <= kCgStalled;
+    }
+    if (direct) X = solve_directly(solver, R);
+    exact = direct;
+  }
+  solver->rhs = std::move(R);
+  take_solution(out, solver, std::move(X), exact);
+}
+
+// The last system solved again to kCgTolerance (the correction rounds stop theirs at
+// kCgRoundTolerance): conjugate gradients from the last solution, else a factorisation.
+void polish_net(PatchSkin* out, NetSolver* solver) {
+  if (solver->exact) return;
+  Eigen::VectorXd X = solver->x;
+  int iterations = 0;
+  if (!preconditioned_cg(solver->A, solver->llt, solver->rhs, kCgTolerance, &X, &iterations))
+    X = solve_directly(solver, solver->rhs);
+  take_solution(out, solver, std::move(X), true);
+}
+
+}  // namespace
+
+NetFit::NetFit() : solver_(std::make_unique<NetSolver>()) {}
+NetFit::~NetFit() = default;
+void NetFit::fit(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& data, const PatchOptions& o) {
+  fit_net(out, T, data, o, solver_.get());
+}
+void NetFit::polish(PatchSkin* out) { polish_net(out, solver_.get()); }
+
+}  // namespace handskin::patch_steps

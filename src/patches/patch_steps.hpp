@@ -1,0 +1,98 @@
+#pragma once
+/// The patch fit's named steps (patches.hpp: fit_patches runs them in order), internal to the
+/// patches library:
+///   1. start_net           the layout's control net (one point per corner, two per edge, four
+///                          inside each face), started on its bilinear faces
+///   2. gather_data         the measured points near the skin, thinned for the least squares,
+///                          and the polygon skin's samples where the scans saw nothing
+///   3. place_data          each datum's first foot point: the nearest sample, then Newton
+///                          (foot_points.cpp)
+///   4. NetFit::fit         least squares for every control point at once (eq. 4.5; net_fit.cpp)
+///   5. correct_parameters  the parameter correction rounds (eqs. 4.6–4.7), refitting with 4;
+///                          the round with the lowest RMS is kept
+///   6. measure_points      every measured point's foot point on the final surface: the exact
+///                          distances
+///   7. bind_and_check      each control point's link, and the continuity figures (G0, G1)
+#include <Eigen/Core>
+#include <array>
+#include <memory>
+#include <vector>
+
+#include "mesh/point_grid.hpp"
+#include "patches/patches.hpp"
+
+namespace handskin::patch_steps {
+
+/// The Bernstein basis of degree 3 at t (B), and its derivatives (D, when given).
+void bernstein(double t, double B[4], double D[4]);
+/// The bone nearest p (index into bones), -1 when there is none.
+int nearest_link(const Eigen::Vector3d& p, const std::vector<Bone>& bones);
+
+/// The control net of a layout: one control point per corner, two per edge, four inside each
+/// face. Patch f's P(i, j) (i along corner 0 → 1, j along corner 0 → 3) is ids[f][4 i + j].
+struct Net {
+  std::vector<std::array<int, 16>> ids;
+  int count = 0;
+};
+Net build_net(const PatchLayout& L);
+/// Side s of a patch (from its corner s to corner s + 1): the border's control points in that
+/// order, as (i, j), and each one's inner neighbour.
+void border(int s, std::array<std::array<int, 2>, 4>* on, std::array<std::array<int, 2>, 4>* in);
+/// The parameters of the point a fraction q along side s.
+Eigen::Vector2d on_side(int s, double q);
+
+/// A point the surface is fitted to, and its foot point on the surface.
+struct Datum {
+  Eigen::Vector3d p;
+  double w = 1;
+  int side = -1;  ///< 0 palm, 1 back; -1 a sample of the polygon skin (weak data)
+  bool fit = true;  ///< in the least squares (the measured points are thinned for it)
+  int patch = -1;
+  double s = 0.5, t = 0.5;
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();  ///< the surface's unit normal at the foot point (after the first fit)
+};
+
+/// Newton (Gauss–Newton) foot point of d.p on the surface from (d.patch, d.s, d.t), at most
+/// `iterations` steps; true when it ends pushing out of its patch still (foot_points.cpp).
+bool foot_point(const std::vector<BezierPatch>& P, const LayoutTopology& T, Datum* d, int iterations,
+                bool across = true);
+
+// The whole surface sampled on an m × m grid per patch, for the nearest-point search that
+// (re)assigns a point to its patch.
+struct SurfaceSamples {
+  std::vector<Eigen::Vector3d> p;
+  std::vector<std::array<float, 3>> at;  ///< patch, s, t
+  /// Per patch, how far a point of it can lie from its nearest sample: the largest distance
+  /// from a cell's middle to the nearest of its four corners, with a margin (a bicubic cell
+  /// bulges little between its corners and middle).
+  std::vector<double> cover;
+  double widest = 0;  ///< the largest cover
+  SurfaceSamples(const std::vector<BezierPatch>& P, int m);
+};
+
+/// Place d on the surface: the nearest sample, then Newton in its patch.
+void locate_globally(const std::vector<BezierPatch>& P, const LayoutTopology& T, const SurfaceSamples& S,
+                     const PointGrid& grid, Datum* d);
+/// The nearest foot point over the patches that can hold one nearer than r (foot_points.cpp
+/// says why); returns its distance (r when none is nearer).
+double nearest_sheet(const std::vector<BezierPatch>& P, const LayoutTopology& T, const SurfaceSamples& S,
+                     const PointGrid& grid, Datum* d, double r);
+
+struct NetSolver;
+/// The least squares for the whole net (net_fit.cpp), its solver kept from round to round.
+class NetFit {
+ public:
+  NetFit();
+  ~NetFit();
+  NetFit(const NetFit&) = delete;
+  NetFit& operator=(const NetFit&) = delete;
+  /// Every control point at once from the data at their foot points (eq. 4.5).
+  void fit(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& data, const PatchOptions& o);
+  /// The last system solved again to full precision (the rounds stop theirs earlier).
+  void polish(PatchSkin* out);
+
+ private:
+  std::unique_ptr<NetSolver> solver_;
+};
+
+}  // namespace handskin::patch_steps

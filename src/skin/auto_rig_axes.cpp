@@ -1,0 +1,203 @@
+// Step 5 of the automatic skeleton (auto_rig_steps.hpp): each digit's centre line through the
+// middles of its sections.
+#include <algorithm>
+#include <cmath>
+
+#include "core/errors.hpp"
+#include "skin/auto_rig_steps.hpp"
+#include "skin/principal_axes.hpp"
+
+namespace handskin::auto_rig_steps {
+
+namespace {
+
+// A digit's section middle more than this (mm) beside the line through those beyond it
+// toward the tip is not across the digit.
+constexpr double kLateralStrayMm = 1.5;
+
+// A finger's section centres carried toward the palm from its first one (at t = lateral's
+// front), through the whole cloud `h`: every 3 mm, the finger lies between the lowest points
+// of the back's profile across it (the grooves between it and its neighbours), or the gaps
+// where nothing was seen, on either side of where the centres so far put it. Stops at the
+// second section where no groove 1 mm deep bounds it on both sides or its width is not within
+// 0.6-1.5 times the measured sections' median (the knuckles flatten into the palm's back),
+// or 60 mm on. Centres are added at the front (t ascending), as (t, lateral offset, 0).
+void extend_proximally(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector2d& m2, const Eigen::Vector2d& d2,
+                       const Eigen::Vector2d& n2, std::vector<double> widths, std::vector<Eigen::Vector3d>* lateral) {
+  constexpr double kBin = 0.5, kReach = 60, kStep = 3, kGroove = 1.0;
+  std::nth_element(widths.begin(), widths.begin() + widths.size() / 2, widths.end());
+  const double wd = widths[widths.size() / 2], half = 1.5 * wd;
+  const double t_start = lateral->front().x();
+  struct Local {
+    double t, l, z;
+  };
+  std::vector<Local> near;
+  for (const auto& q : h) {
+    const Eigen::Vector2d d = q.head<2>() - m2;
+    const double t = d.dot(d2);
+    if (t < t_start - kReach - 2 || t > t_start) continue;
+    near.push_back({t, d.dot(n2), q.z()});
+  }
+  const int nb = static_cast<int>(std::ceil(2 * half / kBin)), inner = static_cast<int>(std::round(0.25 * wd / kBin));
+  if (nb < 8) return;
+  std::vector<double> top(nb);
+  int misses = 0;
+  for (double t = t_start - kStep; t > t_start - kReach && misses < 2; t -= kStep) {
+    // The line through the centres so far predicts where the finger lies.
+    double st = 0, sl = 0, stt = 0, stl = 0;
+    for (const auto& c : *lateral) st += c.x(), sl += c.y(), stt += c.x() * c.x(), stl += c.x() * c.y();
+    const double n = static_cast<double>(lateral->size()), den = n * stt - st * st;
+    const double slope = std::abs(den) > 1e-9 ? (n * stl - st * sl) / den : 0;
+    const double cp = (sl - slope * st) / n + slope * t, l0 = cp - half;
+    std::fill(top.begin(), top.end(), -1e300);  // the back's height per bin; -1e300: nothing seen
+    for (const Local& q : near) {
+      if (std::abs(q.t - t) > 1.5 || std::abs(q.l - cp) >= half) continue;
+      const int b = std::clamp(static_cast<int>((q.l - l0) / kBin), 0, nb - 1);
+      top[b] = std::max(top[b], q.z);
+    }
+    const int cb = nb / 2;
+    // The groove (or gap) on each side: the lowest bin; among empty ones, the nearest.
+    auto valley = [&](int from, int to, int step) {
+      int best = -1;
+      for (int b = from; b != to; b += step)
+        if (best < 0 || top[b] < top[best]) best = b;
+      return best;
+    };
+    const int left = valley(cb - inner, -1, -1), right = valley(cb + inner, nb, +1);
+    bool ok = left >= 0 && right >= 0;
+    double ridge = -1e300;
+    for (int b = left + 1; ok && b < right; ++b) ridge = std::max(ridge, top[b]);
+    ok = ok && ridge > -1e299 && ridge - top[left] >= kGroove && ridge - top[right] >= kGroove;
+    const double width = (right - left) * kBin;
+    ok = ok && width >= 0.6 * wd && width <= 1.5 * wd;
+    if (!ok) {
+      ++misses;
+      continue;
+    }
+    misses = 0;
+    lateral->insert(lateral->begin(), Eigen::Vector3d(t, l0 + 0.5 * (left + right + 1) * kBin, 0));
+  }
+}
+}  // namespace
+
+// The digit's sections every 3 mm along its principal axis; their middles (the lateral offset
+// a line, the height a quadratic where the digit curls) make its centre line, from well
+// inside the palm to the skin's tip. `finger`: not the thumb (its line is not carried on into
+// the palm between its neighbours' grooves).
+void trace_centre_line(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector2d& pc, bool finger, Digit* dg) {
+  std::vector<Eigen::Vector2d> p2;
+  for (size_t i : dg->points) p2.push_back(h[i].head<2>());
+  Eigen::Matrix2d ax;
+  Eigen::Vector2d m2;
+  principal_axes<2>(p2, &ax, &m2);
+  Eigen::Vector2d d2 = ax.col(0);
+  if (d2.dot(m2 - pc) < 0) d2 = -d2;
+  const Eigen::Vector2d n2(-d2.y(), d2.x());
+  double t0 = 1e300, t1 = -1e300;
+  for (const auto& q : p2) t0 = std::min(t0, (q - m2).dot(d2)), t1 = std::max(t1, (q - m2).dot(d2));
+  std::vector<Eigen::Vector3d> centres;  // (t, lateral offset, z)
+  std::vector<double> widths;            // each section's width across the digit
+  for (double t = t0 + 2; t < t1 - 6; t += 3) {
+    double a = 1e300, b = -1e300, zl = 1e300, zh = -1e300;
+    int n = 0;
+    for (size_t i : dg->points) {
+      const Eigen::Vector2d q = h[i].head<2>() - m2;
+      if (std::abs(q.dot(d2) - t) > 1.5) continue;
+      a = std::min(a, q.dot(n2)), b = std::max(b, q.dot(n2));
+      zl = std::min(zl, h[i].z()), zh = std::max(zh, h[i].z());
+      ++n;
+    }
+    if (n < 20) continue;
+    centres.emplace_back(t, 0.5 * (a + b), 0.5 * (zl + zh));
+    widths.push_back(b - a);
+  }
+  // Sections much narrower or wider than the digit's median are not across it: the
+  // opening's remnant ends in a thin sliver along its boundary between the digits' roots,
+  // and those sections' middles drew a short digit's line 20-30 deg aside (H12's little
+  // finger: its PIP 11 mm off).
+  if (widths.size() >= 4) {
+    std::vector<double> ws = widths;
+    std::nth_element(ws.begin(), ws.begin() + ws.size() / 2, ws.end());
+    const double wm = ws[ws.size() / 2];
+    std::vector<Eigen::Vector3d> kept_c;
+    std::vector<double> kept_w;
+    for (size_t k = 0; k < widths.size(); ++k)
+      if (widths[k] >= 0.6 * wm && widths[k] <= 1.4 * wm) kept_c.push_back(centres[k]), kept_w.push_back(widths[k]);
+    if (kept_c.size() >= 4) centres.swap(kept_c), widths.swap(kept_w);
+    dg->width = wm;
+  }
+  // A digit does not bend sideways: from the tip's end, the centres that keep to one line.
+  // The opening's remnant can carry on past the finger's root as a sliver along its
+  // neighbour's boundary, of a finger's width but beside the finger's line (H12's close
+  // little finger: the sliver's middles turned its line 20 deg and put its PIP 9.6 mm off).
+  // The distal four start the line; each centre toward the palm joins it while it lies
+  // within kLateralStrayMm of the line through those kept; the first that strays ends it.
+  if (centres.size() > 4) {
+    auto stray = [&](size_t first, size_t k) {  // distance of centre k from the line fitted to first..end
+      double st = 0, sl = 0, stt = 0, stl = 0;
+      const double n = static_cast<double>(centres.size() - first);
+      for (size_t i = first; i < centres.size(); ++i) {
+        st += centres[i].x(), sl += centres[i].y();
+        stt += centres[i].x() * centres[i].x(), stl += centres[i].x() * centres[i].y();
+      }
+      const double den = n * stt - st * st;
+      const double b = std::abs(den) > 1e-12 ? (n * stl - st * sl) / den : 0.0, a = (sl - b * st) / n;
+      return std::abs(centres[k].y() - (a + b * centres[k].x()));
+    };
+    size_t first = centres.size() - 4;
+    while (first > 0 && stray(first, first - 1) <= kLateralStrayMm) --first;
+    if (first > 0) {
+      centres.erase(centres.begin(), centres.begin() + static_cast<long>(first));
+      widths.erase(widths.begin(), widths.begin() + static_cast<long>(first));
+    }
+  }
+  if (centres.size() < 4) throw InputError("merged cloud", "a digit is too short to find its axis; give a rig");
+  // The lateral line is fitted to these centres and to more toward the palm: the opening
+  // leaves only the distal part of fingers that lie close together, and a short line
+  // carried 40-60 mm into the palm strayed 5-10 mm sideways at the MCPs (H12).
+  std::vector<Eigen::Vector3d> lateral = centres;
+  if (finger) extend_proximally(h, m2, d2, n2, widths, &lateral);
+  // Lateral offset and height as polynomials of t (least squares). Fingers flex, they do
+  // not bend sideways between their joints: the lateral offset is a line; the height a
+  // quadratic where the measured span is long enough to show a curl (a flexed digit arches
+  // out of the hand's plane). Beyond the measured centres the curve goes on along its end
+  // tangents (straight into the palm, straight to the tip).
+  const double tm = 0.5 * (centres.front().x() + centres.back().x());
+  const bool curl = centres.size() >= 6 && centres.back().x() - centres.front().x() >= 25;
+  auto fit = [&](const std::vector<Eigen::Vector3d>& cs, int coordinate, bool quadratic) {
+    // coefficients of 1, u, u² (u = t − tm)
+    const int n = quadratic ? 3 : 2;
+    Eigen::MatrixXd A(cs.size(), n);
+    Eigen::VectorXd b(cs.size());
+    for (size_t k = 0; k < cs.size(); ++k) {
+      const double u = cs[k].x() - tm;
+      A(k, 0) = 1, A(k, 1) = u;
+      if (quadratic) A(k, 2) = u * u;
+      b(k) = cs[k](coordinate);
+    }
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    c.head(n) = A.colPivHouseholderQr().solve(b);
+    return c;
+  };
+  const Eigen::Vector3d cl = fit(lateral, 1, false), cz = fit(centres, 2, curl);
+  const double ta = centres.front().x(), tb = centres.back().x();
+  auto point = [&](double t) {
+    const double u = std::clamp(t, ta, tb) - tm, e = t - std::clamp(t, ta, tb);
+    const double l = cl(0) + cl(1) * u + cl(2) * u * u + e * (cl(1) + 2 * cl(2) * u);
+    const double z = cz(0) + cz(1) * u + cz(2) * u * u + e * (cz(1) + 2 * cz(2) * u);
+    const Eigen::Vector2d q = m2 + t * d2 + l * n2;
+    return Eigen::Vector3d(q.x(), q.y(), z);
+  };
+  // The tip: the digit's farthest point along the curve's end direction.
+  const Eigen::Vector3d end = point(tb), end_dir = (point(tb + 1) - end).normalized();
+  double reach = -1e300;
+  for (size_t i : dg->points) reach = std::max(reach, (h[i] - end).dot(end_dir));
+  dg->tip_skin = end + reach * end_dir;
+  for (double t = ta - 80; t < tb; t += 0.25) dg->curve.push_back(point(t));
+  dg->curve.push_back(end);
+  dg->curve.push_back(dg->tip_skin);
+  dg->arc.assign(1, 0.0);
+  for (size_t k = 1; k < dg->curve.size(); ++k) dg->arc.push_back(dg->arc.back() + (dg->curve[k] - dg->curve[k - 1]).norm());
+}
+
+}  // namespace handskin::auto_rig_steps
