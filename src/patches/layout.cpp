@@ -289,38 +289,50 @@ PatchLayout subdivide_layout(const PatchLayout& L, int k) {
   return out;
 }
 
-PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
-                              const std::vector<std::uint32_t>& sides, int thumb_ring_shift) {
-  for (int t = 0; t < kSkinTubes; ++t)
-    if (t >= static_cast<int>(skin.tubes.size()) || !skin.tubes[t].present)
-      throw InputError("patches", std::string("the ") + skin_tube_name(t) +
-                                      " is missing from the skin; the patch layout needs the palm and all five digits");
-  const RingGrid& palm = skin.grid.at(static_cast<int>(SkinTube::Palm));
-  if (palm.rings.size() < 4 || skin.webs.size() != 3)
-    throw InputError("patches", "the skin has too few palm rings or webs to lay patches on");
-  const SkinCaster caster(skin.mesh);
-  // The hand's axes: distal (toward the middle finger), radial (toward the index) and dorsal
-  // (out of the back: the back scan's points lie that way from the palm scan's).
-  const Eigen::Isometry3d hand = hand_frame_from_rig(rig);
-  const Eigen::Vector3d x = hand.linear().row(0).transpose();
-  Eigen::Vector3d n = hand.linear().row(2).transpose();
-  {
+namespace {
+
+// The hand's layout, built step by step (hand_patch_layout runs them): the skin, the rig and
+// the hand's axes at hand, the layout growing in L.
+class HandLayout {
+ public:
+  HandLayout(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
+             const std::vector<std::uint32_t>& sides)
+      : skin_(skin), rig_(rig), caster(skin.mesh), hand(hand_frame_from_rig(rig)), x(hand.linear().row(0).transpose()),
+        n(dorsal_axis(hand, points, sides)),
+        radial(orthonormal_to(rig.joints[J(Finger::Index, 1)] - rig.joints[J(Finger::Little, 1)], x)),
+        frames(rig, radial), to_rig(hand.inverse()) {}
+
+  /// 1. The webs between the fingers (a corner on the back and one on the palm) and the
+  /// index's and the little finger's outer flanks at their level.
+  void webs();
+  /// 2. The palm's rings: the wrist rim, two between (the second where the thumb's base ends,
+  /// moved by `thumb_ring_shift` rings), the webs' ring.
+  void palm_rings(int thumb_ring_shift);
+  /// 3. The palm's faces, the wrist's cap and the rim's creases.
+  void palm_faces();
+  /// 4. Each digit: a base ring, rings at the joints and one on the distal link, a cap.
+  void digits();
+  /// 5. Checked (no face with coinciding corners) and oriented.
+  PatchLayout finish();
+
+ private:
+  static int J(Finger f, int level) { return finger_chain(f)[level]; }
+  // The hand's dorsal axis: out of the back (the back scan's points lie that way from the
+  // palm scan's).
+  static Eigen::Vector3d dorsal_axis(const Eigen::Isometry3d& hand, const std::vector<Eigen::Vector3d>& points,
+                                     const std::vector<std::uint32_t>& sides) {
+    Eigen::Vector3d n = hand.linear().row(2).transpose();
     double back = 0, palm_side = 0;
     size_t nb = 0, np = 0;
     for (size_t k = 0; k < points.size(); ++k)
       (sides[k] == 1 ? back : palm_side) += points[k].dot(n), ++(sides[k] == 1 ? nb : np);
     if (nb > 0 && np > 0 && back / nb < palm_side / np) n = -n;
+    return n;
   }
-  const auto J = [&](Finger f, int level) { return finger_chain(f)[level]; };
-  const Eigen::Vector3d radial = orthonormal_to(rig.joints[J(Finger::Index, 1)] - rig.joints[J(Finger::Little, 1)], x);
-  const DigitFrames frames(rig, radial);
-  const Eigen::Isometry3d to_rig = hand.inverse();
-
-  PatchLayout L;
-  auto add = [&](const Eigen::Vector3d& p) {
+  int add(const Eigen::Vector3d& p) {
     L.vertices.push_back(p);
     return static_cast<int>(L.vertices.size()) - 1;
-  };
+  }
   // Where a ray from inside digit `f` at `o` along `dir` leaves the digit's own skin. The
   // digit's flesh opens into the palm's and into its webs, so a ray from a joint near them
   // (a raised, turned thumb's MCP: its dorsal-ulnar ray points into the hand or the web to
@@ -329,7 +341,8 @@ PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std:
   // grid nearest `o`: where the ray's direction, taken in that ring's plane from its centre,
   // crosses the ring. A hit more than 3 mm beyond that crossing is replaced by it (put on the
   // skin).
-  auto digit_cast = [&](Finger f, const Eigen::Vector3d& o, const Eigen::Vector3d& dir) {
+  Eigen::Vector3d digit_cast(Finger f, const Eigen::Vector3d& o, const Eigen::Vector3d& dir) const {
+    const SkinResult& skin = skin_;
     const Eigen::Vector3d hit = caster.cast(o, dir);
     const RingGrid& g = skin.grid.at(static_cast<int>(SkinTube::Thumb) + static_cast<int>(f));
     const std::vector<Eigen::Vector3d>* ring = nullptr;
@@ -367,18 +380,60 @@ PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std:
     if ((hit - o).norm() <= limit && (!cross || (hit - o).norm() <= (*cross - o).norm() + 3.0)) return hit;
     if (cross && (*cross - o).norm() <= limit) return caster.nearest(*cross);
     return caster.nearest(o + (radius > 0 ? radius : 1.0) * dir.normalized());
-  };
+  }
   // A digit's ring of four corners at `o` (square to `axis`, ±45° from `dorsal`).
-  auto digit_ring = [&](Finger f, const Eigen::Vector3d& o, const Eigen::Vector3d& axis, const Eigen::Vector3d& dorsal) {
+  std::array<int, 4> digit_ring(Finger f, const Eigen::Vector3d& o, const Eigen::Vector3d& axis,
+                                const Eigen::Vector3d& dorsal) {
     std::array<int, 4> r;
     const auto dirs = frames.ring_directions(axis, dorsal);
     for (int i = 0; i < 4; ++i) r[i] = add(digit_cast(f, o, dirs[i]));
     return r;
-  };
+  }
+  // The index's radial flank and the little finger's ulnar flank at their webs' level.
+  void flank(Finger f, const Eigen::Vector3d& web, bool radial_side, int* b, int* p) {
+    const Eigen::Vector3d a = frames.joint(J(f, 1)), c = frames.joint(J(f, 2));
+    const Eigen::Vector3d u = (c - a).normalized();
+    const double t = std::clamp((web - a).dot(u) / (c - a).norm(), 0.0, 0.9);
+    const auto dirs = frames.ring_directions(u, frames.dorsal(J(f, 1), J(f, 2)));
+    const Eigen::Vector3d o = a + t * (c - a);
+    *b = add(caster.cast(o, radial_side ? dirs[0] : dirs[1]));
+    *p = add(caster.cast(o, radial_side ? dirs[3] : dirs[2]));
+  }
+  // On a ring of the palm's grid, the section's centre and half-extents along radial and n.
+  void section(const std::vector<Eigen::Vector3d>& ring, Eigen::Vector3d* c, double* A, double* B) const {
+    *c = Eigen::Vector3d::Zero();
+    for (const auto& p : ring) *c += p;
+    *c /= static_cast<double>(ring.size());
+    *A = *B = 1e-9;
+    for (const auto& p : ring) *A = std::max(*A, std::abs((p - *c).dot(radial))), *B = std::max(*B, std::abs((p - *c).dot(n)));
+  }
+  // A point's angle on a section scaled to a unit circle (0 radial, 90° dorsal, ±180° ulnar).
+  double angle_of(const Eigen::Vector3d& p, const Eigen::Vector3d& c, double A, double B) const {
+    return std::atan2((p - c).dot(n) / B, (p - c).dot(radial) / A);
+  }
+  // One digit from its base ring.
+  void digit(Finger f, std::array<int, 4> base);
+  std::array<int, 10> loop(int level) const {
+    std::array<int, 10> l;
+    for (int k = 0; k < 5; ++k) l[k] = pb[level][k], l[9 - k] = pp[level][k];
+    return l;
+  }
 
-  // --- the webs between the fingers: a corner on the back and one on the palm ---
-  const Finger fingers[4] = {Finger::Index, Finger::Middle, Finger::Ring, Finger::Little};
+  const SkinResult& skin_;
+  const Rig& rig_;
+  const SkinCaster caster;
+  const Eigen::Isometry3d hand;
+  const Eigen::Vector3d x, n, radial;
+  const DigitFrames frames;
+  const Eigen::Isometry3d to_rig;
+  static constexpr Finger fingers[4] = {Finger::Index, Finger::Middle, Finger::Ring, Finger::Little};
   std::array<int, 5> web_b{}, web_p{};
+  std::array<std::array<int, 5>, 4> pb{}, pp{};  ///< the palm's rings' corners, back and palm
+  PatchLayout L;
+};
+
+void HandLayout::webs() {
+  const SkinResult& skin = skin_;
   for (int k = 1; k <= 3; ++k) {
     const Finger f1 = fingers[k - 1], f2 = fingers[k];
     const Eigen::Vector3d w = to_rig * skin.webs[k - 1];
@@ -400,35 +455,16 @@ PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std:
     web_b[k] = add(hb);
     web_p[k] = add(hp);
   }
-  // The index's radial flank and the little finger's ulnar flank at their webs' level.
-  auto flank = [&](Finger f, const Eigen::Vector3d& web, bool radial_side, int* b, int* p) {
-    const Eigen::Vector3d a = frames.joint(J(f, 1)), c = frames.joint(J(f, 2));
-    const Eigen::Vector3d u = (c - a).normalized();
-    const double t = std::clamp((web - a).dot(u) / (c - a).norm(), 0.0, 0.9);
-    const auto dirs = frames.ring_directions(u, frames.dorsal(J(f, 1), J(f, 2)));
-    const Eigen::Vector3d o = a + t * (c - a);
-    *b = add(caster.cast(o, radial_side ? dirs[0] : dirs[1]));
-    *p = add(caster.cast(o, radial_side ? dirs[3] : dirs[2]));
-  };
   flank(Finger::Index, to_rig * skin.webs[0], true, &web_b[0], &web_p[0]);
   flank(Finger::Little, to_rig * skin.webs[2], false, &web_b[4], &web_p[4]);
+}
 
-  // --- the palm's rings: the wrist rim, two between, the webs' ring ---
+void HandLayout::palm_rings(int thumb_ring_shift) {
+  const RingGrid& palm = skin_.grid.at(static_cast<int>(SkinTube::Palm));
   // On a ring of the palm's grid, a corner at angle θ of the section scaled to a unit circle
   // (0 radial, 90° dorsal, ±180° ulnar): the lanes run from the wrist's even spread to the
   // webs' corners.
-  std::array<std::array<int, 5>, 4> pb{}, pp{};
   pb[3] = web_b, pp[3] = web_p;
-  auto section = [&](const std::vector<Eigen::Vector3d>& ring, Eigen::Vector3d* c, double* A, double* B) {
-    *c = Eigen::Vector3d::Zero();
-    for (const auto& p : ring) *c += p;
-    *c /= static_cast<double>(ring.size());
-    *A = *B = 1e-9;
-    for (const auto& p : ring) *A = std::max(*A, std::abs((p - *c).dot(radial))), *B = std::max(*B, std::abs((p - *c).dot(n)));
-  };
-  auto angle_of = [&](const Eigen::Vector3d& p, const Eigen::Vector3d& c, double A, double B) {
-    return std::atan2((p - c).dot(n) / B, (p - c).dot(radial) / A);
-  };
   std::array<double, 5> top_b, top_p;
   {
     Eigen::Vector3d c;
@@ -477,14 +513,12 @@ PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std:
     for (int k = 0; k < 5; ++k) pb[level][k] = at_angle(tb[k]);
     for (int k = 4; k >= 0; --k) pp[level][k] = at_angle(tp[k]);
   }
+}
+
+void HandLayout::palm_faces() {
   // Palm faces: 10 columns round the loop b0…b4 p4…p0, 3 rows; the thumb grows from the
   // radial flank's middle row.
   const char* column_name[10] = {"back0", "back1", "back2", "back3", "ulnar", "palm3", "palm2", "palm1", "palm0", "radial"};
-  auto loop = [&](int level) {
-    std::array<int, 10> l;
-    for (int k = 0; k < 5; ++k) l[k] = pb[level][k], l[9 - k] = pp[level][k];
-    return l;
-  };
   for (int level = 0; level < 3; ++level) {
     const auto lo = loop(level), hi = loop(level + 1);
     for (int c = 0; c < 10; ++c) {
@@ -502,48 +536,53 @@ PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std:
     const auto rim = loop(0);
     for (int c = 0; c < 10; ++c) L.creases.push_back({rim[c], rim[(c + 1) % 10]});
   }
-  // --- the digits: a base ring, rings at the joints and one on the distal link, a cap ---
-  const char* side_name[4] = {"back", "ulnar", "palm", "radial"};
-  auto digit = [&](Finger f, std::array<int, 4> base) {
-    const auto chain = finger_chain(f);
-    const int tip = chain.back(), distal = chain[chain.size() - 2];
-    std::vector<std::array<int, 4>> rings = {base};
-    // The joints past the base: MCP (the thumb), PIP and DIP (fingers; the thumb's IP).
-    const size_t first = f == Finger::Thumb ? 1 : 2;
-    for (size_t i = first; i + 1 < chain.size(); ++i) {
-      const int j = chain[i];
-      const Eigen::Vector3d in = (frames.joint(j) - frames.joint(chain[i - 1])).normalized();
-      const Eigen::Vector3d out = (frames.joint(chain[i + 1]) - frames.joint(j)).normalized();
-      const Eigen::Vector3d axis = (in + out).normalized();
-      const Eigen::Vector3d d = frames.dorsal(chain[i - 1], j) + frames.dorsal(j, chain[i + 1]);
-      rings.push_back(match_ring(L.vertices, rings.back(), digit_ring(f, frames.joint(j), axis, d),
-                                 frames.joint(j) - frames.joint(chain[i - 1])));
+}
+
+void HandLayout::digit(Finger f, std::array<int, 4> base) {
+  static const char* side_name[4] = {"back", "ulnar", "palm", "radial"};
+  const auto chain = finger_chain(f);
+  const int tip = chain.back(), distal = chain[chain.size() - 2];
+  std::vector<std::array<int, 4>> rings = {base};
+  // The joints past the base: MCP (the thumb), PIP and DIP (fingers; the thumb's IP).
+  const size_t first = f == Finger::Thumb ? 1 : 2;
+  for (size_t i = first; i + 1 < chain.size(); ++i) {
+    const int j = chain[i];
+    const Eigen::Vector3d in = (frames.joint(j) - frames.joint(chain[i - 1])).normalized();
+    const Eigen::Vector3d out = (frames.joint(chain[i + 1]) - frames.joint(j)).normalized();
+    const Eigen::Vector3d axis = (in + out).normalized();
+    const Eigen::Vector3d d = frames.dorsal(chain[i - 1], j) + frames.dorsal(j, chain[i + 1]);
+    rings.push_back(match_ring(L.vertices, rings.back(), digit_ring(f, frames.joint(j), axis, d),
+                               frames.joint(j) - frames.joint(chain[i - 1])));
+  }
+  // The fingertip's ring is drawn forward over the dome (rays 45° toward the tip), so that
+  // the cap and the last row's patches meet at about 120° each at its corners, as three
+  // patches round a point of a smooth surface should (a ring square to the axis would
+  // leave the cap a straight angle at each corner and no normal there).
+  const Eigen::Vector3d a = frames.joint(distal), b = frames.joint(tip);
+  const Eigen::Vector3d axis = (b - a).normalized();
+  std::array<int, 4> cap;
+  {
+    const auto dirs = frames.ring_directions(axis, frames.dorsal(distal, tip));
+    const Eigen::Vector3d o = a + 0.5 * (b - a);
+    for (int i = 0; i < 4; ++i) cap[i] = add(digit_cast(f, o, (dirs[i] + kCapTilt * axis).normalized()));
+  }
+  rings.push_back(match_ring(L.vertices, rings.back(), cap, b - a));
+  const std::string name = finger_dof_name(f);
+  for (size_t r = 0; r + 1 < rings.size(); ++r)
+    for (int i = 0; i < 4; ++i) {
+      L.faces.push_back({rings[r][i], rings[r][(i + 1) % 4], rings[r + 1][(i + 1) % 4], rings[r + 1][i]});
+      L.names.push_back(name + "." + std::to_string(r) + "." + side_name[i]);
     }
-    // The fingertip's ring is drawn forward over the dome (rays 45° toward the tip), so that
-    // the cap and the last row's patches meet at about 120° each at its corners, as three
-    // patches round a point of a smooth surface should (a ring square to the axis would
-    // leave the cap a straight angle at each corner and no normal there).
-    const Eigen::Vector3d a = frames.joint(distal), b = frames.joint(tip);
-    const Eigen::Vector3d axis = (b - a).normalized();
-    std::array<int, 4> cap;
-    {
-      const auto dirs = frames.ring_directions(axis, frames.dorsal(distal, tip));
-      const Eigen::Vector3d o = a + 0.5 * (b - a);
-      for (int i = 0; i < 4; ++i) cap[i] = add(digit_cast(f, o, (dirs[i] + kCapTilt * axis).normalized()));
-    }
-    rings.push_back(match_ring(L.vertices, rings.back(), cap, b - a));
-    const std::string name = finger_dof_name(f);
-    for (size_t r = 0; r + 1 < rings.size(); ++r)
-      for (int i = 0; i < 4; ++i) {
-        L.faces.push_back({rings[r][i], rings[r][(i + 1) % 4], rings[r + 1][(i + 1) % 4], rings[r + 1][i]});
-        L.names.push_back(name + "." + std::to_string(r) + "." + side_name[i]);
-      }
-    L.faces.push_back(rings.back());
-    L.names.push_back(name + ".tip");
-  };
+  L.faces.push_back(rings.back());
+  L.names.push_back(name + ".tip");
+}
+
+void HandLayout::digits() {
   digit(Finger::Thumb, {pb[1][0], pb[2][0], pp[2][0], pp[1][0]});
   for (int k = 0; k < 4; ++k) digit(fingers[k], {web_b[k], web_b[k + 1], web_p[k + 1], web_p[k]});
+}
 
+PatchLayout HandLayout::finish() {
   // Corners that coincide (two rays meeting the skin at one place) would leave a face with no
   // area: refused rather than fitted.
   for (size_t f = 0; f < L.faces.size(); ++f)
@@ -552,7 +591,25 @@ PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std:
         throw InputError("patches", "the patch layout's face " + L.names[f] +
                                         " has two corners within 0.5 mm of each other; the rig may not fit this skin");
   orient_layout(&L, "patch layout");
-  return L;
+  return std::move(L);
+}
+
+}  // namespace
+
+PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
+                              const std::vector<std::uint32_t>& sides, int thumb_ring_shift) {
+  for (int t = 0; t < kSkinTubes; ++t)
+    if (t >= static_cast<int>(skin.tubes.size()) || !skin.tubes[t].present)
+      throw InputError("patches", std::string("the ") + skin_tube_name(t) +
+                                      " is missing from the skin; the patch layout needs the palm and all five digits");
+  if (skin.grid.at(static_cast<int>(SkinTube::Palm)).rings.size() < 4 || skin.webs.size() != 3)
+    throw InputError("patches", "the skin has too few palm rings or webs to lay patches on");
+  HandLayout h(skin, rig, points, sides);
+  h.webs();
+  h.palm_rings(thumb_ring_shift);
+  h.palm_faces();
+  h.digits();
+  return h.finish();
 }
 
 }  // namespace handskin
