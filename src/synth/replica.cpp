@@ -177,38 +177,19 @@ Rgb8Image take_photo(const ScanSimulation& sim, const ScannerOptions& so, const 
 
 }  // namespace
 
-ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const ReplicaOptions& ro,
-                              const ScannerOptions& so, std::uint64_t seed, bool verbose) {
-  std::string err;
-  if (!ro.IsValid(&err)) throw InputError("replica options", err);
-  if (!so.IsValid(&err)) throw InputError("scanner options", err);
-  Rng rng(seed);
+namespace {
 
-  // Work in the hand frame.
-  const Eigen::Isometry3d T_hand_rig = hand_frame_from_rig(rig_in);
-  std::vector<Eigen::Vector3d> hv = mesh_vertices(hand_in);
-  for (auto& p : hv) p = T_hand_rig * p;
-  std::vector<std::array<int, 3>> hf = mesh_faces(hand_in);
-  // The saw: the hand frame's origin is the wrist joint and its X axis the hand's long axis.
-  std::optional<TriMesh> sawn;  // the sawn replica's skin, hand frame
-  if (ro.saw_mm) {
-    sawn = saw_flat(hv, hf, *ro.saw_mm);
-    hv = mesh_vertices(*sawn);
-    hf = mesh_faces(*sawn);
-  }
-  RayCaster caster(hv, hf);
-  Rig rig_hand = rig_in;
-  for (auto& j : rig_hand.joints) j = T_hand_rig * j;
-  const auto J = [&](const char* n) { return rig_hand.joints[joint_index(n).value()]; };
-
-  // --- markers: on the ulnar flank, the radial flank and the wrist end, irregularly spaced ---
+// --- markers: on the ulnar flank, the radial flank and the wrist end, irregularly spaced ---
   // The flanks run out along the little finger and the thumb: rotation precision grows with
   // the markers' spread (docs/registration.md), and those are the replica's widest and
   // longest flanks that both scans see. A right hand's thumb lies on the hand frame's +Y, a
   // left hand's on −Y; a posed hand's thumb may hang palmar of the palm and its fingers arch,
   // so each marker is checked to be seen from above and from below (nothing of the hand
   // over or under it) before the scans are made.
-  const double ys = rig_side(rig_in) == HandSide::Left ? -1.0 : 1.0;  // +: toward the thumb
+std::vector<Eigen::Vector3d> place_markers(const std::vector<Eigen::Vector3d>& hv, const RayCaster& caster,
+                                           const Rig& rig_hand, const ReplicaOptions& ro, Rng& rng) {
+  const auto J = [&](const char* n) { return rig_hand.joints[joint_index(n).value()]; };
+  const double ys = rig_side(rig_hand) == HandSide::Left ? -1.0 : 1.0;  // +: toward the thumb
   const Eigen::Vector3d l0 = J("pinky-finger-metacarpal"), l1 = J("pinky-finger-phalanx-proximal"),
                         l2 = J("pinky-finger-phalanx-intermediate");
   const Eigen::Vector3d t0 = J("thumb-metacarpal"), t1 = J("thumb-phalanx-proximal"), t2 = J("thumb-phalanx-distal");
@@ -316,6 +297,96 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
                      "cannot place the markers on this hand's flanks and wrist end with an irregular pattern" + why);
   }
 
+  return markers;
+}
+
+// The replica in a placement T: the hand (object 0) and its spheres (1.., the one left off
+// the back scan, if any, omitted).
+Scene build_scene(const std::vector<Eigen::Vector3d>& hv, const std::vector<std::array<int, 3>>& hf,
+                  const std::vector<std::vector<Eigen::Vector3d>>& sphere_v, const std::vector<std::array<int, 3>>& sphere_f,
+                  const Eigen::Isometry3d& T, ScanSide side, int omit_marker_in_back) {
+  Scene s;
+  std::vector<Eigen::Vector3d> v;
+  for (const auto& p : hv) v.push_back(T * p);
+  s.add(v, hf, 0);
+  for (size_t k = 0; k < sphere_v.size(); ++k) {
+    if (side == ScanSide::Back && static_cast<int>(k) == omit_marker_in_back) continue;
+    v.clear();
+    for (const auto& p : sphere_v[k]) v.push_back(T * p);
+    s.add(v, sphere_f, static_cast<int>(k) + 1);
+  }
+  return s;
+}
+
+// The replica (hand vertices hv and its markers of radius r) turned by `base` and a random
+// yaw, put at a random place on the table, resting on it.
+Eigen::Isometry3d place_on_table(const std::vector<Eigen::Vector3d>& hv, const std::vector<Eigen::Vector3d>& markers,
+                                 double r, const ReplicaOptions& ro, const ScannerOptions& so,
+                                 const Eigen::Matrix3d& base, Rng& rng) {
+  // A long replica (a large hand with a long forearm stub) fits the table only turned
+  // toward its diagonal: after 200 draws within max_yaw, the yaw range widens to ±45°.
+  for (int attempt = 0; attempt < 400; ++attempt) {
+    const double yaw_range = attempt < 200 ? ro.max_yaw_deg : std::max(ro.max_yaw_deg, 45.0 * (attempt - 199) / 200.0);
+    Eigen::Isometry3d T = yaw_then(rng.uniform(-yaw_range, yaw_range), base);
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
+    for (const auto& p : hv) {
+      lo = lo.cwiseMin(T * p);
+      hi = hi.cwiseMax(T * p);
+    }
+    for (const auto& c : markers) {
+      lo = lo.cwiseMin(((T * c).array() - r).matrix());
+      hi = hi.cwiseMax(((T * c).array() + r).matrix());
+    }
+    const double margin = 3.0;
+    const double x0 = margin - lo.x(), x1 = so.x_extent_mm - margin - hi.x();
+    const double y0 = margin - lo.y(), y1 = so.y_extent_mm - margin - hi.y();
+    if (x1 < x0 || y1 < y0) continue;
+    T.pretranslate(Eigen::Vector3d(rng.uniform(x0, x1), rng.uniform(y0, y1), 0.0));
+    // Rest on the table: lowest point 0.2 mm above the (possibly tilted) table top.
+    double clearance = 1e9;
+    for (const auto& p : hv) {
+      const Eigen::Vector3d q = T * p;
+      clearance = std::min(clearance, q.z() - so.table_z(q.x()));
+    }
+    for (const auto& c : markers) {
+      const Eigen::Vector3d q = T * c;
+      clearance = std::min(clearance, q.z() - r - so.table_z(q.x()));
+    }
+    T.pretranslate(Eigen::Vector3d(0, 0, 0.2 - clearance));
+    return T;
+  }
+  throw InputError("--mesh", "the replica does not fit on the " + std::to_string(so.x_extent_mm) + " x " +
+                                 std::to_string(so.y_extent_mm) + " mm table");
+}
+
+}  // namespace
+
+ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const ReplicaOptions& ro,
+                              const ScannerOptions& so, std::uint64_t seed, bool verbose) {
+  std::string err;
+  if (!ro.IsValid(&err)) throw InputError("replica options", err);
+  if (!so.IsValid(&err)) throw InputError("scanner options", err);
+  Rng rng(seed);
+
+  // Work in the hand frame.
+  const Eigen::Isometry3d T_hand_rig = hand_frame_from_rig(rig_in);
+  std::vector<Eigen::Vector3d> hv = mesh_vertices(hand_in);
+  for (auto& p : hv) p = T_hand_rig * p;
+  std::vector<std::array<int, 3>> hf = mesh_faces(hand_in);
+  // The saw: the hand frame's origin is the wrist joint and its X axis the hand's long axis.
+  std::optional<TriMesh> sawn;  // the sawn replica's skin, hand frame
+  if (ro.saw_mm) {
+    sawn = saw_flat(hv, hf, *ro.saw_mm);
+    hv = mesh_vertices(*sawn);
+    hf = mesh_faces(*sawn);
+  }
+  RayCaster caster(hv, hf);
+  Rig rig_hand = rig_in;
+  for (auto& j : rig_hand.joints) j = T_hand_rig * j;
+  const auto J = [&](const char* n) { return rig_hand.joints[joint_index(n).value()]; };
+
+  std::vector<Eigen::Vector3d> markers = place_markers(hv, caster, rig_hand, ro, rng);
+  const double r = ro.marker_radius_mm;
   // The optional plaster blob: on the back of the middle metacarpal, seen only from above.
   std::vector<Eigen::Vector3d> spheres = markers;  // the markers, then the blob if any
   if (ro.extra_bump) {
@@ -330,73 +401,22 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
   std::vector<std::array<int, 3>> sphere_f;
   for (size_t k = 0; k < spheres.size(); ++k) icosphere(spheres[k], r, 4, &sphere_v[k], &sphere_f);
 
-  auto build_scene = [&](const Eigen::Isometry3d& T, ScanSide side) {
-    Scene s;
-    std::vector<Eigen::Vector3d> v;
-    for (const auto& p : hv) v.push_back(T * p);
-    s.add(v, hf, 0);
-    for (size_t k = 0; k < spheres.size(); ++k) {
-      if (side == ScanSide::Back && static_cast<int>(k) == ro.omit_marker_in_back) continue;
-      v.clear();
-      for (const auto& p : sphere_v[k]) v.push_back(T * p);
-      s.add(v, sphere_f, static_cast<int>(k) + 1);
-    }
-    return s;
-  };
-
   // Placement: back up = hand +Z up, fingers toward scanner -X (the wrist end faces the
   // laser); palm up = the same turned 180° about the hand's long axis.
   const Eigen::Matrix3d R_back = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   const Eigen::Matrix3d R_palm = R_back * Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
-  auto place_on_table = [&](const Eigen::Matrix3d& base) {
-    // A long replica (a large hand with a long forearm stub) fits the table only turned
-    // toward its diagonal: after 200 draws within max_yaw, the yaw range widens to ±45°.
-    for (int attempt = 0; attempt < 400; ++attempt) {
-      const double yaw_range = attempt < 200 ? ro.max_yaw_deg : std::max(ro.max_yaw_deg, 45.0 * (attempt - 199) / 200.0);
-      Eigen::Isometry3d T = yaw_then(rng.uniform(-yaw_range, yaw_range), base);
-      Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
-      for (const auto& p : hv) {
-        lo = lo.cwiseMin(T * p);
-        hi = hi.cwiseMax(T * p);
-      }
-      for (const auto& c : markers) {
-        lo = lo.cwiseMin(((T * c).array() - r).matrix());
-        hi = hi.cwiseMax(((T * c).array() + r).matrix());
-      }
-      const double margin = 3.0;
-      const double x0 = margin - lo.x(), x1 = so.x_extent_mm - margin - hi.x();
-      const double y0 = margin - lo.y(), y1 = so.y_extent_mm - margin - hi.y();
-      if (x1 < x0 || y1 < y0) continue;
-      T.pretranslate(Eigen::Vector3d(rng.uniform(x0, x1), rng.uniform(y0, y1), 0.0));
-      // Rest on the table: lowest point 0.2 mm above the (possibly tilted) table top.
-      double clearance = 1e9;
-      for (const auto& p : hv) {
-        const Eigen::Vector3d q = T * p;
-        clearance = std::min(clearance, q.z() - so.table_z(q.x()));
-      }
-      for (const auto& c : markers) {
-        const Eigen::Vector3d q = T * c;
-        clearance = std::min(clearance, q.z() - r - so.table_z(q.x()));
-      }
-      T.pretranslate(Eigen::Vector3d(0, 0, 0.2 - clearance));
-      return T;
-    }
-    throw InputError("--mesh", "the replica does not fit on the " + std::to_string(so.x_extent_mm) + " x " +
-                                   std::to_string(so.y_extent_mm) + " mm table");
-  };
-
   ScanPair out;
   out.markers_hand = markers;
   if (ro.extra_bump) out.extra_bump_hand = spheres.back();
   for (int attempt = 1; attempt <= 20; ++attempt) {
     out.placement_attempts = attempt;
-    out.T_back_hand = place_on_table(R_back);
-    out.T_palm_hand = place_on_table(R_palm);
+    out.T_back_hand = place_on_table(hv, markers, r, ro, so, R_back, rng);
+    out.T_palm_hand = place_on_table(hv, markers, r, ro, so, R_palm, rng);
     const std::uint64_t noise_seed_back = rng.next(), noise_seed_palm = rng.next();
     if (verbose) std::fprintf(stderr, "[synth scan] placement %d: scanning back side...\n", attempt);
-    out.back = simulate_scan(build_scene(out.T_back_hand, ScanSide::Back), so, ScanSide::Back, noise_seed_back);
+    out.back = simulate_scan(build_scene(hv, hf, sphere_v, sphere_f, out.T_back_hand, ScanSide::Back, ro.omit_marker_in_back), so, ScanSide::Back, noise_seed_back);
     if (verbose) std::fprintf(stderr, "[synth scan] placement %d: scanning palm side...\n", attempt);
-    out.palm = simulate_scan(build_scene(out.T_palm_hand, ScanSide::Palm), so, ScanSide::Palm, noise_seed_palm);
+    out.palm = simulate_scan(build_scene(hv, hf, sphere_v, sphere_f, out.T_palm_hand, ScanSide::Palm, ro.omit_marker_in_back), so, ScanSide::Palm, noise_seed_palm);
     bool visible = true;
     for (size_t k = 0; k < markers.size(); ++k)
       if ((static_cast<int>(k) != ro.omit_marker_in_back &&
