@@ -118,49 +118,62 @@ std::array<JointNode, kJointCount> joint_nodes(const Skeleton& skel, const Angle
   return out;
 }
 
-std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose, const PostureAnimation* animation) {
-  HS_CHECK(s.vertices.size() == s.binding.vertices.size(), "binding and mesh differ in size");
-  const Skeleton skel(s.rig, "rig");
-  Angles zero{};
-  const auto rest = skel.frames(zero);
-  const auto nodes = joint_nodes(skel, pose ? *pose : zero);
-  tinygltf::Model m;
-  m.asset.version = "2.0";
-  m.asset.generator = "handskin";
-  m.buffers.emplace_back();
+namespace {
 
-  // --- mesh ---
-  const bool textured = !s.texture.empty();
-  HS_CHECK(!textured || s.texture.corner_uv.size() == s.faces.size(), "texture and mesh differ in faces");
-  // With a texture, a vertex is written once per distinct texture coordinate of its corners:
-  // the skin's vertices first (each with its first corner's), then the copies.
-  std::vector<int> source(s.vertices.size());
-  for (size_t i = 0; i < source.size(); ++i) source[i] = static_cast<int>(i);
-  std::vector<Eigen::Vector2f> uv(textured ? s.vertices.size() : 0, Eigen::Vector2f::Constant(-1));
-  std::vector<std::array<int, 3>> faces = s.faces;
+constexpr int kFirstJoint = 2;  // the glb's node of the first joint (0 the mesh, 1 "hand")
+
+// Vertex attributes of the glb's mesh, in glTF's units (metres) and types.
+struct VertexArrays {
+  std::vector<float> pos, nrm, wts;
+  std::vector<std::uint8_t> jts;
+  std::vector<double> lo, hi;  ///< the positions' bounds
+};
+
+// With a texture, a vertex is written once per distinct texture coordinate of its corners:
+// the skin's vertices first (each with its first corner's), then the copies. `source`: per
+// written vertex, the skin's vertex it copies; `uv` its texture coordinate; `faces` the
+// faces over the written vertices. Without a texture, the skin's own.
+void split_seams(const RiggedSkin& s, bool textured, std::vector<int>* source, std::vector<Eigen::Vector2f>* uv,
+                 std::vector<std::array<int, 3>>* faces) {
+  source->resize(s.vertices.size());
+  for (size_t i = 0; i < source->size(); ++i) (*source)[i] = static_cast<int>(i);
+  uv->assign(textured ? s.vertices.size() : 0, Eigen::Vector2f::Constant(-1));
+  *faces = s.faces;
   if (textured) {
     std::map<std::pair<int, std::pair<float, float>>, int> copies;
-    for (size_t f = 0; f < faces.size(); ++f)
+    for (size_t f = 0; f < faces->size(); ++f)
       for (int k = 0; k < 3; ++k) {
         const int v = s.faces[f][k];
         const Eigen::Vector2f& c = s.texture.corner_uv[f][k];
-        if (uv[v].x() < 0) uv[v] = c;
-        if (uv[v] == c) continue;
+        if ((*uv)[v].x() < 0) (*uv)[v] = c;
+        if ((*uv)[v] == c) continue;
         const auto key = std::make_pair(v, std::make_pair(c.x(), c.y()));
         auto it = copies.find(key);
         if (it == copies.end()) {
-          it = copies.emplace(key, static_cast<int>(source.size())).first;
-          source.push_back(v);
-          uv.push_back(c);
+          it = copies.emplace(key, static_cast<int>(source->size())).first;
+          source->push_back(v);
+          uv->push_back(c);
         }
-        faces[f][k] = it->second;
+        (*faces)[f][k] = it->second;
       }
-    for (auto& c : uv) c = c.x() < 0 ? Eigen::Vector2f::Zero() : c;  // a vertex in no face
+    for (auto& c : *uv) c = c.x() < 0 ? Eigen::Vector2f::Zero() : c;  // a vertex in no face
   }
+}
+
+// Positions (metres), normals, and each vertex's joints and weights (a link's weight goes to
+// its first joint).
+VertexArrays vertex_arrays(const RiggedSkin& s, const std::vector<int>& source) {
   const size_t n = source.size();
-  std::vector<float> pos(3 * n), nrm(3 * n, 0.0f), wts(4 * n, 0.0f);
-  std::vector<std::uint8_t> jts(4 * n, 0);
-  std::vector<double> lo(3, 1e300), hi(3, -1e300);
+  VertexArrays a;
+  std::vector<float>& pos = a.pos;
+  std::vector<float>& nrm = a.nrm;
+  std::vector<float>& wts = a.wts;
+  std::vector<std::uint8_t>& jts = a.jts;
+  std::vector<double>& lo = a.lo;
+  std::vector<double>& hi = a.hi;
+  pos.resize(3 * n), nrm.assign(3 * n, 0.0f), wts.assign(4 * n, 0.0f);
+  jts.assign(4 * n, 0);
+  lo.assign(3, 1e300), hi.assign(3, -1e300);
   const std::vector<Eigen::Vector3d> normal = vertex_normals(s.vertices, s.faces);
   for (size_t out_i = 0; out_i < n; ++out_i) {
     const size_t i = static_cast<size_t>(source[out_i]);
@@ -191,18 +204,24 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose, con
       wts[4 * out_i + k] = static_cast<float>(jw[k].second * scale);
     }
   }
+  return a;
+}
+
+// The skin's mesh (primitive 0), its material and, with a texture, its image.
+void add_mesh(tinygltf::Model& m, const RiggedSkin& s, const VertexArrays& a, size_t n,
+              const std::vector<std::array<int, 3>>& faces, const std::vector<Eigen::Vector2f>& uv, bool textured) {
   std::vector<std::uint32_t> idx;
   for (const auto& f : faces)
     for (int k : f) idx.push_back(static_cast<std::uint32_t>(k));
   tinygltf::Primitive prim;
   prim.mode = TINYGLTF_MODE_TRIANGLES;
-  prim.attributes["POSITION"] = add_accessor(m, add_view(m, pos.data(), pos.size() * 4, TINYGLTF_TARGET_ARRAY_BUFFER),
-                                             TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, n, lo, hi);
-  prim.attributes["NORMAL"] = add_accessor(m, add_view(m, nrm.data(), nrm.size() * 4, TINYGLTF_TARGET_ARRAY_BUFFER),
+  prim.attributes["POSITION"] = add_accessor(m, add_view(m, a.pos.data(), a.pos.size() * 4, TINYGLTF_TARGET_ARRAY_BUFFER),
+                                             TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, n, a.lo, a.hi);
+  prim.attributes["NORMAL"] = add_accessor(m, add_view(m, a.nrm.data(), a.nrm.size() * 4, TINYGLTF_TARGET_ARRAY_BUFFER),
                                            TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, n);
-  prim.attributes["JOINTS_0"] = add_accessor(m, add_view(m, jts.data(), jts.size(), TINYGLTF_TARGET_ARRAY_BUFFER),
+  prim.attributes["JOINTS_0"] = add_accessor(m, add_view(m, a.jts.data(), a.jts.size(), TINYGLTF_TARGET_ARRAY_BUFFER),
                                              TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_TYPE_VEC4, n);
-  prim.attributes["WEIGHTS_0"] = add_accessor(m, add_view(m, wts.data(), wts.size() * 4, TINYGLTF_TARGET_ARRAY_BUFFER),
+  prim.attributes["WEIGHTS_0"] = add_accessor(m, add_view(m, a.wts.data(), a.wts.size() * 4, TINYGLTF_TARGET_ARRAY_BUFFER),
                                               TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC4, n);
   prim.indices = add_accessor(m, add_view(m, idx.data(), idx.size() * 4, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER),
                               TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, idx.size());
@@ -242,7 +261,10 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose, con
   mesh.primitives.push_back(prim);
   m.meshes.push_back(mesh);
 
-  // --- nodes: 0 the skinned mesh, 1 "hand" (the frame turn), 2.. the 25 joints ---
+}
+
+// Nodes: 0 the skinned mesh, 1 "hand" (the frame turn), 2.. the 25 joints (at `nodes`).
+void add_nodes(tinygltf::Model& m, const std::array<JointNode, kJointCount>& nodes) {
   tinygltf::Node mesh_node;
   mesh_node.name = "skin";
   mesh_node.mesh = 0;
@@ -252,7 +274,6 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose, con
   hand.name = "hand";
   hand.rotation = quat_xyzw(palm_to_gltf());
   m.nodes.push_back(hand);
-  constexpr int kFirstJoint = 2;
   for (int j = 0; j < kJointCount; ++j) {
     tinygltf::Node node;
     node.name = joints()[j].name;
@@ -264,7 +285,10 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose, con
     const int p = joints()[j].parent;
     (p < 0 ? m.nodes[1] : m.nodes[kFirstJoint + p]).children.push_back(kFirstJoint + j);
   }
-  // --- skin ---
+}
+
+// The skin: the joints and their inverse bind matrices (the rest posture).
+void add_skin(tinygltf::Model& m, const std::vector<Eigen::Isometry3d>& rest) {
   std::vector<float> ibm;
   for (int j = 0; j < kJointCount; ++j) {
     Eigen::Isometry3d r = rest[j];
@@ -281,58 +305,63 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose, con
       add_accessor(m, add_view(m, ibm.data(), ibm.size() * 4, -1), TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_MAT4, kJointCount);
   m.bufferViews.back().target = 0;
   m.skins.push_back(skin);
+}
 
-  // --- animation ---
-  if (animation && !animation->frames.empty()) {
-    HS_CHECK(animation->times.size() == animation->frames.size(), "animation: times and frames differ");
-    const size_t nf = animation->frames.size();
-    std::vector<std::array<JointNode, kJointCount>> at;
-    for (const Angles& f : animation->frames) at.push_back(joint_nodes(skel, f));
-    std::vector<float> times;
-    for (double t : animation->times) times.push_back(static_cast<float>(t));
-    tinygltf::Animation an;
-    an.name = "handskin";
-    const int input = add_accessor(m, add_view(m, times.data(), times.size() * 4, 0), TINYGLTF_COMPONENT_TYPE_FLOAT,
-                                   TINYGLTF_TYPE_SCALAR, nf, {times.front()}, {times.back()});
-    auto channel = [&](const std::vector<float>& values, int type, int node, const char* path) {
-      tinygltf::AnimationSampler sampler;
-      sampler.input = input;
-      sampler.output = add_accessor(m, add_view(m, values.data(), values.size() * 4, 0), TINYGLTF_COMPONENT_TYPE_FLOAT,
-                                    type, nf);
-      sampler.interpolation = "LINEAR";
-      an.samplers.push_back(sampler);
-      tinygltf::AnimationChannel c;
-      c.sampler = static_cast<int>(an.samplers.size()) - 1;
-      c.target_node = node;
-      c.target_path = path;
-      an.channels.push_back(c);
-    };
-    for (int j = 0; j < kJointCount; ++j) {
-      std::vector<float> q;
-      std::array<double, 4> prev = at[0][j].rotation;
-      bool varies = false;
-      for (size_t f = 0; f < nf; ++f) {
-        std::array<double, 4> r = at[f][j].rotation;
-        double dot = 0;
-        for (int c = 0; c < 4; ++c) dot += r[c] * prev[c];
-        if (dot < 0)
-          for (double& c : r) c = -c;
-        // A channel wherever a frame differs from the node's own rotation (the rest, or `pose`).
-        double to_node = 0;
-        for (int c = 0; c < 4; ++c) to_node += r[c] * nodes[j].rotation[c];
-        varies = varies || std::abs(std::abs(to_node) - 1) > 1e-12;
-        for (double c : r) q.push_back(static_cast<float>(c));
-        prev = r;
-      }
-      if (varies || j == 0) channel(q, TINYGLTF_TYPE_VEC4, kFirstJoint + j, "rotation");
+// The animation "handskin": a rotation channel per joint whose frames differ from its node,
+// and the wrist's translation.
+void add_animation(tinygltf::Model& m, const Skeleton& skel, const std::array<JointNode, kJointCount>& nodes,
+                   const PostureAnimation* animation) {
+  HS_CHECK(animation->times.size() == animation->frames.size(), "animation: times and frames differ");
+  const size_t nf = animation->frames.size();
+  std::vector<std::array<JointNode, kJointCount>> at;
+  for (const Angles& f : animation->frames) at.push_back(joint_nodes(skel, f));
+  std::vector<float> times;
+  for (double t : animation->times) times.push_back(static_cast<float>(t));
+  tinygltf::Animation an;
+  an.name = "handskin";
+  const int input = add_accessor(m, add_view(m, times.data(), times.size() * 4, 0), TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                 TINYGLTF_TYPE_SCALAR, nf, {times.front()}, {times.back()});
+  auto channel = [&](const std::vector<float>& values, int type, int node, const char* path) {
+    tinygltf::AnimationSampler sampler;
+    sampler.input = input;
+    sampler.output = add_accessor(m, add_view(m, values.data(), values.size() * 4, 0), TINYGLTF_COMPONENT_TYPE_FLOAT,
+                                  type, nf);
+    sampler.interpolation = "LINEAR";
+    an.samplers.push_back(sampler);
+    tinygltf::AnimationChannel c;
+    c.sampler = static_cast<int>(an.samplers.size()) - 1;
+    c.target_node = node;
+    c.target_path = path;
+    an.channels.push_back(c);
+  };
+  for (int j = 0; j < kJointCount; ++j) {
+    std::vector<float> q;
+    std::array<double, 4> prev = at[0][j].rotation;
+    bool varies = false;
+    for (size_t f = 0; f < nf; ++f) {
+      std::array<double, 4> r = at[f][j].rotation;
+      double dot = 0;
+      for (int c = 0; c < 4; ++c) dot += r[c] * prev[c];
+      if (dot < 0)
+        for (double& c : r) c = -c;
+      // A channel wherever a frame differs from the node's own rotation (the rest, or `pose`).
+      double to_node = 0;
+      for (int c = 0; c < 4; ++c) to_node += r[c] * nodes[j].rotation[c];
+      varies = varies || std::abs(std::abs(to_node) - 1) > 1e-12;
+      for (double c : r) q.push_back(static_cast<float>(c));
+      prev = r;
     }
-    std::vector<float> wrist;
-    for (size_t f = 0; f < nf; ++f)
-      for (double c : at[f][0].translation) wrist.push_back(static_cast<float>(c));
-    channel(wrist, TINYGLTF_TYPE_VEC3, kFirstJoint, "translation");
-    m.animations.push_back(an);
+    if (varies || j == 0) channel(q, TINYGLTF_TYPE_VEC4, kFirstJoint + j, "rotation");
   }
+  std::vector<float> wrist;
+  for (size_t f = 0; f < nf; ++f)
+    for (double c : at[f][0].translation) wrist.push_back(static_cast<float>(c));
+  channel(wrist, TINYGLTF_TYPE_VEC3, kFirstJoint, "translation");
+  m.animations.push_back(an);
+}
 
+// The scene, with the rig, the posture model and the binding in its extras.
+void add_scene(tinygltf::Model& m, const RiggedSkin& s, const Angles* pose, const std::vector<int>& source, bool textured) {
   tinygltf::Scene scene;
   scene.name = "handskin";
   scene.nodes = {0, 1};
@@ -346,6 +375,32 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose, con
   scene.extras = to_value(Json{{"handskin", extras}});
   m.scenes.push_back(scene);
   m.defaultScene = 0;
+
+}
+
+}  // namespace
+
+std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose, const PostureAnimation* animation) {
+  HS_CHECK(s.vertices.size() == s.binding.vertices.size(), "binding and mesh differ in size");
+  const Skeleton skel(s.rig, "rig");
+  Angles zero{};
+  const auto rest = skel.frames(zero);
+  const auto nodes = joint_nodes(skel, pose ? *pose : zero);
+  tinygltf::Model m;
+  m.asset.version = "2.0";
+  m.asset.generator = "handskin";
+  m.buffers.emplace_back();
+  const bool textured = !s.texture.empty();
+  HS_CHECK(!textured || s.texture.corner_uv.size() == s.faces.size(), "texture and mesh differ in faces");
+  std::vector<int> source;
+  std::vector<Eigen::Vector2f> uv;
+  std::vector<std::array<int, 3>> faces;
+  split_seams(s, textured, &source, &uv, &faces);
+  add_mesh(m, s, vertex_arrays(s, source), source.size(), faces, uv, textured);
+  add_nodes(m, nodes);
+  add_skin(m, std::vector<Eigen::Isometry3d>(rest.begin(), rest.end()));
+  if (animation && !animation->frames.empty()) add_animation(m, skel, nodes, animation);
+  add_scene(m, s, pose, source, textured);
 
   std::ostringstream out;
   tinygltf::TinyGLTF gltf;
