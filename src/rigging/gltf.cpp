@@ -409,28 +409,30 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose, con
   return {bytes.begin(), bytes.end()};
 }
 
-RiggedSkin read_skin_glb(const std::string& file) {
-  tinygltf::Model m;
-  tinygltf::TinyGLTF gltf;
-  gltf.SetImageLoader(keep_image_bytes, nullptr);
-  std::string err, warn;
-  if (!gltf.LoadBinaryFromFile(&m, &err, &warn, file)) {
-    std::string first = err.substr(0, err.find('\n'));
-    throw InputError(file, "not a readable glb: " + (first.empty() ? std::string("unknown error") : first));
-  }
-  if (m.scenes.empty()) throw InputError(file, "no scene");
-  const Json extras = from_value(m.scenes[m.defaultScene >= 0 ? m.defaultScene : 0].extras);
-  if (!extras.contains("handskin") || !extras["handskin"].is_object())
-    throw InputError(file, "no handskin extras in its scene: not a skin.glb that handskin wrote");
-  const Json& h = extras["handskin"];
-  if (!h.contains("format") || h["format"] != kFormat)
-    throw InputError(file, std::string("extras.handskin.format must be \"") + kFormat + "\"");
-  RiggedSkin s;
-  if (!h.contains("rig") || !h.contains("posture_model")) throw InputError(file, "extras.handskin lacks its rig or posture model");
-  s.rig = parse_rig(h["rig"].dump(), file + ": extras.handskin.rig");
-  s.model = parse_model(h["posture_model"], file + ": extras.handskin.posture_model");
-  s.binding.mode = h.contains("binding") && h["binding"].is_string() ? h["binding"].get<std::string>() : "smooth";
-  // The skin and its joints.
+namespace {
+
+// Floats of accessor `index` (of glTF type `type`), checked against its buffer and finite.
+std::vector<float> accessor_floats(const tinygltf::Model& m, const std::string& file, int index, int type,
+                                   const char* what) {
+  if (index < 0 || index >= static_cast<int>(m.accessors.size())) throw InputError(file, std::string(what) + ": no accessor");
+  const tinygltf::Accessor& a = m.accessors[index];
+  if (a.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT || a.type != type || a.bufferView < 0)
+    throw InputError(file, std::string(what) + ": expected float data of its type");
+  const tinygltf::BufferView& v = m.bufferViews[a.bufferView];
+  const int comps = tinygltf::GetNumComponentsInType(static_cast<std::uint32_t>(type));
+  const size_t need = a.byteOffset + a.count * comps * 4;
+  if ((v.byteStride && v.byteStride != static_cast<size_t>(comps) * 4) || need > v.byteLength ||
+      v.byteOffset + v.byteLength > m.buffers[v.buffer].data.size())
+    throw InputError(file, std::string(what) + ": accessor out of its buffer");
+  std::vector<float> out(a.count * comps);
+  std::memcpy(out.data(), m.buffers[v.buffer].data.data() + v.byteOffset + a.byteOffset, out.size() * 4);
+  for (float f : out)
+    if (!std::isfinite(f)) throw InputError(file, std::string(what) + ": a value is not finite");
+  return out;
+}
+
+// The skin's 25 joints: per skin joint, our joint index.
+std::array<int, kJointCount> skin_joints(const tinygltf::Model& m, const std::string& file) {
   if (m.skins.size() != 1) throw InputError(file, "expected one skin, found " + std::to_string(m.skins.size()));
   const tinygltf::Skin& sk = m.skins[0];
   if (static_cast<int>(sk.joints.size()) != kJointCount)
@@ -443,27 +445,16 @@ RiggedSkin read_skin_glb(const std::string& file) {
     if (!j) throw InputError(file, "skin joint '" + m.nodes[node].name + "' is not one of the 25 WebXR hand joints");
     ours[k] = *j;
   }
-  auto accessor_floats = [&](int index, int type, const char* what) {
-    if (index < 0 || index >= static_cast<int>(m.accessors.size())) throw InputError(file, std::string(what) + ": no accessor");
-    const tinygltf::Accessor& a = m.accessors[index];
-    if (a.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT || a.type != type || a.bufferView < 0)
-      throw InputError(file, std::string(what) + ": expected float data of its type");
-    const tinygltf::BufferView& v = m.bufferViews[a.bufferView];
-    const int comps = tinygltf::GetNumComponentsInType(static_cast<std::uint32_t>(type));
-    const size_t need = a.byteOffset + a.count * comps * 4;
-    if ((v.byteStride && v.byteStride != static_cast<size_t>(comps) * 4) || need > v.byteLength ||
-        v.byteOffset + v.byteLength > m.buffers[v.buffer].data.size())
-      throw InputError(file, std::string(what) + ": accessor out of its buffer");
-    std::vector<float> out(a.count * comps);
-    std::memcpy(out.data(), m.buffers[v.buffer].data.data() + v.byteOffset + a.byteOffset, out.size() * 4);
-    for (float f : out)
-      if (!std::isfinite(f)) throw InputError(file, std::string(what) + ": a value is not finite");
-    return out;
-  };
-  // Bind matrices: finite, and the rig's rest frames (else the file was edited apart).
-  const std::vector<float> ibm = accessor_floats(sk.inverseBindMatrices, TINYGLTF_TYPE_MAT4, "inverse bind matrices");
+  return ours;
+}
+
+// Bind matrices: finite, and the rig's rest frames (else the file was edited apart).
+void check_bind_matrices(const tinygltf::Model& m, const std::string& file, const Rig& rig,
+                         const std::array<int, kJointCount>& ours) {
+  const tinygltf::Skin& sk = m.skins[0];
+  const std::vector<float> ibm = accessor_floats(m, file, sk.inverseBindMatrices, TINYGLTF_TYPE_MAT4, "inverse bind matrices");
   if (ibm.size() != 16u * kJointCount) throw InputError(file, "inverse bind matrices: expected 25");
-  const Skeleton skel(s.rig, file + ": extras.handskin.rig");
+  const Skeleton skel(rig, file + ": extras.handskin.rig");
   for (int k = 0; k < kJointCount; ++k) {
     Eigen::Matrix4d M;
     for (int c = 0; c < 4; ++c)
@@ -473,19 +464,31 @@ RiggedSkin read_skin_glb(const std::string& file) {
     if ((M - rest.inverse().matrix()).cwiseAbs().maxCoeff() > 1e-4)
       throw InputError(file, std::string("the inverse bind matrix of ") + joints()[ours[k]].name + " does not match the rig");
   }
-  // The mesh: the skinned node's primitive.
+}
+
+// The skinned node's primitive.
+const tinygltf::Primitive& skin_primitive(const tinygltf::Model& m, const std::string& file) {
   int mesh = -1;
   for (const auto& n : m.nodes)
     if (n.skin == 0 && n.mesh >= 0) mesh = n.mesh;
   if (mesh < 0 || m.meshes[mesh].primitives.size() != 1) throw InputError(file, "no skinned mesh with one primitive");
-  const tinygltf::Primitive& prim = m.meshes[mesh].primitives[0];
-  auto attr = [&](const char* name) {
-    const auto it = prim.attributes.find(name);
-    if (it == prim.attributes.end()) throw InputError(file, std::string("the skin mesh has no ") + name);
-    return it->second;
-  };
-  const std::vector<float> pos = accessor_floats(attr("POSITION"), TINYGLTF_TYPE_VEC3, "POSITION");
-  const std::vector<float> wts = accessor_floats(attr("WEIGHTS_0"), TINYGLTF_TYPE_VEC4, "WEIGHTS_0");
+  return m.meshes[mesh].primitives[0];
+}
+
+// A primitive's attribute's accessor.
+int attribute(const tinygltf::Primitive& prim, const std::string& file, const char* name) {
+  const auto it = prim.attributes.find(name);
+  if (it == prim.attributes.end()) throw InputError(file, std::string("the skin mesh has no ") + name);
+  return it->second;
+}
+
+// The vertices (mm) and their weights back on the rig's links.
+void read_vertices(const tinygltf::Model& m, const tinygltf::Primitive& prim, const std::string& file,
+                   const std::array<int, kJointCount>& ours, RiggedSkin* sp) {
+  RiggedSkin& s = *sp;
+  auto attr = [&](const char* name) { return attribute(prim, file, name); };
+  const std::vector<float> pos = accessor_floats(m, file, attr("POSITION"), TINYGLTF_TYPE_VEC3, "POSITION");
+  const std::vector<float> wts = accessor_floats(m, file, attr("WEIGHTS_0"), TINYGLTF_TYPE_VEC4, "WEIGHTS_0");
   const size_t n = pos.size() / 3;
   if (wts.size() != 4 * n) throw InputError(file, "WEIGHTS_0 and POSITION differ in count");
   const tinygltf::Accessor& ja = m.accessors[attr("JOINTS_0")];
@@ -523,7 +526,12 @@ RiggedSkin read_skin_glb(const std::string& file) {
       throw InputError(file, "WEIGHTS_0: the weights of vertex " + std::to_string(i) + " do not sum to 1");
     s.binding.vertices.push_back(w);
   }
-  // Triangles.
+}
+
+// The triangles over the vertices.
+void read_triangles(const tinygltf::Model& m, const tinygltf::Primitive& prim, const std::string& file, RiggedSkin* sp) {
+  RiggedSkin& s = *sp;
+  const size_t n = s.vertices.size();
   if (prim.indices < 0) throw InputError(file, "the skin mesh has no indices");
   const tinygltf::Accessor& ia = m.accessors[prim.indices];
   if (ia.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT || ia.count % 3 || ia.bufferView < 0)
@@ -538,7 +546,13 @@ RiggedSkin read_skin_glb(const std::string& file) {
       if (idx[k + c] >= n) throw InputError(file, "indices: a vertex index out of range");
     s.faces.push_back({static_cast<int>(idx[k]), static_cast<int>(idx[k + 1]), static_cast<int>(idx[k + 2])});
   }
-  // The texture: its image, and each face's corners' coordinates.
+}
+
+// The texture: its image, and each face's corners' coordinates.
+void read_texture(const tinygltf::Model& m, const tinygltf::Primitive& prim, const std::string& file, RiggedSkin* sp) {
+  RiggedSkin& s = *sp;
+  const size_t n = s.vertices.size();
+  auto attr = [&](const char* name) { return attribute(prim, file, name); };
   const int material = prim.material;
   const int tex = material >= 0 && material < static_cast<int>(m.materials.size())
                       ? m.materials[material].pbrMetallicRoughness.baseColorTexture.index
@@ -553,7 +567,7 @@ RiggedSkin read_skin_glb(const std::string& file) {
     if (rgb.width != rgb.height) throw InputError(file, "the skin's texture must be square");
     s.texture.size = rgb.width;
     s.texture.rgb = rgb.rgb;
-    const std::vector<float> tc = accessor_floats(attr("TEXCOORD_0"), TINYGLTF_TYPE_VEC2, "TEXCOORD_0");
+    const std::vector<float> tc = accessor_floats(m, file, attr("TEXCOORD_0"), TINYGLTF_TYPE_VEC2, "TEXCOORD_0");
     if (tc.size() != 2 * n) throw InputError(file, "TEXCOORD_0 and POSITION differ in count");
     for (float f : tc)
       if (f < 0 || f > 1) throw InputError(file, "TEXCOORD_0: a coordinate outside [0, 1]");
@@ -563,7 +577,12 @@ RiggedSkin read_skin_glb(const std::string& file) {
       s.texture.corner_uv.push_back(c);
     }
   }
-  // Vertices written once per chart (after the skin's own) go back to their skin vertex.
+}
+
+// Vertices written once per chart (after the skin's own) go back to their skin vertex.
+void merge_seams(const Json& h, const std::string& file, RiggedSkin* sp) {
+  RiggedSkin& s = *sp;
+  const size_t n = s.vertices.size();
   if (h.contains("seam_sources")) {
     const Json& seams = h["seam_sources"];
     if (!seams.is_array() || seams.size() > n) throw InputError(file, "extras.handskin.seam_sources must be a list of vertex indices");
@@ -581,6 +600,44 @@ RiggedSkin read_skin_glb(const std::string& file) {
     s.vertices.resize(skin_n);
     s.binding.vertices.resize(skin_n);
   }
+}
+
+// The glb as tinygltf reads it (images kept encoded).
+tinygltf::Model load_glb(const std::string& file) {
+  tinygltf::Model m;
+  tinygltf::TinyGLTF gltf;
+  gltf.SetImageLoader(keep_image_bytes, nullptr);
+  std::string err, warn;
+  if (!gltf.LoadBinaryFromFile(&m, &err, &warn, file)) {
+    std::string first = err.substr(0, err.find('\n'));
+    throw InputError(file, "not a readable glb: " + (first.empty() ? std::string("unknown error") : first));
+  }
+  return m;
+}
+
+}  // namespace
+
+RiggedSkin read_skin_glb(const std::string& file) {
+  const tinygltf::Model m = load_glb(file);
+  if (m.scenes.empty()) throw InputError(file, "no scene");
+  const Json extras = from_value(m.scenes[m.defaultScene >= 0 ? m.defaultScene : 0].extras);
+  if (!extras.contains("handskin") || !extras["handskin"].is_object())
+    throw InputError(file, "no handskin extras in its scene: not a skin.glb that handskin wrote");
+  const Json& h = extras["handskin"];
+  if (!h.contains("format") || h["format"] != kFormat)
+    throw InputError(file, std::string("extras.handskin.format must be \"") + kFormat + "\"");
+  RiggedSkin s;
+  if (!h.contains("rig") || !h.contains("posture_model")) throw InputError(file, "extras.handskin lacks its rig or posture model");
+  s.rig = parse_rig(h["rig"].dump(), file + ": extras.handskin.rig");
+  s.model = parse_model(h["posture_model"], file + ": extras.handskin.posture_model");
+  s.binding.mode = h.contains("binding") && h["binding"].is_string() ? h["binding"].get<std::string>() : "smooth";
+  const std::array<int, kJointCount> ours = skin_joints(m, file);
+  check_bind_matrices(m, file, s.rig, ours);
+  const tinygltf::Primitive& prim = skin_primitive(m, file);
+  read_vertices(m, prim, file, ours, &s);
+  read_triangles(m, prim, file, &s);
+  read_texture(m, prim, file, &s);
+  merge_seams(h, file, &s);
   return s;
 }
 
