@@ -78,13 +78,12 @@ double correlation(const std::vector<double>& x, const std::vector<double>& y) {
 
 }  // namespace
 
-// Thesis §3.2.2–3.2.3 on one (merged) table: `--method thesis-pairs`.
-PostureModel calibrate_pairs(const AngleTable& t, const CalibrationOptions& o, const std::string& file, Json* report) {
-  PostureModel m;
-  m.name = "calibrated";
-  m.description = "Calibrated from " + file + " (" + std::to_string(t.rows.size()) + " rows)";
-  m.dof = default_dof_params();
+namespace {
 
+using Columns = std::map<int, Column>;
+
+// The table's columns by DOF, with their value counts.
+Columns table_columns(const AngleTable& t) {
   std::map<int, Column> cols;
   for (size_t c = 0; c < t.columns.size(); ++c) {
     Column col;
@@ -94,21 +93,14 @@ PostureModel calibrate_pairs(const AngleTable& t, const CalibrationOptions& o, c
     }
     cols[t.columns[c]] = std::move(col);
   }
-  size_t usable = 0;
-  for (const auto& row : t.rows) {
-    int given = 0;
-    for (double v : row) given += std::isfinite(v);
-    if (given >= 2) ++usable;
-  }
-  if (static_cast<long>(usable) < o.min_rows)
-    throw InputError(file, "only " + std::to_string(usable) + " rows with two or more angles; calibration needs at least " +
-                               std::to_string(o.min_rows));
+  return cols;
+}
 
-  Json rep;
-  rep["rows"] = t.rows.size();
+// --- relaxed posture (median) and limits that cover the data (report: "dofs", "widened_limits") ---
+void relaxed_and_limits(const Columns& cols, const CalibrationOptions& o, PostureModel* mp, Json* rep) {
+  PostureModel& m = *mp;
   Json cover = Json::object(), widened = Json::array();
-  // --- relaxed posture (median) and limits that cover the data ---
-  for (auto& [d, col] : cols) {
+  for (const auto& [d, col] : cols) {
     if (static_cast<long>(col.n) < o.min_rows) continue;  // too few values: keep the defaults
     std::vector<double> v;
     for (double x : col.v)
@@ -128,10 +120,13 @@ PostureModel calibrate_pairs(const AngleTable& t, const CalibrationOptions& o, c
     p.relaxed = median;
     cover[dofs()[d].name] = {{"values", col.n}, {"min", lo}, {"max", hi}, {"relaxed_median", median}};
   }
-  rep["dofs"] = cover;
-  rep["widened_limits"] = widened;
+  (*rep)["dofs"] = cover;
+  (*rep)["widened_limits"] = widened;
 
-  // --- pairs: given, or the most correlated ---
+}
+
+// --- pairs: given, or the most correlated ---
+std::vector<std::pair<int, int>> choose_pairs(const Columns& cols, const CalibrationOptions& o, PostureModel* m) {
   std::vector<std::pair<int, int>> pairs = o.pairs;
   std::vector<double> x, y;
   if (pairs.empty()) {
@@ -147,13 +142,21 @@ PostureModel calibrate_pairs(const AngleTable& t, const CalibrationOptions& o, c
     for (size_t k = 0; k < cand.size() && static_cast<int>(pairs.size()) < o.max_pairs; ++k)
       pairs.emplace_back(std::get<1>(cand[k]), std::get<2>(cand[k]));
     if (pairs.empty())
-      m.notes.push_back(fmt("no DOF pair correlates with |r| >= %.2f: the model has springs only", o.min_correlation));
+      m->notes.push_back(fmt("no DOF pair correlates with |r| >= %.2f: the model has springs only", o.min_correlation));
   }
-  struct Fit {
-    PairLine line;
-    double r, spread;
-    size_t n;
-  };
+  return pairs;
+}
+
+struct Fit {
+  PairLine line;
+  double r, spread;
+  size_t n;
+};
+
+// Each pair's least-squares line in the sense of the thesis's l_i.
+std::vector<Fit> fit_pair_lines(Columns& cols, const std::vector<std::pair<int, int>>& pairs,
+                                const CalibrationOptions& o, const std::string& file) {
+  std::vector<double> x, y;
   std::vector<Fit> fits;
   for (const auto& [a, b] : pairs) {
     const std::string name = dofs()[a].name + " / " + dofs()[b].name;
@@ -187,13 +190,19 @@ PostureModel calibrate_pairs(const AngleTable& t, const CalibrationOptions& o, c
     f.n = x.size();
     fits.push_back(f);
   }
+  return fits;
+}
+
+// The lines' weights (eq. 3.18), normalised by the largest, into the model (report: "pairs").
+void weigh_lines(std::vector<Fit>* fits, const CalibrationOptions& o, PostureModel* mp, Json* rep) {
+  PostureModel& m = *mp;
   double max_w = 0;
-  for (auto& f : fits) {
+  for (auto& f : *fits) {
     f.line.weight = o.weights == "thesis" ? f.spread : 1.0 / f.spread;
     max_w = std::max(max_w, f.line.weight);
   }
   Json pr = Json::array();
-  for (auto& f : fits) {
+  for (auto& f : *fits) {
     f.line.weight /= max_w;  // eq. 3.18: normalised by the largest
     f.line.source = fmt("calibration: r = %.3f, n = %.0f, spread %.2f deg rms", f.r, static_cast<double>(f.n), std::sqrt(f.spread));
     m.pairs.push_back(f.line);
@@ -207,33 +216,66 @@ PostureModel calibrate_pairs(const AngleTable& t, const CalibrationOptions& o, c
                   {"spread_rms_deg", std::sqrt(f.spread)},
                   {"weight", f.line.weight}});
   }
-  rep["pairs"] = pr;
-  rep["weights"] = o.weights;
+  (*rep)["pairs"] = pr;
+  (*rep)["weights"] = o.weights;
 
-  // --- optional non-linear grids: the measured samples of each pair, thinned ---
-  if (o.grids) {
-    for (const auto& f : fits) {
-      common(cols[f.line.a], cols[f.line.b], &x, &y);
-      std::set<std::pair<long, long>> seen;
-      PairGrid g;
-      g.a = f.line.a;
-      g.b = f.line.b;
-      g.weight = o.grid_weight;
-      g.cells = o.grid_cells;
-      for (size_t i = 0; i < x.size(); ++i)
-        if (seen.insert({std::lround(x[i]), std::lround(y[i])}).second) g.samples.push_back({x[i], y[i]});
-      if (static_cast<int>(g.samples.size()) > o.max_grid_samples) {
-        std::vector<std::array<double, 2>> kept;
-        const double step = static_cast<double>(g.samples.size()) / o.max_grid_samples;
-        for (int k = 0; k < o.max_grid_samples; ++k) kept.push_back(g.samples[static_cast<size_t>(k * step)]);
-        g.samples = kept;
-      }
-      const auto [xa0, xa1] = std::minmax_element(x.begin(), x.end());
-      const auto [ya0, ya1] = std::minmax_element(y.begin(), y.end());
-      const double pa = std::max(5.0, 0.1 * (*xa1 - *xa0)), pb = std::max(5.0, 0.1 * (*ya1 - *ya0));
-      g.lo_a = *xa0 - pa, g.hi_a = *xa1 + pa, g.lo_b = *ya0 - pb, g.hi_b = *ya1 + pb;
-      m.grids.push_back(std::move(g));
+}
+
+// --- optional non-linear grids: the measured samples of each pair, thinned ---
+void pair_grids(Columns& cols, const std::vector<Fit>& fits, const CalibrationOptions& o, PostureModel* mp) {
+  PostureModel& m = *mp;
+  std::vector<double> x, y;
+  for (const auto& f : fits) {
+    common(cols[f.line.a], cols[f.line.b], &x, &y);
+    std::set<std::pair<long, long>> seen;
+    PairGrid g;
+    g.a = f.line.a;
+    g.b = f.line.b;
+    g.weight = o.grid_weight;
+    g.cells = o.grid_cells;
+    for (size_t i = 0; i < x.size(); ++i)
+      if (seen.insert({std::lround(x[i]), std::lround(y[i])}).second) g.samples.push_back({x[i], y[i]});
+    if (static_cast<int>(g.samples.size()) > o.max_grid_samples) {
+      std::vector<std::array<double, 2>> kept;
+      const double step = static_cast<double>(g.samples.size()) / o.max_grid_samples;
+      for (int k = 0; k < o.max_grid_samples; ++k) kept.push_back(g.samples[static_cast<size_t>(k * step)]);
+      g.samples = kept;
     }
+    const auto [xa0, xa1] = std::minmax_element(x.begin(), x.end());
+    const auto [ya0, ya1] = std::minmax_element(y.begin(), y.end());
+    const double pa = std::max(5.0, 0.1 * (*xa1 - *xa0)), pb = std::max(5.0, 0.1 * (*ya1 - *ya0));
+    g.lo_a = *xa0 - pa, g.hi_a = *xa1 + pa, g.lo_b = *ya0 - pb, g.hi_b = *ya1 + pb;
+    m.grids.push_back(std::move(g));
+  }
+}
+
+}  // namespace
+
+// Thesis §3.2.2–3.2.3 on one (merged) table: `--method thesis-pairs`.
+PostureModel calibrate_pairs(const AngleTable& t, const CalibrationOptions& o, const std::string& file, Json* report) {
+  PostureModel m;
+  m.name = "calibrated";
+  m.description = "Calibrated from " + file + " (" + std::to_string(t.rows.size()) + " rows)";
+  m.dof = default_dof_params();
+  Columns cols = table_columns(t);
+  size_t usable = 0;
+  for (const auto& row : t.rows) {
+    int given = 0;
+    for (double v : row) given += std::isfinite(v);
+    if (given >= 2) ++usable;
+  }
+  if (static_cast<long>(usable) < o.min_rows)
+    throw InputError(file, "only " + std::to_string(usable) + " rows with two or more angles; calibration needs at least " +
+                               std::to_string(o.min_rows));
+
+  Json rep;
+  rep["rows"] = t.rows.size();
+  relaxed_and_limits(cols, o, &m, &rep);
+  const std::vector<std::pair<int, int>> pairs = choose_pairs(cols, o, &m);
+  std::vector<Fit> fits = fit_pair_lines(cols, pairs, o, file);
+  weigh_lines(&fits, o, &m, &rep);
+  if (o.grids) {
+    pair_grids(cols, fits, o, &m);
     rep["grids"] = m.grids.size();
   }
   for (const auto& l : m.pairs)
@@ -391,25 +433,15 @@ Json cv_json(const std::vector<PostureTask>& tasks, const PostureSamples& s, con
 
 }  // namespace
 
-PostureModel calibrate(const std::vector<AngleTable>& tables, const std::vector<std::string>& files,
-                       const CalibrationOptions& o, Json* report) {
-  std::string err;
-  if (!o.IsValid(&err)) throw InputError("calibration options", err);
-  HS_CHECK(!tables.empty() && tables.size() == files.size(), "calibrate needs one name per table");
-  std::vector<int> rec;
-  const AngleTable all = merged(tables, &rec);
-  std::string label = files[0];
-  for (size_t r = 1; r < files.size(); ++r) label += ", " + files[r];
-  Json rep;
-  PostureModel m = calibrate_pairs(all, o, label, &rep);  // also the checks, limits and coverage
-  rep["method"] = o.method;
-  Json recs = Json::array();
-  for (size_t r = 0; r < tables.size(); ++r) recs.push_back({{"file", files[r]}, {"rows", tables[r].rows.size()}});
-  rep["recordings"] = recs;
+namespace {
 
-  // The measured columns: enough values, not constant; values clamped into the limits.
+// The measured columns of the merged table: enough values, not constant; values clamped into
+// the model's limits (report: "dofs_not_used", "frames", "frames_complete",
+// "values_clamped_to_limits").
+PostureSamples measured_samples(const AngleTable& all, const std::vector<int>& rec, int recordings,
+                                const PostureModel& m, const CalibrationOptions& o, Json* rep) {
   PostureSamples s;
-  s.recordings = static_cast<int>(tables.size());
+  s.recordings = recordings;
   s.recording = rec;
   std::vector<size_t> keep;
   Json unused = Json::array();
@@ -421,7 +453,7 @@ PostureModel calibrate(const std::vector<AngleTable>& tables, const std::vector<
     if (n >= o.min_rows && hi - lo > 1e-9) keep.push_back(c), s.dofs.push_back(all.columns[c]);
     else unused.push_back(dofs()[all.columns[c]].name);
   }
-  rep["dofs_not_used"] = unused;
+  (*rep)["dofs_not_used"] = unused;
   s.x.resize(static_cast<Eigen::Index>(all.rows.size()), static_cast<Eigen::Index>(keep.size()));
   long clamped = 0, complete = 0;
   for (size_t i = 0; i < all.rows.size(); ++i) {
@@ -440,9 +472,215 @@ PostureModel calibrate(const std::vector<AngleTable>& tables, const std::vector<
     }
     complete += full;
   }
-  rep["frames"] = all.rows.size();
-  rep["frames_complete"] = complete;
-  rep["values_clamped_to_limits"] = clamped;
+  (*rep)["frames"] = all.rows.size();
+  (*rep)["frames_complete"] = complete;
+  (*rep)["values_clamped_to_limits"] = clamped;
+  return s;
+}
+
+// One calibration's state: the samples, the tasks, the held-out schemes and the errors and
+// moments computed so far (each once).
+class Calibration {
+ public:
+  using FitFor = std::function<ModelFit(const std::vector<Split>&)>;
+
+  Calibration(const PostureSamples& s, const std::vector<PostureTask>& tasks, const PostureModel& base,
+              const CalibrationOptions& o)
+      : s(s), tasks(tasks), base(base), o(o), moments(s, o.min_rows) {}
+
+  // Held-out errors per (scheme, model), computed once: the selection's figures are reused
+  // by the report.
+  const TaskErrors& errors(const std::vector<Split>& splits, const std::string& key, const FitFor& fit_for) {
+    const auto k = std::make_pair(static_cast<const void*>(&splits), key);
+    auto it = done.find(k);
+    if (it == done.end()) it = done.emplace(k, model_errors(s, tasks, splits, fit_for(splits))).first;
+    return it->second;
+  }
+  FitFor gaussian_fit(const GaussianChoice& c) {
+    return [this, c](const std::vector<Split>& splits) -> ModelFit {
+      return [this, c, sp = &splits](const PostureSamples& tr, size_t k) {
+        return gaussian_model(base, tr, shrink_stats(moments.get(sp, k, c.remove_offsets, tr), c.shrinkage));
+      };
+    };
+  }
+  FitFor mixture_fit(const GaussianChoice& c, int C) {
+    return [this, c, C](const std::vector<Split>& splits) -> ModelFit {
+      return [this, c, C, sp = &splits](const PostureSamples& tr, size_t k) {
+        return mixture_model(base, tr, c, moments.get(sp, k, c.remove_offsets, tr), C);
+      };
+    };
+  }
+  static std::string key_of(const GaussianChoice& c) {
+    return fmt("gaussian %g ", c.shrinkage) + (c.remove_offsets ? "remove" : "keep");
+  }
+
+  const PostureSamples& s;
+  const std::vector<PostureTask>& tasks;
+  const PostureModel& base;
+  const CalibrationOptions& o;
+  MomentCache moments;
+
+ private:
+  std::map<std::pair<const void*, std::string>, TaskErrors> done;
+};
+
+// The model the calibration ends with, and how to fit it again on a split's training rows.
+struct Chosen {
+  Calibration::FitFor fit;
+  std::string fit_key, linear_key;
+  GaussianChoice g;
+};
+
+// Shrinkage and offsets: given, or the candidate with the best held-out score relative to the
+// linear regression; the Gaussian model of the whole table with them (report: "selection",
+// "offsets", "shrinkage", "gaussian", "dofs_used").
+Chosen choose_gaussian(Calibration& cal, const std::vector<Split>& select, const TaskErrors& sel_linreg, bool several,
+                       const std::string& label, size_t rows, PostureModel* mp, Json* rep) {
+  const CalibrationOptions& o = cal.o;
+  const PostureSamples& s = cal.s;
+  const std::vector<PostureTask>& tasks = cal.tasks;
+  PostureModel& m = *mp;
+  Chosen ch;
+  GaussianChoice& g = ch.g;
+  std::vector<GaussianChoice> cands;
+  const std::vector<bool> offs = o.offsets == "auto" ? (several ? std::vector<bool>{true, false} : std::vector<bool>{true})
+                                                    : std::vector<bool>{o.offsets == "remove"};
+  for (bool off : offs) {
+    if (o.shrinkage >= 0) cands.push_back({off, o.shrinkage});
+    else
+      for (double r : kShrinkGrid) cands.push_back({off, r});
+  }
+  Json sel = Json::array();
+  double best = 1e300;
+  g = cands.front();
+  if (cands.size() > 1 && !select.empty() && !tasks.empty()) {
+    for (const auto& c : cands) {
+      const double sc = score(cal.errors(select, Calibration::key_of(c), cal.gaussian_fit(c)), sel_linreg);
+      sel.push_back({{"offsets", c.remove_offsets ? "remove" : "keep"}, {"shrinkage", c.shrinkage}, {"score", json_number(sc)}});
+      if (sc < best) best = sc, g = c;
+    }
+  } else if (o.shrinkage < 0) {
+    g.shrinkage = 0.01;
+    m.notes.push_back("no standard task to cross-validate on: shrinkage 0.01, not chosen");
+  }
+  rep->erase("pairs");
+  rep->erase("weights");
+  (*rep)["selection"] = {{"scheme", several ? "leave one recording out" : "held-out blocks"},
+                      {"score", "(mean + worst) / 2 over the tasks of model RMS / linear regression RMS"},
+                      {"candidates", sel}};
+  (*rep)["offsets"] = g.remove_offsets ? "removed per recording" : "kept";
+  (*rep)["shrinkage"] = g.shrinkage;
+  const GaussianStats st = shrink_stats(cal.moments.all(g.remove_offsets), g.shrinkage);
+  double scale = 1;
+  PostureModel lin = gaussian_model(cal.base, s, st, &scale);
+  Json syn = Json::array();
+  for (const auto& c : lin.constraints) syn.push_back({{"weight", c.weight}, {"source", c.source}});
+  (*rep)["gaussian"] = {{"dofs", s.dofs.size()},
+                     {"energy_scale", scale},
+                     {"floored_eigenvalues", st.floored_eigenvalues},
+                     {"synergy_rows", syn}};
+  Json cover = Json::object();
+  for (size_t c = 0; c < s.dofs.size(); ++c) {
+    long n = 0;
+    for (Eigen::Index i = 0; i < s.x.rows(); ++i) n += std::isfinite(s.x(i, static_cast<Eigen::Index>(c)));
+    cover[dofs()[s.dofs[c]].name] = {{"values", n}, {"mean", st.mean(static_cast<Eigen::Index>(c))},
+                                     {"sd", std::sqrt(st.cov(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(c)))}};
+  }
+  (*rep)["dofs_used"] = cover;
+  lin.name = "calibrated";
+  lin.description = "Gaussian calibration from " + label + " (" + std::to_string(rows) + " rows, " +
+                    std::to_string(s.dofs.size()) + " DOFs, shrinkage " + fmt("%g", g.shrinkage) + ")";
+  m = lin;
+  ch.fit = cal.gaussian_fit(g);
+  ch.fit_key = ch.linear_key = Calibration::key_of(g);
+  return ch;
+}
+
+// Components: given, or chosen by the same held-out score; eligible only if no task gets
+// worse than with the single Gaussian (report: "mixture").
+void choose_mixture(Calibration& cal, const std::vector<Split>& select, const TaskErrors& sel_linreg,
+                    const std::string& label, size_t rows, Chosen* ch, PostureModel* mp, Json* rep) {
+  const CalibrationOptions& o = cal.o;
+  const PostureSamples& s = cal.s;
+  const std::vector<PostureTask>& tasks = cal.tasks;
+  PostureModel& m = *mp;
+  const GaussianChoice& g = ch->g;
+  std::vector<int> comps;
+  if (o.components) comps.push_back(o.components);
+  else
+    for (int c : kComponentGrid) comps.push_back(c);
+  const long m_cols = static_cast<long>(s.dofs.size());
+  comps.erase(std::remove_if(comps.begin(), comps.end(), [&](int c) { return s.x.rows() < 4L * c * (m_cols + 1); }), comps.end());
+  Json mx = Json::array();
+  int chosen = 1;
+  if (!select.empty() && !tasks.empty()) {
+    const TaskErrors& lin_err = cal.errors(select, ch->linear_key, cal.gaussian_fit(g));
+    double best_mx = score(lin_err, sel_linreg);
+    for (int c : comps) {
+      const TaskErrors& e = cal.errors(select, "mixture " + std::to_string(c), cal.mixture_fit(g, c));
+      bool no_worse = true;
+      for (size_t t = 0; t < tasks.size(); ++t) no_worse = no_worse && !(e.rms(t) > lin_err.rms(t));
+      const double sc = score(e, sel_linreg);
+      mx.push_back({{"components", c}, {"score", json_number(sc)}, {"no_task_worse_than_linear", no_worse}});
+      if (no_worse && sc < best_mx) best_mx = sc, chosen = c;
+    }
+  }
+  Json mrep = {{"candidates", mx}, {"components", chosen}};
+  if (chosen > 1) {
+    int its = 0;
+    m = mixture_model(cal.base, s, g, cal.moments.all(g.remove_offsets), chosen, &its);
+    m.description = "Mixture of " + std::to_string(chosen) + " Gaussians from " + label + " (" + std::to_string(rows) +
+                    " rows, " + std::to_string(s.dofs.size()) + " DOFs)";
+    mrep["em_iterations"] = its;
+    ch->fit = cal.mixture_fit(g, chosen);
+    ch->fit_key = "mixture " + std::to_string(chosen);
+  } else {
+    m.notes.push_back("mixture: no number of components beat the single Gaussian on held-out frames; the linear model is kept");
+  }
+  (*rep)["mixture"] = mrep;
+}
+
+// The model's held-out errors on every scheme, beside the mean posture's and the linear
+// regression's (report: "cross_validation").
+void cross_validate(Calibration& cal, const Chosen& ch, const std::vector<Split>& blocks,
+                    const std::vector<Split>& leave_out, const PostureModel& m, Json* rep) {
+  const CalibrationOptions& o = cal.o;
+  const PostureSamples& s = cal.s;
+  const std::vector<PostureTask>& tasks = cal.tasks;
+  Json cv = Json::object();
+  auto scheme = [&](const std::vector<Split>& splits, const char* name, Json extra) {
+    if (splits.empty()) return;
+    TaskErrors mean, linreg;
+    baseline_errors(s, tasks, splits, &mean, &linreg);
+    const TaskErrors& model = cal.errors(splits, ch.fit_key, ch.fit);
+    const TaskErrors* linear = nullptr;
+    if (!m.mixture.components.empty()) linear = &cal.errors(splits, ch.linear_key, cal.gaussian_fit(ch.g));
+    extra["tasks"] = cv_json(tasks, s, model, mean, linreg, linear);
+    cv[name] = extra;
+  };
+  scheme(blocks, "blocks", {{"folds", o.folds}});
+  scheme(leave_out, "recordings", {{"folds", leave_out.size()}});
+  (*rep)["cross_validation"] = cv;
+}
+
+}  // namespace
+
+PostureModel calibrate(const std::vector<AngleTable>& tables, const std::vector<std::string>& files,
+                       const CalibrationOptions& o, Json* report) {
+  std::string err;
+  if (!o.IsValid(&err)) throw InputError("calibration options", err);
+  HS_CHECK(!tables.empty() && tables.size() == files.size(), "calibrate needs one name per table");
+  std::vector<int> rec;
+  const AngleTable all = merged(tables, &rec);
+  std::string label = files[0];
+  for (size_t r = 1; r < files.size(); ++r) label += ", " + files[r];
+  Json rep;
+  PostureModel m = calibrate_pairs(all, o, label, &rep);  // also the checks, limits and coverage
+  rep["method"] = o.method;
+  Json recs = Json::array();
+  for (size_t r = 0; r < tables.size(); ++r) recs.push_back({{"file", files[r]}, {"rows", tables[r].rows.size()}});
+  rep["recordings"] = recs;
+  const PostureSamples s = measured_samples(all, rec, static_cast<int>(tables.size()), m, o, &rep);
   if (s.dofs.size() < 2 && o.method != "thesis-pairs")
     throw InputError(label, "fewer than two DOFs have " + std::to_string(o.min_rows) + " or more varying values; nothing to correlate");
 
@@ -467,149 +705,18 @@ PostureModel calibrate(const std::vector<AngleTable>& tables, const std::vector<
   for (int d = 0; d < kDofCount; ++d) base.dof[d].lo = m.dof[d].lo, base.dof[d].hi = m.dof[d].hi;
   base.notes = m.notes;
 
-  // Held-out errors per (scheme, model), computed once: the selection's figures are reused
-  // by the report.
-  std::map<std::pair<const void*, std::string>, TaskErrors> done;
-  using FitFor = std::function<ModelFit(const std::vector<Split>&)>;
-  auto errors = [&](const std::vector<Split>& splits, const std::string& key, const FitFor& fit_for) -> const TaskErrors& {
-    const auto k = std::make_pair(static_cast<const void*>(&splits), key);
-    auto it = done.find(k);
-    if (it == done.end()) it = done.emplace(k, model_errors(s, tasks, splits, fit_for(splits))).first;
-    return it->second;
-  };
-  MomentCache moments(s, o.min_rows);
-  auto gaussian_fit = [&](const GaussianChoice& c) -> FitFor {
-    return [&, c](const std::vector<Split>& splits) -> ModelFit {
-      return [&, c, sp = &splits](const PostureSamples& tr, size_t k) {
-        return gaussian_model(base, tr, shrink_stats(moments.get(sp, k, c.remove_offsets, tr), c.shrinkage));
-      };
-    };
-  };
-  auto mixture_fit = [&](const GaussianChoice& c, int C) -> FitFor {
-    return [&, c, C](const std::vector<Split>& splits) -> ModelFit {
-      return [&, c, C, sp = &splits](const PostureSamples& tr, size_t k) {
-        return mixture_model(base, tr, c, moments.get(sp, k, c.remove_offsets, tr), C);
-      };
-    };
-  };
-  auto key_of = [](const GaussianChoice& c) { return fmt("gaussian %g ", c.shrinkage) + (c.remove_offsets ? "remove" : "keep"); };
-
-  FitFor fit;
-  std::string fit_key, linear_key;
-  GaussianChoice g;
+  Calibration cal(s, tasks, base, o);
+  Chosen ch;
   if (o.method == "thesis-pairs") {
-    fit = [&](const std::vector<Split>&) -> ModelFit {
+    ch.fit = [&](const std::vector<Split>&) -> ModelFit {
       return [&](const PostureSamples& train, size_t) { return calibrate_pairs(as_table(train), o, label, nullptr); };
     };
-    fit_key = "thesis-pairs";
+    ch.fit_key = "thesis-pairs";
   } else {
-    // Shrinkage and offsets: given, or the candidate with the best held-out score relative to
-    // the linear regression.
-    std::vector<GaussianChoice> cands;
-    const std::vector<bool> offs = o.offsets == "auto" ? (several ? std::vector<bool>{true, false} : std::vector<bool>{true})
-                                                      : std::vector<bool>{o.offsets == "remove"};
-    for (bool off : offs) {
-      if (o.shrinkage >= 0) cands.push_back({off, o.shrinkage});
-      else
-        for (double r : kShrinkGrid) cands.push_back({off, r});
-    }
-    Json sel = Json::array();
-    double best = 1e300;
-    g = cands.front();
-    if (cands.size() > 1 && !select.empty() && !tasks.empty()) {
-      for (const auto& c : cands) {
-        const double sc = score(errors(select, key_of(c), gaussian_fit(c)), sel_linreg);
-        sel.push_back({{"offsets", c.remove_offsets ? "remove" : "keep"}, {"shrinkage", c.shrinkage}, {"score", json_number(sc)}});
-        if (sc < best) best = sc, g = c;
-      }
-    } else if (o.shrinkage < 0) {
-      g.shrinkage = 0.01;
-      m.notes.push_back("no standard task to cross-validate on: shrinkage 0.01, not chosen");
-    }
-    rep.erase("pairs");
-    rep.erase("weights");
-    rep["selection"] = {{"scheme", several ? "leave one recording out" : "held-out blocks"},
-                        {"score", "(mean + worst) / 2 over the tasks of model RMS / linear regression RMS"},
-                        {"candidates", sel}};
-    rep["offsets"] = g.remove_offsets ? "removed per recording" : "kept";
-    rep["shrinkage"] = g.shrinkage;
-    const GaussianStats st = shrink_stats(moments.all(g.remove_offsets), g.shrinkage);
-    double scale = 1;
-    PostureModel lin = gaussian_model(base, s, st, &scale);
-    Json syn = Json::array();
-    for (const auto& c : lin.constraints) syn.push_back({{"weight", c.weight}, {"source", c.source}});
-    rep["gaussian"] = {{"dofs", s.dofs.size()},
-                       {"energy_scale", scale},
-                       {"floored_eigenvalues", st.floored_eigenvalues},
-                       {"synergy_rows", syn}};
-    Json cover = Json::object();
-    for (size_t c = 0; c < s.dofs.size(); ++c) {
-      long n = 0;
-      for (Eigen::Index i = 0; i < s.x.rows(); ++i) n += std::isfinite(s.x(i, static_cast<Eigen::Index>(c)));
-      cover[dofs()[s.dofs[c]].name] = {{"values", n}, {"mean", st.mean(static_cast<Eigen::Index>(c))},
-                                       {"sd", std::sqrt(st.cov(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(c)))}};
-    }
-    rep["dofs_used"] = cover;
-    lin.name = "calibrated";
-    lin.description = "Gaussian calibration from " + label + " (" + std::to_string(all.rows.size()) + " rows, " +
-                      std::to_string(s.dofs.size()) + " DOFs, shrinkage " + fmt("%g", g.shrinkage) + ")";
-    m = lin;
-    fit = gaussian_fit(g);
-    fit_key = linear_key = key_of(g);
-    if (o.method == "mixture") {
-      // Components: given, or chosen by the same held-out score; eligible only if no task gets
-      // worse than with the single Gaussian.
-      std::vector<int> comps;
-      if (o.components) comps.push_back(o.components);
-      else
-        for (int c : kComponentGrid) comps.push_back(c);
-      const long m_cols = static_cast<long>(s.dofs.size());
-      comps.erase(std::remove_if(comps.begin(), comps.end(), [&](int c) { return s.x.rows() < 4L * c * (m_cols + 1); }), comps.end());
-      Json mx = Json::array();
-      int chosen = 1;
-      if (!select.empty() && !tasks.empty()) {
-        const TaskErrors& lin_err = errors(select, linear_key, gaussian_fit(g));
-        double best_mx = score(lin_err, sel_linreg);
-        for (int c : comps) {
-          const TaskErrors& e = errors(select, "mixture " + std::to_string(c), mixture_fit(g, c));
-          bool no_worse = true;
-          for (size_t t = 0; t < tasks.size(); ++t) no_worse = no_worse && !(e.rms(t) > lin_err.rms(t));
-          const double sc = score(e, sel_linreg);
-          mx.push_back({{"components", c}, {"score", json_number(sc)}, {"no_task_worse_than_linear", no_worse}});
-          if (no_worse && sc < best_mx) best_mx = sc, chosen = c;
-        }
-      }
-      Json mrep = {{"candidates", mx}, {"components", chosen}};
-      if (chosen > 1) {
-        int its = 0;
-        m = mixture_model(base, s, g, moments.all(g.remove_offsets), chosen, &its);
-        m.description = "Mixture of " + std::to_string(chosen) + " Gaussians from " + label + " (" + std::to_string(all.rows.size()) +
-                        " rows, " + std::to_string(s.dofs.size()) + " DOFs)";
-        mrep["em_iterations"] = its;
-        fit = mixture_fit(g, chosen);
-        fit_key = "mixture " + std::to_string(chosen);
-      } else {
-        m.notes.push_back("mixture: no number of components beat the single Gaussian on held-out frames; the linear model is kept");
-      }
-      rep["mixture"] = mrep;
-    }
+    ch = choose_gaussian(cal, select, sel_linreg, several, label, all.rows.size(), &m, &rep);
+    if (o.method == "mixture") choose_mixture(cal, select, sel_linreg, label, all.rows.size(), &ch, &m, &rep);
   }
-  if (o.evaluate && !tasks.empty()) {
-    Json cv = Json::object();
-    auto scheme = [&](const std::vector<Split>& splits, const char* name, Json extra) {
-      if (splits.empty()) return;
-      TaskErrors mean, linreg;
-      baseline_errors(s, tasks, splits, &mean, &linreg);
-      const TaskErrors& model = errors(splits, fit_key, fit);
-      const TaskErrors* linear = nullptr;
-      if (!m.mixture.components.empty()) linear = &errors(splits, linear_key, gaussian_fit(g));
-      extra["tasks"] = cv_json(tasks, s, model, mean, linreg, linear);
-      cv[name] = extra;
-    };
-    scheme(blocks, "blocks", {{"folds", o.folds}});
-    scheme(leave_out, "recordings", {{"folds", leave_out.size()}});
-    rep["cross_validation"] = cv;
-  }
+  if (o.evaluate && !tasks.empty()) cross_validate(cal, ch, blocks, leave_out, m, &rep);
   for (const auto& n : base.notes)
     if (std::find(m.notes.begin(), m.notes.end(), n) == m.notes.end()) m.notes.push_back(n);
   if (report) *report = rep;
