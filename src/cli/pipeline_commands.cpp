@@ -79,7 +79,7 @@ void skin_command(const SkinArgs& a, const Progress& progress) {
   report["format"] = "handskin-skin-report/1";
   report["inputs"] = {{"merged", a.merged}, {"rig", a.rig.empty() ? "(placed automatically)" : a.rig},
                       {"pipeline", a.pipeline.empty() ? "(built-in defaults)" : a.pipeline}};
-  report["outputs"] = write_skin_outputs(out, r);
+  report["outputs"] = write_skin_outputs(out, r, skin_preview_png(r));
   report["outputs"]["report"] = out.final_path("skin_report.json");
   GateInputs gi;
   gi.skin_file = out.staged_path("skin.ply");
@@ -133,7 +133,7 @@ void register_command(const RegisterArgs& a, const Progress& progress) {
   gi.registration = &reg;
   const QualityGates gates = check_gates(gi, po);
   put_gates(gates, &report);
-  write_registration_outputs(out, reg, report);
+  write_registration_outputs(out, reg, report, merged_preview_png(reg));
   settle_gates(gates, a.strict, a.out);
   out.commit();
   const RegistrationFigures& f = reg.figures;
@@ -220,7 +220,7 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
   gi.patches = &r;
   const QualityGates gates = check_gates(gi, po);
   put_gates(gates, &report);
-  report["outputs"] = write_patch_outputs(out, r, *in.rig, Json{{"gates", report["gates"]}});
+  report["outputs"] = write_patch_outputs(out, r, Json{{"gates", report["gates"]}});
   report["outputs"]["report"] = out.final_path("report.json");
   save_json(out.stage("report.json"), report);
   settle_gates(gates, a.strict, out_dir);

@@ -135,64 +135,73 @@ Json to_json(const PatchReportFigures& f) {
           {"seconds", f.seconds}};
 }
 
-std::string patch_report_html(const PatchStageResult& r, const PatchReportFigures& f, const Rig& rig,
-                              const Json& run_report, const std::vector<ReportPicture>& posed) {
-  const PatchSkin& s = r.patches;
-  constexpr double kTop = 0.5;  // the colour scale's top, mm
-  // Pictures: the data coloured by error, seen from the palm (palm scan) and the back (back scan).
-  const Eigen::Matrix3d hand = hand_frame_from_rig(rig).linear();
-  auto error_view = [&](int side, const char* view) {
-    std::vector<Eigen::Vector3d> p, n;
-    std::vector<Eigen::Vector3f> c;
-    for (const auto& q : s.samples)
-      if (q.side == side) p.push_back(q.p), n.push_back(Eigen::Vector3d::Zero()), c.push_back(heat(q.error, kTop));
-    RenderOptions ro;
-    ro.width = 720;
-    ro.height = 480;
-    ro.view = named_view(view) * hand;
-    return p.empty() ? std::string() : render_points_png(p, n, c, ro);
-  };
-  // The layout: the tessellation's samples, each patch its own colour (a checkerboard).
-  auto layout_view = [&](const char* view) {
-    std::vector<Eigen::Vector3d> p, n;
-    std::vector<Eigen::Vector3f> c;
-    const Eigen::Matrix3d V = named_view(view) * hand;
-    constexpr int kPerSpan = 36;  // samples per patch side: dense enough for the splats to close
-    // Neighbouring patches in different colours: a greedy colouring over the layout's edges.
-    const LayoutTopology T = layout_topology(s.layout, "patch layout");
-    std::vector<int> colour(s.patches.size(), -1);
-    for (size_t f = 0; f < s.patches.size(); ++f) {
-      int used = 0;
-      for (int g : T.neighbour[f])
-        if (colour[g] >= 0) used |= 1 << colour[g];
-      colour[f] = 0;
-      while (used >> colour[f] & 1) ++colour[f];
-    }
-    static const Eigen::Vector3f palette[5] = {{0.85f, 0.62f, 0.48f}, {0.55f, 0.68f, 0.85f}, {0.62f, 0.80f, 0.55f},
-                                                {0.85f, 0.80f, 0.50f}, {0.75f, 0.60f, 0.82f}};
-    for (size_t f = 0; f < s.patches.size(); ++f)
-      for (int i = 0; i <= kPerSpan; ++i)
-        for (int j = 0; j <= kPerSpan; ++j) {
-          Eigen::Vector3d S, Su, Sv;
-          s.patches[f].derivatives(static_cast<double>(i) / kPerSpan, static_cast<double>(j) / kPerSpan, &S, &Su, &Sv);
-          Eigen::Vector3d nn = Su.cross(Sv);
-          if (nn.norm() < 1e-12) continue;
-          nn.normalize();
-          if ((V * nn).z() < 0) nn = -nn;  // facing the viewer, for the shading
-          p.push_back(S), n.push_back(nn);
-          c.push_back(palette[std::min(colour[f], 4)]);
-        }
-    RenderOptions ro;
-    ro.width = 720;
-    ro.height = 480;
-    ro.view = V;
-    return render_points_png(p, n, c, ro);
-  };
-  auto img = [&](const std::string& png, const std::string& alt) {
-    return png.empty() ? std::string("<p>(no points)</p>")
-                       : "<img alt=\"" + alt + "\" src=\"data:image/png;base64," + base64(png) + "\">";
-  };
-  // Histogram of the foot-point errors, 0–0.5 mm in 0.025 mm bins, the rest in one bin.
+namespace {
+
+constexpr double kTop = 0.5;  // the error colours' top, mm
+
+// The data coloured by error, seen from `view` (points of scan `side` only).
+std::string error_view(const PatchSkin& s, const Eigen::Matrix3d& hand, int side, const char* view) {
+  std::vector<Eigen::Vector3d> p, n;
+  std::vector<Eigen::Vector3f> c;
+  for (const auto& q : s.samples)
+    if (q.side == side) p.push_back(q.p), n.push_back(Eigen::Vector3d::Zero()), c.push_back(heat(q.error, kTop));
+  RenderOptions ro;
+  ro.width = 720;
+  ro.height = 480;
+  ro.view = named_view(view) * hand;
+  return p.empty() ? std::string() : render_points_png(p, n, c, ro);
+}
+
+// The layout: the tessellation's samples, each patch its own colour (a checkerboard).
+std::string layout_view(const PatchSkin& s, const Eigen::Matrix3d& hand, const char* view) {
+  std::vector<Eigen::Vector3d> p, n;
+  std::vector<Eigen::Vector3f> c;
+  const Eigen::Matrix3d V = named_view(view) * hand;
+  constexpr int kPerSpan = 36;  // samples per patch side: dense enough for the splats to close
+  // Neighbouring patches in different colours: a greedy colouring over the layout's edges.
+  const LayoutTopology T = layout_topology(s.layout, "patch layout");
+  std::vector<int> colour(s.patches.size(), -1);
+  for (size_t f = 0; f < s.patches.size(); ++f) {
+    int used = 0;
+    for (int g : T.neighbour[f])
+      if (colour[g] >= 0) used |= 1 << colour[g];
+    colour[f] = 0;
+    while (used >> colour[f] & 1) ++colour[f];
+  }
+  static const Eigen::Vector3f palette[5] = {{0.85f, 0.62f, 0.48f}, {0.55f, 0.68f, 0.85f}, {0.62f, 0.80f, 0.55f},
+                                              {0.85f, 0.80f, 0.50f}, {0.75f, 0.60f, 0.82f}};
+  for (size_t f = 0; f < s.patches.size(); ++f)
+    for (int i = 0; i <= kPerSpan; ++i)
+      for (int j = 0; j <= kPerSpan; ++j) {
+        Eigen::Vector3d S, Su, Sv;
+        s.patches[f].derivatives(static_cast<double>(i) / kPerSpan, static_cast<double>(j) / kPerSpan, &S, &Su, &Sv);
+        Eigen::Vector3d nn = Su.cross(Sv);
+        if (nn.norm() < 1e-12) continue;
+        nn.normalize();
+        if ((V * nn).z() < 0) nn = -nn;  // facing the viewer, for the shading
+        p.push_back(S), n.push_back(nn);
+        c.push_back(palette[std::min(colour[f], 4)]);
+      }
+  RenderOptions ro;
+  ro.width = 720;
+  ro.height = 480;
+  ro.view = V;
+  return render_points_png(p, n, c, ro);
+}
+
+std::string img(const std::string& png, const std::string& alt) {
+  return png.empty() ? std::string("<p>(no points)</p>")
+                     : "<img alt=\"" + alt + "\" src=\"data:image/png;base64," + base64(png) + "\">";
+}
+
+std::string row(std::initializer_list<std::string> cells, bool head = false) {
+  std::string o = "<tr>";
+  for (const auto& c : cells) o += (head ? "<th>" : "<td>") + c + (head ? "</th>" : "</td>");
+  return o + "</tr>\n";
+}
+
+// Histogram of the foot-point errors, 0–0.5 mm in 0.025 mm bins, the rest in one bin (SVG).
+std::string error_histogram_svg(const PatchSkin& s) {
   std::array<std::array<size_t, 21>, 2> hist{};
   for (const auto& q : s.samples) ++hist[q.side][std::min<size_t>(20, static_cast<size_t>(q.error / 0.025))];
   size_t hmax = 1;
@@ -209,36 +218,33 @@ std::string patch_report_html(const PatchStageResult& r, const PatchReportFigure
     svg += "<text x=\"" + fmt("%.0f", 20 + b * 29.0) + "\" y=\"208\" font-size=\"11\">" + fmt("%.2f", b * 0.025) + "</text>";
   svg += "<text x=\"600\" y=\"208\" font-size=\"11\">&gt;0.5</text></svg>";
 
-  auto row = [](std::initializer_list<std::string> cells, bool head = false) {
-    std::string o = "<tr>";
-    for (const auto& c : cells) o += (head ? "<th>" : "<td>") + c + (head ? "</th>" : "</td>");
-    return o + "</tr>\n";
-  };
+  return svg;
+}
+
+// The quality gates, measured on the outputs as written (pipeline/gates.hpp); a failed one in red.
+std::string gates_section(const Json& run_report) {
   std::string h;
-  h += "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>handskin: patch fitting error</title>\n";
-  h += "<style>body{font-family:sans-serif;max-width:1500px;margin:1em auto;padding:0 1em;color:#222}"
-       "table{border-collapse:collapse;margin:.5em 0 1.2em}td,th{border:1px solid #bbb;padding:.25em .6em;text-align:right}"
-       "th{background:#eee}td:first-child,th:first-child{text-align:left}img{max-width:100%;border:1px solid #ccc}"
-       ".pics{display:flex;flex-wrap:wrap;gap:1em}.pics figure{margin:0}"
-       ".bar{width:360px;height:14px;background:linear-gradient(to right,#264dd9,#33bf59,#f2d933,#d91a1a)}"
-       ".ticks{display:flex;justify-content:space-between;width:360px;font-size:.85em}</style></head><body>\n";
-  h += "<h1>Bézier patch fitting error</h1>\n";
-  h += "<p>" + std::to_string(s.patches.size()) + " bicubic patches, " + std::to_string(s.control_points) +
-       " control points over the whole closed hand, neighbours sharing their borders' control points (thesis §4.1.4, Table 4.1). Distances in mm, from the measured points to the surface.</p>\n";
-  if (run_report.is_object() && run_report.contains("gates") && run_report["gates"].is_array()) {
-    // Measured on the outputs as written (pipeline/gates.hpp); a failed gate in red.
-    h += "<h2>Quality gates</h2>\n<p>Measured on the files as written (skin.ply read back); each limit is a pipeline "
-         "key, or fixed for the skin's structure.</p>\n<table>\n" +
-         row({"gate", "value", "limit", "unit", "", "measured"}, true);
-    for (const auto& g : run_report["gates"]) {
-      const bool pass = g.value("pass", false);
-      const std::string key = g.contains("key") && g["key"].is_string() ? " (" + g["key"].get<std::string>() + ")" : "";
-      h += row({html_escape(g.value("name", "")), fmt("%.4g", g.value("value", 0.0)),
-                fmt("%.4g", g.value("limit", 0.0)) + html_escape(key), html_escape(g.value("unit", "")),
-                pass ? "pass" : "<b style=\"color:#c00\">FAIL</b>", html_escape(g.value("measure", ""))});
-    }
-    h += "</table>\n";
+  // Measured on the outputs as written (pipeline/gates.hpp); a failed gate in red.
+  h += "<h2>Quality gates</h2>\n<p>Measured on the files as written (skin.ply read back); each limit is a pipeline "
+       "key, or fixed for the skin's structure.</p>\n<table>\n" +
+       row({"gate", "value", "limit", "unit", "", "measured"}, true);
+  for (const auto& g : run_report["gates"]) {
+    const bool pass = g.value("pass", false);
+    const std::string key = g.contains("key") && g["key"].is_string() ? " (" + g["key"].get<std::string>() + ")" : "";
+    h += row({html_escape(g.value("name", "")), fmt("%.4g", g.value("value", 0.0)),
+              fmt("%.4g", g.value("limit", 0.0)) + html_escape(key), html_escape(g.value("unit", "")),
+              pass ? "pass" : "<b style=\"color:#c00\">FAIL</b>", html_escape(g.value("measure", ""))});
   }
+  h += "</table>\n";
+  return h;
+}
+
+// Table 4.1 per side, beside the thesis's figures, and the error pictures and layout.
+std::string table_4_1_section(const PatchStageResult& r) {
+  const PatchSkin& s = r.patches;
+  const PatchReportFigures& f = r.figures;
+  const PatchReportPictures& pics = r.pictures;
+  std::string h;
   h += "<h2>Table 4.1: fitting error per side</h2>\n<table>\n";
   h += row({"side", "points", "mean (foot points)", "max (foot points)",
             "mean (" + std::to_string(f.error_grid) + "×" + std::to_string(f.error_grid) + " cells)", "max (cells)",
@@ -253,18 +259,23 @@ std::string patch_report_html(const PatchStageResult& r, const PatchReportFigure
   h += "</table>\n<p>The thesis: palm mean 0.030, max 3.6 (thumb base); back mean 0.027, max 0.43.</p>\n";
   h += "<h2>The error on the hand</h2>\n<div class=\"bar\" aria-hidden=\"true\"></div><div class=\"ticks\"><span>0</span><span>" +
        fmt("%.2f", kTop / 2) + "</span><span>≥ " + fmt("%.2f", kTop) + " mm</span></div>\n";
-  // The four pictures are independent: drawn at once.
-  std::string pics[4];
-#pragma omp parallel for schedule(dynamic)
-  for (int k = 0; k < 4; ++k)
-    pics[k] = k == 0 ? error_view(0, "palm") : k == 1 ? error_view(1, "back") : layout_view(k == 2 ? "back" : "palm");
-  h += "<div class=\"pics\"><figure>" + img(pics[0], "palm-scan points coloured by error, palm view") +
+  h += "<div class=\"pics\"><figure>" + img(pics.palm_error, "palm-scan points coloured by error, palm view") +
        "<figcaption>palm (palm scan)</figcaption></figure><figure>" +
-       img(pics[1], "back-scan points coloured by error, back view") +
+       img(pics.back_error, "back-scan points coloured by error, back view") +
        "<figcaption>back (back scan)</figcaption></figure></div>\n";
-  h += "<h2>Patch layout</h2>\n<div class=\"pics\"><figure>" + img(pics[2], "patch layout, back view") +
-       "<figcaption>back</figcaption></figure><figure>" + img(pics[3], "patch layout, palm view") +
+  h += "<h2>Patch layout</h2>\n<div class=\"pics\"><figure>" + img(pics.layout_back, "patch layout, back view") +
+       "<figcaption>back</figcaption></figure><figure>" + img(pics.layout_palm, "patch layout, palm view") +
        "<figcaption>palm</figcaption></figure></div>\n";
+  return h;
+}
+
+// The correction rounds, continuity, the distances to the skin and the truth, the posed skin
+// and the run.
+std::string fit_sections(const PatchStageResult& r, const std::string& svg, const Json& run_report,
+                         const std::vector<ReportPicture>& posed) {
+  const PatchSkin& s = r.patches;
+  const PatchReportFigures& f = r.figures;
+  std::string h;
   h += "<h2>Error histogram</h2>\n<p>Blue: palm scan; orange: back scan; bins of 0.025 mm.</p>\n" + svg + "\n";
   h += "<h2>Parameter correction</h2>\n<p>Each round: every point's foot point on the current surface (Newton), then the "
        "refit, until 99.9 % of the points move less than " + fmt("%.3f", r.options.correction_tolerance) + " mm. Round 0 starts on the first fit; the RMS is the fitted points' distance at that round's foot points.</p>\n<table>\n" + row({"round", "largest foot-point move (mm)", "99.9 % moved less than (mm)", "points reassigned", "RMS (mm)"}, true);
@@ -333,6 +344,39 @@ std::string patch_report_html(const PatchStageResult& r, const PatchReportFigure
   }
   h += "<p>Fit: " + fmt("%.0f", 1000 * s.seconds) + " ms; this report's figures: " + fmt("%.0f", 1000 * f.seconds) +
        " ms. Made by handskin (docs/patches.md).</p>\n</body></html>\n";
+  return h;
+}
+
+}  // namespace
+
+PatchReportPictures patch_report_pictures(const PatchSkin& s, const Rig& rig) {
+  const Eigen::Matrix3d hand = hand_frame_from_rig(rig).linear();
+  // The four pictures are independent: drawn at once.
+  std::string pics[4];
+#pragma omp parallel for schedule(dynamic)
+  for (int k = 0; k < 4; ++k)
+    pics[k] = k == 0   ? error_view(s, hand, 0, "palm")
+              : k == 1 ? error_view(s, hand, 1, "back")
+                       : layout_view(s, hand, k == 2 ? "back" : "palm");
+  return {pics[0], pics[1], pics[2], pics[3]};
+}
+
+std::string patch_report_html(const PatchStageResult& r, const Json& run_report, const std::vector<ReportPicture>& posed) {
+  const PatchSkin& s = r.patches;
+  std::string h;
+  h += "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>handskin: patch fitting error</title>\n";
+  h += "<style>body{font-family:sans-serif;max-width:1500px;margin:1em auto;padding:0 1em;color:#222}"
+       "table{border-collapse:collapse;margin:.5em 0 1.2em}td,th{border:1px solid #bbb;padding:.25em .6em;text-align:right}"
+       "th{background:#eee}td:first-child,th:first-child{text-align:left}img{max-width:100%;border:1px solid #ccc}"
+       ".pics{display:flex;flex-wrap:wrap;gap:1em}.pics figure{margin:0}"
+       ".bar{width:360px;height:14px;background:linear-gradient(to right,#264dd9,#33bf59,#f2d933,#d91a1a)}"
+       ".ticks{display:flex;justify-content:space-between;width:360px;font-size:.85em}</style></head><body>\n";
+  h += "<h1>Bézier patch fitting error</h1>\n";
+  h += "<p>" + std::to_string(s.patches.size()) + " bicubic patches, " + std::to_string(s.control_points) +
+       " control points over the whole closed hand, neighbours sharing their borders' control points (thesis §4.1.4, Table 4.1). Distances in mm, from the measured points to the surface.</p>\n";
+  h += gates_section(run_report);
+  h += table_4_1_section(r);
+  h += fit_sections(r, error_histogram_svg(s), run_report, posed);
   return h;
 }
 

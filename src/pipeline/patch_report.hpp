@@ -18,7 +18,8 @@ namespace handskin {
 /// the data coloured by its distance to the surface from the palm and from the back (with a
 /// colour bar in mm), the patch layout, and an error histogram.
 /// `posed` (if any) adds a section of the rigged skin in a few postures.
-std::string patch_report_html(const PatchStageResult& r, const PatchReportFigures& f, const Rig& rig,
-                              const Json& run_report = Json(), const std::vector<ReportPicture>& posed = {});
+/// The pictures are the stage's (r.pictures): the page only encodes them.
+std::string patch_report_html(const PatchStageResult& r, const Json& run_report = Json(),
+                              const std::vector<ReportPicture>& posed = {});
 
 }  // namespace handskin

@@ -52,6 +52,7 @@ PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const s
     r.truth_to_surface = one_way_distance(sample_surface(truth->skin, 4.0), to_surface, truth->markers, truth->exclude_mm);
   }
   r.figures = patch_report_figures(r.patches, error_grid);
+  r.pictures = patch_report_pictures(r.patches, rig);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }
@@ -162,12 +163,12 @@ const std::vector<std::string>& patch_output_names() {
   return names;
 }
 
-Json write_patch_outputs(OutputSet& out, const PatchStageResult& r, const Rig& rig, const Json& run_report,
+Json write_patch_outputs(OutputSet& out, const PatchStageResult& r, const Json& run_report,
                          const std::vector<ReportPicture>& posed) {
   save_json(out.stage("patches.json"), patches_to_json(r.patches));
   write_file_atomic(out.stage("patches.obj"), patches_obj(r.patches));
   save_mesh(out.stage("patches.ply"), r.tessellation);
-  write_file_atomic(out.stage("report.html"), patch_report_html(r, r.figures, rig, run_report, posed));
+  write_file_atomic(out.stage("report.html"), patch_report_html(r, run_report, posed));
   return {{"patches_json", out.final_path("patches.json")},
           {"patches_obj", out.final_path("patches.obj")},
           {"patches_ply", out.final_path("patches.ply")},

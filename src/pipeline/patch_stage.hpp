@@ -31,8 +31,17 @@ struct PatchReportFigures {
   double seconds = 0;
 };
 
+/// report.html's pictures (PNG), rendered in the stage: the data coloured by its distance to
+/// the surface seen from the palm (palm scan) and from the back (back scan), empty when a side
+/// has no points; the patch layout from the back and from the palm.
+struct PatchReportPictures {
+  std::string palm_error, back_error, layout_back, layout_palm;
+};
+
 /// Table 4.1's cell-grid error and the noise floor (for the report).
 PatchReportFigures patch_report_figures(const PatchSkin& s, int error_grid);
+/// The report's pictures of the fit, in the views of `rig`'s hand frame.
+PatchReportPictures patch_report_pictures(const PatchSkin& s, const Rig& rig);
 Json to_json(const PatchReportFigures& f);
 
 /// What the command and the run say when the hand's layout was fitted more than once (its
@@ -49,6 +58,7 @@ struct PatchStageResult {
   OneWayDistance surface_to_skin;
   std::string truth_file;
   PatchReportFigures figures;
+  PatchReportPictures pictures;
   double seconds = 0;
 };
 
@@ -68,9 +78,10 @@ Json patches_to_json(const PatchSkin& s);
 /// `deg 3 3` surface over them.
 std::string patches_obj(const PatchSkin& s);
 
-/// Stage patches.json, patches.obj, patches.ply and report.html (`rig` orients its
-/// pictures; `run_report` adds the run's stages to it) into `out`; returns {key: final path}.
-Json write_patch_outputs(OutputSet& out, const PatchStageResult& r, const Rig& rig, const Json& run_report = Json(),
+/// Stage patches.json, patches.obj, patches.ply and report.html (`run_report` adds the run's
+/// stages and gates to it) into `out`; returns {key: final path}. Serialises only: the
+/// pictures were rendered by the stage.
+Json write_patch_outputs(OutputSet& out, const PatchStageResult& r, const Json& run_report = Json(),
                          const std::vector<ReportPicture>& posed = {});
 const std::vector<std::string>& patch_output_names();
 

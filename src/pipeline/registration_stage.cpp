@@ -192,10 +192,15 @@ const std::vector<std::string>& registration_output_names() {
   return names;
 }
 
-Json write_registration_outputs(OutputSet& out, const Registration& reg, const Json& report) {
+std::string merged_preview_png(const Registration& reg) {
+  return merged_preview_png(merged_arrays(*reg.merged), reg.markers_palm);
+}
+
+Json write_registration_outputs(OutputSet& out, const Registration& reg, const Json& report,
+                                const std::string& merged_png) {
   save_json(out.stage("registration.json"), report);
   save_merged(out.stage("merged.ply"), *reg.merged);
-  write_file_atomic(out.stage("merged.png"), merged_preview_png(merged_arrays(*reg.merged), reg.markers_palm));
+  write_file_atomic(out.stage("merged.png"), merged_png);
   return {{"registration", out.final_path("registration.json")},
           {"merged_cloud", out.final_path("merged.ply")},
           {"merged_preview", out.final_path("merged.png")}};

@@ -29,8 +29,13 @@ Json registration_summary_json(const Registration& reg);
 /// Every output name the registration stage writes (for OutputSet::retire).
 const std::vector<std::string>& registration_output_names();
 
+/// merged.png: merged_preview_png of the registration's merged cloud and markers.
+std::string merged_preview_png(const Registration& reg);
+
 /// Stage registration.json (`report`: the registration's, with anything the caller added),
-/// merged.ply and merged.png into `out`. Returns {key: final path}.
-Json write_registration_outputs(OutputSet& out, const Registration& reg, const Json& report);
+/// merged.ply and merged.png (`merged_png`, rendered by the caller) into `out`. Returns
+/// {key: final path}.
+Json write_registration_outputs(OutputSet& out, const Registration& reg, const Json& report,
+                                const std::string& merged_png);
 
 }  // namespace handskin

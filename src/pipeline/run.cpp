@@ -125,6 +125,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
                      [&](const std::string& m) { progress("registration: " + m); });
   for (const auto& w : R.registration.warnings) progress("warning: " + w);
   if (truth) R.registration_truth = registration_against_truth(R.registration, *truth);
+  R.merged_png = merged_preview_png(R.registration);
   R.registration_seconds = t_reg.seconds();
 
   // --- skin: strips from the merged cloud, closed into one mesh (docs/skin.md) ---
@@ -178,8 +179,13 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   } else {
     progress(R.texture_note);
   }
+  // --- the pictures and the glb: everything the writer only puts into files ---
+  const float texture_weight = static_cast<float>(in.options.texture.weight);
+  R.skin_png = skin_preview_png(R.skin, R.texture ? &R.rigged.texture : nullptr, texture_weight);
   if (R.patches)  // for report.html, which the patch stage writes
-    R.posed = posed_pictures(R.rigged, mesh, static_cast<float>(in.options.texture.weight));
+    R.posed = posed_pictures(R.rigged, mesh, texture_weight);
+  const std::vector<unsigned char> glb = skin_glb(R.rigged);
+  R.glb.assign(glb.begin(), glb.end());
   R.seconds = total.seconds();
   return R;
 }
@@ -227,9 +233,8 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
   outputs["palm_cloud"] = out.final_path("palm.ply");
   Json reg_report = registration_to_json(r.registration);
   if (r.registration_truth) reg_report["against_truth"] = *r.registration_truth;
-  outputs.update(write_registration_outputs(out, r.registration, reg_report));
-  outputs.update(write_skin_outputs(out, r.skin, r.texture ? &r.rigged.texture : nullptr,
-                                    static_cast<float>(in.options.texture.weight)));
+  outputs.update(write_registration_outputs(out, r.registration, reg_report, r.merged_png));
+  outputs.update(write_skin_outputs(out, r.skin, r.skin_png));
   // The quality gates, on the skin as written (skin.ply read back) and the other outputs.
   RunWritten W;
   {
@@ -288,13 +293,12 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
   } else {
     stages.push_back({{"name", "texture"}, {"seconds", 0.0}, {"skipped", r.texture_note}});
   }
-  const std::vector<unsigned char> glb = skin_glb(r.rigged);
-  write_file_atomic(out.stage("skin.glb"), std::string(glb.begin(), glb.end()));
+  write_file_atomic(out.stage("skin.glb"), r.glb);
   outputs["skin_glb"] = out.final_path("skin.glb");
   report["inputs"]["posture_model"] = in.posture_model;
   report["stages"] = stages;  // the computing stages, for the patch report's page
   put_gates(W.gates, &report);
-  if (r.patches) outputs.update(write_patch_outputs(out, *r.patches, r.skin.rig, report, r.posed));
+  if (r.patches) outputs.update(write_patch_outputs(out, *r.patches, report, r.posed));
   stages.push_back({{"name", "write"}, {"seconds", t_write.seconds()}});
   report["stages"] = stages;
   outputs["report"] = out.final_path("report.json");

@@ -64,6 +64,8 @@ struct RunResult {
   std::string texture_note;      ///< why there is no texture, when there is none
   RiggedSkin rigged;             ///< the skin bound to the skeleton, with the posture model (skin.glb)
   std::vector<ReportPicture> posed;  ///< the rigged skin in a few postures, for report.html
+  std::string merged_png, skin_png;  ///< merged.png and skin.png, rendered
+  std::string glb;                   ///< skin.glb's bytes
   double rigging_seconds = 0;
   double seconds = 0;  ///< all stages, before any output is written
 };

@@ -328,19 +328,23 @@ std::vector<std::string> skin_output_plan(bool automatic, bool slices, bool base
   return n;
 }
 
-Json write_skin_outputs(OutputSet& out, const SkinStageResult& r, const TextureMap* texture, float texture_weight) {
-  Json outputs;
-  save_skin_ply(out.stage("skin.ply"), r.skin);
-  outputs["skin_ply"] = out.final_path("skin.ply");
-  save_mesh(out.stage("skin.obj"), r.skin.mesh);
-  outputs["skin_obj"] = out.final_path("skin.obj");
+std::string skin_preview_png(const SkinStageResult& r, const TextureMap* texture, float texture_weight) {
   RenderOptions ro;
   ro.width = 900;
   ro.height = 500;
   ro.view = hand_frame_from_rig(r.rig).linear();  // looking at the back, fingers to the right
   ro.texture = texture;
   ro.texture_weight = texture_weight;
-  write_file_atomic(out.stage("skin.png"), render_mesh_png({&r.skin.mesh}, ro));
+  return render_mesh_png({&r.skin.mesh}, ro);
+}
+
+Json write_skin_outputs(OutputSet& out, const SkinStageResult& r, const std::string& skin_png) {
+  Json outputs;
+  save_skin_ply(out.stage("skin.ply"), r.skin);
+  outputs["skin_ply"] = out.final_path("skin.ply");
+  save_mesh(out.stage("skin.obj"), r.skin.mesh);
+  outputs["skin_obj"] = out.final_path("skin.obj");
+  write_file_atomic(out.stage("skin.png"), skin_png);
   outputs["skin_png"] = out.final_path("skin.png");
   if (r.automatic) {
     save_rig(out.stage("rig_auto.json"), r.rig);

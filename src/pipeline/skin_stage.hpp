@@ -1,7 +1,8 @@
 #pragma once
 /// The skin stage, shared by `handskin run` and `handskin skin`: the skeleton (given or placed
 /// in the cloud), the strip skin, and its quality figures — computed by `run_skin_stage`
-/// (no files), turned into the report by `to_json`, written by `write_skin_outputs`.
+/// (no files), turned into the report by `to_json`, its picture rendered by `skin_preview_png`,
+/// written by `write_skin_outputs`.
 #include <Eigen/Core>
 #include <cstdint>
 #include <functional>
@@ -110,10 +111,13 @@ const std::vector<std::string>& skin_output_names();
 /// sections (slices.json), the Poisson baseline (baseline.ply).
 std::vector<std::string> skin_output_plan(bool automatic, bool slices, bool baseline);
 
-/// Stage skin.ply (labels), skin.obj, skin.png, and as computed rig_auto.json, slices.json,
-/// baseline.ply into `out`. Returns {key: final path} for the report's "outputs".
-/// With `texture` (a map of r.skin.mesh), skin.png shows it, blended by `texture_weight`.
-Json write_skin_outputs(OutputSet& out, const SkinStageResult& r, const TextureMap* texture = nullptr,
-                        float texture_weight = 0.7f);
+/// skin.png: the skin from the back, fingers to the right; with `texture` (a map of
+/// r.skin.mesh) showing it, blended by `texture_weight`.
+std::string skin_preview_png(const SkinStageResult& r, const TextureMap* texture = nullptr, float texture_weight = 0.7f);
+
+/// Stage skin.ply (labels), skin.obj, skin.png (`skin_png`, rendered by the caller), and as
+/// computed rig_auto.json, slices.json, baseline.ply into `out`. Returns {key: final path}
+/// for the report's "outputs".
+Json write_skin_outputs(OutputSet& out, const SkinStageResult& r, const std::string& skin_png);
 
 }  // namespace handskin
