@@ -94,77 +94,77 @@ ScanPhoto load_scan_photo(const std::string& file, const RangeScan& scan) {
   return ph;
 }
 
-SkinTexture bake_skin_texture(const std::vector<Eigen::Vector3d>& V, const std::vector<std::array<int, 3>>& F,
-                              const ScanPhoto& back, const ScanPhoto& palm, const Eigen::Isometry3d& back_to_palm,
-                              const std::vector<Eigen::Vector3d>& markers, double marker_radius, const TextureOptions& o) {
-  const auto t0 = std::chrono::steady_clock::now();
-  std::string err;
-  if (!o.IsValid(&err)) throw InputError("texture options", err);
-  HS_CHECK(!V.empty() && !F.empty(), "no skin to texture");
-  SkinTexture out;
-  const int S = o.size;
+namespace {
 
-  std::array<View, 2> views;  // 0: palm, 1: back
-  views[0] = {&palm, Eigen::Isometry3d::Identity(), Eigen::Vector3d::UnitZ(), {}};
-  views[1] = {&back, back_to_palm.inverse(), (back_to_palm.linear() * Eigen::Vector3d::UnitZ()).normalized(), {}};
-  for (auto& v : views)
-    for (const auto& m : markers) v.markers.push_back(v.from_palm * m);
+// One bake: the skin, the two views, and the texture growing texel by texel.
+struct Baker {
+  Baker(const std::vector<Eigen::Vector3d>& V, const std::vector<std::array<int, 3>>& F, const ScanPhoto& back,
+        const ScanPhoto& palm, const Eigen::Isometry3d& back_to_palm, const std::vector<Eigen::Vector3d>& markers,
+        double marker_radius, const TextureOptions& o)
+      : V(V), F(F), o(o), marker_radius(marker_radius), S(o.size), s(std::sin(o.blend_deg * kDeg)),
+        colour(static_cast<size_t>(S) * S, Eigen::Vector3f::Zero()), state(static_cast<size_t>(S) * S, 0) {
+    views[0] = {&palm, Eigen::Isometry3d::Identity(), Eigen::Vector3d::UnitZ(), {}};
+    views[1] = {&back, back_to_palm.inverse(), (back_to_palm.linear() * Eigen::Vector3d::UnitZ()).normalized(), {}};
+    for (auto& v : views)
+      for (const auto& m : markers) v.markers.push_back(v.from_palm * m);
+  }
 
   // Vertex normals (area-weighted) and, per view, whether the camera sees the vertex: a ray
   // toward the camera that meets no other part of the skin.
-  const std::vector<Eigen::Vector3d> N = vertex_normals(V, F);
-  const cgal::TriangleTree tree(V, F);
-  std::array<std::vector<double>, 2> seen;
-  for (int c = 0; c < 2; ++c) {
-    seen[c].assign(V.size(), 0.0);
-    const Eigen::Vector3d& up = views[c].up;
-    for (size_t k = 0; k < V.size(); ++k) {
-      if (N[k].dot(up) < -std::sin(o.blend_deg * kDeg)) continue;
-      const Eigen::Vector3d q = V[k] + 0.3 * up + 0.05 * N[k];
-      seen[c][k] = tree.tree.do_intersect(cgal::K::Ray_3(cgal::point(q), cgal::K::Vector_3(up.x(), up.y(), up.z()))) ? 0.0 : 1.0;
-    }
-  }
-
-  // Charts: each face goes to the camera it faces more, among those that see all its corners.
-  std::vector<int> chart(F.size(), -1);
-  for (size_t f = 0; f < F.size(); ++f) {
-    const auto& t = F[f];
-    const Eigen::Vector3d fn = (V[t[1]] - V[t[0]]).cross(V[t[2]] - V[t[0]]).normalized();
-    double best = 0;
+  void visibility() {
+    N = vertex_normals(V, F);
+    const cgal::TriangleTree tree(V, F);
     for (int c = 0; c < 2; ++c) {
-      const double facing = fn.dot(views[c].up);
-      if (facing > best && seen[c][t[0]] > 0 && seen[c][t[1]] > 0 && seen[c][t[2]] > 0) best = facing, chart[f] = c;
+      seen[c].assign(V.size(), 0.0);
+      const Eigen::Vector3d& up = views[c].up;
+      for (size_t k = 0; k < V.size(); ++k) {
+        if (N[k].dot(up) < -std::sin(o.blend_deg * kDeg)) continue;
+        const Eigen::Vector3d q = V[k] + 0.3 * up + 0.05 * N[k];
+        seen[c][k] = tree.tree.do_intersect(cgal::K::Ray_3(cgal::point(q), cgal::K::Vector_3(up.x(), up.y(), up.z()))) ? 0.0 : 1.0;
+      }
+    }
+
+  }
+  // Charts: each face goes to the camera it faces more, among those that see all its corners.
+  void choose_charts() {
+    chart.assign(F.size(), -1);
+    for (size_t f = 0; f < F.size(); ++f) {
+      const auto& t = F[f];
+      const Eigen::Vector3d fn = (V[t[1]] - V[t[0]]).cross(V[t[2]] - V[t[0]]).normalized();
+      double best = 0;
+      for (int c = 0; c < 2; ++c) {
+        const double facing = fn.dot(views[c].up);
+        if (facing > best && seen[c][t[0]] > 0 && seen[c][t[1]] > 0 && seen[c][t[2]] > 0) best = facing, chart[f] = c;
+      }
     }
   }
   // Each chart projected on its scan's X-Y plane; one scale for both, the long side along v.
-  std::array<Eigen::Vector2d, 2> lo, hi;
-  for (int c = 0; c < 2; ++c) lo[c] = Eigen::Vector2d::Constant(1e18), hi[c] = -lo[c];
-  for (size_t f = 0; f < F.size(); ++f)
-    if (chart[f] >= 0)
-      for (int k : F[f]) {
-        const Eigen::Vector3d q = views[chart[f]].from_palm * V[k];
-        lo[chart[f]] = lo[chart[f]].cwiseMin(q.head<2>());
-        hi[chart[f]] = hi[chart[f]].cwiseMax(q.head<2>());
+  void lay_out_charts(SkinTexture* out) {
+    for (int c = 0; c < 2; ++c) lo[c] = Eigen::Vector2d::Constant(1e18), hi[c] = -lo[c];
+    for (size_t f = 0; f < F.size(); ++f)
+      if (chart[f] >= 0)
+        for (int k : F[f]) {
+          const Eigen::Vector3d q = views[chart[f]].from_palm * V[k];
+          lo[chart[f]] = lo[chart[f]].cwiseMin(q.head<2>());
+          hi[chart[f]] = hi[chart[f]].cwiseMax(q.head<2>());
+        }
+    scale = 1e18;
+    for (int c = 0; c < 2; ++c)
+      if (hi[c].x() >= lo[c].x()) {
+        const Eigen::Vector2d ext = (hi[c] - lo[c]).cwiseMax(1e-6);
+        scale = std::min({scale, (S / 2.0 - 2 * kPadTexels) / ext.y(), (S - kUnseenBlock - 2.0 * kPadTexels) / ext.x()});
       }
-  double scale = 1e18;
-  for (int c = 0; c < 2; ++c)
-    if (hi[c].x() >= lo[c].x()) {
-      const Eigen::Vector2d ext = (hi[c] - lo[c]).cwiseMax(1e-6);
-      scale = std::min({scale, (S / 2.0 - 2 * kPadTexels) / ext.y(), (S - kUnseenBlock - 2.0 * kPadTexels) / ext.x()});
-    }
-  if (scale > 1e17) scale = 1;  // neither camera sees anything: only the flat block
-  out.texels_per_mm = scale;
-  const auto texel_of = [&](int c, const Eigen::Vector3d& p) {  // texture-space position, texels
+    if (scale > 1e17) scale = 1;  // neither camera sees anything: only the flat block
+    out->texels_per_mm = scale;
+  }
+  // Texture-space position of p in chart c, texels.
+  Eigen::Vector2d texel_of(int c, const Eigen::Vector3d& p) const {
     const Eigen::Vector3d q = views[c].from_palm * p;
     return Eigen::Vector2d(c * S / 2.0 + kPadTexels + (q.y() - lo[c].y()) * scale, kPadTexels + (q.x() - lo[c].x()) * scale);
-  };
-
-  // Bake: per texel of each chart face, the point and normal on the skin, and the photos'
-  // colours weighted by how squarely and whether each camera sees it.
-  const double s = std::sin(o.blend_deg * kDeg);
-  std::vector<Eigen::Vector3f> colour(static_cast<size_t>(S) * S, Eigen::Vector3f::Zero());
-  std::vector<std::uint8_t> state(static_cast<size_t>(S) * S, 0);  // 0 outside, 1 chart but unseen, 2 coloured
-  const auto weights = [&](const Eigen::Vector3d& p, const Eigen::Vector3d& n, const std::array<double, 2>& vis) {
+  
+  }
+  // How much each photo gives a point p with normal n, seen `vis` by each camera.
+  std::array<double, 2> weights(const Eigen::Vector3d& p, const Eigen::Vector3d& n, const std::array<double, 2>& vis) const {
     std::array<double, 2> w{};
     for (int c = 0; c < 2; ++c) {
       if (vis[c] <= 0) continue;
@@ -173,8 +173,34 @@ SkinTexture bake_skin_texture(const std::vector<Eigen::Vector3d>& V, const std::
       w[c] = vis[c] * smoothstep(-s, s, n.dot(views[c].up));
     }
     return w;
-  };
-  out.map.corner_uv.resize(F.size());
+  
+  }
+  // Bake: per texel of each chart face, the point and normal on the skin, and the photos'
+  // colours weighted by how squarely and whether each camera sees it; each face's area share.
+  void bake_faces(SkinTexture* out);
+  void raster_face(size_t f, const std::array<Eigen::Vector2d, 3>& uv);
+  // Fill: chart texels no photo coloured take their coloured neighbours' mean, pass after
+  // pass (a marker's shadow closes from its rim); then kPadTexels passes pad the charts.
+  void fill(SkinTexture* out);
+
+  const std::vector<Eigen::Vector3d>& V;
+  const std::vector<std::array<int, 3>>& F;
+  const TextureOptions& o;
+  const double marker_radius;
+  const int S;
+  const double s;  ///< sin of the blend angle
+  std::array<View, 2> views;  ///< 0: palm, 1: back
+  std::vector<Eigen::Vector3d> N;
+  std::array<std::vector<double>, 2> seen;
+  std::vector<int> chart;
+  std::array<Eigen::Vector2d, 2> lo, hi;
+  double scale = 1e18;
+  std::vector<Eigen::Vector3f> colour;
+  std::vector<std::uint8_t> state;  ///< 0 outside, 1 chart but unseen, 2 coloured
+};
+
+void Baker::bake_faces(SkinTexture* out) {
+  out->map.corner_uv.resize(F.size());
   double area[4] = {0, 0, 0, 0};  // palm only, back only, blended, unseen
   const Eigen::Vector2f unseen_uv((kUnseenBlock / 2.0f) / S, (S - kUnseenBlock / 2.0f) / S);
   for (size_t f = 0; f < F.size(); ++f) {
@@ -190,55 +216,61 @@ SkinTexture bake_skin_texture(const std::vector<Eigen::Vector3d>& V, const std::
       area[sum <= 1e-3 ? 3 : w[1] / sum < 0.02 ? 0 : w[0] / sum < 0.02 ? 1 : 2] += a3;
     }
     if (c < 0) {
-      ++out.unseen_faces;
-      out.map.corner_uv[f] = {unseen_uv, unseen_uv, unseen_uv};
+      ++out->unseen_faces;
+      out->map.corner_uv[f] = {unseen_uv, unseen_uv, unseen_uv};
       continue;
     }
-    ++(c == 0 ? out.palm_chart_faces : out.back_chart_faces);
+    ++(c == 0 ? out->palm_chart_faces : out->back_chart_faces);
     std::array<Eigen::Vector2d, 3> uv;
     for (int k = 0; k < 3; ++k) {
       uv[k] = texel_of(c, V[t[k]]);
-      out.map.corner_uv[f][k] = (uv[k] / S).cast<float>();
+      out->map.corner_uv[f][k] = (uv[k] / S).cast<float>();
     }
     const double den = (uv[1] - uv[0]).x() * (uv[2] - uv[0]).y() - (uv[1] - uv[0]).y() * (uv[2] - uv[0]).x();
     if (std::abs(den) < 1e-9) continue;  // a sliver seen edge-on: its texels come from the neighbours
-    const Eigen::Vector2d bl = uv[0].cwiseMin(uv[1]).cwiseMin(uv[2]), bh = uv[0].cwiseMax(uv[1]).cwiseMax(uv[2]);
-    for (int y = std::max(0, static_cast<int>(bl.y()) - 1); y <= std::min(S - 1, static_cast<int>(bh.y()) + 1); ++y)
-      for (int x = std::max(0, static_cast<int>(bl.x()) - 1); x <= std::min(S - 1, static_cast<int>(bh.x()) + 1); ++x) {
-        const Eigen::Vector2d q(x + 0.5, y + 0.5);
-        const double b1 = ((q - uv[0]).x() * (uv[2] - uv[0]).y() - (q - uv[0]).y() * (uv[2] - uv[0]).x()) / den;
-        const double b2 = ((uv[1] - uv[0]).x() * (q - uv[0]).y() - (uv[1] - uv[0]).y() * (q - uv[0]).x()) / den;
-        const double b0 = 1 - b1 - b2;
-        if (b0 < -0.02 || b1 < -0.02 || b2 < -0.02) continue;
-        const size_t idx = static_cast<size_t>(y) * S + x;
-        if (state[idx] == 2) continue;
-        const Eigen::Vector3d p = b0 * V[t[0]] + b1 * V[t[1]] + b2 * V[t[2]];
-        const Eigen::Vector3d n = (b0 * N[t[0]] + b1 * N[t[1]] + b2 * N[t[2]]).normalized();
-        std::array<double, 2> vis{};
-        for (int v = 0; v < 2; ++v) vis[v] = b0 * seen[v][t[0]] + b1 * seen[v][t[1]] + b2 * seen[v][t[2]];
-        const auto w = weights(p, n, vis);
-        if (w[0] + w[1] <= 1e-3) {
-          state[idx] = 1;
-          continue;
-        }
-        Eigen::Vector3d col = Eigen::Vector3d::Zero(), c;
-        double wsum = 0;
-        for (int v = 0; v < 2; ++v)
-          if (w[v] > 0 && sample(*views[v].photo, views[v].from_palm * p, &c)) col += w[v] * c, wsum += w[v];
-        if (wsum <= 1e-3) {
-          state[idx] = 1;
-          continue;
-        }
-        colour[idx] = (col / wsum).cast<float>();
-        state[idx] = 2;
-      }
+    raster_face(f, uv);
   }
   double total = area[0] + area[1] + area[2] + area[3];
   total = total > 0 ? total : 1;
-  out.palm_only = area[0] / total, out.back_only = area[1] / total, out.blended = area[2] / total, out.unseen = area[3] / total;
+  out->palm_only = area[0] / total, out->back_only = area[1] / total, out->blended = area[2] / total, out->unseen = area[3] / total;
+}
 
-  // Fill: chart texels no photo coloured take their coloured neighbours' mean, pass after
-  // pass (a marker's shadow closes from its rim); then kPadTexels passes pad the charts.
+void Baker::raster_face(size_t f, const std::array<Eigen::Vector2d, 3>& uv) {
+  const auto& t = F[f];
+  const double den = (uv[1] - uv[0]).x() * (uv[2] - uv[0]).y() - (uv[1] - uv[0]).y() * (uv[2] - uv[0]).x();
+  const Eigen::Vector2d bl = uv[0].cwiseMin(uv[1]).cwiseMin(uv[2]), bh = uv[0].cwiseMax(uv[1]).cwiseMax(uv[2]);
+  for (int y = std::max(0, static_cast<int>(bl.y()) - 1); y <= std::min(S - 1, static_cast<int>(bh.y()) + 1); ++y)
+    for (int x = std::max(0, static_cast<int>(bl.x()) - 1); x <= std::min(S - 1, static_cast<int>(bh.x()) + 1); ++x) {
+      const Eigen::Vector2d q(x + 0.5, y + 0.5);
+      const double b1 = ((q - uv[0]).x() * (uv[2] - uv[0]).y() - (q - uv[0]).y() * (uv[2] - uv[0]).x()) / den;
+      const double b2 = ((uv[1] - uv[0]).x() * (q - uv[0]).y() - (uv[1] - uv[0]).y() * (q - uv[0]).x()) / den;
+      const double b0 = 1 - b1 - b2;
+      if (b0 < -0.02 || b1 < -0.02 || b2 < -0.02) continue;
+      const size_t idx = static_cast<size_t>(y) * S + x;
+      if (state[idx] == 2) continue;
+      const Eigen::Vector3d p = b0 * V[t[0]] + b1 * V[t[1]] + b2 * V[t[2]];
+      const Eigen::Vector3d n = (b0 * N[t[0]] + b1 * N[t[1]] + b2 * N[t[2]]).normalized();
+      std::array<double, 2> vis{};
+      for (int v = 0; v < 2; ++v) vis[v] = b0 * seen[v][t[0]] + b1 * seen[v][t[1]] + b2 * seen[v][t[2]];
+      const auto w = weights(p, n, vis);
+      if (w[0] + w[1] <= 1e-3) {
+        state[idx] = 1;
+        continue;
+      }
+      Eigen::Vector3d col = Eigen::Vector3d::Zero(), c;
+      double wsum = 0;
+      for (int v = 0; v < 2; ++v)
+        if (w[v] > 0 && sample(*views[v].photo, views[v].from_palm * p, &c)) col += w[v] * c, wsum += w[v];
+      if (wsum <= 1e-3) {
+        state[idx] = 1;
+        continue;
+      }
+      colour[idx] = (col / wsum).cast<float>();
+      state[idx] = 2;
+    }
+}
+
+void Baker::fill(SkinTexture* out) {
   Eigen::Vector3f mean = Eigen::Vector3f::Zero();
   size_t coloured = 0;
   for (size_t i = 0; i < state.size(); ++i)
@@ -275,14 +307,32 @@ SkinTexture bake_skin_texture(const std::vector<Eigen::Vector3d>& V, const std::
     if (state[i] != 2) outside.push_back(i);
   for (int pass = 0; pass < kPadTexels && grow(outside); ++pass) {
   }
-  out.map.size = S;
-  out.map.rgb.resize(static_cast<size_t>(S) * S * 3);
+  out->map.size = S;
+  out->map.rgb.resize(static_cast<size_t>(S) * S * 3);
   for (size_t i = 0; i < state.size(); ++i) {
     const int x = static_cast<int>(i % S), y = static_cast<int>(i / S);
     const bool block = x < kUnseenBlock && y >= S - kUnseenBlock;
     const Eigen::Vector3f c = state[i] == 2 && !block ? colour[i] : mean;
-    for (int ch = 0; ch < 3; ++ch) out.map.rgb[i * 3 + ch] = static_cast<std::uint8_t>(std::lround(std::clamp(c[ch], 0.f, 255.f)));
+    for (int ch = 0; ch < 3; ++ch) out->map.rgb[i * 3 + ch] = static_cast<std::uint8_t>(std::lround(std::clamp(c[ch], 0.f, 255.f)));
   }
+}
+
+}  // namespace
+
+SkinTexture bake_skin_texture(const std::vector<Eigen::Vector3d>& V, const std::vector<std::array<int, 3>>& F,
+                              const ScanPhoto& back, const ScanPhoto& palm, const Eigen::Isometry3d& back_to_palm,
+                              const std::vector<Eigen::Vector3d>& markers, double marker_radius, const TextureOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::string err;
+  if (!o.IsValid(&err)) throw InputError("texture options", err);
+  HS_CHECK(!V.empty() && !F.empty(), "no skin to texture");
+  SkinTexture out;
+  Baker b(V, F, back, palm, back_to_palm, markers, marker_radius, o);
+  b.visibility();
+  b.choose_charts();
+  b.lay_out_charts(&out);
+  b.bake_faces(&out);
+  b.fill(&out);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }
