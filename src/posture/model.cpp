@@ -159,6 +159,185 @@ PostureModel builtin_model(const std::string& name) {
   return m;
 }
 
+namespace {
+
+void check_weight(double w, const std::string& where) {
+  if (!(w >= 0 && w <= kMaxWeight))
+    throw InputError(where, "weight must be in [0, " + number_text(kMaxWeight) + "] (got " + number_text(w) + ")");
+
+}
+
+// An optional array of objects under `key`: each entry checked for its keys, then handed on
+// with the name that errors use ("<file>: pairs[3]").
+template <typename Take>
+void each_entry(const Json& j, const std::string& file, const char* key, std::initializer_list<const char*> keys,
+                const Take& take) {
+  if (!j.contains(key)) return;
+  if (!j[key].is_array()) throw InputError(file, std::string("key '") + key + "' must be an array");
+  for (size_t k = 0; k < j[key].size(); ++k) {
+    const Json& e = j[key][k];
+    const std::string entry = std::string(key) + "[" + std::to_string(k) + "]";
+    const std::string where = file + ": " + entry;
+    if (!e.is_object()) throw InputError(where, "must be an object");
+    reject_unknown_keys(e, keys, file, entry);
+    take(e, where);
+  }
+
+}
+
+// "dofs": each DOF's relaxed angle, stiffness and limits over the defaults.
+void parse_dofs(const Json& ds, const std::string& file, PostureModel* m) {
+  if (!ds.is_object()) throw InputError(file, "key 'dofs' must be an object keyed by DOF name");
+  for (auto it = ds.begin(); it != ds.end(); ++it) {
+    const std::string where = file + ": dofs." + it.key();
+    const int d = require_dof(it.key(), file + ": dofs");
+    if (!it.value().is_object()) throw InputError(where, "must be an object");
+    reject_unknown_keys(it.value(), {"relaxed", "stiffness", "limits"}, file, "dofs." + it.key());
+    DofParams& p = m->dof[d];
+    p.relaxed = get_finite_or(it.value(), "relaxed", p.relaxed, where);
+    p.stiffness = get_finite_or(it.value(), "stiffness", p.stiffness, where);
+    if (it.value().contains("limits")) {
+      const Json& l = it.value()["limits"];
+      if (!l.is_array() || l.size() != 2 || !l[0].is_number() || !l[1].is_number())
+        throw InputError(where, "key 'limits' must be [low, high]");
+      p.lo = l[0].get<double>();
+      p.hi = l[1].get<double>();
+    }
+  }
+}
+
+// Every DOF's parameters in range, its relaxed angle within its limits.
+void check_dofs(const PostureModel& m, const std::string& file) {
+  for (int d = 0; d < kDofCount; ++d) {
+    const DofParams& p = m.dof[d];
+    const std::string where = file + ": dofs." + dofs()[d].name;
+    if (!(p.stiffness >= kMinStiffness && p.stiffness <= kMaxStiffness))
+      throw InputError(where, "stiffness must be in [" + number_text(kMinStiffness) + ", " + number_text(kMaxStiffness) +
+                                  "] (got " + number_text(p.stiffness) + ")");
+    if (!(p.lo < p.hi) || !(std::abs(p.lo) <= kMaxAngle) || !(std::abs(p.hi) <= kMaxAngle))
+      throw InputError(where, "limits must be [low, high] with low < high, within ±" + number_text(kMaxAngle));
+    if (p.relaxed < p.lo || p.relaxed > p.hi) throw InputError(where, "relaxed angle lies outside the limits");
+  }
+}
+
+PairLine parse_pair(const Json& e, const std::string& where, bool relative, const PostureModel& m) {
+  PairLine l;
+  l.a = require_dof(get_string(e, "a", where), where);
+  l.b = require_dof(get_string(e, "b", where), where);
+  l.alpha = get_finite(e, "alpha", where);
+  l.beta = get_finite(e, "beta", where);
+  l.gamma = get_finite(e, "gamma", where);
+  l.weight = get_finite(e, "weight", where);
+  if (e.contains("source")) l.source = get_string(e, "source", where);
+  if (l.a == l.b) throw InputError(where, "a pair needs two different DOFs");
+  if (l.alpha == 0 && l.beta == 0) throw InputError(where, "alpha and beta are both zero");
+  if (!(std::abs(l.alpha) <= kMaxCoefficient && std::abs(l.beta) <= kMaxCoefficient))
+    throw InputError(where, "alpha and beta must be within ±" + number_text(kMaxCoefficient));
+  if (!(std::abs(l.gamma) <= kMaxOffset)) throw InputError(where, "gamma must be within ±" + number_text(kMaxOffset));
+  check_weight(l.weight, where);
+  if (relative) l.gamma -= l.alpha * m.dof[l.a].relaxed + l.beta * m.dof[l.b].relaxed;
+  return l;
+}
+
+PairGrid parse_grid(const Json& e, const std::string& where) {
+  PairGrid g;
+  g.a = require_dof(get_string(e, "a", where), where);
+  g.b = require_dof(get_string(e, "b", where), where);
+  g.weight = get_finite(e, "weight", where);
+  g.cells = static_cast<int>(get_int(e, "cells", where, 4, 1000));
+  auto range = [&](const char* key, double* lo, double* hi) {
+    const Json& r = require(e, key, where);
+    if (!r.is_array() || r.size() != 2 || !r[0].is_number() || !r[1].is_number() ||
+        !(r[0].get<double>() < r[1].get<double>()))
+      throw InputError(where, std::string("key '") + key + "' must be [low, high] with low < high");
+    *lo = r[0].get<double>();
+    *hi = r[1].get<double>();
+  };
+  range("range_a", &g.lo_a, &g.hi_a);
+  range("range_b", &g.lo_b, &g.hi_b);
+  const Json& s = require(e, "samples", where);
+  if (!s.is_array() || s.empty()) throw InputError(where, "key 'samples' must be a non-empty array of [a, b]");
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (!s[i].is_array() || s[i].size() != 2 || !s[i][0].is_number() || !s[i][1].is_number() ||
+        !std::isfinite(s[i][0].get<double>()) || !std::isfinite(s[i][1].get<double>()))
+      throw InputError(where, "samples[" + std::to_string(i) + "] must be [a, b], finite");
+    g.samples.push_back({s[i][0].get<double>(), s[i][1].get<double>()});
+  }
+  if (g.a == g.b) throw InputError(where, "a grid needs two different DOFs");
+  check_weight(g.weight, where);
+  for (const double v : {g.lo_a, g.hi_a, g.lo_b, g.hi_b})
+    if (!(std::abs(v) <= kMaxAngle)) throw InputError(where, "ranges must lie within ±" + number_text(kMaxAngle));
+  for (const auto& x : g.samples)
+    if (!(std::abs(x[0]) <= kMaxAngle && std::abs(x[1]) <= kMaxAngle))
+      throw InputError(where, "samples must lie within ±" + number_text(kMaxAngle));
+  // Tables are built by a nearest-sample search per node on load: bound the work.
+  if (static_cast<double>(g.cells) * g.cells * static_cast<double>(g.samples.size()) > 2e7)
+    throw InputError(where, "grid too large: cells² × samples must stay below 2e7 (e.g. 100 cells, 2000 samples)");
+  return g;
+}
+
+// One component of "mixture" (its weight added to `total`).
+MixtureComponent parse_component(const Json& c, const std::string& cw, const std::string& file, const PostureModel& m,
+                                 double* total) {
+  MixtureComponent comp;
+  comp.weight = get_finite(c, "weight", cw);
+  if (!(comp.weight > 0 && comp.weight <= 1)) throw InputError(cw, "weight must be in (0, 1]");
+  *total += comp.weight;
+  auto per_dof = [&](const char* key, std::vector<std::pair<int, double>>* out) {
+    if (!c.contains(key)) return;
+    if (!c[key].is_object()) throw InputError(cw, std::string("key '") + key + "' must be an object keyed by DOF name");
+    for (auto it = c[key].begin(); it != c[key].end(); ++it) {
+      const int d = require_dof(it.key(), cw + "." + key);
+      if (!it.value().is_number() || !std::isfinite(it.value().get<double>()))
+        throw InputError(cw + "." + key + "." + it.key(), "must be a finite number");
+      out->emplace_back(d, it.value().get<double>());
+    }
+  };
+  per_dof("relaxed", &comp.relaxed);
+  per_dof("stiffness", &comp.stiffness);
+  for (const auto& [d, v] : comp.relaxed)
+    if (v < m.dof[d].lo || v > m.dof[d].hi) throw InputError(cw + ".relaxed." + dofs()[d].name, "lies outside the limits");
+  for (const auto& [d, v] : comp.stiffness)
+    if (!(v >= kMinStiffness && v <= kMaxStiffness))
+      throw InputError(cw + ".stiffness." + dofs()[d].name, "must be in [1e-3, 1e3]");
+  if (c.contains("constraints")) {
+    if (!c["constraints"].is_array() || c["constraints"].size() > static_cast<size_t>(kMaxConstraints))
+      throw InputError(cw, "key 'constraints' must be an array of at most " + std::to_string(kMaxConstraints) + " rows");
+    for (size_t r = 0; r < c["constraints"].size(); ++r) {
+      const std::string rw = cw + ".constraints[" + std::to_string(r) + "]";
+      if (!c["constraints"][r].is_object()) throw InputError(rw, "must be an object");
+      reject_unknown_keys(c["constraints"][r], {"terms", "offset", "weight", "source"}, file, rw.substr(file.size() + 2));
+      comp.constraints.push_back(parse_constraint(c["constraints"][r], rw));
+    }
+  }
+  return comp;
+}
+
+// "mixture": the energy scale and the components, whose weights sum to 1.
+void parse_mixture(const Json& mx, const std::string& file, PostureModel* mp) {
+  PostureModel& m = *mp;
+  const std::string where = file + ": mixture";
+  if (!mx.is_object()) throw InputError(where, "must be an object");
+  reject_unknown_keys(mx, {"energy_scale", "components"}, file, "mixture");
+  m.mixture.energy_scale = get_finite(mx, "energy_scale", where);
+  if (!(m.mixture.energy_scale >= 1e-6 && m.mixture.energy_scale <= kMaxWeight))
+    throw InputError(where, "energy_scale must be in [1e-6, " + number_text(kMaxWeight) + "]");
+  const Json& cs = require(mx, "components", where);
+  if (!cs.is_array() || cs.empty() || cs.size() > static_cast<size_t>(kMaxMixtureComponents))
+    throw InputError(where, "key 'components' must be an array of 1 to " + std::to_string(kMaxMixtureComponents) + " objects");
+  double total = 0;
+  for (size_t k = 0; k < cs.size(); ++k) {
+    const std::string cw = where + ".components[" + std::to_string(k) + "]";
+    const Json& c = cs[k];
+    if (!c.is_object()) throw InputError(cw, "must be an object");
+    reject_unknown_keys(c, {"weight", "relaxed", "stiffness", "constraints"}, file, "mixture.components[" + std::to_string(k) + "]");
+    m.mixture.components.push_back(parse_component(c, cw, file, m, &total));
+  }
+  if (std::abs(total - 1) > 1e-6) throw InputError(where, "the component weights must sum to 1 (got " + number_text(total) + ")");
+}
+
+}  // namespace
+
 PostureModel parse_model(const Json& j, const std::string& file) {
   if (get_string(j, "format", file) != "hand-posture/1") throw InputError(file, "key 'format' must be \"hand-posture/1\"");
   reject_unknown_keys(j, {"format", "name", "description", "pair_angles", "dofs", "pairs", "constraints", "grids", "mixture", "notes"},
@@ -174,167 +353,18 @@ PostureModel parse_model(const Json& j, const std::string& file) {
       throw InputError(file, "key 'pair_angles' must be \"absolute\" or \"relative\"");
     relative = pa == "relative";
   }
-  if (j.contains("dofs")) {
-    const Json& ds = j["dofs"];
-    if (!ds.is_object()) throw InputError(file, "key 'dofs' must be an object keyed by DOF name");
-    for (auto it = ds.begin(); it != ds.end(); ++it) {
-      const std::string where = file + ": dofs." + it.key();
-      const int d = require_dof(it.key(), file + ": dofs");
-      if (!it.value().is_object()) throw InputError(where, "must be an object");
-      reject_unknown_keys(it.value(), {"relaxed", "stiffness", "limits"}, file, "dofs." + it.key());
-      DofParams& p = m.dof[d];
-      p.relaxed = get_finite_or(it.value(), "relaxed", p.relaxed, where);
-      p.stiffness = get_finite_or(it.value(), "stiffness", p.stiffness, where);
-      if (it.value().contains("limits")) {
-        const Json& l = it.value()["limits"];
-        if (!l.is_array() || l.size() != 2 || !l[0].is_number() || !l[1].is_number())
-          throw InputError(where, "key 'limits' must be [low, high]");
-        p.lo = l[0].get<double>();
-        p.hi = l[1].get<double>();
-      }
-    }
-  }
-  for (int d = 0; d < kDofCount; ++d) {
-    const DofParams& p = m.dof[d];
-    const std::string where = file + ": dofs." + dofs()[d].name;
-    if (!(p.stiffness >= kMinStiffness && p.stiffness <= kMaxStiffness))
-      throw InputError(where, "stiffness must be in [" + number_text(kMinStiffness) + ", " + number_text(kMaxStiffness) +
-                                  "] (got " + number_text(p.stiffness) + ")");
-    if (!(p.lo < p.hi) || !(std::abs(p.lo) <= kMaxAngle) || !(std::abs(p.hi) <= kMaxAngle))
-      throw InputError(where, "limits must be [low, high] with low < high, within ±" + number_text(kMaxAngle));
-    if (p.relaxed < p.lo || p.relaxed > p.hi) throw InputError(where, "relaxed angle lies outside the limits");
-  }
-  auto check_weight = [](double w, const std::string& where) {
-    if (!(w >= 0 && w <= kMaxWeight))
-      throw InputError(where, "weight must be in [0, " + number_text(kMaxWeight) + "] (got " + number_text(w) + ")");
-  };
-  // An optional array of objects: each entry checked for its keys, then handed on with the
-  // name that errors use ("<file>: pairs[3]").
-  auto each_entry = [&](const char* key, std::initializer_list<const char*> keys, const auto& take) {
-    if (!j.contains(key)) return;
-    if (!j[key].is_array()) throw InputError(file, std::string("key '") + key + "' must be an array");
-    for (size_t k = 0; k < j[key].size(); ++k) {
-      const Json& e = j[key][k];
-      const std::string entry = std::string(key) + "[" + std::to_string(k) + "]";
-      const std::string where = file + ": " + entry;
-      if (!e.is_object()) throw InputError(where, "must be an object");
-      reject_unknown_keys(e, keys, file, entry);
-      take(e, where);
-    }
-  };
-  each_entry("pairs", {"a", "b", "alpha", "beta", "gamma", "weight", "source"},
-             [&](const Json& e, const std::string& where) {
-    PairLine l;
-    l.a = require_dof(get_string(e, "a", where), where);
-    l.b = require_dof(get_string(e, "b", where), where);
-    l.alpha = get_finite(e, "alpha", where);
-    l.beta = get_finite(e, "beta", where);
-    l.gamma = get_finite(e, "gamma", where);
-    l.weight = get_finite(e, "weight", where);
-    if (e.contains("source")) l.source = get_string(e, "source", where);
-    if (l.a == l.b) throw InputError(where, "a pair needs two different DOFs");
-    if (l.alpha == 0 && l.beta == 0) throw InputError(where, "alpha and beta are both zero");
-    if (!(std::abs(l.alpha) <= kMaxCoefficient && std::abs(l.beta) <= kMaxCoefficient))
-      throw InputError(where, "alpha and beta must be within ±" + number_text(kMaxCoefficient));
-    if (!(std::abs(l.gamma) <= kMaxOffset)) throw InputError(where, "gamma must be within ±" + number_text(kMaxOffset));
-    check_weight(l.weight, where);
-    if (relative) l.gamma -= l.alpha * m.dof[l.a].relaxed + l.beta * m.dof[l.b].relaxed;
-    m.pairs.push_back(l);
-  });
-  each_entry("grids", {"a", "b", "weight", "range_a", "range_b", "cells", "samples"},
-             [&](const Json& e, const std::string& where) {
-    PairGrid g;
-    g.a = require_dof(get_string(e, "a", where), where);
-    g.b = require_dof(get_string(e, "b", where), where);
-    g.weight = get_finite(e, "weight", where);
-    g.cells = static_cast<int>(get_int(e, "cells", where, 4, 1000));
-    auto range = [&](const char* key, double* lo, double* hi) {
-      const Json& r = require(e, key, where);
-      if (!r.is_array() || r.size() != 2 || !r[0].is_number() || !r[1].is_number() ||
-          !(r[0].get<double>() < r[1].get<double>()))
-        throw InputError(where, std::string("key '") + key + "' must be [low, high] with low < high");
-      *lo = r[0].get<double>();
-      *hi = r[1].get<double>();
-    };
-    range("range_a", &g.lo_a, &g.hi_a);
-    range("range_b", &g.lo_b, &g.hi_b);
-    const Json& s = require(e, "samples", where);
-    if (!s.is_array() || s.empty()) throw InputError(where, "key 'samples' must be a non-empty array of [a, b]");
-    for (size_t i = 0; i < s.size(); ++i) {
-      if (!s[i].is_array() || s[i].size() != 2 || !s[i][0].is_number() || !s[i][1].is_number() ||
-          !std::isfinite(s[i][0].get<double>()) || !std::isfinite(s[i][1].get<double>()))
-        throw InputError(where, "samples[" + std::to_string(i) + "] must be [a, b], finite");
-      g.samples.push_back({s[i][0].get<double>(), s[i][1].get<double>()});
-    }
-    if (g.a == g.b) throw InputError(where, "a grid needs two different DOFs");
-    check_weight(g.weight, where);
-    for (const double v : {g.lo_a, g.hi_a, g.lo_b, g.hi_b})
-      if (!(std::abs(v) <= kMaxAngle)) throw InputError(where, "ranges must lie within ±" + number_text(kMaxAngle));
-    for (const auto& x : g.samples)
-      if (!(std::abs(x[0]) <= kMaxAngle && std::abs(x[1]) <= kMaxAngle))
-        throw InputError(where, "samples must lie within ±" + number_text(kMaxAngle));
-    // Tables are built by a nearest-sample search per node on load: bound the work.
-    if (static_cast<double>(g.cells) * g.cells * static_cast<double>(g.samples.size()) > 2e7)
-      throw InputError(where, "grid too large: cells² × samples must stay below 2e7 (e.g. 100 cells, 2000 samples)");
-    m.grids.push_back(std::move(g));
-  });
-  each_entry("constraints", {"terms", "offset", "weight", "source"}, [&](const Json& e, const std::string& where) {
+  if (j.contains("dofs")) parse_dofs(j["dofs"], file, &m);
+  check_dofs(m, file);
+  each_entry(j, file, "pairs", {"a", "b", "alpha", "beta", "gamma", "weight", "source"},
+             [&](const Json& e, const std::string& where) { m.pairs.push_back(parse_pair(e, where, relative, m)); });
+  each_entry(j, file, "grids", {"a", "b", "weight", "range_a", "range_b", "cells", "samples"},
+             [&](const Json& e, const std::string& where) { m.grids.push_back(parse_grid(e, where)); });
+  each_entry(j, file, "constraints", {"terms", "offset", "weight", "source"}, [&](const Json& e, const std::string& where) {
     m.constraints.push_back(parse_constraint(e, where));
   });
   if (m.constraints.size() > static_cast<size_t>(kMaxConstraints))
     throw InputError(file, "key 'constraints': at most " + std::to_string(kMaxConstraints) + " rows");
-  if (j.contains("mixture")) {
-    const Json& mx = j["mixture"];
-    const std::string where = file + ": mixture";
-    if (!mx.is_object()) throw InputError(where, "must be an object");
-    reject_unknown_keys(mx, {"energy_scale", "components"}, file, "mixture");
-    m.mixture.energy_scale = get_finite(mx, "energy_scale", where);
-    if (!(m.mixture.energy_scale >= 1e-6 && m.mixture.energy_scale <= kMaxWeight))
-      throw InputError(where, "energy_scale must be in [1e-6, " + number_text(kMaxWeight) + "]");
-    const Json& cs = require(mx, "components", where);
-    if (!cs.is_array() || cs.empty() || cs.size() > static_cast<size_t>(kMaxMixtureComponents))
-      throw InputError(where, "key 'components' must be an array of 1 to " + std::to_string(kMaxMixtureComponents) + " objects");
-    double total = 0;
-    for (size_t k = 0; k < cs.size(); ++k) {
-      const std::string cw = where + ".components[" + std::to_string(k) + "]";
-      const Json& c = cs[k];
-      if (!c.is_object()) throw InputError(cw, "must be an object");
-      reject_unknown_keys(c, {"weight", "relaxed", "stiffness", "constraints"}, file, "mixture.components[" + std::to_string(k) + "]");
-      MixtureComponent comp;
-      comp.weight = get_finite(c, "weight", cw);
-      if (!(comp.weight > 0 && comp.weight <= 1)) throw InputError(cw, "weight must be in (0, 1]");
-      total += comp.weight;
-      auto per_dof = [&](const char* key, std::vector<std::pair<int, double>>* out) {
-        if (!c.contains(key)) return;
-        if (!c[key].is_object()) throw InputError(cw, std::string("key '") + key + "' must be an object keyed by DOF name");
-        for (auto it = c[key].begin(); it != c[key].end(); ++it) {
-          const int d = require_dof(it.key(), cw + "." + key);
-          if (!it.value().is_number() || !std::isfinite(it.value().get<double>()))
-            throw InputError(cw + "." + key + "." + it.key(), "must be a finite number");
-          out->emplace_back(d, it.value().get<double>());
-        }
-      };
-      per_dof("relaxed", &comp.relaxed);
-      per_dof("stiffness", &comp.stiffness);
-      for (const auto& [d, v] : comp.relaxed)
-        if (v < m.dof[d].lo || v > m.dof[d].hi) throw InputError(cw + ".relaxed." + dofs()[d].name, "lies outside the limits");
-      for (const auto& [d, v] : comp.stiffness)
-        if (!(v >= kMinStiffness && v <= kMaxStiffness))
-          throw InputError(cw + ".stiffness." + dofs()[d].name, "must be in [1e-3, 1e3]");
-      if (c.contains("constraints")) {
-        if (!c["constraints"].is_array() || c["constraints"].size() > static_cast<size_t>(kMaxConstraints))
-          throw InputError(cw, "key 'constraints' must be an array of at most " + std::to_string(kMaxConstraints) + " rows");
-        for (size_t r = 0; r < c["constraints"].size(); ++r) {
-          const std::string rw = cw + ".constraints[" + std::to_string(r) + "]";
-          if (!c["constraints"][r].is_object()) throw InputError(rw, "must be an object");
-          reject_unknown_keys(c["constraints"][r], {"terms", "offset", "weight", "source"}, file, rw.substr(file.size() + 2));
-          comp.constraints.push_back(parse_constraint(c["constraints"][r], rw));
-        }
-      }
-      m.mixture.components.push_back(std::move(comp));
-    }
-    if (std::abs(total - 1) > 1e-6) throw InputError(where, "the component weights must sum to 1 (got " + number_text(total) + ")");
-  }
+  if (j.contains("mixture")) parse_mixture(j["mixture"], file, &m);
   if (j.contains("notes")) {
     if (!j["notes"].is_array()) throw InputError(file, "key 'notes' must be an array of strings");
     for (const auto& n : j["notes"])
