@@ -71,34 +71,15 @@ bool SkinResult::watertight() const {
          !(self_intersection_checked && self_intersects);
 }
 
-SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const SkinOptions& o,
-                      const std::function<void(const std::string&)>& progress) {
-  std::string err;
-  if (!o.IsValid(&err)) throw InputError("skin options", err);
-  if (points.size() < 1000)
-    throw InputError("merged cloud", "only " + std::to_string(points.size()) + " points to build a skin from");
-  auto say = [&](const std::string& m) {
-    if (progress) progress(m);
-  };
-  const auto t0 = Clock::now();
-  SkinResult R;
-  R.bones = bones_from_rig(rig);
-  // 1. the hand frame; the rig must sit in the cloud
-  const HandFrame H = to_hand_frame(points, rig, R.bones);
-  const Eigen::Isometry3d Ti = H.T.inverse();
-  // 2. each point to its tube
-  const TubePoints tube_points = assign_points(H, o.thumb_overlap_mm);
-  const Eigen::Vector3d tip_mid = H.J[finger_chain(Finger::Middle).back()];
-  const double h = std::max((tip_mid.x() - H.lo.x()) / o.slicing.planes, 0.5);  // ring spacing, mm
+namespace {
+
+// Steps 4.-5.: planes, slabs and rings: the palm, then each digit (kept apart from its
+// neighbours, closed by its fingertip's dome); the tubes' reports and warnings, the check that
+// the rig fits, and the regular ring grid before stitching (rig frame).
+std::vector<TubeBuild> build_tubes(const HandFrame& H, const TubePoints& tube_points, const Webs& webs, double h,
+                                   const SkinOptions& o, SkinResult* R) {
   const int pps = o.slicing.points_per_segment;
-  // 3. the webs and the palm's end plane
-  Webs webs = find_webs(H, h);
-  R.webs = webs.points;
-  for (auto& w : webs.warnings) R.warnings.push_back(std::move(w));
-  if (webs.x_end - H.lo.x() < 5 * h)
-    throw InputError("rig", "the finger webs lie at the wrist end of the cloud; the rig does not fit it");
-  // 4.-5. planes, slabs and rings: the palm, then each digit (kept apart from its
-  // neighbours, closed by its fingertip's dome)
+  const Eigen::Isometry3d Ti = H.T.inverse();
   std::vector<TubeBuild> tubes(kSkinTubes);
   tubes[0] = palm_planes(H, tube_points, webs, h);
   resample_rings(&tubes[0], 8 * pps, o, false);
@@ -114,12 +95,12 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   for (auto& t : tubes) {
     t.report.name = skin_tube_name(t.id);
     if (!t.report.present && t.id != 0)
-      R.warnings.push_back(std::string("no ") + skin_tube_name(t.id) +
+      R->warnings.push_back(std::string("no ") + skin_tube_name(t.id) +
                            (t.id == 1 ? "" : " finger") + " in the scan: the skin is built without it");
-    R.tubes.push_back(t.report);
+    R->tubes.push_back(t.report);
   }
   if (!tubes[0].report.present) throw InputError("merged cloud", "no palm section could be measured");
-  R.wrist_cut = tubes[0].cut;
+  R->wrist_cut = tubes[0].cut;
   // A rig that does not fit the cloud (another scan's, shifted, fingers swapped) puts a
   // digit's links beside the middle of its sections: refused rather than worked around.
   for (const auto& t : tubes) {
@@ -147,8 +128,61 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
       g.station.push_back(t.ring_station[k]);
     }
     if (t.pole) g.pole = Ti * *t.pole;
-    R.grid.push_back(std::move(g));
+    R->grid.push_back(std::move(g));
   }
+  return tubes;
+}
+
+// Each vertex's bone (the nearest link; a digit's vertex one of that digit's), tube and ring.
+void label_vertices(const SM& skin, const SM::Property_map<SM::Vertex_index, std::pair<int, int>>& origin_of,
+                    const HandFrame& H, SkinResult* R) {
+  const auto V = mesh_vertices(R->mesh);
+  size_t vi = 0;
+  for (auto v : skin.vertices()) {
+    const auto [tube, ring] = origin_of[v];
+    const Eigen::Vector3d ph = H.T * V[vi++];
+    int best = 0;
+    double bd = 1e300;
+    for (size_t b = 0; b < H.A.size(); ++b) {
+      if (tube > 0 && H.bone_tube[b] != tube) continue;  // a digit's vertex binds to that digit's links
+      const double d = segment_distance2(ph, H.A[b], H.B[b]);
+      if (d < bd) bd = d, best = static_cast<int>(b);
+    }
+    R->vertex_bone.push_back(best);
+    R->vertex_tube.push_back(tube >= 0 ? tube : H.bone_tube[best]);
+    R->vertex_ring.push_back(ring);
+  }
+}
+
+}  // namespace
+
+SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const SkinOptions& o,
+                      const std::function<void(const std::string&)>& progress) {
+  std::string err;
+  if (!o.IsValid(&err)) throw InputError("skin options", err);
+  if (points.size() < 1000)
+    throw InputError("merged cloud", "only " + std::to_string(points.size()) + " points to build a skin from");
+  auto say = [&](const std::string& m) {
+    if (progress) progress(m);
+  };
+  const auto t0 = Clock::now();
+  SkinResult R;
+  R.bones = bones_from_rig(rig);
+  // 1. the hand frame; the rig must sit in the cloud
+  const HandFrame H = to_hand_frame(points, rig, R.bones);
+  const Eigen::Isometry3d Ti = H.T.inverse();
+  // 2. each point to its tube
+  const TubePoints tube_points = assign_points(H, o.thumb_overlap_mm);
+  const Eigen::Vector3d tip_mid = H.J[finger_chain(Finger::Middle).back()];
+  const double h = std::max((tip_mid.x() - H.lo.x()) / o.slicing.planes, 0.5);  // ring spacing, mm
+  // 3. the webs and the palm's end plane
+  Webs webs = find_webs(H, h);
+  R.webs = webs.points;
+  for (auto& w : webs.warnings) R.warnings.push_back(std::move(w));
+  if (webs.x_end - H.lo.x() < 5 * h)
+    throw InputError("rig", "the finger webs lie at the wrist end of the cloud; the rig does not fit it");
+  // 4.-5. planes, slabs and rings (build_tubes)
+  std::vector<TubeBuild> tubes = build_tubes(H, tube_points, webs, h, o, &R);
   R.seconds_rings = since(t0);
   say("rings resampled (" + std::to_string(static_cast<int>(R.seconds_rings * 1000)) + " ms)");
 
@@ -215,22 +249,8 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   }
   R.health = mesh_health(R.mesh);
   R.seconds_checks = since(t3);
-  const auto V = mesh_vertices(R.mesh);
-  size_t vi = 0;
-  for (auto v : skin.vertices()) {
-    const auto [tube, ring] = origin_of[v];
-    const Eigen::Vector3d ph = H.T * V[vi++];
-    int best = 0;
-    double bd = 1e300;
-    for (size_t b = 0; b < H.A.size(); ++b) {
-      if (tube > 0 && H.bone_tube[b] != tube) continue;  // a digit's vertex binds to that digit's links
-      const double d = segment_distance2(ph, H.A[b], H.B[b]);
-      if (d < bd) bd = d, best = static_cast<int>(b);
-    }
-    R.vertex_bone.push_back(best);
-    R.vertex_tube.push_back(tube >= 0 ? tube : H.bone_tube[best]);
-    R.vertex_ring.push_back(ring);
-  }  return R;
+  label_vertices(skin, origin_of, H, &R);
+  return R;
 }
 
 void save_skin_ply(const std::string& path, const SkinResult& skin) {
