@@ -133,6 +133,71 @@ double HandModel::value(const Eigen::Vector3d& p_in) const {
   return smax(v, wrist_cut_x - p.x(), 1.5 * s);
 }
 
+namespace {
+
+// The rest (flat) skeleton: joints in the hand plane as the proportions give them, scaled by
+// s (palm) and the fingers by sl·fl (the index also by index_factor); `finger_dir` gets each
+// digit's phalanges' direction.
+Rig rest_skeleton(const HandShapeOptions& o, double s, double sl, double fl, double index_factor,
+                  std::array<Eigen::Vector3d, 5>* finger_dir) {
+  auto P = [&](double x, double y, double z) { return Eigen::Vector3d(x * s, y * s, z * s); };
+  Rig rest;
+  rest.frame = "hand";
+  rest.palm_normal = Eigen::Vector3d::UnitZ();
+  rest.joints[0] = Eigen::Vector3d::Zero();
+  for (int fi = 0; fi < 5; ++fi) {
+    const FingerSpec& f = kFingers[fi];
+    const std::vector<int> chain = finger_chain(static_cast<Finger>(fi));
+    const bool thumb = fi == 0;
+    const Eigen::Vector3d cmc = P(f.cmc.x(), f.cmc.y(), thumb ? -6.0 : 0.0);
+    const double mc_angle = thumb ? 10.0 + o.thumb_abduction_deg : f.angle_deg;
+    // The thumb sits palmar of the hand plane and points a little down out of it.
+    const Eigen::Vector3d mcp = cmc + f.metacarpal * s * heading(mc_angle, thumb ? 12.0 : 0.0);
+    const double ph_angle = thumb ? mc_angle - 10.0 : f.angle_deg + f.spread_steps * o.finger_spread_deg;
+    const Eigen::Vector3d dir = heading(ph_angle, thumb ? 4.0 : 0.0);
+    (*finger_dir)[fi] = dir;
+    std::vector<double> lengths = {f.proximal, f.middle, f.distal};
+    if (thumb) lengths = {f.proximal, f.distal};
+    const double lf = (fi == 1 ? index_factor : 1.0) * sl * fl;  // sl == s when fl == 1
+    std::vector<Eigen::Vector3d> js = {cmc, mcp};
+    for (double L : lengths) js.push_back(js.back() + L * lf * dir);
+    for (size_t k = 0; k < chain.size(); ++k) rest.joints[chain[k]] = js[k];
+  }
+
+  return rest;
+}
+
+// The enclosing box (capsule extents plus margin, cut at the wrist) and, for a left hand, the
+// right hand's mirror image in the hand plane's long axis.
+void enclose_and_mirror(const HandShapeOptions& o, HandModel* m) {
+  m->box_min = Eigen::Vector3d::Constant(1e9);
+  m->box_max = Eigen::Vector3d::Constant(-1e9);
+  auto grow = [&](const Capsule& c) {
+    const double r = std::max({c.wa, c.wb, c.ha, c.hb}) + std::abs(c.dz) + 2.0;
+    for (const auto& e : {c.a, c.b}) {
+      m->box_min = m->box_min.cwiseMin((e.array() - r).matrix());
+      m->box_max = m->box_max.cwiseMax((e.array() + r).matrix());
+    }
+  };
+  for (const auto& c : m->palm) grow(c);
+  for (const auto& f : m->fingers)
+    for (const auto& c : f) grow(c);
+  m->box_min.x() = std::max(m->box_min.x(), m->wrist_cut_x - 2.0);
+
+  // A left hand: the right hand's mirror image in the hand plane's long axis (y → −y). The
+  // field mirrors its argument; the joints mirror here. palm_normal stays +Z.
+  if (o.side == HandSide::Left) {
+    m->mirrored = true;
+    const double lo_y = m->box_min.y();
+    m->box_min.y() = -m->box_max.y();
+    m->box_max.y() = -lo_y;
+    for (Rig* r : {&m->rig, &m->rest_rig})
+      for (auto& j : r->joints) j.y() = -j.y();
+  }
+}
+
+}  // namespace
+
 HandModel build_hand_model(const HandShapeOptions& o) {
   std::string err;
   if (!o.IsValid(&err)) throw InputError("hand options", err);
@@ -158,30 +223,9 @@ HandModel build_hand_model(const HandShapeOptions& o) {
   const double index_factor = o.index_ring_ratio ? *o.index_ring_ratio / (phalanges(1) / phalanges(3)) : 1.0;
 
   // --- the rest (flat) skeleton: joints in the hand plane as the proportions give them ---
-  Rig& rest = m.rest_rig;
-  rest.frame = "hand";
-  rest.palm_normal = Eigen::Vector3d::UnitZ();
-  rest.joints[0] = Eigen::Vector3d::Zero();
   std::array<Eigen::Vector3d, 5> finger_dir;
-  for (int fi = 0; fi < 5; ++fi) {
-    const FingerSpec& f = kFingers[fi];
-    const std::vector<int> chain = finger_chain(static_cast<Finger>(fi));
-    const bool thumb = fi == 0;
-    const Eigen::Vector3d cmc = P(f.cmc.x(), f.cmc.y(), thumb ? -6.0 : 0.0);
-    const double mc_angle = thumb ? 10.0 + o.thumb_abduction_deg : f.angle_deg;
-    // The thumb sits palmar of the hand plane and points a little down out of it.
-    const Eigen::Vector3d mcp = cmc + f.metacarpal * s * heading(mc_angle, thumb ? 12.0 : 0.0);
-    const double ph_angle = thumb ? mc_angle - 10.0 : f.angle_deg + f.spread_steps * o.finger_spread_deg;
-    const Eigen::Vector3d dir = heading(ph_angle, thumb ? 4.0 : 0.0);
-    finger_dir[fi] = dir;
-    std::vector<double> lengths = {f.proximal, f.middle, f.distal};
-    if (thumb) lengths = {f.proximal, f.distal};
-    const double lf = (fi == 1 ? index_factor : 1.0) * sl * fl;  // sl == s when fl == 1
-    std::vector<Eigen::Vector3d> js = {cmc, mcp};
-    for (double L : lengths) js.push_back(js.back() + L * lf * dir);
-    for (size_t k = 0; k < chain.size(); ++k) rest.joints[chain[k]] = js[k];
-  }
-
+  m.rest_rig = rest_skeleton(o, s, sl, fl, index_factor, &finger_dir);
+  const Rig& rest = m.rest_rig;
   // --- the posture: the project's skeleton, posed by forward kinematics ---
   const bool flat = all_zero(o.posture);
   std::array<Eigen::Matrix3d, kJointCount> turn_of;  // rotation of the link starting at each joint, rest → posed
@@ -263,31 +307,7 @@ HandModel build_hand_model(const HandShapeOptions& o) {
   m.palm.push_back(capsule(P(22, -21, -6), P(62, -28, -5), 10.0, 9.0, 11.0, 10.0, 0.0));
   m.wrist_cut_x = -cut;
 
-  // Enclosing box: capsule extents plus margin.
-  m.box_min = Eigen::Vector3d::Constant(1e9);
-  m.box_max = Eigen::Vector3d::Constant(-1e9);
-  auto grow = [&](const Capsule& c) {
-    const double r = std::max({c.wa, c.wb, c.ha, c.hb}) + std::abs(c.dz) + 2.0;
-    for (const auto& e : {c.a, c.b}) {
-      m.box_min = m.box_min.cwiseMin((e.array() - r).matrix());
-      m.box_max = m.box_max.cwiseMax((e.array() + r).matrix());
-    }
-  };
-  for (const auto& c : m.palm) grow(c);
-  for (const auto& f : m.fingers)
-    for (const auto& c : f) grow(c);
-  m.box_min.x() = std::max(m.box_min.x(), m.wrist_cut_x - 2.0);
-
-  // A left hand: the right hand's mirror image in the hand plane's long axis (y → −y). The
-  // field mirrors its argument; the joints mirror here. palm_normal stays +Z.
-  if (o.side == HandSide::Left) {
-    m.mirrored = true;
-    const double lo_y = m.box_min.y();
-    m.box_min.y() = -m.box_max.y();
-    m.box_max.y() = -lo_y;
-    for (Rig* r : {&m.rig, &m.rest_rig})
-      for (auto& j : r->joints) j.y() = -j.y();
-  }
+  enclose_and_mirror(o, &m);
   return m;
 }
 
