@@ -82,6 +82,70 @@ std::optional<std::string> orient_rig_to_cloud(Rig* rig, const std::vector<Eigen
                              "as for a left hand)");
 }
 
+namespace {
+
+// The automatic skeleton against the given rig: a rig of another hand or scan is refused
+// (unless --auto-rig), one a little off is warned about.
+void check_given_rig(const SkinStageInputs& in, const std::function<void(const std::string&)>& progress,
+                     SkinStageResult* Rp) {
+  SkinStageResult& R = *Rp;
+  const JointError e = joint_error(R.placed->rig, *in.rig);
+  R.against_given = e;
+  progress("automatic skeleton: mean joint error " + mm(e.mean_mm) + " mm against the given rig");
+  if (e.mean_mm > kRigRefuseMm && !in.auto_rig)
+    throw InputError(in.rig_name, "its joints lie " + mm(e.mean_mm) + " mm (mean; worst " + e.worst_joint + ", " +
+                                      mm(e.max_mm) + " mm) from the skeleton found in " + in.cloud_name +
+                                      " (more than " + mm(kRigRefuseMm) +
+                                      "): a rig of another hand or scan, or with its digits out of order; give "
+                                      "this scan's rig, or none to place it automatically");
+  if (e.mean_mm > kRigWarnMm)
+    R.warnings.push_back("the given rig lies " + mm(e.mean_mm) + " mm (mean) from the skeleton placed in the cloud "
+                         "(worst: " + e.worst_joint + "); is it this scan's rig?");
+}
+
+// The skin's figures: the cloud against it, the slices, the Poisson baseline and the truth
+// when asked for.
+void measure_skin(const SkinStageInputs& in, const SkinOptions& so, const std::function<void(const std::string&)>& progress,
+                  SkinStageResult* Rp) {
+  SkinStageResult& R = *Rp;
+  const SkinResult& skin = R.skin;
+  progress("measuring the cloud against the skin");
+  const MeshDistance to_skin(skin.mesh);
+  const auto cloud = thinned_points(in.points, kCloudToSkinPoints);
+  R.cloud_to_skin = one_way_distance(cloud, to_skin);
+  if (in.slices) R.slices = slice_cloud(in.points, R.rig, so.slicing);
+
+  std::optional<MeshDistance> to_base;
+  if (in.baseline) {
+    progress("baseline: Poisson reconstruction of the same cloud (for comparison)");
+    SkinBaseline b;
+    b.result = poisson_baseline(in.points, in.normals);
+    b.health = mesh_health(b.result.mesh);
+    to_base.emplace(b.result.mesh);
+    b.cloud_to_baseline = one_way_distance(cloud, *to_base);
+    R.baseline = std::move(b);
+  }
+  if (in.truth) {
+    const TruthSkin& t = *in.truth;
+    progress("comparing with the true skin of " + t.path);
+    const MeshDistance to_truth(t.skin);
+    const auto ours = sample_surface(skin.mesh, 4.0), theirs = sample_surface(t.skin, 4.0);
+    SkinTruthFigures f;
+    f.skin_path = t.skin_path;
+    f.exclude_mm = t.exclude_mm;
+    f.skin_to_truth = one_way_distance(ours, to_truth, t.markers, t.exclude_mm);
+    f.truth_to_skin = one_way_distance(theirs, to_skin, t.markers, t.exclude_mm);
+    if (R.baseline) {
+      f.baseline_to_truth =
+          one_way_distance(sample_surface(R.baseline->result.mesh, 4.0), to_truth, t.markers, t.exclude_mm);
+      f.truth_to_baseline = one_way_distance(theirs, *to_base, t.markers, t.exclude_mm);
+    }
+    R.truth = std::move(f);
+  }
+}
+
+}  // namespace
+
 SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
                                const std::function<void(const std::string&)>& progress) {
   const auto t_stage = std::chrono::steady_clock::now();
@@ -167,20 +231,7 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
       build(R.rig);
     }
   }
-  if (R.placed && in.rig) {
-    const JointError e = joint_error(R.placed->rig, *in.rig);
-    R.against_given = e;
-    progress("automatic skeleton: mean joint error " + mm(e.mean_mm) + " mm against the given rig");
-    if (e.mean_mm > kRigRefuseMm && !in.auto_rig)
-      throw InputError(in.rig_name, "its joints lie " + mm(e.mean_mm) + " mm (mean; worst " + e.worst_joint + ", " +
-                                        mm(e.max_mm) + " mm) from the skeleton found in " + in.cloud_name +
-                                        " (more than " + mm(kRigRefuseMm) +
-                                        "): a rig of another hand or scan, or with its digits out of order; give "
-                                        "this scan's rig, or none to place it automatically");
-    if (e.mean_mm > kRigWarnMm)
-      R.warnings.push_back("the given rig lies " + mm(e.mean_mm) + " mm (mean) from the skeleton placed in the cloud "
-                           "(worst: " + e.worst_joint + "); is it this scan's rig?");
-  }
+  if (R.placed && in.rig) check_given_rig(in, progress, &R);
   if (build_error) {
     try {
       std::rethrow_exception(build_error);
@@ -198,39 +249,7 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
                                         std::to_string(skin.health.nonmanifold_vertices) + " non-manifold vertices, " +
                                         std::to_string(skin.health.components) + " components" +
                                         (skin.self_intersects ? ", self-intersecting" : "") + ")");
-  progress("measuring the cloud against the skin");
-  const MeshDistance to_skin(skin.mesh);
-  const auto cloud = thinned_points(in.points, kCloudToSkinPoints);
-  R.cloud_to_skin = one_way_distance(cloud, to_skin);
-  if (in.slices) R.slices = slice_cloud(in.points, R.rig, so.slicing);
-
-  std::optional<MeshDistance> to_base;
-  if (in.baseline) {
-    progress("baseline: Poisson reconstruction of the same cloud (for comparison)");
-    SkinBaseline b;
-    b.result = poisson_baseline(in.points, in.normals);
-    b.health = mesh_health(b.result.mesh);
-    to_base.emplace(b.result.mesh);
-    b.cloud_to_baseline = one_way_distance(cloud, *to_base);
-    R.baseline = std::move(b);
-  }
-  if (in.truth) {
-    const TruthSkin& t = *in.truth;
-    progress("comparing with the true skin of " + t.path);
-    const MeshDistance to_truth(t.skin);
-    const auto ours = sample_surface(skin.mesh, 4.0), theirs = sample_surface(t.skin, 4.0);
-    SkinTruthFigures f;
-    f.skin_path = t.skin_path;
-    f.exclude_mm = t.exclude_mm;
-    f.skin_to_truth = one_way_distance(ours, to_truth, t.markers, t.exclude_mm);
-    f.truth_to_skin = one_way_distance(theirs, to_skin, t.markers, t.exclude_mm);
-    if (R.baseline) {
-      f.baseline_to_truth =
-          one_way_distance(sample_surface(R.baseline->result.mesh, 4.0), to_truth, t.markers, t.exclude_mm);
-      f.truth_to_baseline = one_way_distance(theirs, *to_base, t.markers, t.exclude_mm);
-    }
-    R.truth = std::move(f);
-  }
+  measure_skin(in, so, progress, &R);
   R.seconds = since(t_stage);
   return R;
 }
