@@ -11,6 +11,7 @@
 #include "pipeline/stage_options.hpp"
 #include "pipeline/registration_stage.hpp"
 #include "pipeline/run.hpp"
+#include "pipeline/run_folder.hpp"
 #include "pipeline/skin_stage.hpp"
 #include "scan/cubist_io.hpp"
 
@@ -177,42 +178,16 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
     std::string err;
     if (!po.IsValid(&err)) throw InputError("--count", err);
   }
-  const std::string merged = (fs::path(a.skin_dir) / "merged.ply").string();
-  // The rig the skin was built on: given, else the one `run`/`skin` placed, else the one `run` was given.
-  std::string rig_path = a.rig;
-  if (rig_path.empty() && fs::exists(fs::path(a.skin_dir) / "rig_auto.json"))
-    rig_path = (fs::path(a.skin_dir) / "rig_auto.json").string();
-  if (rig_path.empty() && fs::exists(fs::path(a.skin_dir) / "report.json")) {
-    const Json rep = load_json_object((fs::path(a.skin_dir) / "report.json").string());
-    if (rep.contains("inputs") && rep["inputs"].contains("rig") && rep["inputs"]["rig"].is_string() &&
-        rep["inputs"]["rig"].get<std::string>().rfind("(", 0) != 0)
-      rig_path = rep["inputs"]["rig"].get<std::string>();
-  }
-  if (rig_path.empty())
-    throw InputError("--rig", "no rig for " + a.skin_dir + " (no rig_auto.json, no rig in its report.json); give --rig");
-  SkinStageInputs in;
-  in.rig = load_palm_rig(rig_path);
-  in.rig_name = rig_path;
+  const std::string rig_path = run_folder_rig(a.skin_dir, a.rig);
+  const Rig rig = load_palm_rig(rig_path);
   std::optional<TruthSkin> truth;
   if (!a.truth.empty()) truth = load_truth_skin(a.truth);
-  progress("patches", "reading " + merged);
-  MergedArrays m = merged_arrays(*load_merged(merged));
-  if (const auto note = orient_rig_to_cloud(&*in.rig, m.points, m.sides); note && !note->empty())
-    progress("patches", rig_path + ": " + *note);
-  progress("patches", "rebuilding the skin on " + rig_path);
-  const SkinResult skin = build_skin(m.points, *in.rig, skin_options(po));
-  PatchOptions opts = patch_options(po);
-  if (!a.layout.empty()) {
-    opts.layout = parse_patch_layout(load_json_object(a.layout), a.layout);
-  }
-  progress("patches", std::string("fitting bicubic patches") + (a.layout.empty() ? "" : " on the layout of " + a.layout) +
-                          ", correcting the parameters");
-  PatchStageResult r =
-      run_patch_stage(skin, *in.rig, m.points, m.sides, opts, truth ? &*truth : nullptr, static_cast<int>(po.patches.error_grid));
-  // Smooth weights for the control points, from the skin's binding as `run` makes it.
-  progress("patches", std::string("binding the control points (") + (po.rigging.smooth ? "bone-heat" : "rigid") +
-                          " weights of the skin)");
-  bind_patch_controls(&r.patches, skin.mesh, bind_skin(skin.mesh, bones_from_rig(*in.rig), binding_options(po)));
+  std::optional<PatchLayout> layout;
+  if (!a.layout.empty()) layout = parse_patch_layout(load_json_object(a.layout), a.layout);
+  const RunFolderPatches p = patches_for_run_folder(a.skin_dir, rig, rig_path, po, layout, a.layout, truth ? &*truth : nullptr,
+                                                    [&](const std::string& m) { progress("patches", m); });
+  const PatchStageResult& r = p.result;
+  const std::string& merged = p.merged;
   Json report = to_json(r);
   report["format"] = "handskin-patches-report/1";
   report["inputs"] = {{"merged", merged}, {"rig", rig_path}, {"pipeline", a.pipeline.empty() ? "(built-in defaults)" : a.pipeline}};

@@ -10,8 +10,7 @@
 #include "posture/solver.hpp"
 #include "render/preview.hpp"
 #include "rigging/animation.hpp"
-#include "rigging/crease.hpp"
-#include "rigging/deform.hpp"
+#include "rigging/pose.hpp"
 #include "studio/server.hpp"
 #include "rigging/gltf.hpp"
 
@@ -54,12 +53,10 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
   const PostureSolution sol = solver.solve(in);
   if (sol.clamped_inputs)
     progress("pose", "warning: " + std::to_string(sol.clamped_inputs) + " input(s) outside the model's limits were clamped onto them");
-  const Skeleton skel(skin.rig, a.model);
-  const auto motions = link_motions(skel, sol.angles);
-  std::vector<Eigen::Vector3d> posed = deform(skin.vertices, skin.binding, motions, blend);
+  Untangled u;
+  const std::vector<Eigen::Vector3d> posed =
+      SkinPoser(skin.vertices, skin.faces, skin.binding, skin.rig, a.model).pose(sol.angles, blend, a.crease_guard, &u);
   if (a.crease_guard) {
-    guard_creases(crease_guard(skin.vertices, skin.binding, skin.rig), motions, &posed);
-    const Untangled u = untangle_folds(skin.faces, dominant_links(skin.faces, skin.binding), &posed);
     if (u.folding_before)
       progress("pose", "crease guard: " + std::to_string(u.folding_before) + " folding triangle pair(s) smoothed out over " +
                            std::to_string(u.moved) + " vertices in " + std::to_string(u.rounds) + " round(s)" +
@@ -71,9 +68,7 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
       const std::vector<unsigned char> glb = skin_glb(skin, &sol.angles);
       write_file_atomic(a.out, std::string(glb.begin(), glb.end()));
     } else {
-      const std::string tmp = a.out + ".tmp" + ext;
-      save_mesh(tmp, mesh_from_arrays(posed, skin.faces));
-      fs::rename(tmp, a.out);
+      save_mesh(a.out, mesh_from_arrays(posed, skin.faces));  // atomically
     }
   }
   if (!a.png.empty()) {

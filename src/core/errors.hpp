@@ -9,6 +9,13 @@
 
 namespace handskin {
 
+/// For an options struct's IsValid(std::string* error): `message` into *error (when given),
+/// and false — so that a check reads `if (!(x > 0)) return invalid(error, "x must be > 0");`.
+inline bool invalid(std::string* error, const std::string& message) {
+  if (error) *error = message;
+  return false;
+}
+
 class InputError : public std::runtime_error {
  public:
   /// `where` names the file, option or key at fault; `what` says what is wrong with it.

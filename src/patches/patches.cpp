@@ -427,18 +427,14 @@ void BezierPatch::derivatives(double u, double v, Eigen::Vector3d* S, Eigen::Vec
 }
 
 bool PatchOptions::IsValid(std::string* error) const {
-  auto bad = [&](const std::string& m) {
-    if (error) *error = m;
-    return false;
-  };
-  if (subdivision < 1 || subdivision > 8) return bad("subdivision must be in [1, 8]");
-  if (!(fairness >= 0 && fairness <= 10)) return bad("fairness must be in [0, 10]");
-  if (!(c1_weight >= 0 && c1_weight <= 1e4)) return bad("c1_weight must be in [0, 1e4]");
-  if (!(corner_weight >= 0 && corner_weight <= 1e4)) return bad("corner_weight must be in [0, 1e4]");
-  if (!(skin_weight > 0 && skin_weight <= 10)) return bad("skin_weight must be in (0, 10]");
-  if (max_corrections < 0 || max_corrections > 100) return bad("max_corrections must be in [0, 100]");
-  if (!(correction_tolerance > 0)) return bad("correction_tolerance must be > 0");
-  if (tessellation < 1 || tessellation > 64) return bad("tessellation must be in [1, 64]");
+  if (subdivision < 1 || subdivision > 8) return invalid(error, "subdivision must be in [1, 8]");
+  if (!(fairness >= 0 && fairness <= 10)) return invalid(error, "fairness must be in [0, 10]");
+  if (!(c1_weight >= 0 && c1_weight <= 1e4)) return invalid(error, "c1_weight must be in [0, 1e4]");
+  if (!(corner_weight >= 0 && corner_weight <= 1e4)) return invalid(error, "corner_weight must be in [0, 1e4]");
+  if (!(skin_weight > 0 && skin_weight <= 10)) return invalid(error, "skin_weight must be in (0, 10]");
+  if (max_corrections < 0 || max_corrections > 100) return invalid(error, "max_corrections must be in [0, 100]");
+  if (!(correction_tolerance > 0)) return invalid(error, "correction_tolerance must be > 0");
+  if (tessellation < 1 || tessellation > 64) return invalid(error, "tessellation must be in [1, 64]");
   return true;
 }
 

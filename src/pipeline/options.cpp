@@ -101,10 +101,6 @@ const T& value_of(const KeySpec& k, const PipelineOptions& o) {
 }  // namespace
 
 bool PipelineOptions::IsValid(std::string* error) const {
-  auto bad = [&](const std::string& m) {
-    if (error) *error = m;
-    return false;
-  };
   for (const auto& k : key_table()) {
     double v = 0;
     switch (k.kind) {
@@ -118,10 +114,10 @@ bool PipelineOptions::IsValid(std::string* error) const {
       }
       case Kind::Bool: continue;
     }
-    if (!std::isfinite(v) || !in_range(k, v)) return bad(key_name(k) + " must be in " + range_text(k));
+    if (!std::isfinite(v) || !in_range(k, v)) return invalid(error, key_name(k) + " must be in " + range_text(k));
   }
   if (skin.max_triangles != 0 && skin.max_triangles < 1000)
-    return bad("skin.max_triangles must be 0 (no decimation) or in [1000, 1000000]");
+    return invalid(error, "skin.max_triangles must be 0 (no decimation) or in [1000, 1000000]");
   return true;
 }
 

@@ -9,8 +9,7 @@
 #include "core/rig.hpp"
 #include "posture/solver.hpp"
 #include "rigging/binding.hpp"
-#include "rigging/crease.hpp"
-#include "rigging/deform.hpp"
+#include "rigging/pose.hpp"
 #include "render/preview.hpp"
 #include "pipeline/gates.hpp"
 #include "pipeline/registration_stage.hpp"
@@ -44,13 +43,11 @@ namespace {
 // solver's answer to a 75° little-finger MCP alone; the last two also with the thesis's rigid
 // binding. Side views, 360 × 270.
 std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, const TriMesh& mesh, float texture_weight) {
-  const Skeleton skel(s.rig, "rig");
   const PostureSolver solver(s.model);
   BindingOptions rb;
   rb.mode = "rigid";
   const SkinBinding rigid = bind_skin(mesh, bones_from_rig(s.rig), rb);
-  const CreaseGuard guard = crease_guard(s.vertices, s.binding, s.rig);
-  const std::vector<int> dominant = dominant_links(s.faces, s.binding);
+  const SkinPoser smooth_poser(s.vertices, s.faces, s.binding, s.rig), rigid_poser(s.vertices, s.faces, rigid, s.rig);
   const PostureInputs fist = fist_inputs();
   PostureInputs l2;
   l2.pins.emplace_back(dof_index("little.mcp.flex").value(), 75.0);
@@ -66,12 +63,9 @@ std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, const TriMesh& me
        {std::tuple{"open (the scan posture)", &open, &s.binding}, {"relaxed", &relaxed, &s.binding},
         {"fist", &closed, &s.binding}, {"little MCP 75° alone: the solver fills in the rest", &little, &s.binding},
         {"fist, rigid binding (the thesis)", &closed, &rigid}, {"little MCP 75°, rigid binding (the thesis)", &little, &rigid}}) {
-    const auto motions = link_motions(skel, *angles);
-    auto v = deform(s.vertices, *binding, motions, binding == &rigid ? Blend::Linear : Blend::DualQuaternion);
-    if (binding != &rigid) {
-      guard_creases(guard, motions, &v);
-      untangle_folds(s.faces, dominant, &v);
-    }
+    const bool is_rigid = binding == &rigid;
+    const auto v = (is_rigid ? rigid_poser : smooth_poser)
+                       .pose(*angles, is_rigid ? Blend::Linear : Blend::DualQuaternion, !is_rigid);
     const TriMesh m = mesh_from_arrays(v, s.faces);
     out.push_back({caption, render_mesh_png({&m}, ro)});
   }

@@ -13,24 +13,27 @@
 
 namespace handskin {
 
-std::vector<std::string> split_cells(const std::string& line) {
+std::vector<std::string> split_fields(const std::string& line, char separator, bool trim) {
   std::vector<std::string> cells;
   std::string cur;
   for (char c : line) {
-    if (c == ',') {
+    if (c == separator) {
       cells.push_back(cur);
       cur.clear();
-    } else if (c != '\r') {
+    } else if (c != '\r' && c != '\n') {
       cur += c;
     }
   }
   cells.push_back(cur);
-  for (auto& c : cells) {  // trim spaces
-    const size_t a = c.find_first_not_of(" \t"), b = c.find_last_not_of(" \t");
-    c = a == std::string::npos ? "" : c.substr(a, b - a + 1);
-  }
+  if (trim)
+    for (auto& c : cells) {
+      const size_t a = c.find_first_not_of(" \t"), b = c.find_last_not_of(" \t");
+      c = a == std::string::npos ? "" : c.substr(a, b - a + 1);
+    }
   return cells;
 }
+
+std::vector<std::string> split_cells(const std::string& line) { return split_fields(line, ',', true); }
 
 namespace {
 // A cell as it can be shown in one line of an error: control and non-ASCII bytes as \xNN,

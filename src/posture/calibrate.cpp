@@ -17,30 +17,26 @@
 namespace handskin {
 
 bool CalibrationOptions::IsValid(std::string* error) const {
-  auto bad = [&](const std::string& m) {
-    if (error) *error = m;
-    return false;
-  };
-  if (!(min_correlation >= 0 && min_correlation <= 1)) return bad("min_correlation must be in [0, 1]");
-  if (max_pairs < 0 || max_pairs > 100) return bad("max_pairs must be in [0, 100]");
-  if (weights != "thesis" && weights != "inverse") return bad("weights must be 'thesis' or 'inverse'");
-  if (grid_cells < 4 || grid_cells > 1000) return bad("grid_cells must be in [4, 1000]");
-  if (!(grid_weight > 0 && grid_weight <= kMaxWeight)) return bad("grid_weight must be in (0, 1e3]");
+  if (!(min_correlation >= 0 && min_correlation <= 1)) return invalid(error, "min_correlation must be in [0, 1]");
+  if (max_pairs < 0 || max_pairs > 100) return invalid(error, "max_pairs must be in [0, 100]");
+  if (weights != "thesis" && weights != "inverse") return invalid(error, "weights must be 'thesis' or 'inverse'");
+  if (grid_cells < 4 || grid_cells > 1000) return invalid(error, "grid_cells must be in [4, 1000]");
+  if (!(grid_weight > 0 && grid_weight <= kMaxWeight)) return invalid(error, "grid_weight must be in (0, 1e3]");
   for (const auto& [a, b] : pairs)
-    if (a == b) return bad("a pair needs two different DOFs (got " + dofs()[a].name + " twice)");
-  if (!(limit_margin_deg <= kMaxAngle)) return bad("limit_margin_deg must be in [0, 1000]");
-  if (max_grid_samples < 1) return bad("max_grid_samples must be >= 1");
-  if (!(limit_margin_deg >= 0)) return bad("limit_margin_deg must be >= 0");
-  if (min_rows < 3) return bad("min_rows must be >= 3");
+    if (a == b) return invalid(error, "a pair needs two different DOFs (got " + dofs()[a].name + " twice)");
+  if (!(limit_margin_deg <= kMaxAngle)) return invalid(error, "limit_margin_deg must be in [0, 1000]");
+  if (max_grid_samples < 1) return invalid(error, "max_grid_samples must be >= 1");
+  if (!(limit_margin_deg >= 0)) return invalid(error, "limit_margin_deg must be >= 0");
+  if (min_rows < 3) return invalid(error, "min_rows must be >= 3");
   if (method != "gaussian" && method != "mixture" && method != "thesis-pairs")
-    return bad("method must be 'gaussian', 'mixture' or 'thesis-pairs'");
-  if (offsets != "auto" && offsets != "remove" && offsets != "keep") return bad("offsets must be 'auto', 'remove' or 'keep'");
-  if (!(shrinkage < 0 || shrinkage <= 1)) return bad("shrinkage must be in [0, 1] (or negative: chosen by cross-validation)");
+    return invalid(error, "method must be 'gaussian', 'mixture' or 'thesis-pairs'");
+  if (offsets != "auto" && offsets != "remove" && offsets != "keep") return invalid(error, "offsets must be 'auto', 'remove' or 'keep'");
+  if (!(shrinkage < 0 || shrinkage <= 1)) return invalid(error, "shrinkage must be in [0, 1] (or negative: chosen by cross-validation)");
   if (components != 0 && (components < 2 || components > kMaxMixtureComponents))
-    return bad("components must be 0 (chosen) or in [2, " + std::to_string(kMaxMixtureComponents) + "]");
-  if (folds < 2 || folds > 50) return bad("folds must be in [2, 50]");
+    return invalid(error, "components must be 0 (chosen) or in [2, " + std::to_string(kMaxMixtureComponents) + "]");
+  if (folds < 2 || folds > 50) return invalid(error, "folds must be in [2, 50]");
   if (method != "thesis-pairs" && (grids || !pairs.empty()))
-    return bad("pairs and grids belong to the thesis's pairwise calibration: add --method thesis-pairs");
+    return invalid(error, "pairs and grids belong to the thesis's pairwise calibration: add --method thesis-pairs");
   return true;
 }
 

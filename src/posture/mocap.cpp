@@ -12,26 +12,15 @@
 #include "core/dof.hpp"
 #include "core/errors.hpp"
 
+#include "posture/angle_table.hpp"
+
 namespace handskin {
 
 namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 const Eigen::Vector3d kMissing(kNaN, kNaN, kNaN);
 
-std::vector<std::string> split_tabs(const std::string& line) {
-  std::vector<std::string> out;
-  std::string cur;
-  for (char c : line) {
-    if (c == '\t') {
-      out.push_back(cur);
-      cur.clear();
-    } else if (c != '\r' && c != '\n') {
-      cur += c;
-    }
-  }
-  out.push_back(cur);
-  return out;
-}
+std::vector<std::string> split_tabs(const std::string& line) { return split_fields(line, '\t', false); }
 
 bool parse_number(const std::string& s, double* v) {
   if (s.empty()) return false;

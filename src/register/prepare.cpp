@@ -15,15 +15,11 @@
 namespace handskin {
 
 bool PrepareOptions::IsValid(std::string* error) const {
-  auto bad = [&](const std::string& m) {
-    if (error) *error = m;
-    return false;
-  };
-  if (!(table_margin_mm >= 0 && table_margin_mm <= 20)) return bad("table_margin_mm must be in [0, 20]");
-  if (!(table_max_tilt_deg > 0 && table_max_tilt_deg <= 45)) return bad("table_max_tilt_deg must be in (0, 45]");
-  if (!(table_inlier_mm > 0 && table_inlier_mm <= 10)) return bad("table_inlier_mm must be in (0, 10]");
-  if (min_component_points < 1) return bad("min_component_points must be >= 1");
-  if (normal_window < 1 || normal_window > 5) return bad("normal_window must be in [1, 5]");
+  if (!(table_margin_mm >= 0 && table_margin_mm <= 20)) return invalid(error, "table_margin_mm must be in [0, 20]");
+  if (!(table_max_tilt_deg > 0 && table_max_tilt_deg <= 45)) return invalid(error, "table_max_tilt_deg must be in (0, 45]");
+  if (!(table_inlier_mm > 0 && table_inlier_mm <= 10)) return invalid(error, "table_inlier_mm must be in (0, 10]");
+  if (min_component_points < 1) return invalid(error, "min_component_points must be >= 1");
+  if (normal_window < 1 || normal_window > 5) return invalid(error, "normal_window must be in [1, 5]");
   return true;
 }
 

@@ -17,17 +17,13 @@
 namespace handskin {
 
 bool RefineOptions::IsValid(std::string* error) const {
-  auto bad = [&](const std::string& m) {
-    if (error) *error = m;
-    return false;
-  };
-  if (!(gate_mm > 0 && gate_mm <= 10)) return bad("icp gate_mm must be in (0, 10]");
-  if (!(normal_deg > 0 && normal_deg <= 90)) return bad("icp normal_deg must be in (0, 90]");
-  if (!(trim > 0 && trim <= 1)) return bad("icp trim must be in (0, 1]");
-  if (max_iterations < 0 || max_iterations > 200) return bad("icp max_iterations must be in [0, 200]");
-  if (min_surface_pairs < 3) return bad("icp min_surface_pairs must be >= 3");
-  if (surface_stride < 1) return bad("icp surface_stride must be >= 1");
-  if (!(max_departure_deg > 0) || !(max_departure_mm > 0)) return bad("icp max_departure must be > 0");
+  if (!(gate_mm > 0 && gate_mm <= 10)) return invalid(error, "icp gate_mm must be in (0, 10]");
+  if (!(normal_deg > 0 && normal_deg <= 90)) return invalid(error, "icp normal_deg must be in (0, 90]");
+  if (!(trim > 0 && trim <= 1)) return invalid(error, "icp trim must be in (0, 1]");
+  if (max_iterations < 0 || max_iterations > 200) return invalid(error, "icp max_iterations must be in [0, 200]");
+  if (min_surface_pairs < 3) return invalid(error, "icp min_surface_pairs must be >= 3");
+  if (surface_stride < 1) return invalid(error, "icp surface_stride must be >= 1");
+  if (!(max_departure_deg > 0) || !(max_departure_mm > 0)) return invalid(error, "icp max_departure must be > 0");
   return true;
 }
 

@@ -11,25 +11,22 @@
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
 #include "core/transform.hpp"
+#include "scan/cloud.hpp"
 
 namespace handskin {
 
 bool RegistrationOptions::IsValid(std::string* error) const {
   if (!prepare.IsValid(error) || !spheres.IsValid(error) || !refine.IsValid(error)) return false;
-  auto bad = [&](const std::string& m) {
-    if (error) *error = m;
-    return false;
-  };
-  if (expected_markers < 3) return bad("expected_markers must be >= 3");
-  if (estimate_radius && radius_candidates_mm.empty()) return bad("radius_candidates_mm must not be empty");
+  if (expected_markers < 3) return invalid(error, "expected_markers must be >= 3");
+  if (estimate_radius && radius_candidates_mm.empty()) return invalid(error, "radius_candidates_mm must not be empty");
   for (double rc : radius_candidates_mm)
-    if (!(rc >= 1 && rc <= 20)) return bad("radius_candidates_mm must lie in [1, 20]");
-  if (!(match_tolerance_mm > 0 && match_tolerance_mm <= 10)) return bad("match_tolerance_mm must be in (0, 10]");
-  if (!(accept_residual_mm >= 0 && accept_residual_mm <= 10)) return bad("accept_residual_mm must be in [0, 10]");
-  if (!(marker_clearance_mm >= 0 && marker_clearance_mm <= 10)) return bad("marker_clearance_mm must be in [0, 10]");
-  if (!(warn_rotation_sigma_deg > 0 && warn_rotation_sigma_deg <= 10)) return bad("warn_rotation_sigma_deg must be in (0, 10]");
+    if (!(rc >= 1 && rc <= 20)) return invalid(error, "radius_candidates_mm must lie in [1, 20]");
+  if (!(match_tolerance_mm > 0 && match_tolerance_mm <= 10)) return invalid(error, "match_tolerance_mm must be in (0, 10]");
+  if (!(accept_residual_mm >= 0 && accept_residual_mm <= 10)) return invalid(error, "accept_residual_mm must be in [0, 10]");
+  if (!(marker_clearance_mm >= 0 && marker_clearance_mm <= 10)) return invalid(error, "marker_clearance_mm must be in [0, 10]");
+  if (!(warn_rotation_sigma_deg > 0 && warn_rotation_sigma_deg <= 10)) return invalid(error, "warn_rotation_sigma_deg must be in (0, 10]");
   if (!(warn_displacement_sigma_mm > 0 && warn_displacement_sigma_mm <= 10))
-    return bad("warn_displacement_sigma_mm must be in (0, 10]");
+    return invalid(error, "warn_displacement_sigma_mm must be in (0, 10]");
   return true;
 }
 
@@ -720,10 +717,6 @@ MergedCloud::Ptr load_merged(const std::string& path) {
   return cloud;
 }
 
-void save_merged(const std::string& path, const MergedCloud& cloud) {
-  write_via_temp(path, [&](const std::string& tmp) {
-    if (pcl::io::savePLYFileBinary(tmp, cloud) < 0) throw InputError(path, "cannot write point cloud");
-  });
-}
+void save_merged(const std::string& path, const MergedCloud& cloud) { save_cloud(path, cloud); }
 
 }  // namespace handskin

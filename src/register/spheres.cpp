@@ -21,19 +21,15 @@
 namespace handskin {
 
 bool SphereOptions::IsValid(std::string* error) const {
-  auto bad = [&](const std::string& m) {
-    if (error) *error = m;
-    return false;
-  };
-  if (!(radius_mm > 0 && radius_mm <= 20)) return bad("radius_mm must be in (0, 20]");
-  if (!(radius_tolerance > 0 && radius_tolerance < 0.5)) return bad("radius_tolerance must be in (0, 0.5)");
-  if (!(inlier_mm > 0 && inlier_mm < radius_mm)) return bad("inlier_mm must be in (0, radius_mm)");
-  if (!(max_rms_mm > 0)) return bad("max_rms_mm must be > 0");
-  if (min_points < 4) return bad("min_points must be >= 4");
-  if (!(min_spread_deg >= 0 && min_spread_deg < 90)) return bad("min_spread_deg must be in [0, 90)");
-  if (min_votes < 1) return bad("min_votes must be >= 1");
-  if (!(min_vote_concentration >= 0 && min_vote_concentration <= 1)) return bad("min_vote_concentration must be in [0, 1]");
-  if (!(hint_search_mm > 0 && hint_search_mm <= 50)) return bad("hint_search_mm must be in (0, 50]");
+  if (!(radius_mm > 0 && radius_mm <= 20)) return invalid(error, "radius_mm must be in (0, 20]");
+  if (!(radius_tolerance > 0 && radius_tolerance < 0.5)) return invalid(error, "radius_tolerance must be in (0, 0.5)");
+  if (!(inlier_mm > 0 && inlier_mm < radius_mm)) return invalid(error, "inlier_mm must be in (0, radius_mm)");
+  if (!(max_rms_mm > 0)) return invalid(error, "max_rms_mm must be > 0");
+  if (min_points < 4) return invalid(error, "min_points must be >= 4");
+  if (!(min_spread_deg >= 0 && min_spread_deg < 90)) return invalid(error, "min_spread_deg must be in [0, 90)");
+  if (min_votes < 1) return invalid(error, "min_votes must be >= 1");
+  if (!(min_vote_concentration >= 0 && min_vote_concentration <= 1)) return invalid(error, "min_vote_concentration must be in [0, 1]");
+  if (!(hint_search_mm > 0 && hint_search_mm <= 50)) return invalid(error, "hint_search_mm must be in (0, 50]");
   return true;
 }
 

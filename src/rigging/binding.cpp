@@ -16,13 +16,9 @@
 namespace handskin {
 
 bool BindingOptions::IsValid(std::string* error) const {
-  auto bad = [&](const std::string& m) {
-    if (error) *error = m;
-    return false;
-  };
-  if (mode != "smooth" && mode != "rigid") return bad("binding mode must be 'smooth' or 'rigid'");
-  if (!(heat > 0 && heat <= 1e3)) return bad("heat must be in (0, 1e3]");
-  if (!(min_weight >= 0 && min_weight < 0.25)) return bad("min_weight must be in [0, 0.25)");
+  if (mode != "smooth" && mode != "rigid") return invalid(error, "binding mode must be 'smooth' or 'rigid'");
+  if (!(heat > 0 && heat <= 1e3)) return invalid(error, "heat must be in (0, 1e3]");
+  if (!(min_weight >= 0 && min_weight < 0.25)) return invalid(error, "min_weight must be in [0, 0.25)");
   return true;
 }
 

@@ -99,13 +99,21 @@ Cloud::Ptr load_cloud(const std::string& path) {
   return dense;
 }
 
-void save_cloud(const std::string& path, const Cloud& cloud) {
+namespace {
+template <typename PointT>
+void save_any_cloud(const std::string& path, const pcl::PointCloud<PointT>& cloud) {
   const std::string ext = extension_of(path);
   if (ext != ".ply" && ext != ".pcd") throw InputError(path, "unknown point-cloud extension (use .ply or .pcd)");
   write_via_temp(path, [&](const std::string& tmp) {
     const int rc = ext == ".ply" ? pcl::io::savePLYFileBinary(tmp, cloud) : pcl::io::savePCDFileBinary(tmp, cloud);
     if (rc < 0) throw InputError(path, "cannot write point cloud");
   });
+}
+}  // namespace
+
+void save_cloud(const std::string& path, const Cloud& cloud) { save_any_cloud(path, cloud); }
+void save_cloud(const std::string& path, const pcl::PointCloud<pcl::PointXYZLNormal>& cloud) {
+  save_any_cloud(path, cloud);
 }
 
 void silence_pcl_console() { pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS); }

@@ -30,6 +30,9 @@ RangeScan cloud_to_scan(const Cloud& cloud, const ScanMeta& meta, size_t* droppe
 Cloud::Ptr load_cloud(const std::string& path);
 /// Save as binary PLY or PCD by extension, atomically.
 void save_cloud(const std::string& path, const Cloud& cloud);
+/// The same for the merged cloud's points (x y z, normal, side label, curvature): the one
+/// PLY/PCD writer of the project's clouds.
+void save_cloud(const std::string& path, const pcl::PointCloud<pcl::PointXYZLNormal>& cloud);
 
 /// PCL's console messages off: every failure of ours is one line that names the file.
 void silence_pcl_console();

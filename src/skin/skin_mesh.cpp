@@ -41,28 +41,24 @@ const char* skin_tube_name(int tube) {
 
 bool SkinOptions::IsValid(std::string* error) const {
   if (!slicing.IsValid(error)) return false;
-  auto bad = [&](const std::string& m) {
-    if (error) *error = m;
-    return false;
-  };
-  if (smoothing_rings < 0 || smoothing_rings > 5) return bad("skin.smoothing_rings must be in [0, 5]");
-  if (!(wrinkle_mm >= 0 && wrinkle_mm <= 10)) return bad("skin.wrinkle_mm must be in [0, 10]");
+  if (smoothing_rings < 0 || smoothing_rings > 5) return invalid(error, "skin.smoothing_rings must be in [0, 5]");
+  if (!(wrinkle_mm >= 0 && wrinkle_mm <= 10)) return invalid(error, "skin.wrinkle_mm must be in [0, 10]");
   if (max_triangles != 0 && (max_triangles < 1000 || max_triangles > 1000000))
-    return bad("skin.max_triangles must be 0 (no decimation) or in [1000, 1000000]");
-  if (!(decimation_tolerance_mm > 0 && decimation_tolerance_mm <= 1)) return bad("skin.decimation_tolerance_mm must be in (0, 1]");
-  if (!(data_fit.max_move_mm > 0 && data_fit.max_move_mm <= 10)) return bad("skin.fit_max_move_mm must be in (0, 10]");
-  if (!(data_fit.smoothness > 0 && data_fit.smoothness <= 100)) return bad("the data fit's smoothness must be in (0, 100]");
-  if (data_fit.rounds < 1 || data_fit.rounds > 20) return bad("the data fit's rounds must be in [1, 20]");
-  if (data_fit.max_points < 100 || data_fit.max_points > 10000000) return bad("the data fit's max_points must be in [100, 1e7]");
-  if (!(fair_unseen.seen_mm > 0 && fair_unseen.seen_mm <= 10)) return bad("the fairing's seen_mm must be in (0, 10]");
-  if (!(fair_unseen.crease_deg > 0 && fair_unseen.crease_deg < 180)) return bad("the fairing's crease_deg must be in (0, 180)");
-  if (fair_unseen.rings < 0 || fair_unseen.rings > 50) return bad("the fairing's rings must be in [0, 50]");
-  if (!(fair_unseen.cut_margin_mm >= 0 && fair_unseen.cut_margin_mm <= 50)) return bad("the fairing's cut_margin_mm must be in [0, 50]");
-  if (!(fair_unseen.away_mm >= 0 && fair_unseen.away_mm <= 20)) return bad("the fairing's away_mm must be in [0, 20]");
-  if (!(thumb_overlap_mm >= 0 && thumb_overlap_mm <= 20)) return bad("skin.thumb_overlap_mm must be in [0, 20]");
-  if (cap_rings < 1 || cap_rings > 20) return bad("skin.cap_rings must be in [1, 20]");
-  if (!(window_deg > 0 && window_deg <= 20)) return bad("skin.window_deg must be in (0, 20]");
-  if (!(min_coverage_deg >= 90 && min_coverage_deg <= 360)) return bad("skin.min_coverage_deg must be in [90, 360]");
+    return invalid(error, "skin.max_triangles must be 0 (no decimation) or in [1000, 1000000]");
+  if (!(decimation_tolerance_mm > 0 && decimation_tolerance_mm <= 1)) return invalid(error, "skin.decimation_tolerance_mm must be in (0, 1]");
+  if (!(data_fit.max_move_mm > 0 && data_fit.max_move_mm <= 10)) return invalid(error, "skin.fit_max_move_mm must be in (0, 10]");
+  if (!(data_fit.smoothness > 0 && data_fit.smoothness <= 100)) return invalid(error, "the data fit's smoothness must be in (0, 100]");
+  if (data_fit.rounds < 1 || data_fit.rounds > 20) return invalid(error, "the data fit's rounds must be in [1, 20]");
+  if (data_fit.max_points < 100 || data_fit.max_points > 10000000) return invalid(error, "the data fit's max_points must be in [100, 1e7]");
+  if (!(fair_unseen.seen_mm > 0 && fair_unseen.seen_mm <= 10)) return invalid(error, "the fairing's seen_mm must be in (0, 10]");
+  if (!(fair_unseen.crease_deg > 0 && fair_unseen.crease_deg < 180)) return invalid(error, "the fairing's crease_deg must be in (0, 180)");
+  if (fair_unseen.rings < 0 || fair_unseen.rings > 50) return invalid(error, "the fairing's rings must be in [0, 50]");
+  if (!(fair_unseen.cut_margin_mm >= 0 && fair_unseen.cut_margin_mm <= 50)) return invalid(error, "the fairing's cut_margin_mm must be in [0, 50]");
+  if (!(fair_unseen.away_mm >= 0 && fair_unseen.away_mm <= 20)) return invalid(error, "the fairing's away_mm must be in [0, 20]");
+  if (!(thumb_overlap_mm >= 0 && thumb_overlap_mm <= 20)) return invalid(error, "skin.thumb_overlap_mm must be in [0, 20]");
+  if (cap_rings < 1 || cap_rings > 20) return invalid(error, "skin.cap_rings must be in [1, 20]");
+  if (!(window_deg > 0 && window_deg <= 20)) return invalid(error, "skin.window_deg must be in (0, 20]");
+  if (!(min_coverage_deg >= 90 && min_coverage_deg <= 360)) return invalid(error, "skin.min_coverage_deg must be in [90, 360]");
   return true;
 }
 

@@ -13,15 +13,11 @@
 namespace handskin {
 
 bool SliceOptions::IsValid(std::string* error) const {
-  auto bad = [&](const std::string& m) {
-    if (error) *error = m;
-    return false;
-  };
-  if (planes < 3 || planes > 1000) return bad("slicing.planes must be in [3, 1000]");
-  if (points_per_segment < 2 || points_per_segment > 200) return bad("slicing.points_per_segment must be in [2, 200]");
-  if (smoothing < 0 || smoothing > 5) return bad("smoothing must be in [0, 5]");
-  if (!(closed_gap_deg > 0 && closed_gap_deg < 360)) return bad("closed_gap_deg must be in (0, 360)");
-  if (min_points < 2) return bad("min_points must be >= 2");
+  if (planes < 3 || planes > 1000) return invalid(error, "slicing.planes must be in [3, 1000]");
+  if (points_per_segment < 2 || points_per_segment > 200) return invalid(error, "slicing.points_per_segment must be in [2, 200]");
+  if (smoothing < 0 || smoothing > 5) return invalid(error, "smoothing must be in [0, 5]");
+  if (!(closed_gap_deg > 0 && closed_gap_deg < 360)) return invalid(error, "closed_gap_deg must be in (0, 360)");
+  if (min_points < 2) return invalid(error, "min_points must be >= 2");
   return true;
 }
 

@@ -10,16 +10,12 @@
 namespace handskin {
 
 bool AngleRecordingOptions::IsValid(std::string* error) const {
-  auto bad = [&](const std::string& m) {
-    if (error) *error = m;
-    return false;
-  };
-  if (kind != "gaussian" && kind != "curved") return bad("kind must be 'gaussian' or 'curved'");
-  if (rows < 10 || rows > 1000000) return bad("rows must be in [10, 1000000]");
-  if (person < 0 || person > 1000) return bad("person must be in [0, 1000]");
-  if (!(offset_sd >= 0 && offset_sd <= 30)) return bad("offset sd must be in [0, 30] deg");
-  if (!(gaps >= 0 && gaps <= 0.5)) return bad("gaps must be a fraction in [0, 0.5]");
-  if (!(noise >= 0 && noise <= 20)) return bad("noise must be in [0, 20] deg");
+  if (kind != "gaussian" && kind != "curved") return invalid(error, "kind must be 'gaussian' or 'curved'");
+  if (rows < 10 || rows > 1000000) return invalid(error, "rows must be in [10, 1000000]");
+  if (person < 0 || person > 1000) return invalid(error, "person must be in [0, 1000]");
+  if (!(offset_sd >= 0 && offset_sd <= 30)) return invalid(error, "offset sd must be in [0, 30] deg");
+  if (!(gaps >= 0 && gaps <= 0.5)) return invalid(error, "gaps must be a fraction in [0, 0.5]");
+  if (!(noise >= 0 && noise <= 20)) return invalid(error, "noise must be in [0, 20] deg");
   return true;
 }
 

@@ -31,13 +31,9 @@ struct HandFunction {
 }  // namespace
 
 bool HandMeshOptions::IsValid(std::string* error) const {
-  auto bad = [&](const std::string& m) {
-    if (error) *error = m;
-    return false;
-  };
-  if (!(facet_angle_deg > 0 && facet_angle_deg <= 30)) return bad("facet_angle_deg must be in (0, 30]");
-  if (!(facet_size_mm >= 0.3 && facet_size_mm <= 10)) return bad("facet_size_mm must be in [0.3, 10]");
-  if (!(facet_distance_mm >= 0.005 && facet_distance_mm <= 1)) return bad("facet_distance_mm must be in [0.005, 1]");
+  if (!(facet_angle_deg > 0 && facet_angle_deg <= 30)) return invalid(error, "facet_angle_deg must be in (0, 30]");
+  if (!(facet_size_mm >= 0.3 && facet_size_mm <= 10)) return invalid(error, "facet_size_mm must be in [0.3, 10]");
+  if (!(facet_distance_mm >= 0.005 && facet_distance_mm <= 1)) return invalid(error, "facet_distance_mm must be in [0.005, 1]");
   return true;
 }
 

@@ -41,37 +41,33 @@ Eigen::Vector3d turn(const Eigen::Vector3d& v, const Eigen::Vector3d& a, double 
 }  // namespace
 
 bool HandShapeOptions::IsValid(std::string* error) const {
-  auto bad = [&](const std::string& m) {
-    if (error) *error = m;
-    return false;
-  };
-  if (!(hand_length_mm >= 120 && hand_length_mm <= 260)) return bad("hand_length_mm must be in [120, 260]");
-  if (!(finger_spread_deg >= 0 && finger_spread_deg <= 15)) return bad("finger_spread_deg must be in [0, 15]");
-  if (!(thickness_scale >= 0.7 && thickness_scale <= 1.4)) return bad("thickness_scale must be in [0.7, 1.4]");
-  if (!(width_scale >= 0.7 && width_scale <= 1.4)) return bad("width_scale must be in [0.7, 1.4]");
+  if (!(hand_length_mm >= 120 && hand_length_mm <= 260)) return invalid(error, "hand_length_mm must be in [120, 260]");
+  if (!(finger_spread_deg >= 0 && finger_spread_deg <= 15)) return invalid(error, "finger_spread_deg must be in [0, 15]");
+  if (!(thickness_scale >= 0.7 && thickness_scale <= 1.4)) return invalid(error, "thickness_scale must be in [0.7, 1.4]");
+  if (!(width_scale >= 0.7 && width_scale <= 1.4)) return invalid(error, "width_scale must be in [0.7, 1.4]");
   if (!(finger_thickness_scale >= 0.7 && finger_thickness_scale <= 1.4))
-    return bad("finger_thickness_scale must be in [0.7, 1.4]");
+    return invalid(error, "finger_thickness_scale must be in [0.7, 1.4]");
   if (!(finger_length_scale >= 0.85 && finger_length_scale <= 1.15))
-    return bad("finger_length_scale must be in [0.85, 1.15]");
+    return invalid(error, "finger_length_scale must be in [0.85, 1.15]");
   if (index_ring_ratio && !(*index_ring_ratio >= 0.85 && *index_ring_ratio <= 1.05))
-    return bad("index_ring_ratio must be in [0.85, 1.05]");
-  if (!(thumb_abduction_deg >= 20 && thumb_abduction_deg <= 70)) return bad("thumb_abduction_deg must be in [20, 70]");
-  if (forearm_mm && !(*forearm_mm >= 0 && *forearm_mm <= 40)) return bad("forearm_mm must be in [0, 40]");
-  if (!(thumb_pronation_deg >= 0 && thumb_pronation_deg <= 90)) return bad("thumb_pronation_deg must be in [0, 90]");
+    return invalid(error, "index_ring_ratio must be in [0.85, 1.05]");
+  if (!(thumb_abduction_deg >= 20 && thumb_abduction_deg <= 70)) return invalid(error, "thumb_abduction_deg must be in [20, 70]");
+  if (forearm_mm && !(*forearm_mm >= 0 && *forearm_mm <= 40)) return invalid(error, "forearm_mm must be in [0, 40]");
+  if (!(thumb_pronation_deg >= 0 && thumb_pronation_deg <= 90)) return invalid(error, "thumb_pronation_deg must be in [0, 90]");
   // Joint angles: finite, the carpus fixed, and within what a hand does (and the implicit
   // surface stays a hand: fingers curled further would fold their skin into the palm).
   for (int d = 0; d < kDofCount; ++d) {
     const DofInfo& info = dofs()[d];
     const double a = posture[d];
-    if (!std::isfinite(a)) return bad("posture: " + info.name + " is not a finite number");
+    if (!std::isfinite(a)) return invalid(error, "posture: " + info.name + " is not a finite number");
     if (info.kind == DofKind::Translation || info.kind == DofKind::Rotation) {
-      if (a != 0) return bad("posture: " + info.name + " must be 0 (the synthetic hand stays in its frame)");
+      if (a != 0) return invalid(error, "posture: " + info.name + " must be 0 (the synthetic hand stays in its frame)");
       continue;
     }
     const bool abd = info.kind == DofKind::Abduction;
     const double lo = abd ? -25 : -15, hi = abd ? 25 : 60;
     if (a < lo || a > hi)
-      return bad("posture: " + info.name + " = " + std::to_string(a) + " deg is outside [" + std::to_string(int(lo)) +
+      return invalid(error, "posture: " + info.name + " = " + std::to_string(a) + " deg is outside [" + std::to_string(int(lo)) +
                  ", " + std::to_string(int(hi)) + "] for the synthetic hand");
   }
   return true;

@@ -95,18 +95,14 @@ TriMesh saw_flat(const std::vector<Eigen::Vector3d>& v, const std::vector<std::a
 }  // namespace
 
 bool ReplicaOptions::IsValid(std::string* error) const {
-  auto bad = [&](const std::string& m) {
-    if (error) *error = m;
-    return false;
-  };
-  if (marker_count < 3 || marker_count > 12) return bad("marker_count must be in [3, 12]");
-  if (!(marker_radius_mm >= 0.5 && marker_radius_mm <= 10)) return bad("marker_radius_mm must be in [0.5, 10]");
-  if (!(min_signature_gap_mm >= 0 && min_signature_gap_mm <= 20)) return bad("min_signature_gap_mm must be in [0, 20]");
-  if (min_marker_returns < 1) return bad("min_marker_returns must be >= 1");
+  if (marker_count < 3 || marker_count > 12) return invalid(error, "marker_count must be in [3, 12]");
+  if (!(marker_radius_mm >= 0.5 && marker_radius_mm <= 10)) return invalid(error, "marker_radius_mm must be in [0.5, 10]");
+  if (!(min_signature_gap_mm >= 0 && min_signature_gap_mm <= 20)) return invalid(error, "min_signature_gap_mm must be in [0, 20]");
+  if (min_marker_returns < 1) return invalid(error, "min_marker_returns must be >= 1");
   if (omit_marker_in_back < -1 || omit_marker_in_back >= marker_count)
-    return bad("omit_marker_in_back must be -1 or a marker index below marker_count");
-  if (!(max_yaw_deg >= 0 && max_yaw_deg <= 45)) return bad("max_yaw_deg must be in [0, 45]");
-  if (saw_mm && !(*saw_mm >= 0 && *saw_mm <= 100)) return bad("saw_mm must be in [0, 100]");
+    return invalid(error, "omit_marker_in_back must be -1 or a marker index below marker_count");
+  if (!(max_yaw_deg >= 0 && max_yaw_deg <= 45)) return invalid(error, "max_yaw_deg must be in [0, 45]");
+  if (saw_mm && !(*saw_mm >= 0 && *saw_mm <= 100)) return invalid(error, "saw_mm must be in [0, 100]");
   return true;
 }
 
@@ -187,9 +183,9 @@ namespace {
   // so each marker is checked to be seen from above and from below (nothing of the hand
   // over or under it) before the scans are made.
 std::vector<Eigen::Vector3d> place_markers(const std::vector<Eigen::Vector3d>& hv, const RayCaster& caster,
-                                           const Rig& rig_hand, const ReplicaOptions& ro, Rng& rng) {
+                                           const Rig& rig_hand, HandSide side, const ReplicaOptions& ro, Rng& rng) {
   const auto J = [&](const char* n) { return rig_hand.joints[joint_index(n).value()]; };
-  const double ys = rig_side(rig_hand) == HandSide::Left ? -1.0 : 1.0;  // +: toward the thumb
+  const double ys = side == HandSide::Left ? -1.0 : 1.0;  // +: toward the thumb
   const Eigen::Vector3d l0 = J("pinky-finger-metacarpal"), l1 = J("pinky-finger-phalanx-proximal"),
                         l2 = J("pinky-finger-phalanx-intermediate");
   const Eigen::Vector3d t0 = J("thumb-metacarpal"), t1 = J("thumb-phalanx-proximal"), t2 = J("thumb-phalanx-distal");
@@ -385,7 +381,7 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
   for (auto& j : rig_hand.joints) j = T_hand_rig * j;
   const auto J = [&](const char* n) { return rig_hand.joints[joint_index(n).value()]; };
 
-  std::vector<Eigen::Vector3d> markers = place_markers(hv, caster, rig_hand, ro, rng);
+  std::vector<Eigen::Vector3d> markers = place_markers(hv, caster, rig_hand, rig_side(rig_in), ro, rng);
   const double r = ro.marker_radius_mm;
   // The optional plaster blob: on the back of the middle metacarpal, seen only from above.
   std::vector<Eigen::Vector3d> spheres = markers;  // the markers, then the blob if any

@@ -15,18 +15,14 @@ constexpr double kDeg = M_PI / 180.0;
 }  // namespace
 
 bool ScannerOptions::IsValid(std::string* error) const {
-  auto bad = [&](const std::string& m) {
-    if (error) *error = m;
-    return false;
-  };
-  if (scanlines < 2 || scanlines > 4096 || points < 2 || points > 4096) return bad("scanlines/points must be in [2, 4096]");
-  if (!(x_extent_mm > 0 && y_extent_mm > 0 && z_extent_mm > 0)) return bad("extents must be > 0");
-  if (!(z_step_mm > 0) || z_extent_mm / z_step_mm > 65535) return bad("z_step_mm must be > 0 and fit 16 bits");
-  if (!(table_height_mm > z_step_mm && table_height_mm < z_extent_mm)) return bad("table_height_mm must be inside the range");
-  if (!(std::abs(table_tilt_deg) <= 10)) return bad("table_tilt_deg must be within ±10");
-  if (!(laser_tilt_deg >= 0 && laser_tilt_deg < 60)) return bad("laser_tilt_deg must be in [0, 60)");
-  if (!(max_incidence_deg > 0 && max_incidence_deg < 90)) return bad("max_incidence_deg must be in (0, 90)");
-  if (!(noise_sigma_mm >= 0 && noise_sigma_mm < 5)) return bad("noise_sigma_mm must be in [0, 5)");
+  if (scanlines < 2 || scanlines > 4096 || points < 2 || points > 4096) return invalid(error, "scanlines/points must be in [2, 4096]");
+  if (!(x_extent_mm > 0 && y_extent_mm > 0 && z_extent_mm > 0)) return invalid(error, "extents must be > 0");
+  if (!(z_step_mm > 0) || z_extent_mm / z_step_mm > 65535) return invalid(error, "z_step_mm must be > 0 and fit 16 bits");
+  if (!(table_height_mm > z_step_mm && table_height_mm < z_extent_mm)) return invalid(error, "table_height_mm must be inside the range");
+  if (!(std::abs(table_tilt_deg) <= 10)) return invalid(error, "table_tilt_deg must be within ±10");
+  if (!(laser_tilt_deg >= 0 && laser_tilt_deg < 60)) return invalid(error, "laser_tilt_deg must be in [0, 60)");
+  if (!(max_incidence_deg > 0 && max_incidence_deg < 90)) return invalid(error, "max_incidence_deg must be in (0, 90)");
+  if (!(noise_sigma_mm >= 0 && noise_sigma_mm < 5)) return invalid(error, "noise_sigma_mm must be in [0, 5)");
   return true;
 }
 

@@ -56,7 +56,14 @@ struct SkinTexture {
 };
 
 /// Bake the texture of the skin (`vertices`, `faces`: palm frame, mm, outward) from the two
-/// photos. `markers` (palm frame) of `marker_radius_mm` hide the skin behind them.
+/// photos. `markers` (palm frame) of `marker_radius_mm` hide the skin behind them. The steps
+/// (texture.cpp, `Baker`):
+///   1. visibility      vertex normals, and whether each camera sees each vertex (a ray toward it)
+///   2. choose_charts   each face to the camera it faces more, among those that see it whole
+///   3. lay_out_charts  each chart projected on its scan's plane, one scale for both
+///   4. bake_faces      per texel of each chart face, the photos' colours weighted by how
+///                      squarely each camera sees it; the area shares
+///   5. fill            unseen chart texels from their neighbours, then the charts padded
 SkinTexture bake_skin_texture(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& faces,
                               const ScanPhoto& back, const ScanPhoto& palm, const Eigen::Isometry3d& back_to_palm,
                               const std::vector<Eigen::Vector3d>& markers, double marker_radius_mm,

@@ -1,0 +1,36 @@
+#pragma once
+/// Work on a run folder (`handskin run`'s, or `register` + `skin`'s): what `handskin patches`
+/// does with one, as a pipeline function (the CLI parses, calls and prints).
+#include <functional>
+#include <optional>
+#include <string>
+
+#include "core/rig.hpp"
+#include "patches/layout.hpp"
+#include "pipeline/options.hpp"
+#include "pipeline/patch_stage.hpp"
+#include "scan/truth_io.hpp"
+
+namespace handskin {
+
+/// The rig a run folder's skin was built on: `given` when not empty, else the folder's
+/// rig_auto.json (the automatic skeleton's), else the rig its report.json names. InputError
+/// (naming --rig) when there is none.
+std::string run_folder_rig(const std::string& dir, const std::string& given);
+
+/// The patches of a run folder, and what they were made from.
+struct RunFolderPatches {
+  std::string merged;  ///< the folder's merged.ply
+  Rig rig;             ///< the rig, oriented to the cloud
+  PatchStageResult result;
+};
+
+/// Read the folder's merged cloud, rebuild the skin on `rig` (read from `rig_path`, palm frame)
+/// with the pipeline's skin options, run the patch stage (on `layout` when given) and bind the
+/// control points with the skin's weights as `run` does.
+RunFolderPatches patches_for_run_folder(const std::string& dir, const Rig& rig, const std::string& rig_path,
+                                        const PipelineOptions& po,
+                                        const std::optional<PatchLayout>& layout, const std::string& layout_name,
+                                        const TruthSkin* truth, const std::function<void(const std::string&)>& progress);
+
+}  // namespace handskin

@@ -1,0 +1,38 @@
+#pragma once
+/// Posing a bound skin (docs/rigging.md): one place for what `pose`, the run's report pictures
+/// and the studio do with a posture — the links' motions, the skin deformed by its binding,
+/// and (smooth bindings) the crease guard and the folds untangled.
+#include <Eigen/Geometry>
+#include <array>
+#include <string>
+#include <vector>
+
+#include "posture/skeleton.hpp"
+#include "rigging/binding.hpp"
+#include "rigging/crease.hpp"
+#include "rigging/deform.hpp"
+
+namespace handskin {
+
+class SkinPoser {
+ public:
+  /// A skin (`rest` vertices, `faces`) bound by `binding` to `rig`; `rig_name` names the rig
+  /// in errors. What every posture shares (the guard's planes, the faces' dominant links) is
+  /// made once here.
+  SkinPoser(const std::vector<Eigen::Vector3d>& rest, const std::vector<std::array<int, 3>>& faces,
+            const SkinBinding& binding, const Rig& rig, const std::string& rig_name = "rig");
+
+  /// The skin at `angles`, blended by `blend`; with `guard`, the crease guard and the folds
+  /// untangled after (what `untangled`, when given, reports).
+  std::vector<Eigen::Vector3d> pose(const Angles& angles, Blend blend, bool guard, Untangled* untangled = nullptr) const;
+
+ private:
+  const std::vector<Eigen::Vector3d>& rest_;
+  const std::vector<std::array<int, 3>>& faces_;
+  const SkinBinding& binding_;
+  Skeleton skeleton_;
+  CreaseGuard guard_;
+  std::vector<int> dominant_;
+};
+
+}  // namespace handskin
