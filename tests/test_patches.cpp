@@ -13,6 +13,7 @@
 #include "mesh/point_grid.hpp"
 #include "patches/patches.hpp"
 #include "pipeline/options.hpp"
+#include "pipeline/patch_report.hpp"
 #include "pipeline/patch_stage.hpp"
 #include "pipeline/skin_stage.hpp"
 #include "pipeline/stage_options.hpp"
@@ -110,6 +111,16 @@ TEST(Patches, AClosedSurfaceOfKnownShapeIsFittedWithExactBordersAndSmoothJoins) 
     for (int side = 0; side < 4; ++side)
       for (int k = 0; k < 4; ++k)
         ASSERT_EQ(border(s.patches[f], side, k), border(s.patches[T.neighbour[f][side]], T.neighbour_side[f][side], 3 - k));
+  // Its report page needs no run around it: without a run's report (gates, stages) those
+  // sections are left out, not read from nothing.
+  PatchStageResult page;
+  page.patches = s;
+  page.tessellation = m;
+  const std::string html = patch_report_html(page);
+  EXPECT_NE(html.find("Table 4.1"), std::string::npos);
+  EXPECT_EQ(html.find("Quality gates"), std::string::npos);
+  EXPECT_EQ(html.find("The run"), std::string::npos);
+  EXPECT_NE(patch_report_html(page, Json{{"gates", Json::array()}}).find("Quality gates"), std::string::npos);
 }
 
 // A patch that no point falls on (a hole in the scan over a small patch; at 882 patches a

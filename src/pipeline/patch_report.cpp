@@ -224,6 +224,7 @@ std::string error_histogram_svg(const PatchSkin& s) {
 // The quality gates, measured on the outputs as written (pipeline/gates.hpp); a failed one in red.
 std::string gates_section(const Json& run_report) {
   std::string h;
+  if (!run_report.is_object() || !run_report.contains("gates") || !run_report["gates"].is_array()) return h;
   // Measured on the outputs as written (pipeline/gates.hpp); a failed gate in red.
   h += "<h2>Quality gates</h2>\n<p>Measured on the files as written (skin.ply read back); each limit is a pipeline "
        "key, or fixed for the skin's structure.</p>\n<table>\n" +
