@@ -55,7 +55,7 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
     progress("pose", "warning: " + std::to_string(sol.clamped_inputs) + " input(s) outside the model's limits were clamped onto them");
   Untangled u;
   const std::vector<Eigen::Vector3d> posed =
-      SkinPoser(skin.vertices, skin.faces, skin.binding, skin.rig, a.model).pose(sol.angles, blend, a.crease_guard, &u);
+      SkinPoser(skin.vertices, skin.faces, skin.binding, skin.rig, a.crease_guard, a.model).pose(sol.angles, blend, &u);
   if (a.crease_guard) {
     if (u.folding_before)
       progress("pose", "crease guard: " + std::to_string(u.folding_before) + " folding triangle pair(s) smoothed out over " +

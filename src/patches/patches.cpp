@@ -133,52 +133,48 @@ std::vector<Datum> gather_data(const std::vector<Eigen::Vector3d>& points, const
                                std::vector<int>* in_fit) {
   std::vector<Datum> data;
   in_fit->assign(points.size(), -2);
-  {
-    constexpr double kFarMm = 5.0;  // farther from the skin's every sample: not the skin (a stray sample)
-    const PointGrid near_skin(support, 2.0);
-    std::vector<char> keep(points.size(), 1);
-    if (!support.empty()) {
+  constexpr double kFarMm = 5.0;  // farther from the skin's every sample: not the skin (a stray sample)
+  const PointGrid near_skin(support, 2.0);
+  std::vector<char> keep(points.size(), 1);
+  if (!support.empty()) {
 #pragma omp parallel for schedule(static)
-      for (long k = 0; k < static_cast<long>(points.size()); ++k) keep[k] = near_skin.any_within(points[k], kFarMm);
-    }
-    const size_t measured = static_cast<size_t>(std::count(keep.begin(), keep.end(), 1));
-    const size_t wanted = std::max<size_t>(kFitPoints, 16 * static_cast<size_t>(net_count));
-    const size_t stride = std::max<size_t>(1, measured / wanted);
-    size_t m = 0;
-    for (size_t k = 0; k < points.size(); ++k) {
-      if (!keep[k]) continue;
-      if (m++ % stride == 0) {
-        (*in_fit)[k] = static_cast<int>(data.size());
-        data.push_back({points[k], static_cast<double>(stride), sides[k] == 1 ? 1 : 0});
-      } else {
-        (*in_fit)[k] = -1;
-      }
-    }
-    // The skin's samples only where the scans saw nothing: within kSeenMm of a fitted measured
-    // point they weigh nothing beside it (0.05 against the stride's ~9) but cost as much in
-    // every round's foot points and blocks (on the fixture they were 56 % of the data).
-    constexpr double kSeenMm = 2.0;
-    std::vector<Eigen::Vector3d> fitted;
-    fitted.reserve(data.size());
-    for (const Datum& d : data) fitted.push_back(d.p);
-    const PointGrid seen(fitted, kSeenMm);
-    for (const auto& p : support)
-      if (!seen.any_within(p, kSeenMm)) data.push_back({p, o.skin_weight, -1});
+    for (long k = 0; k < static_cast<long>(points.size()); ++k) keep[k] = near_skin.any_within(points[k], kFarMm);
   }
+  const size_t measured = static_cast<size_t>(std::count(keep.begin(), keep.end(), 1));
+  const size_t wanted = std::max<size_t>(kFitPoints, 16 * static_cast<size_t>(net_count));
+  const size_t stride = std::max<size_t>(1, measured / wanted);
+  size_t m = 0;
+  for (size_t k = 0; k < points.size(); ++k) {
+    if (!keep[k]) continue;
+    if (m++ % stride == 0) {
+      (*in_fit)[k] = static_cast<int>(data.size());
+      data.push_back({points[k], static_cast<double>(stride), sides[k] == 1 ? 1 : 0});
+    } else {
+      (*in_fit)[k] = -1;
+    }
+  }
+  // The skin's samples only where the scans saw nothing: within kSeenMm of a fitted measured
+  // point they weigh nothing beside it (0.05 against the stride's ~9) but cost as much in
+  // every round's foot points and blocks (on the fixture they were 56 % of the data).
+  constexpr double kSeenMm = 2.0;
+  std::vector<Eigen::Vector3d> fitted;
+  fitted.reserve(data.size());
+  for (const Datum& d : data) fitted.push_back(d.p);
+  const PointGrid seen(fitted, kSeenMm);
+  for (const auto& p : support)
+    if (!seen.any_within(p, kSeenMm)) data.push_back({p, o.skin_weight, -1});
   return data;
 }
 
 // --- 3. each datum's first foot point on the started surface ---
 void place_data(const std::vector<BezierPatch>& P, const LayoutTopology& T, std::vector<Datum>* data) {
-  {
-    // 4 mm cells: many points lie millimetres off the layout's bilinear faces, and a search
-    // from them crosses fewer large cells (the nearest sample is the same at any cell size;
-    // this placement took 16 ms on the fixture with 2 mm cells, 7 with 4).
-    const SurfaceSamples S(P, 8);
-    const PointGrid grid(S.p, 4.0);
+  // 4 mm cells: many points lie millimetres off the layout's bilinear faces, and a search
+  // from them crosses fewer large cells (the nearest sample is the same at any cell size;
+  // this placement took 16 ms on the fixture with 2 mm cells, 7 with 4).
+  const SurfaceSamples S(P, 8);
+  const PointGrid grid(S.p, 4.0);
 #pragma omp parallel for schedule(dynamic, 256)
-    for (long k = 0; k < static_cast<long>(data->size()); ++k) locate_globally(P, T, S, grid, &(*data)[k]);
-  }
+  for (long k = 0; k < static_cast<long>(data->size()); ++k) locate_globally(P, T, S, grid, &(*data)[k]);
 }
 
 // --- 5. parameter correction (eqs. 4.6–4.7): foot points on the current surface, refit ---
@@ -288,52 +284,49 @@ void correct_parameters(PatchSkin* out, const LayoutTopology& T, const PatchLayo
 void measure_points(PatchSkin* out, const LayoutTopology& T, const std::vector<Eigen::Vector3d>& points,
                     const std::vector<std::uint32_t>& sides, const std::vector<int>& in_fit,
                     const std::vector<Datum>& data) {
-  {
-    const SurfaceSamples S(out->patches, 16);
-    const PointGrid grid(S.p, 3.0);
-    std::vector<Datum> all(points.size());
-    std::vector<double> r(points.size(), -1);
-    constexpr long kChunk = 256;
+  const SurfaceSamples S(out->patches, 16);
+  const PointGrid grid(S.p, 3.0);
+  std::vector<Datum> all(points.size());
+  std::vector<double> r(points.size(), -1);
+  constexpr long kChunk = 256;
 #pragma omp parallel for schedule(dynamic, kChunk)
-    for (long k = 0; k < static_cast<long>(points.size()); ++k) {
-      if (in_fit[k] == -2) continue;
-      Datum& d = all[k];
-      if (in_fit[k] >= 0) {
-        d = data[in_fit[k]];
-        if (foot_point(out->patches, T, &d, 8)) locate_globally(out->patches, T, S, grid, &d);
+  for (long k = 0; k < static_cast<long>(points.size()); ++k) {
+    if (in_fit[k] == -2) continue;
+    Datum& d = all[k];
+    if (in_fit[k] >= 0) {
+      d = data[in_fit[k]];
+      if (foot_point(out->patches, T, &d, 8)) locate_globally(out->patches, T, S, grid, &d);
+    } else {
+      // From the foot point of the point before it in scan order (its neighbour on the range
+      // image's row) when this thread has placed it already (the same chunk of the loop's:
+      // the same start whatever the threads), else of the fitted point before it, else from
+      // the whole surface.
+      long from = k - 1;
+      const Datum* start = nullptr;
+      if (k % kChunk != 0 && in_fit[from] != -2 && (points[from] - points[k]).norm() < 3) {
+        start = &all[from];
       } else {
-        // From the foot point of the point before it in scan order (its neighbour on the range
-        // image's row) when this thread has placed it already (the same chunk of the loop's:
-        // the same start whatever the threads), else of the fitted point before it, else from
-        // the whole surface.
-        long from = k - 1;
-        const Datum* start = nullptr;
-        if (k % kChunk != 0 && in_fit[from] != -2 && (points[from] - points[k]).norm() < 3) {
-          start = &all[from];
-        } else {
-          while (from >= 0 && in_fit[from] < 0) --from;
-          if (from >= 0 && k - from < 64 && (data[in_fit[from]].p - points[k]).norm() < 3) start = &data[in_fit[from]];
-        }
-        if (start) d = *start;
-        d.p = points[k], d.side = sides[k] == 1 ? 1 : 0;
-        if (!start || foot_point(out->patches, T, &d, 6)) locate_globally(out->patches, T, S, grid, &d);
+        while (from >= 0 && in_fit[from] < 0) --from;
+        if (from >= 0 && k - from < 64 && (data[in_fit[from]].p - points[k]).norm() < 3) start = &data[in_fit[from]];
       }
-      r[k] = (out->patches[d.patch].eval(d.s, d.t) - d.p).norm();
-      if (r[k] > kRecheckMm) r[k] = nearest_sheet(out->patches, T, S, grid, &d, r[k]);
+      if (start) d = *start;
+      d.p = points[k], d.side = sides[k] == 1 ? 1 : 0;
+      if (!start || foot_point(out->patches, T, &d, 6)) locate_globally(out->patches, T, S, grid, &d);
     }
-    std::vector<double> residual[2];
-    double worst[2] = {-1, -1};
-    for (size_t k = 0; k < points.size(); ++k) {
-      if (in_fit[k] == -2) continue;
-      const Datum& d = all[k];
-      if (r[k] > worst[d.side]) worst[d.side] = r[k], out->worst_patch[d.side] = out->patches[d.patch].name;
-      residual[d.side].push_back(r[k]);
-      out->samples.push_back({d.p, static_cast<float>(r[k]), static_cast<std::uint8_t>(d.side), d.patch,
-                             static_cast<float>(d.s), static_cast<float>(d.t)});
-    }
-    out->side = {figures_of(residual[0]), figures_of(residual[1])};
+    r[k] = (out->patches[d.patch].eval(d.s, d.t) - d.p).norm();
+    if (r[k] > kRecheckMm) r[k] = nearest_sheet(out->patches, T, S, grid, &d, r[k]);
   }
-
+  std::vector<double> residual[2];
+  double worst[2] = {-1, -1};
+  for (size_t k = 0; k < points.size(); ++k) {
+    if (in_fit[k] == -2) continue;
+    const Datum& d = all[k];
+    if (r[k] > worst[d.side]) worst[d.side] = r[k], out->worst_patch[d.side] = out->patches[d.patch].name;
+    residual[d.side].push_back(r[k]);
+    out->samples.push_back({d.p, static_cast<float>(r[k]), static_cast<std::uint8_t>(d.side), d.patch,
+                           static_cast<float>(d.s), static_cast<float>(d.t)});
+  }
+  out->side = {figures_of(residual[0]), figures_of(residual[1])};
 }
 
 // --- 7. the binding, the patches' links, continuity figures ---

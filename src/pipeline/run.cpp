@@ -47,7 +47,8 @@ std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, const TriMesh& me
   BindingOptions rb;
   rb.mode = "rigid";
   const SkinBinding rigid = bind_skin(mesh, bones_from_rig(s.rig), rb);
-  const SkinPoser smooth_poser(s.vertices, s.faces, s.binding, s.rig), rigid_poser(s.vertices, s.faces, rigid, s.rig);
+  const SkinPoser smooth_poser(s.vertices, s.faces, s.binding, s.rig, true),
+      rigid_poser(s.vertices, s.faces, rigid, s.rig, false);
   const PostureInputs fist = fist_inputs();
   PostureInputs l2;
   l2.pins.emplace_back(dof_index("little.mcp.flex").value(), 75.0);
@@ -64,8 +65,7 @@ std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, const TriMesh& me
         {"fist", &closed, &s.binding}, {"little MCP 75° alone: the solver fills in the rest", &little, &s.binding},
         {"fist, rigid binding (the thesis)", &closed, &rigid}, {"little MCP 75°, rigid binding (the thesis)", &little, &rigid}}) {
     const bool is_rigid = binding == &rigid;
-    const auto v = (is_rigid ? rigid_poser : smooth_poser)
-                       .pose(*angles, is_rigid ? Blend::Linear : Blend::DualQuaternion, !is_rigid);
+    const auto v = (is_rigid ? rigid_poser : smooth_poser).pose(*angles, is_rigid ? Blend::Linear : Blend::DualQuaternion);
     const TriMesh m = mesh_from_arrays(v, s.faces);
     out.push_back({caption, render_mesh_png({&m}, ro)});
   }
@@ -119,11 +119,11 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
                      [&](const std::string& m) { progress("registration: " + m); });
   for (const auto& w : R.registration.warnings) progress("warning: " + w);
   if (truth) R.registration_truth = registration_against_truth(R.registration, *truth);
-  R.merged_png = merged_preview_png(R.registration);
+  MergedArrays merged = merged_arrays(*R.registration.merged);  // the preview's and the skin's
+  R.merged_png = merged_preview_png(merged, R.registration.markers_palm);
   R.registration_seconds = t_reg.seconds();
 
   // --- skin: strips from the merged cloud, closed into one mesh (docs/skin.md) ---
-  MergedArrays merged = merged_arrays(*R.registration.merged);
   si.points = std::move(merged.points);
   si.normals = std::move(merged.normals);
   si.sides = std::move(merged.sides);

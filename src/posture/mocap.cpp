@@ -20,8 +20,6 @@ namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 const Eigen::Vector3d kMissing(kNaN, kNaN, kNaN);
 
-std::vector<std::string> split_tabs(const std::string& line) { return split_fields(line, '\t', false); }
-
 bool parse_number(const std::string& s, double* v) {
   if (s.empty()) return false;
   char* end = nullptr;
@@ -64,7 +62,7 @@ MarkerTrack parse_qualisys_tsv(const std::string& text, const std::string& file)
   bool data = false;
   while (std::getline(in, line)) {
     ++lineno;
-    const auto cells = split_tabs(line);
+    const auto cells = split_fields(line, '\t', false);
     const std::string where = file + ":" + std::to_string(lineno);
     if (!data) {
       if (cells[0] == "MARKER_NAMES") {
@@ -131,7 +129,7 @@ MarkerTrack parse_trc(const std::string& text, const std::string& file) {
   int stage = 0;  // 0: PathFileType, 1: keys, 2: values, 3: names, 4: X1 Y1 Z1, 5: data
   while (std::getline(in, line)) {
     ++lineno;
-    const auto cells = split_tabs(line);
+    const auto cells = split_fields(line, '\t', false);
     const std::string where = file + ":" + std::to_string(lineno);
     if (stage == 0) {
       if (cells[0] != "PathFileType") throw InputError(where, "not a TRC file (first line must start with PathFileType)");

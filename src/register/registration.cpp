@@ -228,17 +228,16 @@ void estimate_marker_radius(const PreparedScan& back, const PreparedScan& palm, 
   }
 }
 
-// One shared radius refitted to the caps detected at `rc` that agree with it: the next
-// estimate, or none when fewer than 6 caps agree (then `*sd` is left as it is).
+// One shared radius refitted to the caps detected at the current radius (o.spheres) that agree
+// with it: the next estimate, or none when fewer than 6 caps agree (then `*sd` is left as is).
 std::optional<double> refit_shared_radius(const PreparedScan& back, const PreparedScan& palm, const RegistrationOptions& o,
-                           const MarkerHints* hints, double rc, double* sd) {
+                                          const MarkerHints* hints, double* sd) {
+  const double rc = o.spheres.radius_mm;
   std::vector<SphereFit> fits[2];  // both scans at once: independent, each into its own slot
   both_sides([&](int side) {
     // With manual positions, the same caps as the final fit will take.
     const std::optional<std::vector<Eigen::Vector3d>>* h = hints ? (side == 0 ? &hints->back : &hints->palm) : nullptr;
-    SphereOptions so = o.spheres;
-    so.radius_mm = rc;
-    fits[side] = caps_in_scan(side == 0 ? back : palm, h, so);
+    fits[side] = caps_in_scan(side == 0 ? back : palm, h, o.spheres);
   });
   std::vector<double> radii;
   for (const auto& side : fits)
@@ -298,7 +297,7 @@ void settle_radius(const PreparedScan& back, const PreparedScan& palm, Registrat
     d->refinement_mm = {d->radius_mm};
     for (int it = 0; it < 5; ++it) {
       const double rc = o->spheres.radius_mm;
-      const std::optional<double> refit = refit_shared_radius(back, palm, *o, hints, rc, &d->sd_mm);
+      const std::optional<double> refit = refit_shared_radius(back, palm, *o, hints, &d->sd_mm);
       if (!refit) break;  // too few caps agree
       const double next = *refit;
       d->refinement_mm.push_back(next);

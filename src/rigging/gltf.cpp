@@ -288,7 +288,7 @@ void add_nodes(tinygltf::Model& m, const std::array<JointNode, kJointCount>& nod
 }
 
 // The skin: the joints and their inverse bind matrices (the rest posture).
-void add_skin(tinygltf::Model& m, const std::vector<Eigen::Isometry3d>& rest) {
+void add_skin(tinygltf::Model& m, const std::array<Eigen::Isometry3d, kJointCount>& rest) {
   std::vector<float> ibm;
   for (int j = 0; j < kJointCount; ++j) {
     Eigen::Isometry3d r = rest[j];
@@ -398,7 +398,7 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose, con
   split_seams(s, textured, &source, &uv, &faces);
   add_mesh(m, s, vertex_arrays(s, source), source.size(), faces, uv, textured);
   add_nodes(m, nodes);
-  add_skin(m, std::vector<Eigen::Isometry3d>(rest.begin(), rest.end()));
+  add_skin(m, rest);
   if (animation && !animation->frames.empty()) add_animation(m, skel, nodes, animation);
   add_scene(m, s, pose, source, textured);
 

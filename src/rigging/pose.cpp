@@ -3,18 +3,17 @@
 namespace handskin {
 
 SkinPoser::SkinPoser(const std::vector<Eigen::Vector3d>& rest, const std::vector<std::array<int, 3>>& faces,
-                     const SkinBinding& binding, const Rig& rig, const std::string& rig_name)
-    : rest_(rest),
-      faces_(faces),
-      binding_(binding),
-      skeleton_(rig, rig_name),
-      guard_(crease_guard(rest, binding, rig)),
-      dominant_(dominant_links(faces, binding)) {}
+                     const SkinBinding& binding, const Rig& rig, bool guard, const std::string& rig_name)
+    : rest_(rest), faces_(faces), binding_(binding), skeleton_(rig, rig_name), guard_on_(guard) {
+  if (!guard_on_) return;
+  guard_ = crease_guard(rest, binding, rig);
+  dominant_ = dominant_links(faces, binding);
+}
 
-std::vector<Eigen::Vector3d> SkinPoser::pose(const Angles& angles, Blend blend, bool guard, Untangled* untangled) const {
+std::vector<Eigen::Vector3d> SkinPoser::pose(const Angles& angles, Blend blend, Untangled* untangled) const {
   const auto motions = link_motions(skeleton_, angles);
   std::vector<Eigen::Vector3d> posed = deform(rest_, binding_, motions, blend);
-  if (guard) {
+  if (guard_on_) {
     guard_creases(guard_, motions, &posed);
     const Untangled u = untangle_folds(faces_, dominant_, &posed);
     if (untangled) *untangled = u;

@@ -1,7 +1,7 @@
 #pragma once
-/// Posing a bound skin (docs/rigging.md): one place for what `pose`, the run's report pictures
-/// and the studio do with a posture — the links' motions, the skin deformed by its binding,
-/// and (smooth bindings) the crease guard and the folds untangled.
+/// Posing a bound skin (docs/rigging.md): one place for what `pose` and the run's report
+/// pictures do with a posture — the links' motions, the skin deformed by its binding, and
+/// (with the guard) the crease guard and the folds untangled.
 #include <Eigen/Geometry>
 #include <array>
 #include <string>
@@ -17,20 +17,22 @@ namespace handskin {
 class SkinPoser {
  public:
   /// A skin (`rest` vertices, `faces`) bound by `binding` to `rig`; `rig_name` names the rig
-  /// in errors. What every posture shares (the guard's planes, the faces' dominant links) is
-  /// made once here.
+  /// in errors. With `guard`, every posture gets the crease guard and its folds untangled;
+  /// what they share (the guard's planes, the faces' dominant links) is made once here, and
+  /// only then.
   SkinPoser(const std::vector<Eigen::Vector3d>& rest, const std::vector<std::array<int, 3>>& faces,
-            const SkinBinding& binding, const Rig& rig, const std::string& rig_name = "rig");
+            const SkinBinding& binding, const Rig& rig, bool guard, const std::string& rig_name = "rig");
 
-  /// The skin at `angles`, blended by `blend`; with `guard`, the crease guard and the folds
-  /// untangled after (what `untangled`, when given, reports).
-  std::vector<Eigen::Vector3d> pose(const Angles& angles, Blend blend, bool guard, Untangled* untangled = nullptr) const;
+  /// The skin at `angles`, blended by `blend`; `untangled` (when given) reports what the
+  /// guard's untangling did.
+  std::vector<Eigen::Vector3d> pose(const Angles& angles, Blend blend, Untangled* untangled = nullptr) const;
 
  private:
   const std::vector<Eigen::Vector3d>& rest_;
   const std::vector<std::array<int, 3>>& faces_;
   const SkinBinding& binding_;
   Skeleton skeleton_;
+  bool guard_on_;
   CreaseGuard guard_;
   std::vector<int> dominant_;
 };
