@@ -22,12 +22,15 @@ namespace {
 // ---------------- run ----------------
 struct RunArgs {
   RunInputs in;
+  std::string units = "mm", hand;
   std::string out_dir;
   bool force = false, strict = false;
 };
 
 void run_command(RunArgs a, const Progress& progress) {
   RunInputs& in = a.in;
+  in.units = *parse_length_unit(a.units);  // checked by the parser
+  if (!a.hand.empty()) in.hand = a.hand == "left" ? HandSide::Left : HandSide::Right;
   OutputSet out(a.out_dir, output_options(a.force));  // an output path that cannot be a folder fails before any work
   if (!in.pipeline_path.empty()) in.options = load_pipeline(in.pipeline_path);
   out.claim(run_output_plan(in), run_output_names());  // the folder writable, locked, its names ours
@@ -220,9 +223,20 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
 void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* out) {
   auto ra = std::make_shared<RunArgs>();
   RunInputs* in = &ra->in;
-  auto* run = app.add_subcommand("run", "Run the pipeline on a back/palm scan pair (and a rig, or none)");
-  run->add_option("--back", in->back_stem, "Back scan stem (<stem>.png + <stem>.json)")->required();
-  run->add_option("--palm", in->palm_stem, "Palm scan stem")->required();
+  auto* run = app.add_subcommand("run", "Run the pipeline on a back/palm scan pair, or on a cloud from any scanner (and a "
+                                        "rig, or none)");
+  auto* back = run->add_option("--back", in->back_stem, "Back scan stem (<stem>.png + <stem>.json)");
+  auto* palm = run->add_option("--palm", in->palm_stem, "Palm scan stem");
+  auto* cloud = run->add_option("--cloud", in->clouds,
+                                "Instead of --back/--palm: a hand's cloud from any scanner, one merged scan (.ply, .pcd, "
+                                ".obj, .stl, .off, .xyz, .pts, .txt; docs/clouds.md)")
+                    ->expected(1);
+  run->add_option("--units", ra->units, "--cloud: the cloud's units (mm, cm, m or in)")
+      ->check(CLI::IsMember({"mm", "cm", "m", "in"}))
+      ->capture_default_str();
+  run->add_option("--hand", ra->hand, "--cloud: which hand it is (left or right), when the fingers are too straight to tell "
+                                      "the palm from the back and there is no --rig")
+      ->check(CLI::IsMember({"left", "right"}));
   run->add_option("--rig", in->rig_path, "hand-rig/1 file, joints in the palm frame (default: placed automatically)");
   run->add_flag("--auto-rig", in->auto_rig, "Place the skeleton automatically even with --rig, and report its joint error");
   run->add_option("--out", ra->out_dir, "Output folder (created if needed; only files handskin wrote there and that are unchanged "
@@ -243,6 +257,17 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
                                       "handskin) aside into <out>/handskin-backup-<date>/ instead of refusing");
   run->add_flag("--strict", ra->strict, "A failed quality gate (report.json \"gates\") writes nothing and exits 3");
   run->add_flag("--baseline", in->baseline, "Also a Poisson reconstruction of the cloud (baseline.ply and its figures, for comparison; ~0.5 s)");
+  run->parse_complete_callback([run, back, palm, cloud] {
+    if (cloud->count() > 0) {
+      for (const char* scan_only : {"--back", "--palm", "--markers", "--back-photo", "--palm-photo"})
+        if (run->count(scan_only) > 0) throw CLI::ValidationError(scan_only, "is for a scan pair, not with --cloud");
+    } else {
+      for (const char* cloud_only : {"--units", "--hand"})
+        if (run->count(cloud_only) > 0) throw CLI::ValidationError(cloud_only, "is for --cloud");
+      if (back->count() == 0 || palm->count() == 0)
+        throw CLI::RequiredError("--back and --palm (a scan pair), or --cloud (any scanner's cloud),");
+    }
+  });
   out->push_back({run, [ra, &progress] { run_command(*ra, progress); }});
 
   auto rg = std::make_shared<RegisterArgs>();

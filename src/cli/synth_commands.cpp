@@ -1,4 +1,4 @@
-// synth hand, synth scan: synthetic data.
+// synth hand, synth scan, synth cloud, synth angles: synthetic data.
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -9,7 +9,10 @@
 #include "core/output_set.hpp"
 #include "core/rig.hpp"
 #include "render/preview.hpp"
+#include "scan/cloud.hpp"
+#include "scan/cloud_file.hpp"
 #include "scan/cubist_io.hpp"
+#include "synth/cloud_sim.hpp"
 #include "synth/hand_mesher.hpp"
 #include "posture/angle_table.hpp"
 #include "synth/angle_recording.hpp"
@@ -131,6 +134,50 @@ void synth_scan(const SynthScanArgs& a, const Progress& progress) {
     for (const char* f : {"back.photo.png", "palm.photo.png"}) std::printf("%s\n", out.final_path(f).c_str());
 }
 
+// ---------------- synth cloud ----------------
+struct SynthCloudArgs {
+  std::string mesh, rig, out = "cloud";
+  std::uint64_t seed = 1;
+  CloudSimOptions sim;
+  std::string units = "mm";
+  bool halves = false, force = false;
+};
+
+Cloud to_pcl_cloud(const std::vector<Eigen::Vector3d>& pts) {
+  Cloud c;
+  c.reserve(pts.size());
+  for (const auto& p : pts) c.push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
+  return c;
+}
+
+void synth_cloud(SynthCloudArgs a, const Progress& progress) {
+  OutputSet out(a.out, output_options(a.force));
+  a.sim.units_per_mm = 1.0 / millimetres_per(*parse_length_unit(a.units));
+  std::string err;
+  check_options(a.sim.IsValid(&err), "cloud options", err);
+  const std::vector<std::string> all = {"cloud.ply", "a.ply", "b.ply", "rig.json", "truth.json", "truth_skin.ply"};
+  std::vector<std::string> plan = {"cloud.ply", "rig.json", "truth.json", "truth_skin.ply"};
+  if (a.halves) plan.insert(plan.end(), {"a.ply", "b.ply"});
+  out.claim(plan, all);
+  const TriMesh hand = load_mesh(a.mesh);
+  const Rig rig = load_rig(a.rig);
+  progress("synth cloud", "scanning from " + std::to_string(a.sim.views) + " views (seed " + std::to_string(a.seed) + ")");
+  const CloudSim sim = simulate_cloud(hand, rig, a.sim, a.seed);
+  save_cloud(out.stage("cloud.ply"), to_pcl_cloud(sim.points));
+  if (a.halves) {
+    save_cloud(out.stage("a.ply"), to_pcl_cloud(sim.half_a));
+    save_cloud(out.stage("b.ply"), to_pcl_cloud(sim.half_b));
+  }
+  save_rig(out.stage("rig.json"), sim.rig);
+  save_mesh(out.stage("truth_skin.ply"), sim.skin);
+  save_json(out.stage("truth.json"), cloud_truth_to_json(sim, rig, a.seed, a.sim, "truth_skin.ply"));
+  out.commit();
+  progress("synth cloud", std::to_string(sim.points.size()) + " points: " + std::to_string(sim.hand_points) + " hand, " +
+                              std::to_string(sim.stand_points) + " stand, " + std::to_string(sim.outliers) +
+                              " outliers; " + std::to_string(sim.dropped_grazing) + " grazing returns dropped");
+  for (const auto& f : plan) std::printf("%s\n", out.final_path(f).c_str());
+}
+
 // ---------------- synth angles ----------------
 struct SynthAnglesArgs {
   AngleRecordingOptions options;
@@ -151,7 +198,7 @@ void synth_angles(const SynthAnglesArgs& a, const Progress& progress) {
 }  // namespace
 
 void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) {
-  auto* synth = app.add_subcommand("synth", "Make synthetic data: a hand of the family, a scan pair of a hand, or a joint-angle recording");
+  auto* synth = app.add_subcommand("synth", "Make synthetic data: a hand of the family, a scan pair or a cloud of a hand, or a joint-angle recording");
   synth->require_subcommand(1);
   auto sh = std::make_shared<SynthHandArgs>();
   auto* shc = synth->add_subcommand(
@@ -221,6 +268,31 @@ void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) 
   ssc->add_flag("!--no-photos", ss->photos,
                 "Do not write the scans' photos (back.photo.png, palm.photo.png: the camera's colour image on each "
                 "range image's grid, which run projects onto the skin as its texture)");
+  auto sc = std::make_shared<SynthCloudArgs>();
+  auto* scc = synth->add_subcommand("cloud", "Scan a hand from around as today's scanners do: an unorganized cloud (or two "
+                                             "halves) with noise along the rays, grazing dropouts, a stand, outliers, an "
+                                             "arbitrary pose, and its truth");
+  scc->add_option("--mesh", sc->mesh, "Hand surface mesh (.ply/.obj/.off), same frame as --rig")->required();
+  scc->add_option("--rig", sc->rig, "hand-rig/1 of that mesh")->required();
+  scc->add_option("--out", sc->out, "Output folder: cloud.ply (a.ply, b.ply with --halves), rig.json, truth.json, "
+                                    "truth_skin.ply (the cloud's frame = b's)")
+      ->capture_default_str();
+  scc->add_option("--seed", sc->seed, "Random seed (noise, dropouts, outliers, pose)")->capture_default_str();
+  scc->add_option("--views", sc->sim.views, "Directions around the hand's long axis")->capture_default_str();
+  scc->add_option("--tilt", sc->sim.tilt_deg, "Views tilted alternately toward the fingertips and the wrist, deg")->capture_default_str();
+  scc->add_option("--spacing", sc->sim.spacing_mm, "Ray spacing in each view, mm")->capture_default_str();
+  scc->add_option("--noise", sc->sim.noise_mm, "Noise along the rays (sigma), mm")->capture_default_str();
+  scc->add_option("--max-incidence", sc->sim.max_incidence_deg, "Steepest surface that returns, deg")->capture_default_str();
+  scc->add_option("--dropout-from", sc->sim.dropout_from_deg, "Returns thin out from this incidence on, deg")->capture_default_str();
+  scc->add_flag("!--no-stand", sc->sim.stand, "No stand under the wrist end");
+  scc->add_option("--outliers", sc->sim.outlier_share, "Stray points, as a share of the points")->capture_default_str();
+  scc->add_flag("!--hand-frame", sc->sim.arbitrary_pose, "Keep the hand frame (no random pose)");
+  scc->add_option("--units", sc->units, "Units of the written coordinates: mm, cm, m or in")
+      ->check(CLI::IsMember({"mm", "cm", "m", "in"}))->capture_default_str();
+  scc->add_flag("--halves", sc->halves, "Also write the back views and the palm views as two clouds (a.ply, b.ply), each in a pose of its own");
+  scc->add_flag("--force", sc->force, "Move things in the way of an output aside into a dated backup folder instead of refusing");
+  out->push_back({scc, [sc, &progress] { synth_cloud(*sc, progress); }});
+
   auto sa = std::make_shared<SynthAnglesArgs>();
   auto* sac = synth->add_subcommand(
       "angles", "A joint-angle recording with known structure (a Gaussian of three synergies, or a curved grasp), to test calibration");

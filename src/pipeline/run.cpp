@@ -73,21 +73,53 @@ std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, const TriMesh& me
 }
 }  // namespace
 
-RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
-  const StageTimer total;
-  RunResult R;
-  R.inputs = in;
-
-  // --- ingest: read and check every input before any work ---
-  progress("ingest: reading scans and rig");
-  const StageTimer t_ingest;
-  const RangeScan back = load_scan_side(in.back_stem, ScanSide::Back, "--back");
-  const RangeScan palm = load_scan_side(in.palm_stem, ScanSide::Palm, "--palm");
+namespace {
+// A scan pair read and checked (the first inputs read, so their errors come first).
+std::pair<RangeScan, RangeScan> read_scans(const RunInputs& in) {
+  RangeScan back = load_scan_side(in.back_stem, ScanSide::Back, "--back");
+  RangeScan palm = load_scan_side(in.palm_stem, ScanSide::Palm, "--palm");
   for (const auto* s : {&back, &palm})
     if (static_cast<long>(s->count_valid()) < in.options.ingest.min_returns)
       throw InputError((s == &back ? in.back_stem : in.palm_stem) + ".png",
                        "only " + std::to_string(s->count_valid()) + " measured samples (ingest.min_returns is " +
                            std::to_string(in.options.ingest.min_returns) + ")");
+  return {std::move(back), std::move(palm)};
+}
+
+// Registration of a scan pair: the back scan into the palm frame. Returns the merged arrays
+// the skin takes.
+MergedArrays register_pair(const RunInputs& in, const RangeScan& back, const RangeScan& palm, const MarkerHints& hints,
+                           const std::optional<TruthSkin>& truth, RunResult* Rp, const ProgressFn& progress) {
+  RunResult& R = *Rp;
+  const StageTimer t_reg;
+  R.registration =
+      register_scans(back, palm, in.back_stem + ".png", in.palm_stem + ".png", registration_options(in.options),
+                     in.markers_path.empty() ? nullptr : &hints,
+                     [&](const std::string& m) { progress("registration: " + m); });
+  for (const auto& w : R.registration.warnings) progress("warning: " + w);
+  if (truth) R.registration_truth = registration_against_truth(R.registration, *truth);
+  MergedArrays merged = merged_arrays(*R.registration.merged);  // the preview's and the skin's
+  R.merged_png = merged_preview_png(merged, R.registration.markers_palm);
+  R.registration_seconds = t_reg.seconds();
+  return merged;
+}
+}  // namespace
+
+RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
+  const StageTimer total;
+  RunResult R;
+  R.inputs = in;
+  const bool clouds = !in.clouds.empty();
+
+  // --- ingest: read and check every input before any work ---
+  const StageTimer t_ingest;
+  std::optional<std::pair<RangeScan, RangeScan>> scans;
+  if (clouds) {
+    progress("ingest: reading the rig");
+  } else {
+    progress("ingest: reading scans and rig");
+    scans = read_scans(in);
+  }
   SkinStageInputs si;
   if (!in.rig_path.empty()) {
     si.rig = load_palm_rig(in.rig_path);
@@ -99,35 +131,40 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   if (!in.markers_path.empty()) hints = load_marker_hints(in.markers_path);
   const PostureModel posture_model = load_model(in.posture_model);
   const PostureSolver model_check(posture_model);  // refused now, not after the stages
-  // The photos: given, or found beside the scans.
+  MergedArrays merged;
   std::optional<ScanPhoto> back_photo, palm_photo;
-  if (const auto photos = run_photo_paths(in, &R.texture_note)) {
-    back_photo = load_scan_photo(photos->first, back);
-    palm_photo = load_scan_photo(photos->second, palm);
+  if (clouds) {
+    // --- a cloud from any scanner: read, cleaned, oriented (docs/clouds.md) ---
+    CloudStageInputs ci;
+    ci.files = in.clouds;
+    ci.units = in.units;
+    ci.hand = in.hand;
+    ci.rig = si.rig ? &*si.rig : nullptr;
+    R.cloud = run_cloud_stage(ci, [&](const std::string& m) { progress("cloud: " + m); });
+    merged = R.cloud->merged();
+    R.merged_png = merged_preview_png(merged, {});
+    R.texture_note = "no texture: a cloud has no photos";
+    si.cloud_name = in.clouds[0];
+  } else {
+    const auto& [back, palm] = *scans;
+    // The photos: given, or found beside the scans.
+    if (const auto photos = run_photo_paths(in, &R.texture_note)) {
+      back_photo = load_scan_photo(photos->first, back);
+      palm_photo = load_scan_photo(photos->second, palm);
+    }
+    R.back = scan_figures(back, in.back_stem);
+    R.palm = scan_figures(palm, in.palm_stem);
+    R.back_cloud = dense_copy(*scan_to_organized_cloud(back));
+    R.palm_cloud = dense_copy(*scan_to_organized_cloud(palm));
+    R.ingest_seconds = t_ingest.seconds();
+    merged = register_pair(in, back, palm, hints, truth, &R, progress);
+    si.cloud_name = "merged cloud of " + in.back_stem + " and " + in.palm_stem;
   }
-  R.back = scan_figures(back, in.back_stem);
-  R.palm = scan_figures(palm, in.palm_stem);
-  R.back_cloud = dense_copy(*scan_to_organized_cloud(back));
-  R.palm_cloud = dense_copy(*scan_to_organized_cloud(palm));
-  R.ingest_seconds = t_ingest.seconds();
-
-  // --- registration: the back scan into the palm frame, merged cloud ---
-  const StageTimer t_reg;
-  R.registration =
-      register_scans(back, palm, in.back_stem + ".png", in.palm_stem + ".png", registration_options(in.options),
-                     in.markers_path.empty() ? nullptr : &hints,
-                     [&](const std::string& m) { progress("registration: " + m); });
-  for (const auto& w : R.registration.warnings) progress("warning: " + w);
-  if (truth) R.registration_truth = registration_against_truth(R.registration, *truth);
-  MergedArrays merged = merged_arrays(*R.registration.merged);  // the preview's and the skin's
-  R.merged_png = merged_preview_png(merged, R.registration.markers_palm);
-  R.registration_seconds = t_reg.seconds();
 
   // --- skin: strips from the merged cloud, closed into one mesh (docs/skin.md) ---
   si.points = std::move(merged.points);
   si.normals = std::move(merged.normals);
   si.sides = std::move(merged.sides);
-  si.cloud_name = "merged cloud of " + in.back_stem + " and " + in.palm_stem;
   si.auto_rig = in.auto_rig;
   si.baseline = in.baseline || in.options.skin.baseline;
   si.slices = in.options.skin.slices_json;
@@ -185,6 +222,10 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
 }
 
 std::optional<std::pair<std::string, std::string>> run_photo_paths(const RunInputs& in, std::string* note) {
+  if (!in.clouds.empty()) {
+    if (note) *note = "no texture: a cloud has no photos";
+    return std::nullopt;
+  }
   if (!in.options.texture.enabled) {
     if (note) *note = "no texture: texture.enabled is false";
     return std::nullopt;
@@ -199,6 +240,14 @@ std::optional<std::pair<std::string, std::string>> run_photo_paths(const RunInpu
 }
 
 std::vector<std::string> run_output_plan(const RunInputs& in) {
+  if (!in.clouds.empty()) {
+    std::vector<std::string> n = {"report.json", "skin.glb", "merged.ply", "merged.png"};
+    const auto skin = skin_output_plan(in.auto_rig || in.rig_path.empty(), in.options.skin.slices_json,
+                                       in.baseline || in.options.skin.baseline);
+    n.insert(n.end(), skin.begin(), skin.end());
+    if (in.options.patches.enabled) n.insert(n.end(), patch_output_names().begin(), patch_output_names().end());
+    return n;
+  }
   std::vector<std::string> n = {"back.ply", "palm.ply", "report.json", "skin.glb"};
   if (run_photo_paths(in)) n.push_back("texture.png");
   n.insert(n.end(), registration_output_names().begin(), registration_output_names().end());
@@ -221,41 +270,57 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
   const StageTimer t_write;
   const RunInputs& in = r.inputs;
   Json outputs;
-  save_cloud(out.stage("back.ply"), *r.back_cloud);
-  outputs["back_cloud"] = out.final_path("back.ply");
-  save_cloud(out.stage("palm.ply"), *r.palm_cloud);
-  outputs["palm_cloud"] = out.final_path("palm.ply");
-  Json reg_report = registration_to_json(r.registration);
-  if (r.registration_truth) reg_report["against_truth"] = *r.registration_truth;
-  outputs.update(write_registration_outputs(out, r.registration, reg_report, r.merged_png));
+  if (r.cloud) {
+    save_merged(out.stage("merged.ply"), *merged_cloud(r.cloud->merged()));
+    outputs["merged_cloud"] = out.final_path("merged.ply");
+    write_file_atomic(out.stage("merged.png"), r.merged_png);
+    outputs["merged_preview"] = out.final_path("merged.png");
+  } else {
+    save_cloud(out.stage("back.ply"), *r.back_cloud);
+    outputs["back_cloud"] = out.final_path("back.ply");
+    save_cloud(out.stage("palm.ply"), *r.palm_cloud);
+    outputs["palm_cloud"] = out.final_path("palm.ply");
+    Json reg_report = registration_to_json(r.registration);
+    if (r.registration_truth) reg_report["against_truth"] = *r.registration_truth;
+    outputs.update(write_registration_outputs(out, r.registration, reg_report, r.merged_png));
+  }
   outputs.update(write_skin_outputs(out, r.skin, r.skin_png));
   // The quality gates, on the skin as written (skin.ply read back) and the other outputs.
   RunWritten W;
   {
-    const MergedArrays merged = merged_arrays(*r.registration.merged);
+    const MergedArrays merged = r.cloud ? MergedArrays{} : merged_arrays(*r.registration.merged);
     GateInputs gi;
     gi.skin_file = out.staged_path("skin.ply");
     gi.skin_name = out.final_path("skin.ply");
-    gi.cloud = &merged.points;
-    gi.registration = &r.registration;
+    gi.cloud = r.cloud ? &r.cloud->prepared.points : &merged.points;
+    gi.registration = r.cloud ? nullptr : &r.registration;
     gi.patches = r.patches ? &*r.patches : nullptr;
     W.gates = check_gates(gi, in.options);
   }
 
   Json report;
   report["format"] = "handskin-report/1";
-  report["inputs"] = {{"back", in.back_stem}, {"palm", in.palm_stem},
-                      {"rig", in.rig_path.empty() ? "(placed automatically)" : in.rig_path},
-                      {"pipeline", in.pipeline_path.empty() ? "(built-in defaults)" : in.pipeline_path}};
+  if (r.cloud) {
+    report["inputs"] = {{"clouds", in.clouds}, {"units", length_unit_name(in.units)}};
+    if (in.hand) report["inputs"]["hand"] = hand_side_name(*in.hand);
+  } else {
+    report["inputs"] = {{"back", in.back_stem}, {"palm", in.palm_stem}};
+  }
+  report["inputs"]["rig"] = in.rig_path.empty() ? "(placed automatically)" : in.rig_path;
+  report["inputs"]["pipeline"] = in.pipeline_path.empty() ? "(built-in defaults)" : in.pipeline_path;
   report["pipeline"] = pipeline_to_json(in.options);
   if (in.baseline) report["pipeline"]["skin"]["baseline"] = true;
-  Json reg_stage = {{"name", "registration"}, {"seconds", r.registration_seconds}};
-  reg_stage.update(registration_summary_json(r.registration));
-  if (r.registration_truth) reg_stage["against_truth"] = *r.registration_truth;
   Json stages = Json::array();
-  stages.push_back({{"name", "ingest"}, {"seconds", r.ingest_seconds}, {"back", to_json(r.back)},
-                    {"palm", to_json(r.palm)}});
-  stages.push_back(reg_stage);
+  if (r.cloud) {
+    stages.push_back(to_json(*r.cloud));
+  } else {
+    stages.push_back({{"name", "ingest"}, {"seconds", r.ingest_seconds}, {"back", to_json(r.back)},
+                      {"palm", to_json(r.palm)}});
+    Json reg_stage = {{"name", "registration"}, {"seconds", r.registration_seconds}};
+    reg_stage.update(registration_summary_json(r.registration));
+    if (r.registration_truth) reg_stage["against_truth"] = *r.registration_truth;
+    stages.push_back(reg_stage);
+  }
   stages.push_back(to_json(r.skin));
   describe_written_skin(W.gates, &stages.back());
   if (r.patches) stages.push_back(to_json(*r.patches));

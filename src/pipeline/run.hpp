@@ -1,5 +1,6 @@
 #pragma once
-/// `handskin run`: the whole pipeline from two scans (and a rig, or none) to the skin.
+/// `handskin run`: the whole pipeline from two scans, or a cloud from any scanner (and a rig,
+/// or none) to the skin.
 /// Stages: ingest (both scans read and checked, to point clouds), registration (the back scan
 /// into the palm frame, merged cloud), skin (skeleton, strips, closed mesh, figures), patches
 /// (bicubic Bézier patches on the skin's ring grid, their fitting error), rigging (the skin
@@ -13,6 +14,7 @@
 
 #include "core/json_util.hpp"
 #include "core/output_set.hpp"
+#include "pipeline/cloud_stage.hpp"
 #include "pipeline/gates.hpp"
 #include "pipeline/options.hpp"
 #include "pipeline/patch_stage.hpp"
@@ -28,6 +30,11 @@ namespace handskin {
 struct RunInputs {
   std::string back_stem;   ///< `<stem>.png` + `<stem>.json`, side "back"
   std::string palm_stem;   ///< side "palm"
+  /// Instead of the two scans: a cloud from any scanner (docs/clouds.md), its units, and
+  /// which hand it is when the fingers' bend cannot tell.
+  std::vector<std::string> clouds;
+  LengthUnit units = LengthUnit::Millimetre;
+  std::optional<HandSide> hand;
   std::string rig_path;    ///< hand-rig/1, palm frame; empty: the skeleton is placed automatically
   bool auto_rig = false;   ///< place the skeleton automatically even with a rig (and compare)
   bool baseline = false;   ///< also the CGAL Poisson baseline (or the pipeline's skin.baseline)
@@ -36,7 +43,7 @@ struct RunInputs {
   std::string truth_path;     ///< optional truth.json (synthetic pairs): errors against it in the report
   std::string posture_model = "builtin:anatomical";  ///< the posture model skin.glb carries
   /// The scans' photos for the texture; empty: `<stem>.photo.png` when both exist (else no
-  /// texture). A photo given here must exist.
+  /// texture). A photo given here must exist. A cloud has no photos, hence no texture.
   std::string back_photo, palm_photo;
   PipelineOptions options;
 };
@@ -55,6 +62,9 @@ struct RunResult {
   RunInputs inputs;
   ScanFigures back, palm;
   Cloud::Ptr back_cloud, palm_cloud;  ///< the scans as point clouds, scanner frames
+  /// run --cloud: the cloud stage, which stands for ingest and registration (no scans, no
+  /// registration: back_cloud, palm_cloud and registration stay empty).
+  std::optional<CloudStageResult> cloud;
   double ingest_seconds = 0, registration_seconds = 0;
   Registration registration;
   std::optional<Json> registration_truth;  ///< registration_against_truth, with --truth

@@ -40,3 +40,31 @@ Json truth_to_json(const ScanPair& pair, const Rig& hand_rig, std::uint64_t seed
 }
 
 }  // namespace handskin
+
+namespace handskin {
+
+Json cloud_truth_to_json(const CloudSim& sim, const Rig& hand_rig, std::uint64_t seed, const CloudSimOptions& o,
+                         const std::string& skin_file) {
+  Json truth;
+  truth["format"] = "handskin-truth/1";
+  truth["kind"] = "cloud";
+  truth["hand"] = hand_side_name(rig_side(hand_rig));
+  truth["seed"] = seed;
+  truth["back_to_palm"] = isometry_to_json(sim.a_to_b);  // the halves: a (back views) into b (palm views)
+  truth["cloud_from_hand"] = isometry_to_json(sim.cloud_from_hand);
+  truth["skin"] = skin_file;
+  truth["units_per_mm"] = o.units_per_mm;
+  truth["scanner"] = {{"views", o.views},
+                      {"tilt_deg", o.tilt_deg},
+                      {"spacing_mm", o.spacing_mm},
+                      {"noise_sigma_mm", o.noise_mm},
+                      {"max_incidence_deg", o.max_incidence_deg},
+                      {"dropout_from_deg", o.dropout_from_deg},
+                      {"stand", o.stand},
+                      {"outlier_share", o.outlier_share}};
+  truth["points"] = {{"hand", sim.hand_points}, {"stand", sim.stand_points}, {"outliers", sim.outliers},
+                     {"dropped_grazing", sim.dropped_grazing}, {"half_a", sim.half_a.size()}, {"half_b", sim.half_b.size()}};
+  return truth;
+}
+
+}  // namespace handskin

@@ -1,0 +1,194 @@
+#include "pipeline/cloud_stage.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <optional>
+
+#include "core/errors.hpp"
+#include "skin/auto_rig.hpp"
+
+namespace handskin {
+
+namespace {
+
+// Below this mean bend (the fingers' mid-line's drop from PIP to near the tip over its run)
+// the fingers are too straight to tell the palm from the back (docs/clouds.md: the synthetic
+// family's relaxed hands bend 0.36-0.43, its curled one 0.7, its flat one and the fixture's
+// straight hand 0.02 at most either way).
+constexpr double kFlexionCue = 0.05;
+
+std::string fixed(double v, int digits) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.*f", digits, v);
+  return b;
+}
+
+// A deterministic sign for an axis found up to its sign.
+Eigen::Vector3d canonical(Eigen::Vector3d a) {
+  int k = 0;
+  for (int i = 1; i < 3; ++i)
+    if (std::abs(a(i)) > std::abs(a(k))) k = i;
+  return a(k) < 0 ? Eigen::Vector3d(-a) : a;
+}
+
+// 3. Which way the back faces. The skeleton placed with the sides labelled both ways is a
+// right hand one way and its mirror image, a left hand, the other: the silhouette cannot tell
+// them apart, the fingers' bend can (they flex toward the palm: their mid-line drops toward
+// the palm from the knuckle on), and so can the user.
+CloudOrientation orient(const PreparedCloud& c, const CloudStageInputs& in, const std::string& file,
+                        const std::function<void(const std::string&)>& progress) {
+  CloudOrientation o;
+  if (in.rig) {
+    o.by = "rig";
+    o.back = hand_frame_from_rig(*in.rig).linear().row(2).transpose();
+    o.side = rig_side(*in.rig);
+    o.note = in.rig->palm_normal ? "the back faces the rig's palm_normal"
+                                 : "the back faces the rig's Z (its joints, as a right hand's: no palm_normal given)";
+    return o;
+  }
+  const Eigen::Vector3d axis = canonical(thickness_axis(c.points));
+  std::optional<AutoRig> placed[2];
+  std::string first_error;
+  for (int s = 0; s < 2; ++s) {
+    const Eigen::Vector3d back = s ? Eigen::Vector3d(-axis) : axis;
+    try {
+      placed[s] = place_skeleton(c.points, label_sides(c.points, back, nullptr));
+    } catch (const InputError& e) {
+      if (first_error.empty()) first_error = e.detail();
+    }
+  }
+  if (!placed[0] && !placed[1]) throw InputError(file, "no hand found: " + first_error);
+  const double f0 = placed[0] ? finger_flexion(c.points, placed[0]->rig) : 0,
+               f1 = placed[1] ? finger_flexion(c.points, placed[1]->rig) : 0;
+  // The bend's answer: the way the fingers bend toward the palm, when they clearly do one way
+  // and not (or clearly less) the other.
+  int pick = placed[0] ? 0 : 1;
+  if (placed[0] && placed[1]) pick = f0 <= f1 ? 0 : 1;
+  const double f = pick ? f1 : f0, other = pick ? f0 : f1;
+  const bool told = f <= -kFlexionCue && (!placed[1 - pick] || other >= f + 2 * kFlexionCue);
+  if (in.hand) {
+    o.by = "hand";
+    if (told && placed[pick]->side != *in.hand)
+      throw InputError("--hand", std::string(hand_side_name(*in.hand)) + ": the fingers of " + file +
+                                     " bend toward the palm of a " + hand_side_name(placed[pick]->side) + " hand (" +
+                                     fixed(-f, 3) + ")");
+    for (int s = 0; s < 2; ++s)
+      if (placed[s] && placed[s]->side == *in.hand) pick = s;
+    if (!placed[pick] || placed[pick]->side != *in.hand)
+      throw InputError("--hand", std::string("no ") + hand_side_name(*in.hand) + " hand found in " + file);
+    o.note = std::string("--hand ") + hand_side_name(*in.hand);
+  } else {
+    o.by = "flexion";
+    if (!told)
+      throw InputError(file, "cannot tell the palm from the back: the fingers are nearly straight (bend " + fixed(-f, 3) +
+                                 " one way, " + fixed(-other, 3) + " the other; " + fixed(kFlexionCue, 2) +
+                                 " needed); give --hand left or --hand right, or a --rig");
+    o.note = std::string("the fingers bend toward the palm (") + fixed(-f, 3) + "): a " +
+             hand_side_name(placed[pick]->side) + " hand";
+  }
+  o.back = pick ? Eigen::Vector3d(-axis) : axis;
+  o.flexion = pick ? f1 : f0;  // of the interpretation kept
+  o.side = placed[pick]->side;
+  progress("orientation: " + o.note);
+  return o;
+}
+
+}  // namespace
+
+double finger_flexion(const std::vector<Eigen::Vector3d>& points, const Rig& rig) {
+  const Eigen::Isometry3d T = hand_frame_from_rig(rig);
+  std::vector<Eigen::Vector3d> h;
+  h.reserve(points.size());
+  for (const auto& p : points) h.push_back(T * p);
+  // The hand's mid-depth (halfway between its back and palm surfaces) over a 3 mm disc about
+  // (x, y): the same whichever side the frame calls the back, so the cue has no bias.
+  const auto mid_depth = [&](const Eigen::Vector3d& at) -> std::optional<double> {
+    double lo = 1e300, hi = -1e300;
+    int n = 0;
+    for (const auto& q : h)
+      if ((q.head<2>() - at.head<2>()).squaredNorm() < 9.0) lo = std::min(lo, q.z()), hi = std::max(hi, q.z()), ++n;
+    if (n < 10) return std::nullopt;
+    return 0.5 * (lo + hi);
+  };
+  double sum = 0;
+  int fingers = 0;
+  for (const char* f : {"index", "middle", "ring", "pinky"}) {
+    const std::string base = std::string(f) + "-finger-";
+    const Eigen::Vector3d pip = T * rig.joints[joint_index(base + "phalanx-intermediate").value()];
+    const Eigen::Vector3d dip = T * rig.joints[joint_index(base + "phalanx-distal").value()];
+    const Eigen::Vector3d tip = T * rig.joints[joint_index(base + "tip").value()];
+    const Eigen::Vector3d end = dip + 0.6 * (tip - dip);
+    const auto a = mid_depth(pip), b = mid_depth(end);
+    const double run = (end - pip).head<2>().norm();
+    if (!a || !b || run < 10) continue;
+    sum += (*b - *a) / run, ++fingers;
+  }
+  return fingers ? sum / fingers : 0.0;
+}
+
+MergedArrays CloudStageResult::merged() const { return {prepared.points, prepared.normals, sides}; }
+
+MergedCloud::Ptr merged_cloud(const MergedArrays& a) {
+  auto c = std::make_shared<MergedCloud>();
+  c->resize(a.points.size());
+  for (size_t k = 0; k < a.points.size(); ++k) {
+    pcl::PointXYZLNormal& q = (*c)[k];
+    q.getVector3fMap() = a.points[k].cast<float>();
+    q.getNormalVector3fMap() = (k < a.normals.size() ? a.normals[k] : Eigen::Vector3d::Zero()).cast<float>();
+    q.label = k < a.sides.size() ? a.sides[k] : 0;
+    q.curvature = 0;
+  }
+  return c;
+}
+
+CloudStageResult run_cloud_stage(const CloudStageInputs& in, const std::function<void(const std::string&)>& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  CloudStageResult r;
+  r.units = length_unit_name(in.units);
+  HS_CHECK(in.files.size() == 1, "run_cloud_stage takes one merged cloud");
+  const std::string& file = in.files[0];
+  progress("reading " + file);
+  PointCloudFile f = read_point_cloud(file, in.units);
+  r.files.push_back({f.path, f.format, f.points.size(), f.no_return, !f.normals.empty()});
+  progress("cleaning " + std::to_string(f.points.size()) + " points: outliers, the support, other parts");
+  r.prepared = prepare_cloud(f.points, f.normals, file, r.units, in.prep);
+  progress("the hand: " + std::to_string(r.prepared.points.size()) + " points (" + std::to_string(r.prepared.outliers) +
+           " outliers, " + std::to_string(r.prepared.support) + " support, " + std::to_string(r.prepared.other_parts) +
+           " in other parts)");
+  r.orientation = orient(r.prepared, in, file, progress);
+  r.sides = label_sides(r.prepared.points, r.orientation.back, &r.prepared.normals);
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+Json to_json(const CloudStageResult& r) {
+  const PreparedCloud& p = r.prepared;
+  Json files = Json::array();
+  for (const auto& f : r.files)
+    files.push_back({{"path", f.path}, {"format", f.format}, {"points", f.points}, {"no_return", f.no_return},
+                     {"normals", f.normals}});
+  size_t back = 0;
+  for (auto s : r.sides) back += s == 1;
+  Json j = {{"name", "cloud"},
+            {"seconds", r.seconds},
+            {"files", files},
+            {"units", r.units},
+            {"cleaning", {{"read", p.read}, {"downsampled", p.downsampled}, {"voxel_mm", p.voxel_mm}, {"outliers", p.outliers}, {"support", p.support},
+                          {"support_found", p.support_found}, {"other_parts", p.other_parts}, {"parts", p.parts},
+                          {"kept", p.points.size()}, {"spacing_mm", p.spacing_mm}, {"part_gap_mm", p.part_gap_mm}}},
+            {"extent_mm", {p.extent_mm(0), p.extent_mm(1), p.extent_mm(2)}},
+            {"normals", p.normals_from_file ? "file" : "estimated"},
+            {"orientation", {{"by", r.orientation.by}, {"back", {r.orientation.back(0), r.orientation.back(1), r.orientation.back(2)}},
+                             {"finger_flexion", r.orientation.flexion}, {"hand", hand_side_name(r.orientation.side)},
+                             {"note", r.orientation.note}}},
+            {"sides", {{"palm", r.sides.size() - back}, {"back", back}}}};
+  Json timings = Json::object();
+  for (const auto& [step, ms] : p.timings_ms) timings[step] = ms;
+  j["timings_ms"] = timings;
+  if (p.support_found)
+    j["cleaning"]["support_plane"] = {p.support_plane(0), p.support_plane(1), p.support_plane(2), p.support_plane(3)};
+  return j;
+}
+
+}  // namespace handskin

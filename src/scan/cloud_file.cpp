@@ -1,0 +1,215 @@
+#include "scan/cloud_file.hpp"
+
+#include <OpenMesh/Core/IO/MeshIO.hh>
+#include <pcl/PCLPointCloud2.h>
+#include <pcl/conversions.h>
+#include <pcl/io/pcd_io.h>
+#include <pcl/io/ply_io.h>
+#include <pcl/point_types.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+
+#include "core/atomic_file.hpp"
+#include "core/errors.hpp"
+#include "mesh/trimesh.hpp"
+#include "scan/cloud.hpp"
+
+namespace handskin {
+
+std::optional<LengthUnit> parse_length_unit(const std::string& n) {
+  if (n == "mm") return LengthUnit::Millimetre;
+  if (n == "cm") return LengthUnit::Centimetre;
+  if (n == "m") return LengthUnit::Metre;
+  if (n == "in") return LengthUnit::Inch;
+  return std::nullopt;
+}
+
+const char* length_unit_name(LengthUnit u) {
+  switch (u) {
+    case LengthUnit::Centimetre: return "cm";
+    case LengthUnit::Metre: return "m";
+    case LengthUnit::Inch: return "in";
+    default: return "mm";
+  }
+}
+
+double millimetres_per(LengthUnit u) {
+  switch (u) {
+    case LengthUnit::Centimetre: return 10.0;
+    case LengthUnit::Metre: return 1000.0;
+    case LengthUnit::Inch: return 25.4;
+    default: return 1.0;
+  }
+}
+
+const char* point_cloud_extensions() { return ".ply, .pcd, .obj, .stl, .off, .xyz, .pts, .txt"; }
+
+namespace {
+
+std::string lower_extension(const std::string& path) {
+  std::string e = std::filesystem::path(path).extension().string();
+  for (char& c : e) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return e.empty() ? e : e.substr(1);
+}
+
+bool has_field(const pcl::PCLPointCloud2& c, const std::string& name) {
+  for (const auto& f : c.fields)
+    if (f.name == name) return true;
+  return false;
+}
+
+// PLY and PCD through PCL's readers (binary and ASCII; a PLY mesh's faces are skipped).
+void read_pcl(PointCloudFile* out) {
+  pcl::PCLPointCloud2 blob;
+  int rc = -1;
+  try {
+    if (out->format == "ply") {
+      pcl::PLYReader reader;
+      rc = reader.read(out->path, blob);
+    } else {
+      pcl::PCDReader reader;
+      rc = reader.read(out->path, blob);
+    }
+  } catch (const std::exception& e) {
+    throw InputError(out->path, std::string("unreadable ") + out->format + " file: " + e.what());
+  }
+  if (rc < 0) throw InputError(out->path, "unreadable " + out->format + " file");
+  if (!has_field(blob, "x") || !has_field(blob, "y") || !has_field(blob, "z"))
+    throw InputError(out->path, "no x, y, z fields: not a point cloud");
+  pcl::PointCloud<pcl::PointXYZ> xyz;
+  pcl::fromPCLPointCloud2(blob, xyz);
+  const bool normals = has_field(blob, "normal_x") && has_field(blob, "normal_y") && has_field(blob, "normal_z");
+  pcl::PointCloud<pcl::Normal> nrm;
+  if (normals) pcl::fromPCLPointCloud2(blob, nrm);
+  const bool organised = blob.height > 1;
+  out->points.reserve(xyz.size());
+  for (size_t k = 0; k < xyz.size(); ++k) {
+    const auto& p = xyz.points[k];
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+      // An organised cloud's NaN points are its no-returns; anywhere else a bad coordinate.
+      if (organised && std::isnan(p.x) && std::isnan(p.y) && std::isnan(p.z)) {
+        ++out->no_return;
+        continue;
+      }
+      throw InputError(out->path, "point " + std::to_string(k) + " has a non-finite coordinate");
+    }
+    out->points.emplace_back(p.x, p.y, p.z);
+    if (normals) {
+      const auto& n = nrm.points[k];
+      out->normals.emplace_back(n.normal_x, n.normal_y, n.normal_z);
+    }
+  }
+}
+
+// OBJ, STL (ASCII or binary) and OFF through OpenMesh's readers: the vertices (an STL's
+// corners merged), whatever the faces.
+void read_openmesh(PointCloudFile* out) {
+  TriMesh mesh;
+  OpenMesh::IO::Options opt;
+  bool ok = false;
+  try {
+    ok = OpenMesh::IO::read_mesh(mesh, out->path, opt);
+  } catch (const std::exception& e) {
+    throw InputError(out->path, std::string("unreadable ") + out->format + " file: " + e.what());
+  }
+  if (!ok) throw InputError(out->path, "unreadable " + out->format + " file");
+  out->points.reserve(mesh.n_vertices());
+  for (const auto v : mesh.vertices()) {
+    const auto& p = mesh.point(v);
+    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
+      throw InputError(out->path, "vertex " + std::to_string(v.idx()) + " has a non-finite coordinate");
+    out->points.emplace_back(p[0], p[1], p[2]);
+  }
+}
+
+// XYZ / PTS / TXT: one point per line, "x y z" (spaces, tabs or commas), more columns
+// ignored except an .xyz's "x y z nx ny nz" when every row's last three are unit vectors. A
+// .pts's first line may be its point count; '#' and '//' lines are comments. Written here:
+// no Debian library reads these loose text formats with line-numbered errors.
+void read_text(PointCloudFile* out, size_t max_points) {
+  std::ifstream in(out->path);
+  if (!in) throw InputError(out->path, "cannot be read");
+  std::string line;
+  size_t line_no = 0;
+  std::vector<Eigen::Vector3d> second;
+  bool unit_vectors = out->format == "xyz", first_data = true;
+  while (std::getline(in, line)) {
+    ++line_no;
+    for (char& c : line)
+      if (c == ',' || c == ';' || c == '\t' || c == '\r') c = ' ';
+    const size_t s = line.find_first_not_of(' ');
+    if (s == std::string::npos || line[s] == '#' || line.compare(s, 2, "//") == 0) continue;
+    std::vector<double> v;
+    const char* p = line.c_str();
+    while (true) {
+      while (*p == ' ') ++p;
+      if (!*p) break;
+      char* end = nullptr;
+      errno = 0;
+      const double x = std::strtod(p, &end);
+      if (end == p || errno == ERANGE || (*end && *end != ' '))
+        throw InputError(out->path, "line " + std::to_string(line_no) + ": not a number: '" +
+                                        std::string(p, std::min<size_t>(std::strlen(p), 20)) + "'");
+      v.push_back(x);
+      p = end;
+    }
+    const bool count_line = first_data && v.size() == 1;
+    first_data = false;
+    if (count_line) continue;
+    if (v.size() < 3)
+      throw InputError(out->path, "line " + std::to_string(line_no) + ": " + std::to_string(v.size()) +
+                                      " numbers; a point needs x y z");
+    for (int k = 0; k < 3; ++k)
+      if (!std::isfinite(v[k]))
+        throw InputError(out->path, "line " + std::to_string(line_no) + ": a non-finite coordinate");
+    if (out->points.size() >= max_points)
+      throw InputError(out->path, "more than " + std::to_string(max_points) + " points");
+    out->points.emplace_back(v[0], v[1], v[2]);
+    if (unit_vectors && v.size() == 6) {
+      const Eigen::Vector3d n(v[3], v[4], v[5]);
+      if (std::abs(n.norm() - 1.0) < 0.02) second.push_back(n);
+      else unit_vectors = false;
+    } else {
+      unit_vectors = false;
+    }
+  }
+  if (unit_vectors && second.size() == out->points.size()) out->normals = std::move(second);
+}
+
+}  // namespace
+
+PointCloudFile read_point_cloud(const std::string& path, LengthUnit unit, size_t max_points) {
+  PointCloudFile out;
+  out.path = path;
+  out.format = lower_extension(path);
+  const std::string& f = out.format;
+  const bool pcl_format = f == "ply" || f == "pcd", mesh_format = f == "obj" || f == "stl" || f == "off",
+             text_format = f == "xyz" || f == "pts" || f == "txt";
+  if (!pcl_format && !mesh_format && !text_format)
+    throw InputError(path, "unknown point-cloud extension (use one of " + std::string(point_cloud_extensions()) + ")");
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw InputError(path, "no such file");
+  silence_pcl_console();
+  if (pcl_format) read_pcl(&out);
+  else if (mesh_format) read_openmesh(&out);
+  else read_text(&out, max_points);
+  if (out.points.empty()) throw InputError(path, "holds no points");
+  if (out.points.size() > max_points)
+    throw InputError(path, "holds " + std::to_string(out.points.size()) + " points, more than " +
+                               std::to_string(max_points));
+  const double s = millimetres_per(unit);
+  if (s != 1.0)
+    for (auto& p : out.points) p *= s;
+  for (auto& n : out.normals) {
+    const double len = n.norm();
+    n = len > 1e-12 && std::isfinite(len) ? Eigen::Vector3d(n / len) : Eigen::Vector3d::Zero();
+  }
+  return out;
+}
+
+}  // namespace handskin

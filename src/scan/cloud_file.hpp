@@ -1,0 +1,37 @@
+#pragma once
+/// Point clouds from any scanner (issue 37): one reader for the files today's scanners and
+/// their software write — PLY (binary or ASCII; points, or a mesh's vertices), PCD, OBJ, STL,
+/// OFF, and XYZ/PTS/TXT text — into plain arrays in millimetres.
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace handskin {
+
+/// The length unit a cloud file's coordinates are in (`run --units`).
+enum class LengthUnit { Millimetre, Centimetre, Metre, Inch };
+/// "mm", "cm", "m", "in" → the unit; nullopt for anything else.
+std::optional<LengthUnit> parse_length_unit(const std::string& name);
+const char* length_unit_name(LengthUnit u);
+double millimetres_per(LengthUnit u);
+
+/// A cloud file read: points (mm), normals when the file has them (else empty), and what it was.
+struct PointCloudFile {
+  std::string path;
+  std::string format;  ///< "ply", "pcd", "obj", "stl", "off", "xyz", "pts", "txt"
+  std::vector<Eigen::Vector3d> points, normals;
+  size_t no_return = 0;  ///< an organised cloud's NaN points (no return), dropped
+};
+
+/// The extensions read_point_cloud knows, for messages: ".ply, .pcd, .obj, .stl, .off, .xyz, .pts, .txt".
+const char* point_cloud_extensions();
+
+/// Read a cloud file and scale it to mm. Throws InputError naming the file (and the line or
+/// key) when it cannot be read, has an unknown extension, holds no points, holds a
+/// non-finite coordinate (an organised PCD's NaN points are no-returns and are dropped), or
+/// holds more than `max_points` points.
+PointCloudFile read_point_cloud(const std::string& path, LengthUnit unit = LengthUnit::Millimetre,
+                                size_t max_points = 20'000'000);
+
+}  // namespace handskin

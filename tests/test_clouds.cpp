@@ -1,0 +1,335 @@
+// Clouds from any scanner (issue 37): the reader, the preparation, the sides and the
+// orientation, `synth cloud`, and `run --cloud` end to end.
+#include <gtest/gtest.h>
+#include <pcl/io/pcd_io.h>
+#include <pcl/io/ply_io.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "core/atomic_file.hpp"
+#include "core/json_util.hpp"
+#include "core/random.hpp"
+#include "core/rig.hpp"
+#include "mesh/mesh_distance.hpp"
+#include "pipeline/cloud_stage.hpp"
+#include "register/cloud_prep.hpp"
+#include "scan/cloud.hpp"
+#include "scan/cloud_file.hpp"
+#include "synth/cloud_sim.hpp"
+#include "test_util.hpp"
+
+namespace handskin {
+namespace {
+
+namespace fs = std::filesystem;
+const std::string kFix = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
+const std::string kBin = HANDSKIN_BINARY;
+
+// The fixture's true skin and rig (palm frame), scanned from around once per process.
+struct SimHand {
+  TriMesh skin;
+  Rig rig;
+  CloudSim sim;
+};
+const SimHand& sim_hand() {
+  static const SimHand h = [] {
+    SimHand x;
+    x.skin = load_mesh(kFix + "truth_skin.ply");
+    x.rig = load_rig(kFix + "rig.json");
+    CloudSimOptions o;
+    o.noise_mm = 0.2;
+    x.sim = simulate_cloud(x.skin, x.rig, o, 7);
+    return x;
+  }();
+  return h;
+}
+
+std::vector<Eigen::Vector3d> small_cloud() {
+  std::vector<Eigen::Vector3d> p;
+  for (int i = 0; i < 40; ++i)
+    for (int j = 0; j < 30; ++j) p.emplace_back(0.5 * i + 0.25, -3.0 + 0.75 * j, 0.01 * i * j);
+  return p;
+}
+
+void expect_same_points(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b, double scale,
+                        const std::string& what) {
+  ASSERT_EQ(a.size(), b.size()) << what;
+  double worst = 0;
+  for (size_t k = 0; k < a.size(); ++k) worst = std::max(worst, (a[k] - scale * b[k]).norm());
+  EXPECT_LT(worst, 1e-4 * std::max(1.0, scale)) << what;
+}
+
+TEST(CloudFile, ReadsEveryFormatAndScalesUnits) {
+  const std::string d = test::temp_dir("cloudfmt");
+  const auto P = small_cloud();
+  pcl::PointCloud<pcl::PointNormal> pc;
+  for (const auto& p : P) {
+    pcl::PointNormal q;
+    q.getVector3fMap() = p.cast<float>();
+    q.normal_x = 0, q.normal_y = 0, q.normal_z = 1;
+    pc.push_back(q);
+  }
+  pcl::io::savePLYFileBinary(d + "/b.ply", pc);
+  pcl::io::savePLYFileASCII(d + "/a.ply", pc);
+  pcl::io::savePCDFileBinary(d + "/c.pcd", pc);
+  std::string obj, xyz, pts = std::to_string(P.size()) + "\n", stl = "solid s\n";
+  for (const auto& p : P) {
+    char b[200];
+    std::snprintf(b, sizeof b, "%.6f %.6f %.6f", p.x(), p.y(), p.z());
+    obj += std::string("v ") + b + "\n";
+    xyz += std::string(b) + " 0 0 1\n";
+    pts += std::string(b) + " 12 200 180 170\n";
+  }
+  test::write_text(d + "/m.obj", "# points\n" + obj);
+  test::write_text(d + "/t.xyz", xyz);
+  test::write_text(d + "/t.pts", pts);
+  for (const char* f : {"b.ply", "a.ply", "c.pcd", "m.obj", "t.xyz", "t.pts"}) {
+    const PointCloudFile c = read_point_cloud(d + "/" + f);
+    expect_same_points(c.points, P, 1.0, f);
+    const bool normals = std::string(f) != "m.obj" && std::string(f) != "t.pts";
+    EXPECT_EQ(c.normals.size(), normals ? P.size() : 0u) << f;
+  }
+  // A mesh's vertices: an ASCII STL of two triangles shares two corners (merged on reading).
+  test::write_text(d + "/s.stl",
+                   "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n"
+                   "facet normal 0 0 1\nouter loop\nvertex 1 0 0\nvertex 1 1 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid s\n");
+  EXPECT_EQ(read_point_cloud(d + "/s.stl").points.size(), 4u);
+  // Units: metres, centimetres, inches into mm.
+  expect_same_points(read_point_cloud(d + "/t.xyz", LengthUnit::Metre).points, P, 1000.0, "m");
+  expect_same_points(read_point_cloud(d + "/t.xyz", LengthUnit::Inch).points, P, 25.4, "in");
+  EXPECT_EQ(parse_length_unit("cm"), LengthUnit::Centimetre);
+  EXPECT_FALSE(parse_length_unit("furlong"));
+}
+
+TEST(CloudFile, BadFilesGetOneLineErrorsNamingThem) {
+  const std::string d = test::temp_dir("cloudbad");
+  const auto err = [](const std::string& path) {
+    return test::input_error_of([&] { read_point_cloud(path); });
+  };
+  test::write_text(d + "/empty.xyz", "");
+  EXPECT_NE(err(d + "/empty.xyz").find("holds no points"), std::string::npos) << err(d + "/empty.xyz");
+  test::write_text(d + "/nan.xyz", "1 2 3\n4 nan 6\n");
+  EXPECT_NE(err(d + "/nan.xyz").find("line 2"), std::string::npos) << err(d + "/nan.xyz");
+  test::write_text(d + "/word.xyz", "1 2 3\n4 five 6\n");
+  EXPECT_NE(err(d + "/word.xyz").find("line 2: not a number"), std::string::npos) << err(d + "/word.xyz");
+  test::write_text(d + "/short.txt", "1 2\n");
+  EXPECT_NE(err(d + "/short.txt").find("a point needs x y z"), std::string::npos);
+  test::write_text(d + "/x.las", "1 2 3\n");
+  EXPECT_NE(err(d + "/x.las").find("unknown point-cloud extension"), std::string::npos);
+  EXPECT_NE(err(d + "/missing.ply").find("no such file"), std::string::npos);
+  test::write_text(d + "/png.ply", "\x89PNG\r\n\x1a\n not a ply at all");
+  EXPECT_NE(err(d + "/png.ply").find("png.ply"), std::string::npos) << err(d + "/png.ply");
+  // A PLY with a NaN vertex (not an organised cloud's no-return).
+  test::write_text(d + "/nan.ply", "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                                   "property float z\nend_header\n1 2 3\nnan 2 3\n");
+  EXPECT_NE(err(d + "/nan.ply").find("non-finite"), std::string::npos) << err(d + "/nan.ply");
+  for (const auto& m : {err(d + "/nan.ply"), err(d + "/empty.xyz"), err(d + "/png.ply")})
+    EXPECT_EQ(m.find('\n'), std::string::npos) << m;
+  // Too many points for the limit given.
+  test::write_text(d + "/two.xyz", "1 2 3\n4 5 6\n");
+  EXPECT_NE(test::input_error_of([&] { read_point_cloud(d + "/two.xyz", LengthUnit::Millimetre, 1); }).find("more than 1"),
+            std::string::npos);
+}
+
+TEST(CloudPrep, TakesAwayTheStandAndTheOutliersAndKeepsTheHand) {
+  const SimHand& h = sim_hand();
+  ASSERT_GT(h.sim.stand_points, 5000u);
+  ASSERT_GT(h.sim.outliers, 100u);
+  const PreparedCloud c = prepare_cloud(h.sim.points, {}, "sim", "mm", CloudPrepOptions{});
+  EXPECT_TRUE(c.support_found);
+  EXPECT_GT(c.support, 0u);
+  EXPECT_GT(c.outliers + c.other_parts, 0u);
+  // What is kept is the hand: every point near the true skin (the noise is 0.2 mm; the
+  // voxels average it), and the hand is all there (its extent).
+  const MeshDistance dist(h.sim.skin);
+  size_t far = 0;
+  for (const auto& p : c.points) far += dist.distance(p) > 1.5;
+  EXPECT_LE(far, c.points.size() / 1000) << far << " of " << c.points.size();
+  EXPECT_GT(c.extent_mm(0), 150);
+  EXPECT_EQ(c.normals.size(), c.points.size());
+  // Sides: the back labels lie where the true back is (the rig's palm normal).
+  const Eigen::Vector3d back = *h.sim.rig.palm_normal;
+  std::vector<Eigen::Vector3d> normals = c.normals;
+  const auto sides = label_sides(c.points, back, &normals);
+  Eigen::Vector3d mb = Eigen::Vector3d::Zero(), mp = Eigen::Vector3d::Zero();
+  size_t nb = 0;
+  for (size_t k = 0; k < sides.size(); ++k) (sides[k] ? (++nb, mb) : mp) += c.points[k];
+  ASSERT_GT(nb, c.points.size() / 4);
+  ASSERT_LT(nb, 3 * c.points.size() / 4);
+  EXPECT_GT((mb / nb - mp / (sides.size() - nb)).dot(back), 5.0);
+  size_t agree = 0, with_normal = 0;
+  for (size_t k = 0; k < sides.size(); ++k)
+    if (normals[k].squaredNorm() > 0) ++with_normal, agree += (normals[k].dot(back) > 0) == (sides[k] == 1);
+  EXPECT_EQ(agree, with_normal);
+  EXPECT_GT(with_normal, sides.size() * 99 / 100);
+}
+
+TEST(CloudPrep, RefusesWhatIsNotAHand) {
+  const SimHand& h = sim_hand();
+  const auto err = [](const std::vector<Eigen::Vector3d>& p, const std::string& units = "mm") {
+    return test::input_error_of([&] { prepare_cloud(p, {}, "c.ply", units, CloudPrepOptions{}); });
+  };
+  // A cloud in metres read as mm: its size, and the units that would make it a hand.
+  std::vector<Eigen::Vector3d> metres;
+  for (const auto& p : h.sim.points) metres.push_back(p / 1000.0);
+  const std::string m = err(metres);
+  EXPECT_NE(m.find("c.ply"), std::string::npos) << m;
+  EXPECT_NE(m.find("not a hand"), std::string::npos) << m;
+  EXPECT_NE(m.find("--units m "), std::string::npos) << m;
+  // A single point, a few points.
+  EXPECT_NE(err({Eigen::Vector3d(1, 2, 3)}).find("a hand needs at least"), std::string::npos);
+  // A plane only (a table scanned without the hand).
+  std::vector<Eigen::Vector3d> plane;
+  for (int i = 0; i < 300; ++i)
+    for (int j = 0; j < 200; ++j) plane.emplace_back(0.6 * i, 0.6 * j, 0.0);
+  EXPECT_NE(err(plane).find("plane"), std::string::npos) << err(plane);
+  // Non-finite coordinates.
+  std::vector<Eigen::Vector3d> nan = h.sim.points;
+  nan[10].y() = std::nan("");
+  EXPECT_NE(err(nan).find("point 10 has a non-finite coordinate"), std::string::npos) << err(nan);
+}
+
+TEST(CloudStage, TellsTheBackOfTheHandAndWhichHandItIs) {
+  // The fixture's hand has straight fingers: the bend cannot tell its palm from its back, and
+  // the stage says so rather than guess; --hand or a rig tells it.
+  const SimHand& h = sim_hand();
+  const std::string d = test::temp_dir("cloudstage");
+  pcl::PointCloud<pcl::PointXYZ> pc, mirrored;
+  for (const auto& p : h.sim.points) {
+    pc.push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
+    mirrored.push_back(pcl::PointXYZ(static_cast<float>(-p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
+  }
+  save_cloud(d + "/c.ply", pc);
+  save_cloud(d + "/m.ply", mirrored);
+  const auto quiet = [](const std::string&) {};
+  const Eigen::Vector3d back = *h.sim.rig.palm_normal;
+  CloudStageInputs in;
+  in.files = {d + "/c.ply"};
+  const std::string straight = test::input_error_of([&] { run_cloud_stage(in, quiet); });
+  EXPECT_NE(straight.find("cannot tell the palm from the back"), std::string::npos) << straight;
+  EXPECT_NE(straight.find("--hand"), std::string::npos) << straight;
+  in.hand = HandSide::Right;
+  const CloudStageResult r = run_cloud_stage(in, quiet);
+  EXPECT_EQ(r.orientation.by, "hand");
+  EXPECT_EQ(r.orientation.side, HandSide::Right);
+  EXPECT_GT(r.orientation.back.dot(back), 0.9);
+  // The mirror image is a left hand, its back mirrored too.
+  in.files = {d + "/m.ply"};
+  in.hand = HandSide::Left;
+  const CloudStageResult l = run_cloud_stage(in, quiet);
+  EXPECT_EQ(l.orientation.side, HandSide::Left);
+  EXPECT_GT(l.orientation.back.dot(Eigen::Vector3d(-back.x(), back.y(), back.z())), 0.9);
+  // A rig: the back is its palm normal.
+  in.files = {d + "/c.ply"};
+  in.hand.reset();
+  in.rig = &h.sim.rig;
+  const CloudStageResult g = run_cloud_stage(in, quiet);
+  EXPECT_EQ(g.orientation.by, "rig");
+  EXPECT_GT(g.orientation.back.dot(back), 0.999);
+}
+
+TEST(SynthCloud, RepeatsByteForByteAndWritesItsTruth) {
+  const std::string d = test::temp_dir("synthcloud");
+  std::string out;
+  const std::string cmd = kBin + " -q synth cloud --mesh " + kFix + "truth_skin.ply --rig " + kFix +
+                          "rig.json --spacing 1.2 --views 6 --halves --units m --seed 4 --out ";
+  ASSERT_EQ(test::run(cmd + d + "/a", &out), 0) << out;
+  ASSERT_EQ(test::run(cmd + d + "/b", &out), 0) << out;
+  for (const char* f : {"cloud.ply", "a.ply", "b.ply", "rig.json", "truth.json", "truth_skin.ply"})
+    EXPECT_EQ(read_file(d + "/a/" + f), read_file(d + "/b/" + f)) << f;
+  const Json t = load_json_object(d + "/a/truth.json");
+  EXPECT_EQ(t["kind"], "cloud");
+  EXPECT_EQ(t["units_per_mm"].get<double>(), 0.001);
+  // In metres: the cloud is a thousandth of the true skin's size, in the truth's frame.
+  const PointCloudFile c = read_point_cloud(d + "/a/cloud.ply", LengthUnit::Metre);
+  const TriMesh skin = load_mesh(d + "/a/truth_skin.ply");
+  const MeshDistance dist(skin);
+  size_t near = 0;
+  for (const auto& p : c.points) near += dist.distance(p) < 1.0;
+  EXPECT_GT(near, c.points.size() * 8 / 10);
+  // Bad options are refused before anything is written.
+  EXPECT_EQ(test::run(kBin + " -q synth cloud --mesh " + kFix + "truth_skin.ply --rig " + kFix + "rig.json --views 1 --out " +
+                          d + "/c",
+                      &out),
+            1)
+      << out;
+  EXPECT_FALSE(fs::exists(d + "/c/cloud.ply"));
+}
+
+TEST(Cli, RunOnACloudFromAnyScanner) {
+  const std::string d = test::temp_dir("runcloud");
+  std::string out;
+  // A relaxed hand of the family (its fingers bend toward the palm), scanned from around.
+  ASSERT_EQ(test::run(kBin + " -q synth hand --hand-length 178 --no-render --out " + d + "/hand", &out), 0) << out;
+  ASSERT_EQ(test::run(kBin + " -q synth cloud --mesh " + d + "/hand/hand.ply --rig " + d +
+                          "/hand/hand_rig.json --noise 0.25 --seed 2 --units cm --out " + d + "/in",
+                      &out),
+            0)
+      << out;
+  // Nothing given but the cloud and its units: the skeleton placed, the back told by the fingers.
+  ASSERT_EQ(test::run(kBin + " -q run --cloud " + d + "/in/cloud.ply --units cm --truth " + d + "/in/truth.json --out " +
+                          d + "/out",
+                      &out),
+            0)
+      << out;
+  const Json r = load_json_object(d + "/out/report.json");
+  const auto stage = [&](const std::string& n) {
+    for (const auto& s : r["stages"])
+      if (s["name"] == n) return s;
+    return Json();
+  };
+  ASSERT_FALSE(stage("cloud").is_null());
+  EXPECT_TRUE(stage("registration").is_null());
+  EXPECT_EQ(stage("cloud")["orientation"]["hand"], "right");
+  EXPECT_TRUE(stage("cloud")["cleaning"]["support_found"].get<bool>());
+  const Json sk = stage("skin");
+  EXPECT_TRUE(sk["mesh"]["closed"].get<bool>());
+  EXPECT_TRUE(sk["mesh"]["manifold"].get<bool>());
+  EXPECT_EQ(sk["mesh"]["self_intersections"].get<int>(), 0);
+  EXPECT_LE(sk["truth"]["skin_to_truth_mm"]["mean"].get<double>(), 0.15);
+  EXPECT_LE(sk["truth"]["skin_to_truth_mm"]["p95"].get<double>(), 0.5);
+  EXPECT_GE(sk["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.97);
+  for (const char* f : {"skin.ply", "skin.glb", "merged.ply", "merged.png", "patches.json", "report.html"})
+    EXPECT_TRUE(fs::exists(d + "/out/" + f)) << f;
+  for (const char* f : {"back.ply", "palm.ply", "registration.json", "texture.png"}) EXPECT_FALSE(fs::exists(d + "/out/" + f)) << f;
+  // --hand that the fingers' bend contradicts is refused, naming --hand; nothing written.
+  EXPECT_EQ(test::run(kBin + " -q run --cloud " + d + "/in/cloud.ply --units cm --hand left --out " + d + "/out2", &out), 1)
+      << out;
+  EXPECT_EQ(out.rfind("error: --hand: left: ", 0), 0u) << out;
+  EXPECT_FALSE(fs::exists(d + "/out2/report.json"));
+}
+
+TEST(Cli, RunOnABadCloudWritesNothing) {
+  const std::string d = test::temp_dir("runbadcloud");
+  std::string out;
+  const auto refused = [&](const std::string& args, int code, const std::string& says) {
+    const int rc = test::run(kBin + " -q run " + args + " --out " + d + "/out", &out);
+    EXPECT_EQ(rc, code) << args << ": " << out;
+    EXPECT_NE(out.find(says), std::string::npos) << args << ": " << out;
+    EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+    EXPECT_FALSE(fs::exists(d + "/out/report.json")) << args;
+  };
+  test::write_text(d + "/empty.xyz", "");
+  refused("--cloud " + d + "/empty.xyz", 1, "empty.xyz: holds no points");
+  test::write_text(d + "/one.xyz", "1 2 3\n");
+  refused("--cloud " + d + "/one.xyz", 1, "a hand needs at least");
+  refused("--cloud " + kFix + "back.png", 1, "unknown point-cloud extension");
+  // A box of noise the size of a hand: no hand in it.
+  std::string noise;
+  Rng rng(3);
+  for (int k = 0; k < 60000; ++k)
+    noise += std::to_string(rng.uniform(0, 180)) + " " + std::to_string(rng.uniform(0, 90)) + " " +
+             std::to_string(rng.uniform(0, 40)) + "\n";
+  test::write_text(d + "/noise.xyz", noise);
+  refused("--cloud " + d + "/noise.xyz", 1, "noise.xyz");
+  // Usage: a cloud and scans, units without a cloud, neither.
+  refused("--cloud " + d + "/one.xyz --back " + kFix + "back", 2, "--back");
+  refused("--back " + kFix + "back --palm " + kFix + "palm --units m", 2, "--units");
+  refused("--rig " + kFix + "rig.json", 2, "--cloud");
+  refused("--cloud " + d + "/one.xyz --units furlong", 2, "--units");
+}
+
+}  // namespace
+}  // namespace handskin
