@@ -14,7 +14,9 @@
 #include "core/rig.hpp"
 #include "mesh/mesh_distance.hpp"
 #include "pipeline/cloud_stage.hpp"
+#include "register/cloud_align.hpp"
 #include "register/cloud_prep.hpp"
+#include "register/registration.hpp"
 #include "scan/cloud.hpp"
 #include "scan/cloud_file.hpp"
 #include "synth/cloud_sim.hpp"
@@ -230,6 +232,28 @@ TEST(CloudStage, TellsTheBackOfTheHandAndWhichHandItIs) {
   EXPECT_GT(g.orientation.back.dot(back), 0.999);
 }
 
+TEST(CloudAlign, RegistersTwoHalvesWithoutMarkers) {
+  // The fixture's hand seen from its back views and from its palm views, each half in a pose
+  // of its own: registered within 0.1 deg and 0.1 mm (issue 37's bar), its own 1 sigma small.
+  const SimHand& h = sim_hand();
+  const CloudPrepOptions po;
+  const PreparedCloud a = prepare_cloud(h.sim.half_a, {}, "a.ply", "mm", po);
+  const PreparedCloud b = prepare_cloud(h.sim.half_b, {}, "b.ply", "mm", po);
+  const CloudAlignment al = align_halves(a.points, b.points, b.normals, "a.ply", "b.ply", CloudAlignOptions{});
+  const RegistrationError e = registration_error(al.a_to_b, h.sim.a_to_b, mesh_vertices(h.sim.skin));
+  EXPECT_LT(e.rotation_deg, 0.1);
+  EXPECT_LT(e.mean_mm, 0.1);
+  EXPECT_GT(al.overlap_share, 0.1);
+  EXPECT_GT(al.rotation_sigma_deg, 0.0);
+  EXPECT_LT(al.rotation_sigma_deg, 0.1);
+  EXPECT_LT(al.displacement_sigma_mm, 0.1);
+  // The same half twice is refused, naming both.
+  const std::string same =
+      test::input_error_of([&] { align_halves(b.points, b.points, b.normals, "b.ply", "b2.ply", CloudAlignOptions{}); });
+  EXPECT_NE(same.find("the same half"), std::string::npos) << same;
+  EXPECT_NE(same.find("b2.ply"), std::string::npos) << same;
+}
+
 TEST(SynthCloud, RepeatsByteForByteAndWritesItsTruth) {
   const std::string d = test::temp_dir("synthcloud");
   std::string out;
@@ -264,7 +288,7 @@ TEST(Cli, RunOnACloudFromAnyScanner) {
   // A relaxed hand of the family (its fingers bend toward the palm), scanned from around.
   ASSERT_EQ(test::run(kBin + " -q synth hand --hand-length 178 --no-render --out " + d + "/hand", &out), 0) << out;
   ASSERT_EQ(test::run(kBin + " -q synth cloud --mesh " + d + "/hand/hand.ply --rig " + d +
-                          "/hand/hand_rig.json --noise 0.25 --seed 2 --units cm --out " + d + "/in",
+                          "/hand/hand_rig.json --noise 0.25 --seed 2 --units cm --halves --out " + d + "/in",
                       &out),
             0)
       << out;
@@ -294,6 +318,36 @@ TEST(Cli, RunOnACloudFromAnyScanner) {
   for (const char* f : {"skin.ply", "skin.glb", "merged.ply", "merged.png", "patches.json", "report.html"})
     EXPECT_TRUE(fs::exists(d + "/out/" + f)) << f;
   for (const char* f : {"back.ply", "palm.ply", "registration.json", "texture.png"}) EXPECT_FALSE(fs::exists(d + "/out/" + f)) << f;
+  // The same hand as two halves, registered without markers (registration.json, the report).
+  ASSERT_EQ(test::run(kBin + " -q run --cloud " + d + "/in/a.ply --cloud " + d + "/in/b.ply --units cm --truth " + d +
+                          "/in/truth.json --out " + d + "/halves",
+                      &out),
+            0)
+      << out;
+  const Json reg = load_json_object(d + "/halves/registration.json");
+  EXPECT_EQ(reg["method"], "markerless");
+  EXPECT_LT(reg["against_truth"]["rotation_deg"].get<double>(), 0.1);
+  EXPECT_LT(reg["against_truth"]["skin_mean_mm"].get<double>(), 0.1);
+  const Json hr = load_json_object(d + "/halves/report.json");
+  const Json hs = hr["stages"][1];
+  ASSERT_EQ(hs["name"], "skin");
+  EXPECT_LE(hs["truth"]["skin_to_truth_mm"]["mean"].get<double>(), 0.15);
+  EXPECT_GE(hs["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.97);
+  // The same bytes on one thread as on two.
+  ASSERT_EQ(test::run("OMP_NUM_THREADS=1 " + kBin + " -q run --cloud " + d + "/in/a.ply --cloud " + d +
+                          "/in/b.ply --units cm --truth " + d + "/in/truth.json --out " + d + "/halves1",
+                      &out),
+            0)
+      << out;
+  for (const char* f : {"skin.ply", "merged.ply", "patches.json", "skin.glb"})
+    EXPECT_EQ(read_file(d + "/halves/" + f), read_file(d + "/halves1/" + f)) << f;
+  EXPECT_EQ(load_json_object(d + "/halves1/registration.json")["back_to_palm"], reg["back_to_palm"]);
+  // Three clouds are a usage error.
+  EXPECT_EQ(test::run(kBin + " -q run --cloud " + d + "/in/a.ply --cloud " + d + "/in/b.ply --cloud " + d +
+                          "/in/a.ply --out " + d + "/three",
+                      &out),
+            2)
+      << out;
   // --hand that the fingers' bend contradicts is refused, naming --hand; nothing written.
   EXPECT_EQ(test::run(kBin + " -q run --cloud " + d + "/in/cloud.ply --units cm --hand left --out " + d + "/out2", &out), 1)
       << out;

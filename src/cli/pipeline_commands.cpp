@@ -228,9 +228,11 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
   auto* back = run->add_option("--back", in->back_stem, "Back scan stem (<stem>.png + <stem>.json)");
   auto* palm = run->add_option("--palm", in->palm_stem, "Palm scan stem");
   auto* cloud = run->add_option("--cloud", in->clouds,
-                                "Instead of --back/--palm: a hand's cloud from any scanner, one merged scan (.ply, .pcd, "
-                                ".obj, .stl, .off, .xyz, .pts, .txt; docs/clouds.md)")
-                    ->expected(1);
+                                "Instead of --back/--palm: a hand's cloud from any scanner (.ply, .pcd, .obj, .stl, .off, "
+                                ".xyz, .pts, .txt; docs/clouds.md): one merged scan, or given twice, two halves (e.g. the "
+                                "back views and the palm views), the first registered into the second without markers")
+                    ->expected(1)
+                    ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   run->add_option("--units", ra->units, "--cloud: the cloud's units (mm, cm, m or in)")
       ->check(CLI::IsMember({"mm", "cm", "m", "in"}))
       ->capture_default_str();
@@ -258,6 +260,7 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
   run->add_flag("--strict", ra->strict, "A failed quality gate (report.json \"gates\") writes nothing and exits 3");
   run->add_flag("--baseline", in->baseline, "Also a Poisson reconstruction of the cloud (baseline.ply and its figures, for comparison; ~0.5 s)");
   run->parse_complete_callback([run, back, palm, cloud] {
+    if (cloud->count() > 2) throw CLI::ValidationError("--cloud", "one merged cloud or two halves, not " + std::to_string(cloud->count()));
     if (cloud->count() > 0) {
       for (const char* scan_only : {"--back", "--palm", "--markers", "--back-photo", "--palm-photo"})
         if (run->count(scan_only) > 0) throw CLI::ValidationError(scan_only, "is for a scan pair, not with --cloud");

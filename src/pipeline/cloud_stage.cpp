@@ -6,6 +6,7 @@
 #include <optional>
 
 #include "core/errors.hpp"
+#include "core/transform.hpp"
 #include "skin/auto_rig.hpp"
 
 namespace handskin {
@@ -142,15 +143,49 @@ MergedCloud::Ptr merged_cloud(const MergedArrays& a) {
   return c;
 }
 
+namespace {
+// 2. Two halves: each cleaned, the first registered into the second; their raw points merged
+// in the second's frame (the merge is then cleaned as one cloud).
+PointCloudFile register_halves(const PointCloudFile& a, const PointCloudFile& b, const CloudStageInputs& in,
+                               CloudStageResult* r, const std::function<void(const std::string&)>& progress) {
+  progress("cleaning each half");
+  const PreparedCloud pa = prepare_cloud(a.points, a.normals, a.path, r->units, in.prep);
+  const PreparedCloud pb = prepare_cloud(b.points, b.normals, b.path, r->units, in.prep);
+  progress("registering " + a.path + " into " + b.path + " (no markers)");
+  HalvesRegistration h;
+  h.alignment = align_halves(pa.points, pb.points, pb.normals, a.path, b.path, in.align);
+  h.kept_a = pa.points.size(), h.kept_b = pb.points.size();
+  progress("registered: " + fixed(100 * h.alignment.overlap_share, 0) + " % of the first half on the second, RMS " +
+           fixed(h.alignment.rms_mm, 3) + " mm, 1 sigma " + fixed(h.alignment.rotation_sigma_deg, 4) + " deg / " +
+           fixed(h.alignment.displacement_sigma_mm, 4) + " mm");
+  PointCloudFile m;
+  m.path = b.path;
+  m.points.reserve(a.points.size() + b.points.size());
+  for (const auto& p : a.points) m.points.push_back(h.alignment.a_to_b * p);
+  m.points.insert(m.points.end(), b.points.begin(), b.points.end());
+  if (!a.normals.empty() && !b.normals.empty()) {
+    for (const auto& n : a.normals) m.normals.push_back(h.alignment.a_to_b.linear() * n);
+    m.normals.insert(m.normals.end(), b.normals.begin(), b.normals.end());
+  }
+  r->halves = h;
+  return m;
+}
+}  // namespace
+
 CloudStageResult run_cloud_stage(const CloudStageInputs& in, const std::function<void(const std::string&)>& progress) {
   const auto t0 = std::chrono::steady_clock::now();
   CloudStageResult r;
   r.units = length_unit_name(in.units);
-  HS_CHECK(in.files.size() == 1, "run_cloud_stage takes one merged cloud");
-  const std::string& file = in.files[0];
-  progress("reading " + file);
-  PointCloudFile f = read_point_cloud(file, in.units);
-  r.files.push_back({f.path, f.format, f.points.size(), f.no_return, !f.normals.empty()});
+  HS_CHECK(in.files.size() == 1 || in.files.size() == 2, "run_cloud_stage takes one merged cloud or two halves");
+  std::vector<PointCloudFile> read;
+  for (const auto& file : in.files) {
+    progress("reading " + file);
+    read.push_back(read_point_cloud(file, in.units));
+    const PointCloudFile& f = read.back();
+    r.files.push_back({f.path, f.format, f.points.size(), f.no_return, !f.normals.empty()});
+  }
+  const PointCloudFile f = read.size() == 2 ? register_halves(read[0], read[1], in, &r, progress) : std::move(read[0]);
+  const std::string& file = in.files.back();
   progress("cleaning " + std::to_string(f.points.size()) + " points: outliers, the support, other parts");
   r.prepared = prepare_cloud(f.points, f.normals, file, r.units, in.prep);
   progress("the hand: " + std::to_string(r.prepared.points.size()) + " points (" + std::to_string(r.prepared.outliers) +
@@ -160,6 +195,30 @@ CloudStageResult run_cloud_stage(const CloudStageInputs& in, const std::function
   r.sides = label_sides(r.prepared.points, r.orientation.back, &r.prepared.normals);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
+}
+
+Json halves_against_truth(const CloudStageResult& r, const TruthSkin& truth) {
+  HS_CHECK(r.halves.has_value(), "no halves");
+  const RegistrationError e = registration_error(r.halves->alignment.a_to_b, truth.back_to_palm, mesh_vertices(truth.skin));
+  return {{"rotation_deg", e.rotation_deg}, {"skin_mean_mm", e.mean_mm}, {"skin_max_mm", e.max_mm}, {"file", truth.path}};
+}
+
+Json halves_registration_json(const CloudStageResult& r) {
+  HS_CHECK(r.halves.has_value(), "no halves");
+  const CloudAlignment& a = r.halves->alignment;
+  Json timings = Json::object();
+  for (const auto& [step, ms] : a.timings_ms) timings[step] = ms;
+  return {{"format", "handskin-registration/1"},
+          {"method", "markerless"},
+          {"back", r.files[0].path},
+          {"palm", r.files[1].path},
+          {"back_to_palm", isometry_to_json(a.a_to_b)},
+          {"candidates", a.candidates},
+          {"overlap_share", a.overlap_share},
+          {"rms_mm", a.rms_mm},
+          {"uncertainty", {{"rotation_deg", a.rotation_sigma_deg}, {"displacement_mm", a.displacement_sigma_mm}}},
+          {"kept", {{"back", r.halves->kept_a}, {"palm", r.halves->kept_b}}},
+          {"timings_ms", timings}};
 }
 
 Json to_json(const CloudStageResult& r) {
@@ -186,6 +245,7 @@ Json to_json(const CloudStageResult& r) {
   Json timings = Json::object();
   for (const auto& [step, ms] : p.timings_ms) timings[step] = ms;
   j["timings_ms"] = timings;
+  if (r.halves) j["registration"] = halves_registration_json(r);
   if (p.support_found)
     j["cleaning"]["support_plane"] = {p.support_plane(0), p.support_plane(1), p.support_plane(2), p.support_plane(3)};
   return j;

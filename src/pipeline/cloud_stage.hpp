@@ -2,11 +2,13 @@
 /// `handskin run --cloud`: the stage that takes the place of ingest and registration for a
 /// cloud from any scanner (issue 37, docs/clouds.md). run_cloud_stage runs:
 ///   1. read        every --cloud file (scan/cloud_file.hpp), in mm
-///   2. prepare     outliers, the support and other parts away, the hand's size checked,
+///   2. register    two halves: each cleaned, the first registered into the second without
+///                  markers (register/cloud_align.hpp); their points merged in the second's frame
+///   3. prepare     outliers, the support and other parts away, the hand's size checked,
 ///                  normals (register/cloud_prep.hpp)
-///   3. orient      which way the back of the hand faces: the given rig's palm normal, or
+///   4. orient      which way the back of the hand faces: the given rig's palm normal, or
 ///                  --hand, or the fingers' flexion (fingers bend toward the palm)
-///   4. label       palm and back sides about the hand's mid-surface (the labels a scan pair's
+///   5. label       palm and back sides about the hand's mid-surface (the labels a scan pair's
 ///                  merged cloud carries, which the skin's steps and figures use)
 #include <Eigen/Core>
 #include <functional>
@@ -16,18 +18,21 @@
 
 #include "core/json_util.hpp"
 #include "core/rig.hpp"
+#include "register/cloud_align.hpp"
 #include "register/cloud_prep.hpp"
 #include "register/registration.hpp"
 #include "scan/cloud_file.hpp"
+#include "scan/truth_io.hpp"
 
 namespace handskin {
 
 struct CloudStageInputs {
-  std::vector<std::string> files;        ///< one merged cloud (two halves: not yet, see docs/clouds.md)
+  std::vector<std::string> files;        ///< one merged cloud, or two halves (the first registered into the second)
   LengthUnit units = LengthUnit::Millimetre;
   std::optional<HandSide> hand;          ///< --hand: which hand it is (else from the rig or the fingers)
   const Rig* rig = nullptr;              ///< the given rig (palm frame = the cloud's), or none
   CloudPrepOptions prep;
+  CloudAlignOptions align;
 };
 
 /// How the back's direction was decided.
@@ -45,8 +50,15 @@ struct CloudFileFigures {
   bool normals = false;
 };
 
+/// Two halves' registration: the fit and what each half's cleaning kept.
+struct HalvesRegistration {
+  CloudAlignment alignment;
+  size_t kept_a = 0, kept_b = 0;
+};
+
 struct CloudStageResult {
   std::vector<CloudFileFigures> files;
+  std::optional<HalvesRegistration> halves;  ///< two files: the first into the second's frame
   std::string units;
   PreparedCloud prepared;                ///< the hand's points, normals turned to the sides
   std::vector<std::uint32_t> sides;      ///< 0 palm, 1 back
@@ -68,6 +80,14 @@ double finger_flexion(const std::vector<Eigen::Vector3d>& points, const Rig& rig
 
 /// The stage's figures for the run report's "cloud" stage.
 Json to_json(const CloudStageResult& r);
+
+/// Two halves' registration against a synthetic cloud's truth (truth.json's back_to_palm maps
+/// the first half into the second): {"rotation_deg", "skin_mean_mm", "skin_max_mm", "file"}.
+Json halves_against_truth(const CloudStageResult& r, const TruthSkin& truth);
+
+/// registration.json of two halves (handskin-registration/1, "method": "markerless"):
+/// back_to_palm maps the first half into the second's frame.
+Json halves_registration_json(const CloudStageResult& r);
 
 /// The merged cloud (merged.ply) of the stage's arrays.
 MergedCloud::Ptr merged_cloud(const MergedArrays& a);

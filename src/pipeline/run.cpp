@@ -141,10 +141,11 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
     ci.hand = in.hand;
     ci.rig = si.rig ? &*si.rig : nullptr;
     R.cloud = run_cloud_stage(ci, [&](const std::string& m) { progress("cloud: " + m); });
+    if (truth && R.cloud->halves) R.registration_truth = halves_against_truth(*R.cloud, *truth);
     merged = R.cloud->merged();
     R.merged_png = merged_preview_png(merged, {});
     R.texture_note = "no texture: a cloud has no photos";
-    si.cloud_name = in.clouds[0];
+    si.cloud_name = in.clouds.size() == 2 ? "the halves " + in.clouds[0] + " and " + in.clouds[1] + " merged" : in.clouds[0];
   } else {
     const auto& [back, palm] = *scans;
     // The photos: given, or found beside the scans.
@@ -242,6 +243,7 @@ std::optional<std::pair<std::string, std::string>> run_photo_paths(const RunInpu
 std::vector<std::string> run_output_plan(const RunInputs& in) {
   if (!in.clouds.empty()) {
     std::vector<std::string> n = {"report.json", "skin.glb", "merged.ply", "merged.png"};
+    if (in.clouds.size() == 2) n.push_back("registration.json");
     const auto skin = skin_output_plan(in.auto_rig || in.rig_path.empty(), in.options.skin.slices_json,
                                        in.baseline || in.options.skin.baseline);
     n.insert(n.end(), skin.begin(), skin.end());
@@ -271,6 +273,12 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
   const RunInputs& in = r.inputs;
   Json outputs;
   if (r.cloud) {
+    if (r.cloud->halves) {
+      Json reg = halves_registration_json(*r.cloud);
+      if (r.registration_truth) reg["against_truth"] = *r.registration_truth;
+      save_json(out.stage("registration.json"), reg);
+      outputs["registration"] = out.final_path("registration.json");
+    }
     save_merged(out.stage("merged.ply"), *merged_cloud(r.cloud->merged()));
     outputs["merged_cloud"] = out.final_path("merged.ply");
     write_file_atomic(out.stage("merged.png"), r.merged_png);
@@ -313,6 +321,7 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
   Json stages = Json::array();
   if (r.cloud) {
     stages.push_back(to_json(*r.cloud));
+    if (r.registration_truth) stages.back()["registration"]["against_truth"] = *r.registration_truth;
   } else {
     stages.push_back({{"name", "ingest"}, {"seconds", r.ingest_seconds}, {"back", to_json(r.back)},
                       {"palm", to_json(r.palm)}});

@@ -354,6 +354,11 @@ std::vector<Eigen::Vector3d> estimate_normals(std::vector<Eigen::Vector3d>* pts_
 
 }  // namespace
 
+std::vector<Eigen::Vector3d> neighbour_normals(const std::vector<Eigen::Vector3d>& points, double radius) {
+  std::vector<Eigen::Vector3d> copy = points;  // not smoothed: the points stay as they are
+  return estimate_normals(&copy, radius, false);
+}
+
 Eigen::Vector3d thickness_axis(const std::vector<Eigen::Vector3d>& pts) {
   return principal_axes(pts, centroid(pts)).col(2).normalized();
 }

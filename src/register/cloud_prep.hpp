@@ -65,6 +65,10 @@ PreparedCloud prepare_cloud(const std::vector<Eigen::Vector3d>& points, const st
 std::vector<std::uint32_t> label_sides(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& back,
                                        std::vector<Eigen::Vector3d>* normals);
 
+/// Unoriented normals: the least-spread axis of the points within `radius` of each (zero
+/// where fewer than 6 lie there).
+std::vector<Eigen::Vector3d> neighbour_normals(const std::vector<Eigen::Vector3d>& points, double radius);
+
 /// The thickness axis of a hand's points (the principal axis of least spread), unit.
 Eigen::Vector3d thickness_axis(const std::vector<Eigen::Vector3d>& points);
 
