@@ -14,6 +14,7 @@
 #include "core/rig.hpp"
 #include "mesh/mesh_distance.hpp"
 #include "pipeline/cloud_stage.hpp"
+#include "pipeline/options.hpp"
 #include "register/cloud_align.hpp"
 #include "register/cloud_prep.hpp"
 #include "register/registration.hpp"
@@ -252,6 +253,16 @@ TEST(CloudAlign, RegistersTwoHalvesWithoutMarkers) {
       test::input_error_of([&] { align_halves(b.points, b.points, b.normals, "b.ply", "b2.ply", CloudAlignOptions{}); });
   EXPECT_NE(same.find("the same half"), std::string::npos) << same;
   EXPECT_NE(same.find("b2.ply"), std::string::npos) << same;
+}
+
+TEST(CloudStage, TheHandheldPipelineDiffersFromTheThesisOnlyInItsNoiseGate) {
+  const PipelineOptions hh = load_pipeline(std::string(HANDSKIN_SOURCE_DIR) + "/pipelines/handheld.json");
+  const PipelineOptions cu = load_pipeline(std::string(HANDSKIN_SOURCE_DIR) + "/pipelines/cubist.json");
+  EXPECT_EQ(hh.gates.cloud_to_skin_p95_mm, 0.6);
+  Json a = pipeline_to_json(hh), b = pipeline_to_json(cu);
+  a["gates"].erase("cloud_to_skin_p95_mm");
+  b["gates"].erase("cloud_to_skin_p95_mm");
+  EXPECT_EQ(a, b);
 }
 
 TEST(SynthCloud, RepeatsByteForByteAndWritesItsTruth) {
