@@ -601,10 +601,7 @@ static const std::string& cloud_500k() {
     o.spacing_mm = 0.4;
     o.noise_mm = 0.2;
     const CloudSim sim = simulate_cloud(load_mesh(kFix + "truth_skin.ply"), load_rig(kFix + "rig.json"), o, 5);
-    Cloud c;
-    for (const auto& p : sim.points)
-      c.push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
-    save_cloud(dir + "/cloud.ply", c);
+    save_cloud(dir + "/cloud.ply", sim.points);
     save_rig(dir + "/rig.json", sim.rig);
     return dir + "/cloud.ply";
   }();

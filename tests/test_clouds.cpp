@@ -199,12 +199,9 @@ TEST(CloudStage, TellsTheBackOfTheHandAndWhichHandItIs) {
   // the stage says so rather than guess; --hand or a rig tells it.
   const SimHand& h = sim_hand();
   const std::string d = test::temp_dir("cloudstage");
-  pcl::PointCloud<pcl::PointXYZ> pc, mirrored;
-  for (const auto& p : h.sim.points) {
-    pc.push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
-    mirrored.push_back(pcl::PointXYZ(static_cast<float>(-p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
-  }
-  save_cloud(d + "/c.ply", pc);
+  std::vector<Eigen::Vector3d> mirrored;
+  for (const auto& p : h.sim.points) mirrored.emplace_back(-p.x(), p.y(), p.z());
+  save_cloud(d + "/c.ply", h.sim.points);
   save_cloud(d + "/m.ply", mirrored);
   const auto quiet = [](const std::string&) {};
   const Eigen::Vector3d back = *h.sim.rig.palm_normal;

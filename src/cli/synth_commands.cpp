@@ -143,13 +143,6 @@ struct SynthCloudArgs {
   bool halves = false, force = false;
 };
 
-Cloud to_pcl_cloud(const std::vector<Eigen::Vector3d>& pts) {
-  Cloud c;
-  c.reserve(pts.size());
-  for (const auto& p : pts) c.push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
-  return c;
-}
-
 void synth_cloud(SynthCloudArgs a, const Progress& progress) {
   OutputSet out(a.out, output_options(a.force));
   a.sim.units_per_mm = 1.0 / millimetres_per(*parse_length_unit(a.units));
@@ -163,10 +156,10 @@ void synth_cloud(SynthCloudArgs a, const Progress& progress) {
   const Rig rig = load_rig(a.rig);
   progress("synth cloud", "scanning from " + std::to_string(a.sim.views) + " views (seed " + std::to_string(a.seed) + ")");
   const CloudSim sim = simulate_cloud(hand, rig, a.sim, a.seed);
-  save_cloud(out.stage("cloud.ply"), to_pcl_cloud(sim.points));
+  save_cloud(out.stage("cloud.ply"), sim.points);
   if (a.halves) {
-    save_cloud(out.stage("a.ply"), to_pcl_cloud(sim.half_a));
-    save_cloud(out.stage("b.ply"), to_pcl_cloud(sim.half_b));
+    save_cloud(out.stage("a.ply"), sim.half_a);
+    save_cloud(out.stage("b.ply"), sim.half_b);
   }
   save_rig(out.stage("rig.json"), sim.rig);
   save_mesh(out.stage("truth_skin.ply"), sim.skin);

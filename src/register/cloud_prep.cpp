@@ -55,72 +55,9 @@ Eigen::Vector3d centroid(const std::vector<Eigen::Vector3d>& pts) {
   return pts.empty() ? c : Eigen::Vector3d(c / static_cast<double>(pts.size()));
 }
 
-// Principal axes (columns, largest spread first) about the centroid.
-Eigen::Matrix3d principal_axes(const std::vector<Eigen::Vector3d>& pts, const Eigen::Vector3d& c) {
-  Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
-  for (const auto& p : pts) C += (p - c) * (p - c).transpose();
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
-  Eigen::Matrix3d A;
-  for (int k = 0; k < 3; ++k) A.col(k) = es.eigenvectors().col(2 - k);
-  return A;
-}
-
-// Extents along the principal axes between the `q` and 1 − q quantiles (q = 0: full).
-Eigen::Vector3d extents(const std::vector<Eigen::Vector3d>& pts, double q) {
-  const Eigen::Vector3d c = centroid(pts);
-  const Eigen::Matrix3d A = principal_axes(pts, c);
-  Eigen::Vector3d e;
-  std::vector<double> t(pts.size());
-  for (int a = 0; a < 3; ++a) {
-    for (size_t k = 0; k < pts.size(); ++k) t[k] = A.col(a).dot(pts[k] - c);
-    const size_t lo = static_cast<size_t>(q * static_cast<double>(t.size() - 1)), hi = t.size() - 1 - lo;
-    std::nth_element(t.begin(), t.begin() + static_cast<long>(lo), t.end());
-    const double tl = t[lo];
-    std::nth_element(t.begin(), t.begin() + static_cast<long>(hi), t.end());
-    e(a) = t[hi] - tl;
-  }
-  return e;
-}
-
-std::string mm_text(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, v < 10 ? "%.3g" : "%.0f", v);
-  return b;
-}
-
-// 1. The cloud's robust extent (2nd–98th percentile along its long axis) must be a hand's
-// at the given units, within a factor for a stand or stray points around it.
-void check_scale(const std::vector<Eigen::Vector3d>& pts, const std::string& file, const std::string& units,
-                 const CloudPrepOptions& o) {
-  const double len = extents(pts, 0.02)(0);
-  if (len >= o.min_hand_mm * 0.5 && len <= o.max_hand_mm * 10) return;
-  std::string hint;
-  const double given = millimetres_per(parse_length_unit(units).value_or(LengthUnit::Millimetre));
-  for (const char* u : {"mm", "cm", "m", "in"}) {
-    const double l = len * millimetres_per(*parse_length_unit(u)) / given;
-    if (l >= o.min_hand_mm && l <= o.max_hand_mm) hint = "; at --units " + std::string(u) + " it would be " + mm_text(l) + " mm";
-  }
-  throw InputError(file, "the cloud is " + mm_text(len) + " mm long at --units " + units + ": not a hand (" +
-                             mm_text(o.min_hand_mm) + "–" + mm_text(o.max_hand_mm) + " mm)" + hint);
-}
-
-std::vector<size_t> keep_indices(const std::vector<size_t>& from, const std::vector<int>& picked) {
-  std::vector<size_t> out;
-  out.reserve(picked.size());
-  for (int i : picked) out.push_back(from[static_cast<size_t>(i)]);
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
-std::vector<Eigen::Vector3d> gather(const std::vector<Eigen::Vector3d>& v, const std::vector<size_t>& idx) {
-  std::vector<Eigen::Vector3d> out;
-  out.reserve(idx.size());
-  for (size_t i : idx) out.push_back(v[i]);
-  return out;
-}
-
-// 2. A voxel grid: every voxel's points (and normals) averaged into one (PCL VoxelGrid).
-void downsample(double voxel, std::vector<Eigen::Vector3d>* pts, std::vector<Eigen::Vector3d>* nrm) {
+// 2. A voxel grid: every voxel's points (and normals, when there is one per point) averaged
+// into one (PCL VoxelGrid), worked in float about their centroid.
+void voxel_downsample(std::vector<Eigen::Vector3d>* pts, std::vector<Eigen::Vector3d>* nrm, double voxel) {
   const Eigen::Vector3d c = centroid(*pts);
   const float leaf = static_cast<float>(voxel);
   if (nrm->size() != pts->size()) {  // points only: the smaller point type is the faster grid
@@ -151,6 +88,70 @@ void downsample(double voxel, std::vector<Eigen::Vector3d>* pts, std::vector<Eig
     pts->push_back(q.getVector3fMap().cast<double>() + c);
     nrm->push_back(q.getNormalVector3fMap().cast<double>().normalized());
   }
+}
+
+// A cloud's centroid, principal axes (columns, largest spread first, right-handed) and its
+// extents along them between the `q` and 1 − `q` quantiles.
+struct PrincipalFrame {
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d axes = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d extent = Eigen::Vector3d::Zero();
+};
+PrincipalFrame principal_frame_of(const std::vector<Eigen::Vector3d>& pts, double q = 0) {
+  PrincipalFrame f;
+  f.centroid = centroid(pts);
+  Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+  for (const auto& p : pts) C += (p - f.centroid) * (p - f.centroid).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
+  for (int k = 0; k < 3; ++k) f.axes.col(k) = es.eigenvectors().col(2 - k);
+  if (f.axes.determinant() < 0) f.axes.col(2) *= -1;
+  std::vector<double> t(pts.size());
+  for (int a = 0; a < 3 && !pts.empty(); ++a) {
+    for (size_t k = 0; k < pts.size(); ++k) t[k] = f.axes.col(a).dot(pts[k] - f.centroid);
+    const size_t lo = static_cast<size_t>(q * static_cast<double>(t.size() - 1)), hi = t.size() - 1 - lo;
+    std::nth_element(t.begin(), t.begin() + static_cast<long>(lo), t.end());
+    const double tl = t[lo];
+    std::nth_element(t.begin(), t.begin() + static_cast<long>(hi), t.end());
+    f.extent(a) = t[hi] - tl;
+  }
+  return f;
+}
+
+std::string mm_text(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, v < 10 ? "%.3g" : "%.0f", v);
+  return b;
+}
+
+// 1. The cloud's robust extent (2nd–98th percentile along its long axis) must be a hand's
+// at the given units, within a factor for a stand or stray points around it.
+void check_scale(const std::vector<Eigen::Vector3d>& pts, const std::string& file, const std::string& units,
+                 const CloudPrepOptions& o) {
+  const double len = principal_frame_of(pts, 0.02).extent(0);
+  if (len >= o.min_hand_mm * 0.5 && len <= o.max_hand_mm * 10) return;
+  std::string hint;
+  const double given = millimetres_per(parse_length_unit(units).value_or(LengthUnit::Millimetre));
+  for (const char* u : {"mm", "cm", "m", "in"}) {
+    const double l = len * millimetres_per(*parse_length_unit(u)) / given;
+    if (l >= o.min_hand_mm && l <= o.max_hand_mm) hint = "; at --units " + std::string(u) + " it would be " + mm_text(l) + " mm";
+  }
+  throw InputError(file, "the cloud is " + mm_text(len) + " mm long at --units " + units + ": not a hand (" +
+                             mm_text(o.min_hand_mm) + "–" + mm_text(o.max_hand_mm) + " mm)" + hint);
+}
+
+std::vector<size_t> keep_indices(const std::vector<size_t>& from, const std::vector<int>& picked) {
+  std::vector<size_t> out;
+  out.reserve(picked.size());
+  for (int i : picked) out.push_back(from[static_cast<size_t>(i)]);
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::vector<Eigen::Vector3d> gather(const std::vector<Eigen::Vector3d>& v, const std::vector<size_t>& idx) {
+  std::vector<Eigen::Vector3d> out;
+  out.reserve(idx.size());
+  for (size_t i : idx) out.push_back(v[i]);
+  return out;
 }
 
 // 3. Outliers: points with fewer than `outlier_neighbours` others within `outlier_radius_mm`
@@ -319,15 +320,16 @@ std::vector<size_t> keep_largest_part(const std::vector<Eigen::Vector3d>& pts, c
 }
 
 // 7. Normals: the least-spread axis of the points within `radius` (at least 6 of them;
-// else zero), unoriented (label_sides turns them). With `smooth`, each point also moves onto
+// else zero), unoriented (label_sides turns them). With `smoothed` (a copy of the points),
+// each point there moves onto
 // that local plane through its neighbours' mean (one planar moving-least-squares step): the
 // scanner's noise along the rays averaged over ~25 neighbours, at the price of a bias of about
 // radius² / (4 × curvature radius) inward on curved skin (0.05 mm for a 1.2 mm radius on an
 // 8 mm finger). Where the neighbourhood is not flat (the plane's spread over a third of the
 // next axis's — an edge, a gap between touching fingers) the point stays. In the hash grid for
 // the reason above.
-std::vector<Eigen::Vector3d> estimate_normals(std::vector<Eigen::Vector3d>* pts_io, double radius, bool smooth) {
-  const std::vector<Eigen::Vector3d> pts = *pts_io;
+std::vector<Eigen::Vector3d> estimate_normals(const std::vector<Eigen::Vector3d>& pts, double radius,
+                                              std::vector<Eigen::Vector3d>* smoothed) {
   const PointGrid grid(pts, radius);
   std::vector<Eigen::Vector3d> out(pts.size(), Eigen::Vector3d::Zero());
 #pragma omp parallel for schedule(static, 1024)
@@ -346,8 +348,8 @@ std::vector<Eigen::Vector3d> estimate_normals(std::vector<Eigen::Vector3d>* pts_
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
     const Eigen::Vector3d nrm = es.eigenvectors().col(0).normalized();
     out[static_cast<size_t>(k)] = nrm;
-    if (smooth && es.eigenvalues()(0) < es.eigenvalues()(1) / 9.0)
-      (*pts_io)[static_cast<size_t>(k)] = q + nrm.dot(mean) * nrm;
+    if (smoothed && es.eigenvalues()(0) < es.eigenvalues()(1) / 9.0)
+      (*smoothed)[static_cast<size_t>(k)] = q + nrm.dot(mean) * nrm;
   }
   return out;
 }
@@ -355,12 +357,11 @@ std::vector<Eigen::Vector3d> estimate_normals(std::vector<Eigen::Vector3d>* pts_
 }  // namespace
 
 std::vector<Eigen::Vector3d> neighbour_normals(const std::vector<Eigen::Vector3d>& points, double radius) {
-  std::vector<Eigen::Vector3d> copy = points;  // not smoothed: the points stay as they are
-  return estimate_normals(&copy, radius, false);
+  return estimate_normals(points, radius, nullptr);
 }
 
 Eigen::Vector3d thickness_axis(const std::vector<Eigen::Vector3d>& pts) {
-  return principal_axes(pts, centroid(pts)).col(2).normalized();
+  return principal_frame_of(pts).axes.col(2).normalized();
 }
 
 PreparedCloud prepare_cloud(const std::vector<Eigen::Vector3d>& points_in, const std::vector<Eigen::Vector3d>& normals_in,
@@ -379,12 +380,12 @@ PreparedCloud prepare_cloud(const std::vector<Eigen::Vector3d>& points_in, const
     r.timings_ms.emplace_back(step, std::chrono::duration<double, std::milli>(now - t).count());
     t = now;
   };
-  check_scale(points_in, file, units, o);
+  check_scale(points_in, file, units, o);  // 1.
   lap("check_scale");
   std::vector<Eigen::Vector3d> points = points_in, normals = normals_in;
   r.normals_from_file = normals.size() == points.size();
-  if (o.voxel_mm > 0) downsample(o.voxel_mm, &points, &normals);
-  r.downsampled = points.size();
+  if (o.voxel_mm > 0) voxel_downsample(&points, &normals, o.voxel_mm);
+  r.downsampled = points.size();  // 2. the voxel grid
   r.voxel_mm = o.voxel_mm;
   lap("downsample");
   std::vector<size_t> idx(points.size());
@@ -403,7 +404,7 @@ PreparedCloud prepare_cloud(const std::vector<Eigen::Vector3d>& points_in, const
     throw InputError(file, "its largest connected part holds " + std::to_string(idx.size()) + " points (gap " +
                                mm_text(r.part_gap_mm) + " mm); a hand needs at least " + std::to_string(o.min_points));
   r.points = gather(points, idx);
-  r.extent_mm = extents(r.points, 0);
+  r.extent_mm = principal_frame_of(r.points).extent;
   if (r.extent_mm(0) < o.min_hand_mm || r.extent_mm(0) > o.max_hand_mm)
     throw InputError(file, "its largest part is " + mm_text(r.extent_mm(0)) + " mm long at --units " + units +
                                ": not a hand (" + mm_text(o.min_hand_mm) + "–" + mm_text(o.max_hand_mm) + " mm)");
@@ -411,12 +412,10 @@ PreparedCloud prepare_cloud(const std::vector<Eigen::Vector3d>& points_in, const
     throw InputError(file, "its largest part is flat (" + mm_text(r.extent_mm(2)) + " mm thick over " +
                                mm_text(r.extent_mm(0)) + " mm): a plane, not a hand");
   lap("check_hand");
-  if (r.normals_from_file) {
-    r.normals = gather(normals, idx);
-    if (o.smooth) estimate_normals(&r.points, o.normal_radius_mm, true);
-  } else {
-    r.normals = estimate_normals(&r.points, o.normal_radius_mm, o.smooth);
-  }
+  std::vector<Eigen::Vector3d> smoothed = o.smooth ? r.points : std::vector<Eigen::Vector3d>{};
+  std::vector<Eigen::Vector3d> estimated = estimate_normals(r.points, o.normal_radius_mm, o.smooth ? &smoothed : nullptr);
+  r.normals = r.normals_from_file ? gather(normals, idx) : std::move(estimated);
+  if (o.smooth) r.points = std::move(smoothed);
   lap("estimate_normals");
   return r;
 }

@@ -115,6 +115,12 @@ void save_cloud(const std::string& path, const Cloud& cloud) { save_any_cloud(pa
 void save_cloud(const std::string& path, const pcl::PointCloud<pcl::PointXYZLNormal>& cloud) {
   save_any_cloud(path, cloud);
 }
+void save_cloud(const std::string& path, const std::vector<Eigen::Vector3d>& points) {
+  Cloud c;
+  c.reserve(points.size());
+  for (const auto& p : points) c.push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
+  save_any_cloud(path, c);
+}
 
 void silence_pcl_console() { pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS); }
 

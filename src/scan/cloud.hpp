@@ -5,6 +5,9 @@
 #include <pcl/point_types.h>
 
 #include <string>
+#include <vector>
+
+#include <Eigen/Core>
 
 #include "scan/cubist_io.hpp"
 
@@ -33,6 +36,8 @@ void save_cloud(const std::string& path, const Cloud& cloud);
 /// The same for the merged cloud's points (x y z, normal, side label, curvature): the one
 /// PLY/PCD writer of the project's clouds.
 void save_cloud(const std::string& path, const pcl::PointCloud<pcl::PointXYZLNormal>& cloud);
+/// The same for a list of points (mm, or whatever units they are in): x y z.
+void save_cloud(const std::string& path, const std::vector<Eigen::Vector3d>& points);
 
 /// PCL's console messages off: every failure of ours is one line that names the file.
 void silence_pcl_console();
