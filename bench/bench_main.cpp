@@ -319,7 +319,7 @@ const RiggedFixture& rigged_fixture() {
     RiggedFixture r;
     r.rig = load_rig(kFix + "rig.json");
     r.skin = build_skin(fixture_merged().points, r.rig, SkinOptions{});
-    r.rest = mesh_vertices(r.skin.mesh);
+    r.rest = r.skin.mesh.vertices;
     r.binding = bind_skin(r.skin.mesh, bones_from_rig(r.rig), BindingOptions{});
     return r;
   }();
@@ -362,7 +362,7 @@ static void BM_UntangleFist(benchmark::State& st) {
   const RiggedFixture& f = rigged_fixture();
   const Skeleton skel(f.rig, "rig");
   const auto motions = link_motions(skel, PostureSolver(builtin_model("anatomical")).solve(fist_inputs()).angles);
-  const std::vector<std::array<int, 3>> faces = mesh_faces(f.skin.mesh);
+  const std::vector<std::array<int, 3>> faces = f.skin.mesh.faces;
   const std::vector<int> dominant = dominant_links(faces, f.binding);
   auto guarded = deform(f.rest, f.binding, motions, Blend::DualQuaternion);
   guard_creases(crease_guard(f.rest, f.binding, f.rig), motions, &guarded);
@@ -419,7 +419,7 @@ const SkinTexture& fixture_texture() {
     const RiggedFixture& f = rigged_fixture();
     const RangeScan back = load_scan(kFix + "back"), palm = load_scan(kFix + "palm");
     const Registration reg = register_scans(back, palm, "back", "palm", RegistrationOptions{}, nullptr, [](const std::string&) {});
-    return bake_skin_texture(f.rest, mesh_faces(f.skin.mesh), load_scan_photo(kFix + "back.photo.png", back),
+    return bake_skin_texture(f.rest, f.skin.mesh.faces, load_scan_photo(kFix + "back.photo.png", back),
                              load_scan_photo(kFix + "palm.photo.png", palm), reg.back_to_palm, reg.markers_palm,
                              reg.marker_radius_mm, TextureOptions{});
   }();
@@ -432,7 +432,7 @@ static void BM_TextureBake(benchmark::State& st) {
   const RangeScan back = load_scan(kFix + "back"), palm = load_scan(kFix + "palm");
   const ScanPhoto bp = load_scan_photo(kFix + "back.photo.png", back), pp = load_scan_photo(kFix + "palm.photo.png", palm);
   const Registration reg = register_scans(back, palm, "back", "palm", RegistrationOptions{}, nullptr, [](const std::string&) {});
-  const auto faces = mesh_faces(f.skin.mesh);
+  const auto faces = f.skin.mesh.faces;
   for (auto _ : st)
     benchmark::DoNotOptimize(bake_skin_texture(f.rest, faces, bp, pp, reg.back_to_palm, reg.markers_palm, reg.marker_radius_mm,
                                                TextureOptions{}).map.rgb.data());
@@ -460,8 +460,7 @@ const std::string& studio_glb() {
   static const std::string path = [] {
     const RiggedFixture& f = rigged_fixture();
     RiggedSkin s;
-    s.vertices = f.rest;
-    s.faces = mesh_faces(f.skin.mesh);
+    s.mesh = {f.rest, f.skin.mesh.faces};
     s.rig = f.rig;
     s.binding = f.binding;
     s.model = builtin_model("anatomical");

@@ -12,7 +12,7 @@ using namespace handskin;
 int main(int argc, char** argv) {
   const int pairs = argc > 1 ? std::atoi(argv[1]) : 10;
   const std::string dir = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
-  const TriMesh mesh = load_mesh(dir + "truth_skin.ply");
+  const Mesh mesh = load_mesh(dir + "truth_skin.ply");
   const Rig rig = load_rig(dir + "rig.json");
   struct Condition {
     const char* name;
@@ -38,7 +38,7 @@ int main(int argc, char** argv) {
     double rot = 0, rot_worst = 0, rot_m = 0, mean = 0, max_worst = 0;
     for (int seed = 101; seed < 101 + pairs; ++seed) {
       const ScanPair pair = synthesize_scan_pair(mesh, rig, ro, so, seed, false);
-      const std::vector<Eigen::Vector3d> skin = mesh_vertices(pair.skin_palm);
+      const std::vector<Eigen::Vector3d> skin = pair.skin_palm.vertices;
       const Registration reg = register_scans(pair.back.scan, pair.palm.scan, "back", "palm", rgo,
                                               nullptr, [](const std::string&) {});
       const RegistrationError e = registration_error(reg.back_to_palm, pair.back_to_palm, skin);

@@ -49,6 +49,14 @@ for p in S02-s2 S05-s1 S07-s3; do
   shot "$p-given" "$BIN" -q run --back "$FAM/$p/back" --palm "$FAM/$p/palm" --rig "$FAM/$p/rig.json" \
     --truth "$FAM/$p/truth.json" --out "$O"
 done
+echo "snapshot: clouds" >&2
+if [ ! -f "$FAM/S05-cloud/cloud.ply" ]; then
+  "$BIN" -q synth cloud --mesh "$FAM/S05/hand.ply" --rig "$FAM/S05/hand_rig.json" --out "$FAM/S05-cloud" --seed 4 \
+    --halves >/dev/null
+fi
+shot cloud "$BIN" -q run --cloud "$FAM/S05-cloud/cloud.ply" --truth "$FAM/S05-cloud/truth.json" --out "$O"
+shot cloud-halves "$BIN" -q run --cloud "$FAM/S05-cloud/a.ply" --cloud "$FAM/S05-cloud/b.ply" \
+  --rig "$FAM/S05-cloud/rig.json" --out "$O"
 echo "snapshot: stage commands" >&2
 shot register "$BIN" -q register --back $FX/back --palm $FX/palm --out "$O"
 cp -r "$SNAP/register" "$SCRATCH/reg"
@@ -69,6 +77,8 @@ FILES=1 shot solve "$BIN" -q solve --model builtin:anatomical --set index.pip.fl
 printf 'index.mcp.flex,middle.pip.flex\n0,0\n40,60\n,20\n' > "$SCRATCH/keys/inputs.csv"
 FILES=1 shot solve-batch "$BIN" -q solve --model builtin:anatomical --inputs "$SCRATCH/keys/inputs.csv" --out "$O/batch.csv"
 shot synth-hand "$BIN" -q synth hand --out "$O" --side left --hand-length 170 --facet-size 3
+shot synth-cloud "$BIN" -q synth cloud --mesh "$FAM/S02/hand.ply" --rig "$FAM/S02/hand_rig.json" --out "$O" \
+  --seed 6 --spacing 1.2 --halves
 shot synth-scan "$BIN" -q synth scan --mesh "$FAM/S02/hand.ply" --rig "$FAM/S02/hand_rig.json" --out "$O" --seed 5 \
   --resolution 200
 FILES=1 shot convert "$BIN" -q convert --in $FX/palm --out "$O/palm.pcd"

@@ -102,7 +102,7 @@ TEST(Animation, TheCommandWritesAGlbWithAnAnimationAndItsFrames) {
   ASSERT_EQ(test::run(cmd, &out), 0) << out;
   // The glb is still the rigged skin (it reads back), and it now carries the animation.
   const RiggedSkin back = read_skin_glb(dir + "/anim.glb");
-  EXPECT_GT(back.vertices.size(), 3000u);
+  EXPECT_GT(back.mesh.vertices.size(), 3000u);
   const std::string glb = read_file(dir + "/anim.glb");
   EXPECT_NE(glb.find("\"animations\""), std::string::npos);
   EXPECT_NE(glb.find("\"rotation\""), std::string::npos);

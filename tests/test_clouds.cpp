@@ -32,7 +32,7 @@ const std::string kBin = HANDSKIN_BINARY;
 
 // The fixture's true skin and rig (palm frame), scanned from around once per process.
 struct SimHand {
-  TriMesh skin;
+  Mesh skin;
   Rig rig;
   CloudSim sim;
 };
@@ -238,7 +238,7 @@ TEST(CloudAlign, RegistersTwoHalvesWithoutMarkers) {
   const PreparedCloud a = prepare_cloud(h.sim.half_a, {}, "a.ply", "mm", po);
   const PreparedCloud b = prepare_cloud(h.sim.half_b, {}, "b.ply", "mm", po);
   const CloudAlignment al = align_halves(a.points, b.points, b.normals, "a.ply", "b.ply", CloudAlignOptions{});
-  const RegistrationError e = registration_error(al.a_to_b, h.sim.a_to_b, mesh_vertices(h.sim.skin));
+  const RegistrationError e = registration_error(al.a_to_b, h.sim.a_to_b, h.sim.skin.vertices);
   EXPECT_LT(e.rotation_deg, 0.1);
   EXPECT_LT(e.mean_mm, 0.1);
   EXPECT_GT(al.overlap_share, 0.1);
@@ -276,7 +276,7 @@ TEST(SynthCloud, RepeatsByteForByteAndWritesItsTruth) {
   EXPECT_EQ(t["units_per_mm"].get<double>(), 0.001);
   // In metres: the cloud is a thousandth of the true skin's size, in the truth's frame.
   const PointCloudFile c = read_point_cloud(d + "/a/cloud.ply", LengthUnit::Metre);
-  const TriMesh skin = load_mesh(d + "/a/truth_skin.ply");
+  const Mesh skin = load_mesh(d + "/a/truth_skin.ply");
   const MeshDistance dist(skin);
   size_t near = 0;
   for (const auto& p : c.points) near += dist.distance(p) < 1.0;

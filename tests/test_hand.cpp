@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <set>
+#include <utility>
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
@@ -46,7 +48,10 @@ TEST(DefaultHand, ClosedManifoldOutwardAndSized) {
   EXPECT_GE(m.faces, 20000u);
   EXPECT_LE(m.faces, 60000u);
   // Euler characteristic of a sphere-like surface: V - E + F = 2.
-  EXPECT_EQ(static_cast<long>(m.vertices) - static_cast<long>(h.mesh.mesh.n_edges()) + static_cast<long>(m.faces), 2);
+  std::set<std::pair<int, int>> edges;
+  for (const auto& f : h.mesh.mesh.faces)
+    for (int k = 0; k < 3; ++k) edges.insert(std::minmax(f[k], f[(k + 1) % 3]));
+  EXPECT_EQ(static_cast<long>(m.vertices) - static_cast<long>(edges.size()) + static_cast<long>(m.faces), 2);
   // Adult proportions: volume of a hand (without forearm) is a few hundred ml.
   EXPECT_GT(m.volume_mm3, 250e3);
   EXPECT_LT(m.volume_mm3, 650e3);
@@ -70,8 +75,7 @@ TEST(DefaultHand, AnatomicalMeasures) {
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
   double palm_lo = 1e9, palm_hi = -1e9, breadth_lo = 1e9, breadth_hi = -1e9;
   const double x_mcp = J(rig, "middle-finger-phalanx-proximal").x() - 15;  // across the metacarpal heads
-  for (auto v : h.mesh.mesh.vertices()) {
-    const auto& p = h.mesh.mesh.point(v);
+  for (const Eigen::Vector3d& p : h.mesh.mesh.vertices) {
     lo = lo.cwiseMin(Eigen::Vector3d(p[0], p[1], p[2]));
     hi = hi.cwiseMax(Eigen::Vector3d(p[0], p[1], p[2]));
     // Across the metacarpal heads, leaving out the thumb beside them.
@@ -189,7 +193,7 @@ TEST(ScanPair, SawnReplicaEndsFlatWhereAsked) {
   // the cut, and the cut face holds vertices.
   double lowest = 1e300;
   size_t on_face = 0;
-  for (const Eigen::Vector3d& p : mesh_vertices(pair.skin_palm)) {
+  for (const Eigen::Vector3d& p : pair.skin_palm.vertices) {
     const double x = (pair.T_palm_hand.inverse() * p).x();
     lowest = std::min(lowest, x);
     on_face += std::abs(x + 4.0) < 1e-6;
@@ -213,6 +217,6 @@ TEST(ScanPair, FixtureTruthFile) {
   const Eigen::Isometry3d Tb = isometry_from_json(t["back_from_hand"], "back_from_hand", "truth.json");
   EXPECT_LT((T.matrix() - (Tp * Tb.inverse()).matrix()).norm(), 1e-9);
   EXPECT_EQ(t["markers_palm"].size(), 9u);
-  const TriMesh skin = load_mesh(dir + "truth_skin.ply");
+  const Mesh skin = load_mesh(dir + "truth_skin.ply");
   EXPECT_TRUE(mesh_health(skin).closed());
 }

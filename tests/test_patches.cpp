@@ -87,11 +87,9 @@ TEST(Patches, AClosedSurfaceOfKnownShapeIsFittedWithExactBordersAndSmoothJoins) 
   ASSERT_LT(s.kept_round, static_cast<int>(s.rms_per_round.size()));
   EXPECT_EQ(s.rms_per_round[s.kept_round], *std::min_element(s.rms_per_round.begin(), s.rms_per_round.end()));
   // The surface itself is the ellipsoid: its tessellation's vertices lie on it.
-  const TriMesh m = tessellate(s, 6);
+  const Mesh m = tessellate(s, 6);
   double worst = 0;
-  for (const auto vh : m.vertices()) {
-    const auto& q = m.point(vh);
-    const Eigen::Vector3d p(q[0], q[1], q[2]);
+  for (const Eigen::Vector3d& p : m.vertices) {
     worst = std::max(worst, (p - ellipsoid_point(p)).norm());
   }
   EXPECT_LT(worst, 0.1);
@@ -419,7 +417,7 @@ TEST(Patches, FollowThePostureAndTheirLayoutComesBack) {
     }
   EXPECT_GT(index_tip, 10.0);      // a 60° bend swings the distal phalanges by centimetres
   EXPECT_LT(palm_most, 1e-9);      // nothing else moves
-  const TriMesh a = tessellate(s, 4), b = tessellate(posed, 4);
+  const Mesh a = tessellate(s, 4), b = tessellate(posed, 4);
   EXPECT_EQ(mesh_health(a).boundary_edges, mesh_health(b).boundary_edges);  // no crack opened
 
   // Bound smoothly from the skin's bone-heat weights (as run and the patches command do): the
@@ -447,8 +445,8 @@ TEST(Patches, FollowThePostureAndTheirLayoutComesBack) {
   }
   EXPECT_GT(blended, 5u);
   const std::vector<Eigen::Vector3d> skin_bent =
-      deform(mesh_vertices(skin.mesh), sb, link_motions(skel, bent), Blend::DualQuaternion);
-  const MeshDistance to_skin(mesh_from_arrays(skin_bent, mesh_faces(skin.mesh)));
+      deform(skin.mesh.vertices, sb, link_motions(skel, bent), Blend::DualQuaternion);
+  const MeshDistance to_skin(Mesh{skin_bent, skin.mesh.faces});
   std::vector<Eigen::Vector3d> tv;
   tessellation_vertices(smooth_bent, 8, &tv);
   std::vector<double> d;
@@ -475,7 +473,7 @@ TEST(Patches, TessellationVerticesAreTheMeshVertices) {
   const Cloud c = ellipsoid_cloud(8000, 0.0);
   const PatchSkin s = fit_patches(cube_layout(2), c.points, c.sides, {}, {}, PatchOptions{});
   for (int n : {1, 5, 16}) {
-    const TriMesh m = tessellate(s, n);
+    const Mesh m = tessellate(s, n);
     std::vector<Eigen::Vector3d> v;
     tessellation_vertices(s, n, &v);
     ASSERT_EQ(v.size(), m.n_vertices());
@@ -490,10 +488,7 @@ TEST(Patches, TessellationVerticesAreTheMeshVertices) {
           ASSERT_GE(k, 0);
           ASSERT_LT((v[k] - q).norm(), 1e-9);
         }
-    for (const auto vh : m.vertices()) {
-      const auto& p = m.point(vh);
-      ASSERT_LT((v[vh.idx()] - Eigen::Vector3d(p[0], p[1], p[2])).norm(), 1e-12);
-    }
+    for (size_t k = 0; k < m.n_vertices(); ++k) ASSERT_LT((v[k] - m.vertices[k]).norm(), 1e-12);
   }
 }
 

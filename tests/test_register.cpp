@@ -33,7 +33,7 @@ const RegisterProgress kQuiet = [](const std::string&) {};
 // The two hands of the acceptance runs: the fixture's default hand, and a longer, broader,
 // thicker one with wider spread meshed here.
 struct Hand {
-  TriMesh mesh;
+  Mesh mesh;
   Rig rig;
 };
 const Hand& default_hand() {
@@ -74,7 +74,7 @@ Outcome register_pair(const Hand& hand, std::uint64_t seed, const ReplicaOptions
   const ScanPair pair = synthesize_scan_pair(hand.mesh, hand.rig, ro, so, seed, false);
   Outcome out;
   out.reg = register_scans(pair.back.scan, pair.palm.scan, "back", "palm", opts, nullptr, kQuiet);
-  const auto skin = mesh_vertices(pair.skin_palm);
+  const auto skin = pair.skin_palm.vertices;
   out.chosen = registration_error(out.reg.back_to_palm, pair.back_to_palm, skin);
   out.marker_only = registration_error(out.reg.marker_only, pair.back_to_palm, skin);
   return out;
@@ -284,7 +284,7 @@ SameSide same_side_pair() {
   std::vector<Eigen::Vector3d> marker_c;
   for (const auto& m : truth["markers_palm"]) marker_c.push_back(to_vec3(m, "m", "truth"));
   const double R = get_positive(truth, "marker_radius_mm", "truth");
-  TriMesh mesh = load_mesh(kFixture + "truth_skin.ply");
+  Mesh mesh = load_mesh(kFixture + "truth_skin.ply");
   Eigen::Isometry3d move = Eigen::Isometry3d::Identity();
   move.rotate(Eigen::AngleAxisd(2.0 * kDeg, Eigen::Vector3d::UnitZ()));
   move.pretranslate(Eigen::Vector3d(3.0, -2.0, 0.0));
@@ -292,8 +292,8 @@ SameSide same_side_pair() {
   auto scene_for = [&](const Eigen::Isometry3d& T) {
     Scene s;
     std::vector<Eigen::Vector3d> v;
-    for (const auto& p : mesh_vertices(mesh)) v.push_back(T * p);
-    s.add(v, mesh_faces(mesh), 0);
+    for (const auto& p : mesh.vertices) v.push_back(T * p);
+    s.add(v, mesh.faces, 0);
     for (size_t k = 0; k < marker_c.size(); ++k) add_sphere(&s, T * marker_c[k], R, static_cast<int>(k) + 1);
     return s;
   };
@@ -376,7 +376,7 @@ TEST(Register, FixtureAgainstTruth) {
   const Registration reg = register_scans(back, palm, "back", "palm", RegistrationOptions{}, nullptr, kQuiet);
   const Json truth = load_json_object(kFixture + "truth.json");
   const Eigen::Isometry3d T = isometry_from_json(truth["back_to_palm"], "back_to_palm", "truth");
-  const RegistrationError e = registration_error(reg.back_to_palm, T, mesh_vertices(default_hand().mesh));
+  const RegistrationError e = registration_error(reg.back_to_palm, T, default_hand().mesh.vertices);
   EXPECT_LT(e.rotation_deg, 0.02);
   EXPECT_LT(e.mean_mm, 0.05);
   EXPECT_LT(e.max_mm, 0.1);
@@ -407,7 +407,7 @@ TEST(Register, FixtureMarkerRadiusEstimatedWithinTheBounds) {
   const Registration reg = register_scans(back, palm, "back", "palm", o, nullptr, kQuiet);
   const Json truth = load_json_object(kFixture + "truth.json");
   const Eigen::Isometry3d T = isometry_from_json(truth["back_to_palm"], "back_to_palm", "truth");
-  const RegistrationError e = registration_error(reg.back_to_palm, T, mesh_vertices(default_hand().mesh));
+  const RegistrationError e = registration_error(reg.back_to_palm, T, default_hand().mesh.vertices);
   std::printf("fixture, radius estimated: %.4f mm; registration %.4f deg, %.4f mm mean\n", reg.marker_radius_mm,
               e.rotation_deg, e.mean_mm);
   EXPECT_NEAR(reg.marker_radius_mm, 4.0, 0.022);

@@ -28,13 +28,11 @@ int D(const char* n) { return dof_index(n).value(); }
 
 TEST(Rigging, SkinGlbHoldsTheMeshTheSkinAndThePostureModel) {
   const RiggedSkin s = read_skin_glb(fixture_run() + "/skin.glb");
-  const TriMesh skin = load_mesh(fixture_run() + "/skin.ply");
-  ASSERT_EQ(s.vertices.size(), skin.n_vertices());
-  EXPECT_EQ(s.faces.size(), skin.n_faces());
-  for (const auto v : skin.vertices()) {  // the same vertices in the same order (float precision)
-    const auto& p = skin.point(v);
-    EXPECT_LT((s.vertices[v.idx()] - Eigen::Vector3d(p[0], p[1], p[2])).norm(), 1e-4);
-  }
+  const Mesh skin = load_mesh(fixture_run() + "/skin.ply");
+  ASSERT_EQ(s.mesh.vertices.size(), skin.n_vertices());
+  EXPECT_EQ(s.mesh.faces.size(), skin.n_faces());
+  for (size_t v = 0; v < skin.n_vertices(); ++v)  // the same vertices in the same order (float precision)
+    EXPECT_LT((s.mesh.vertices[v] - skin.vertices[v]).norm(), 1e-4);
   EXPECT_EQ(s.binding.mode, "smooth");
   EXPECT_EQ(s.model.name, "anatomical");
   for (const auto& w : s.binding.vertices) {
@@ -53,19 +51,19 @@ TEST(Rigging, TheScanPostureMovesNothingAndABentFingerMovesOnlyItself) {
   const Skeleton skel(s.rig, "rig");
   Angles zero{};
   for (Blend b : {Blend::Linear, Blend::DualQuaternion}) {
-    const auto v = deform(s.vertices, s.binding, link_motions(skel, zero), b);
-    for (size_t i = 0; i < v.size(); ++i) ASSERT_LT((v[i] - s.vertices[i]).norm(), 1e-9);
+    const auto v = deform(s.mesh.vertices, s.binding, link_motions(skel, zero), b);
+    for (size_t i = 0; i < v.size(); ++i) ASSERT_LT((v[i] - s.mesh.vertices[i]).norm(), 1e-9);
   }
   Angles bent{};
   bent[D("middle.pip.flex")] = 90;
-  const auto v = deform(s.vertices, s.binding, link_motions(skel, bent), Blend::DualQuaternion);
+  const auto v = deform(s.mesh.vertices, s.binding, link_motions(skel, bent), Blend::DualQuaternion);
   double tip = 0, thumb = 0;
   const Eigen::Vector3d middle_tip = s.rig.joints[joint_index("middle-finger-tip").value()];
   const Eigen::Vector3d thumb_tip = s.rig.joints[joint_index("thumb-tip").value()];
   for (size_t i = 0; i < v.size(); ++i) {
-    const double d = (v[i] - s.vertices[i]).norm();
-    if ((s.vertices[i] - middle_tip).norm() < 8) tip = std::max(tip, d);
-    if ((s.vertices[i] - thumb_tip).norm() < 15) thumb = std::max(thumb, d);
+    const double d = (v[i] - s.mesh.vertices[i]).norm();
+    if ((s.mesh.vertices[i] - middle_tip).norm() < 8) tip = std::max(tip, d);
+    if ((s.mesh.vertices[i] - thumb_tip).norm() < 15) thumb = std::max(thumb, d);
   }
   EXPECT_GT(tip, 20.0);  // the fingertip swings round by centimetres
   EXPECT_LT(thumb, 1e-6);  // the thumb stays
@@ -83,10 +81,10 @@ TEST(Rigging, SmoothWeightsWithTheCreaseGuardDoNotFoldAtBentJoints) {
   const PostureSolver solver(s.model);
   BindingOptions rb;
   rb.mode = "rigid";
-  const SkinBinding rigid = bind_skin(mesh_from_arrays(s.vertices, s.faces), bones_from_rig(s.rig), rb);
-  const CreaseGuard guard = crease_guard(s.vertices, s.binding, s.rig);
-  const std::vector<int> dominant = dominant_links(s.faces, s.binding);
-  const double rest = pose_quality(s.vertices, s.faces).volume_mm3;
+  const SkinBinding rigid = bind_skin(Mesh{s.mesh.vertices, s.mesh.faces}, bones_from_rig(s.rig), rb);
+  const CreaseGuard guard = crease_guard(s.mesh.vertices, s.binding, s.rig);
+  const std::vector<int> dominant = dominant_links(s.mesh.faces, s.binding);
+  const double rest = pose_quality(s.mesh.vertices, s.mesh.faces).volume_mm3;
   std::vector<PostureInputs> poses;
   const char* fingers[] = {"index", "middle", "ring", "pinky"};
   for (const char* f : {"index", "middle", "ring", "little"}) {
@@ -101,16 +99,16 @@ TEST(Rigging, SmoothWeightsWithTheCreaseGuardDoNotFoldAtBentJoints) {
     const auto of_bent_finger = [&](int link) {
       return p < 4 && std::string(joints()[link_joint(link)].name).rfind(std::string(fingers[p]) + "-finger-phalanx", 0) == 0;
     };
-    const PoseQuality dqs = pose_quality(deform(s.vertices, s.binding, motions, Blend::DualQuaternion), s.faces, &s.binding);
-    const PoseQuality hard = pose_quality(deform(s.vertices, rigid, motions, Blend::Linear), s.faces, &rigid);
+    const PoseQuality dqs = pose_quality(deform(s.mesh.vertices, s.binding, motions, Blend::DualQuaternion), s.mesh.faces, &s.binding);
+    const PoseQuality hard = pose_quality(deform(s.mesh.vertices, rigid, motions, Blend::Linear), s.mesh.faces, &rigid);
     std::vector<PoseQuality> guarded, planes_only;
     for (Blend b : {Blend::DualQuaternion, Blend::Linear}) {
-      auto v = deform(s.vertices, s.binding, motions, b);
+      auto v = deform(s.mesh.vertices, s.binding, motions, b);
       guard_creases(guard, motions, &v);
-      planes_only.push_back(pose_quality(v, s.faces, &s.binding));
-      const Untangled u = untangle_folds(s.faces, dominant, &v);
+      planes_only.push_back(pose_quality(v, s.mesh.faces, &s.binding));
+      const Untangled u = untangle_folds(s.mesh.faces, dominant, &v);
       EXPECT_EQ(u.folding_before, planes_only.back().folding_pairs);
-      guarded.push_back(pose_quality(v, s.faces, &s.binding));
+      guarded.push_back(pose_quality(v, s.mesh.faces, &s.binding));
       EXPECT_EQ(u.folding_after, guarded.back().folding_pairs);
     }
     std::printf("pose %zu folding pairs / volume change: guarded DQS %zu / %+.2f %%, guarded LBS %zu / %+.2f %%, DQS alone %zu / "
@@ -144,14 +142,15 @@ TEST(Rigging, PoseWritesMeshesPicturesAndGlbsThatPoseTheSame) {
   std::string out;
   const std::string inputs = " --set L2.flex=60 --set index.pip.flex=90";
   ASSERT_EQ(test::run(kBin + " -q pose --model " + glb + inputs + " --out " + dir + "/a.ply --png " + dir + "/a.png --view side", &out), 0) << out;
-  EXPECT_EQ(load_mesh(dir + "/a.ply").n_vertices(), read_skin_glb(glb).vertices.size());
+  EXPECT_EQ(load_mesh(dir + "/a.ply").n_vertices(), read_skin_glb(glb).mesh.vertices.size());
   EXPECT_GT(fs::file_size(dir + "/a.png"), 10000u);
   // Round trip: the posed glb, posed again at the same inputs, gives the same vertices.
   ASSERT_EQ(test::run(kBin + " -q pose --model " + glb + inputs + " --out " + dir + "/a.glb", &out), 0) << out;
   ASSERT_EQ(test::run(kBin + " -q pose --model " + dir + "/a.glb" + inputs + " --out " + dir + "/b.ply", &out), 0) << out;
-  const TriMesh a = load_mesh(dir + "/a.ply"), b = load_mesh(dir + "/b.ply");
+  const Mesh a = load_mesh(dir + "/a.ply"), b = load_mesh(dir + "/b.ply");
   double most = 0;
-  for (const auto v : a.vertices()) most = std::max(most, static_cast<double>((a.point(v) - b.point(v)).norm()));
+  ASSERT_EQ(a.n_vertices(), b.n_vertices());
+  for (size_t v = 0; v < a.n_vertices(); ++v) most = std::max(most, (a.vertices[v] - b.vertices[v]).norm());
   EXPECT_LE(most, 1e-4);
   // A posture CSV and dual quaternions.
   test::write_text(dir + "/p.csv", "index.mcp.flex,middle.mcp.flex\n45,50\n");
@@ -226,9 +225,9 @@ TEST(Rigging, DamagedGlbsAreRefusedNeverCrash) {
     test::write_text(dir + "/d.glb", g);
     try {
       const RiggedSkin s = read_skin_glb(dir + "/d.glb");
-      for (const auto& v : s.vertices) ASSERT_TRUE(v.allFinite());
-      for (const auto& f : s.faces)
-        for (int i : f) ASSERT_LT(static_cast<size_t>(i), s.vertices.size());
+      for (const auto& v : s.mesh.vertices) ASSERT_TRUE(v.allFinite());
+      for (const auto& f : s.mesh.faces)
+        for (int i : f) ASSERT_LT(static_cast<size_t>(i), s.mesh.vertices.size());
       ++read;
     } catch (const InputError&) {
       ++refused;

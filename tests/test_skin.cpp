@@ -142,10 +142,10 @@ TEST(SkinBaseline, PclPoissonOnTheFixtureIsWholeAndItsErrorIsMeasured) {
   EXPECT_TRUE(h.manifold());
   EXPECT_EQ(h.components, 1u);
   EXPECT_GT(h.volume_mm3, 0.0);
-  const TriMesh truth = load_mesh(kFixture + "truth_skin.ply");
+  const Mesh truth = load_mesh(kFixture + "truth_skin.ply");
   const MeshDistance to_baseline(b.mesh);
   size_t within = 0;
-  for (const Eigen::Vector3d& p : mesh_vertices(truth)) within += to_baseline.distance(p) <= 1.0;
+  for (const Eigen::Vector3d& p : truth.vertices) within += to_baseline.distance(p) <= 1.0;
   const double share = static_cast<double>(within) / static_cast<double>(truth.n_vertices());
   EXPECT_GT(share, 0.9);  // measured 0.973
 }
@@ -168,7 +168,7 @@ TEST(SkinMesh, FixtureSkinIsWatertightLabelledAndMeetsTheIssueFigures) {
   }
   for (int t = 0; t < kSkinTubes; ++t) EXPECT_GT(per_tube[t], 200) << skin_tube_name(t);
   // Against the true skin, away from the markers (whose skin no scan saw).
-  const TriMesh truth = load_mesh(kFixture + "truth_skin.ply");
+  const Mesh truth = load_mesh(kFixture + "truth_skin.ply");
   const MeshDistance to_truth(truth), to_skin(s.mesh);
   const auto markers = fixture_markers();
   const OneWayDistance a = one_way_distance(sample_surface(s.mesh, 2.0), to_truth, markers, 7.0);
@@ -318,18 +318,17 @@ TEST(SkinMesh, PlyCarriesTheLabels) {
   const std::string bytes = read_file(dir + "/skin.ply");
   EXPECT_NE(bytes.find("property int bone"), std::string::npos);
   EXPECT_NE(bytes.find("property int ring"), std::string::npos);
-  const TriMesh back = load_mesh(dir + "/skin.ply");
+  const Mesh back = load_mesh(dir + "/skin.ply");
   EXPECT_EQ(back.n_vertices(), s.mesh.n_vertices());
   EXPECT_EQ(back.n_faces(), s.mesh.n_faces());
 }
 
 TEST(MeshDistanceTools, SamplesCoverTheAreaAndASurfaceIsAtZeroFromItself) {
-  TriMesh box;  // the cube [0, 10]³, outward
-  std::vector<TriMesh::VertexHandle> v;
-  for (int i = 0; i < 8; ++i) v.push_back(box.add_vertex(TriMesh::Point(10.0 * (i & 1), 10.0 * ((i >> 1) & 1), 10.0 * (i >> 2))));
+  Mesh box;  // the cube [0, 10]³, outward
+  for (int i = 0; i < 8; ++i) box.vertices.emplace_back(10.0 * (i & 1), 10.0 * ((i >> 1) & 1), 10.0 * (i >> 2));
   for (const auto& q : std::vector<std::array<int, 4>>{{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}}) {
-    box.add_face(v[q[0]], v[q[1]], v[q[2]]);
-    box.add_face(v[q[0]], v[q[2]], v[q[3]]);
+    box.faces.push_back({q[0], q[1], q[2]});
+    box.faces.push_back({q[0], q[2], q[3]});
   }
   const auto samples = sample_surface(box, 2.0);
   EXPECT_NEAR(static_cast<double>(samples.size()), 1200.0, 2.0);  // 600 mm² × 2
@@ -729,7 +728,7 @@ TEST(SkinSteps, FitToDataFollowsTheCloudsSurfaceAndBridgesItsHoleSmoothly) {
   std::vector<K::Point_3> rest;
   for (auto v : sm.vertices()) rest.push_back(sm.point(v));
   const auto mean_distance = [&](const SM& m) {
-    const MeshDistance d(to_trimesh(m));
+    const MeshDistance d(to_mesh(m));
     double sum = 0;
     size_t n = 0;
     for (const auto& p : pts)

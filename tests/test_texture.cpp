@@ -36,7 +36,7 @@ Eigen::Vector3d texel(const TextureMap& t, const Eigen::Vector2f& uv) {
 TEST(Texture, TheFixturesSkinTakesTheHandsOwnColoursFromBothPhotos) {
   const RiggedSkin s = read_skin_glb(fixture_run() + "/skin.glb");
   ASSERT_FALSE(s.texture.empty());
-  ASSERT_EQ(s.texture.corner_uv.size(), s.faces.size());
+  ASSERT_EQ(s.texture.corner_uv.size(), s.mesh.faces.size());
   EXPECT_EQ(s.texture.size, 1024);
   const Rig rig = load_rig(kFix + "rig.json");
   const Eigen::Isometry3d T = hand_frame_from_rig(rig);
@@ -45,15 +45,15 @@ TEST(Texture, TheFixturesSkinTakesTheHandsOwnColoursFromBothPhotos) {
   const SkinAlbedo albedo(rig_hand);
   std::vector<double> err;
   size_t flat = 0;
-  for (size_t f = 0; f < s.faces.size(); ++f) {
+  for (size_t f = 0; f < s.mesh.faces.size(); ++f) {
     const auto& c = s.texture.corner_uv[f];
     if (c[0] == c[1] && c[1] == c[2]) {  // the flat block: faces neither camera sees
       ++flat;
       continue;
     }
-    const auto& t = s.faces[f];
-    const Eigen::Vector3d p = (s.vertices[t[0]] + s.vertices[t[1]] + s.vertices[t[2]]) / 3.0;
-    const Eigen::Vector3d n = (s.vertices[t[1]] - s.vertices[t[0]]).cross(s.vertices[t[2]] - s.vertices[t[0]]).normalized();
+    const auto& t = s.mesh.faces[f];
+    const Eigen::Vector3d p = (s.mesh.vertices[t[0]] + s.mesh.vertices[t[1]] + s.mesh.vertices[t[2]]) / 3.0;
+    const Eigen::Vector3d n = (s.mesh.vertices[t[1]] - s.mesh.vertices[t[0]]).cross(s.mesh.vertices[t[2]] - s.mesh.vertices[t[0]]).normalized();
     const Eigen::Vector3d truth = 255.0 * albedo.colour(T * p, T.linear() * n).cast<double>();
     const Eigen::Vector3d got = texel(s.texture, (c[0] + c[1] + c[2]) / 3.0f);
     err.push_back((got - truth).cwiseAbs().maxCoeff());
@@ -67,7 +67,7 @@ TEST(Texture, TheFixturesSkinTakesTheHandsOwnColoursFromBothPhotos) {
               err.size(), mean, p95, err.back(), flat);
   EXPECT_LT(mean, 6.0);
   EXPECT_LT(p95, 20.0);
-  EXPECT_LT(flat, s.faces.size() / 20);
+  EXPECT_LT(flat, s.mesh.faces.size() / 20);
   // The report's figures: both photos used, a blend across the flanks, little unseen.
   const Json report = load_json_object(fixture_run() + "/report.json");
   const Json* stage = nullptr;
@@ -87,21 +87,21 @@ TEST(Texture, TheFixturesSkinTakesTheHandsOwnColoursFromBothPhotos) {
 
 TEST(Texture, SkinGlbCarriesTheTextureAndGivesBackTheSkinItWasMadeFrom) {
   const RiggedSkin s = read_skin_glb(fixture_run() + "/skin.glb");
-  const TriMesh skin = load_mesh(fixture_run() + "/skin.ply");
-  ASSERT_EQ(s.vertices.size(), skin.n_vertices());  // the seam copies folded back
-  const auto faces = mesh_faces(skin);
-  ASSERT_EQ(s.faces.size(), faces.size());
-  for (size_t f = 0; f < faces.size(); ++f) ASSERT_EQ(s.faces[f], faces[f]);
+  const Mesh skin = load_mesh(fixture_run() + "/skin.ply");
+  ASSERT_EQ(s.mesh.vertices.size(), skin.n_vertices());  // the seam copies folded back
+  const auto faces = skin.faces;
+  ASSERT_EQ(s.mesh.faces.size(), faces.size());
+  for (size_t f = 0; f < faces.size(); ++f) ASSERT_EQ(s.mesh.faces[f], faces[f]);
   // Written again and read again: the same mesh, texture and coordinates.
   const std::string dir = test::temp_dir("texture-glb");
   const auto bytes = skin_glb(s);
   write_file_atomic(dir + "/again.glb", std::string(bytes.begin(), bytes.end()));
   const RiggedSkin t = read_skin_glb(dir + "/again.glb");
-  EXPECT_EQ(t.vertices, s.vertices);
-  EXPECT_EQ(t.faces, s.faces);
+  EXPECT_EQ(t.mesh.vertices, s.mesh.vertices);
+  EXPECT_EQ(t.mesh.faces, s.mesh.faces);
   EXPECT_EQ(t.texture.rgb, s.texture.rgb);
   ASSERT_EQ(t.texture.corner_uv.size(), s.texture.corner_uv.size());
-  for (size_t f = 0; f < s.faces.size(); ++f)
+  for (size_t f = 0; f < s.mesh.faces.size(); ++f)
     for (int k = 0; k < 3; ++k) ASSERT_EQ(t.texture.corner_uv[f][k], s.texture.corner_uv[f][k]);
   // A glb whose texture is not a PNG is refused in one line.
   std::string g(bytes.begin(), bytes.end());
@@ -117,7 +117,7 @@ TEST(Texture, SkinGlbCarriesTheTextureAndGivesBackTheSkinItWasMadeFrom) {
 
 // The thesis's blend: the colour is (1 − w) × the lit white surface + w × the texture.
 TEST(Texture, PicturesBlendShadingAndTextureByTheWeight) {
-  const TriMesh quad = mesh_from_arrays({{0, 0, 0}, {10, 0, 0}, {10, 10, 0}, {0, 10, 0}}, {{{0, 1, 2}}, {{0, 2, 3}}});
+  const Mesh quad{{{0, 0, 0}, {10, 0, 0}, {10, 10, 0}, {0, 10, 0}}, {{{0, 1, 2}}, {{0, 2, 3}}}};
   TextureMap red;
   red.size = 64;
   red.rgb.assign(64 * 64 * 3, 0);

@@ -65,16 +65,12 @@ int run(const std::string& cmd, std::string* output) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
-double winding_number(const TriMesh& mesh, const Eigen::Vector3d& p) {
+double winding_number(const Mesh& mesh, const Eigen::Vector3d& p) {
   // Van Oosterom–Strackee solid angle per triangle.
   double total = 0;
-  for (auto f : mesh.faces()) {
+  for (const auto& f : mesh.faces) {
     Eigen::Vector3d v[3];
-    int k = 0;
-    for (auto vh : mesh.fv_range(f)) {
-      const auto& q = mesh.point(vh);
-      v[k++] = Eigen::Vector3d(q[0], q[1], q[2]) - p;
-    }
+    for (int k = 0; k < 3; ++k) v[k] = mesh.vertices[f[k]] - p;
     const double a = v[0].norm(), b = v[1].norm(), c = v[2].norm();
     const double num = v[0].dot(v[1].cross(v[2]));
     const double den = a * b * c + v[0].dot(v[1]) * c + v[1].dot(v[2]) * a + v[2].dot(v[0]) * b;

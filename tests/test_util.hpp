@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "core/errors.hpp"
-#include "mesh/trimesh.hpp"
+#include "mesh/mesh.hpp"
 #include "synth/scanner.hpp"
 
 namespace handskin::test {
@@ -21,7 +21,7 @@ int run(const std::string& cmd, std::string* output);
 /// output folder. A failed run is reported as a test failure.
 const std::string& default_fixture_run();
 /// Generalised winding number of point p w.r.t. a closed triangle mesh (≈1 inside, ≈0 outside).
-double winding_number(const TriMesh& mesh, const Eigen::Vector3d& p);
+double winding_number(const Mesh& mesh, const Eigen::Vector3d& p);
 void write_text(const std::string& path, const std::string& text);
 /// Every file under `dir`: relative name -> bytes ("(folder)" for a folder); a missing folder
 /// is {"(absent)": ""}. For comparing an output folder before and after a command.

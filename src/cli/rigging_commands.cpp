@@ -55,7 +55,7 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
     progress("pose", "warning: " + std::to_string(sol.clamped_inputs) + " input(s) outside the model's limits were clamped onto them");
   Untangled u;
   const std::vector<Eigen::Vector3d> posed =
-      SkinPoser(skin.vertices, skin.faces, skin.binding, skin.rig, a.crease_guard, a.model).pose(sol.angles, blend, &u);
+      SkinPoser(skin.mesh.vertices, skin.mesh.faces, skin.binding, skin.rig, a.crease_guard, a.model).pose(sol.angles, blend, &u);
   if (a.crease_guard) {
     if (u.folding_before)
       progress("pose", "crease guard: " + std::to_string(u.folding_before) + " folding triangle pair(s) smoothed out over " +
@@ -68,11 +68,11 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
       const std::vector<unsigned char> glb = skin_glb(skin, &sol.angles);
       write_file_atomic(a.out, std::string(glb.begin(), glb.end()));
     } else {
-      save_mesh(a.out, mesh_from_arrays(posed, skin.faces));  // atomically
+      save_mesh(a.out, Mesh{posed, skin.mesh.faces});  // atomically
     }
   }
   if (!a.png.empty()) {
-    const TriMesh mesh = mesh_from_arrays(posed, skin.faces);
+    const Mesh mesh{posed, skin.mesh.faces};
     RenderOptions ro;
     ro.width = ro.height = a.size;
     ro.view = named_view(a.view) * hand_frame_from_rig(skin.rig).linear();

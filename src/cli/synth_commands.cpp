@@ -104,7 +104,7 @@ void synth_scan(const SynthScanArgs& a, const Progress& progress) {
     if (a.photos) plan.insert(plan.end(), {"back.photo.png", "palm.photo.png"});
     out.claim(plan, all);
   }
-  const TriMesh hand = load_mesh(a.mesh);
+  const Mesh hand = load_mesh(a.mesh);
   const Rig rig = load_rig(a.rig);
   progress("synth scan", "placing markers and scanning both sides (seed " + std::to_string(a.seed) + ")");
   const ScanPair pair = synthesize_scan_pair(hand, rig, a.replica, a.scanner, a.seed, !progress.quiet);
@@ -152,7 +152,7 @@ void synth_cloud(SynthCloudArgs a, const Progress& progress) {
   std::vector<std::string> plan = {"cloud.ply", "rig.json", "truth.json", "truth_skin.ply"};
   if (a.halves) plan.insert(plan.end(), {"a.ply", "b.ply"});
   out.claim(plan, all);
-  const TriMesh hand = load_mesh(a.mesh);
+  const Mesh hand = load_mesh(a.mesh);
   const Rig rig = load_rig(a.rig);
   progress("synth cloud", "scanning from " + std::to_string(a.sim.views) + " views (seed " + std::to_string(a.seed) + ")");
   const CloudSim sim = simulate_cloud(hand, rig, a.sim, a.seed);

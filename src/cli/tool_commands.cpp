@@ -6,7 +6,7 @@
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
 #include "core/rig.hpp"
-#include "mesh/trimesh.hpp"
+#include "mesh/mesh.hpp"
 #include "posture/skeleton.hpp"
 #include "render/preview.hpp"
 #include "scan/cloud.hpp"
@@ -41,7 +41,7 @@ void render(const RenderArgs& a) {
       rig = load_rig(a.rig);
       const Skeleton check(*rig, a.rig);  // the same checks as solve: a rig one command refuses, all do
     }
-    const TriMesh mesh = load_mesh(a.mesh);
+    const Mesh mesh = load_mesh(a.mesh);
     if (rig) {
       // Views are defined in the hand frame: bring the mesh frame there through the rig.
       ro.view = ro.view * hand_frame_from_rig(*rig).linear();

@@ -58,7 +58,7 @@ WrittenMeshCheck check_written_mesh(const std::string& path) {
   if (c.declared_faces > c.mesh.n_faces()) c.faces_dropped = c.declared_faces - c.mesh.n_faces();
   if (c.declared_vertices > 0 && c.mesh.n_vertices() > c.declared_vertices)
     c.vertices_split = c.mesh.n_vertices() - c.declared_vertices;
-  c.crossing_pairs = crossing_face_pairs(mesh_vertices(c.mesh), mesh_faces(c.mesh)).size();
+  c.crossing_pairs = crossing_face_pairs(c.mesh.vertices, c.mesh.faces).size();
   return c;
 }
 

@@ -7,13 +7,13 @@
 #include <string>
 #include <vector>
 
-#include "mesh/trimesh.hpp"
+#include "mesh/mesh.hpp"
 
 namespace handskin {
 
 struct WrittenMeshCheck {
   std::string path;
-  TriMesh mesh;                      ///< the file as read back
+  Mesh mesh;                         ///< the file as read back
   MeshHealth health;                 ///< of the mesh read back
   size_t declared_vertices = 0, declared_faces = 0;  ///< as the PLY header says (0 for other formats)
   size_t faces_dropped = 0;          ///< faces the reader could not add (non-manifold edges)

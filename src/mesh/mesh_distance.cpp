@@ -17,7 +17,7 @@ struct MeshDistance::Impl {
 };
 
 
-MeshDistance::MeshDistance(const TriMesh& mesh) : impl_(std::make_unique<Impl>(mesh_vertices(mesh), mesh_faces(mesh))) {
+MeshDistance::MeshDistance(const Mesh& mesh) : impl_(std::make_unique<Impl>(mesh.vertices, mesh.faces)) {
   impl_->tt.tree.accelerate_distance_queries();
 }
 
@@ -27,9 +27,9 @@ double MeshDistance::distance(const Eigen::Vector3d& p) const {
   return std::sqrt(impl_->tt.tree.squared_distance(cgal::point(p)));
 }
 
-std::vector<Eigen::Vector3d> sample_surface(const TriMesh& mesh, double per_mm2, std::uint64_t seed) {
-  const auto V = mesh_vertices(mesh);
-  const auto F = mesh_faces(mesh);
+std::vector<Eigen::Vector3d> sample_surface(const Mesh& mesh, double per_mm2, std::uint64_t seed) {
+  const auto& V = mesh.vertices;
+  const auto& F = mesh.faces;
   Rng rng(seed);
   std::vector<Eigen::Vector3d> out;
   double carry = 0;

@@ -5,13 +5,13 @@
 #include <memory>
 #include <vector>
 
-#include "mesh/trimesh.hpp"
+#include "mesh/mesh.hpp"
 
 namespace handskin {
 
 class MeshDistance {
  public:
-  explicit MeshDistance(const TriMesh& mesh);
+  explicit MeshDistance(const Mesh& mesh);
   ~MeshDistance();
   double distance(const Eigen::Vector3d& p) const;
 
@@ -22,7 +22,7 @@ class MeshDistance {
 
 /// Points spread over a mesh's surface, uniformly by area (`per_mm2` per mm², at least one per
 /// triangle's share), from a fixed seed.
-std::vector<Eigen::Vector3d> sample_surface(const TriMesh& mesh, double per_mm2, std::uint64_t seed = 1);
+std::vector<Eigen::Vector3d> sample_surface(const Mesh& mesh, double per_mm2, std::uint64_t seed = 1);
 
 /// One-way distance figures from samples of surface A to surface B (mm).
 struct OneWayDistance {

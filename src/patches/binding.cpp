@@ -9,9 +9,9 @@
 
 namespace handskin {
 
-void bind_patch_controls(PatchSkin* s, const TriMesh& skin, const SkinBinding& binding) {
-  const std::vector<Eigen::Vector3d> V = mesh_vertices(skin);
-  const std::vector<std::array<int, 3>> F = mesh_faces(skin);
+void bind_patch_controls(PatchSkin* s, const Mesh& skin, const SkinBinding& binding) {
+  const std::vector<Eigen::Vector3d>& V = skin.vertices;
+  const std::vector<std::array<int, 3>>& F = skin.faces;
   if (binding.vertices.size() != V.size())
     throw InputError("patches", "the skin's binding has " + std::to_string(binding.vertices.size()) +
                                     " vertices, the skin " + std::to_string(V.size()));

@@ -25,7 +25,7 @@ using EdgeKey = std::pair<int, int>;
 // digit or the palm leave the skin.
 class SkinCaster {
  public:
-  explicit SkinCaster(const TriMesh& mesh) : tt_(mesh_vertices(mesh), mesh_faces(mesh)) {}
+  explicit SkinCaster(const Mesh& mesh) : tt_(mesh.vertices, mesh.faces) {}
   /// Where the ray from `o` along `d` first meets the skin; with no hit (an origin outside
   /// the skin), the skin's point nearest to o + 8 d.
   Eigen::Vector3d cast(const Eigen::Vector3d& o, const Eigen::Vector3d& d) const {

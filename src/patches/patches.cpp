@@ -469,8 +469,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
   if (!o.IsValid(&err)) throw InputError("patch options", err);
   const auto t0 = std::chrono::steady_clock::now();
   if (o.layout) {  // a layout given back must lie on this skin: every corner within 20 mm of it
-    const std::vector<Eigen::Vector3d> v = mesh_vertices(skin.mesh);
-    const PointGrid grid(v, 4.0);
+    const PointGrid grid(skin.mesh.vertices, 4.0);
     for (size_t k = 0; k < o.layout->vertices.size(); ++k)
       if (!o.layout->vertices[k].allFinite() || !grid.any_within(o.layout->vertices[k], 20.0))
         throw InputError("patch layout", "corner " + std::to_string(k) +
@@ -584,7 +583,7 @@ void tessellation_vertices(const PatchSkin& s, int n, std::vector<Eigen::Vector3
   evaluate_made(s, n, made, out);
 }
 
-TriMesh tessellate(const PatchSkin& s, int n) {
+Mesh tessellate(const PatchSkin& s, int n) {
   std::vector<std::array<int, 3>> made;
   const auto index = tessellation_index(s, n, &made);
   std::vector<Eigen::Vector3d> points;
@@ -599,7 +598,7 @@ TriMesh tessellate(const PatchSkin& s, int n) {
         tris.push_back({a, b, c});
         tris.push_back({a, c, d});
       }
-  return mesh_from_arrays(points, tris);
+  return Mesh{std::move(points), std::move(tris)};
 }
 
 }  // namespace handskin

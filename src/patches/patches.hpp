@@ -20,7 +20,7 @@
 #include <vector>
 
 #include "core/rig.hpp"
-#include "mesh/trimesh.hpp"
+#include "mesh/mesh.hpp"
 #include "patches/layout.hpp"
 #include "posture/skeleton.hpp"
 #include "rigging/binding.hpp"
@@ -125,7 +125,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
 /// `binding` (rigging/binding.hpp, one entry per vertex of `skin`) at its nearest point on
 /// `skin` (the three corners' weights blended barycentrically, the 4 largest kept and
 /// normalised), into `control_weights`. Throws InputError when the binding does not fit the skin.
-void bind_patch_controls(PatchSkin* s, const TriMesh& skin, const SkinBinding& binding);
+void bind_patch_controls(PatchSkin* s, const Mesh& skin, const SkinBinding& binding);
 
 /// The patches moved to a posture. With `control_weights`, every control point is blended
 /// from its links' motions as the polygon skin's vertices are (rigging/deform.hpp: dual
@@ -143,7 +143,7 @@ void rebuild_patches(PatchSkin* s);
 
 /// Every patch tessellated at `n` × `n` quads (two triangles each), the vertices on shared
 /// borders and corners made once: a closed mesh without cracks.
-TriMesh tessellate(const PatchSkin& s, int n);
+Mesh tessellate(const PatchSkin& s, int n);
 /// The vertices `tessellate(s, n)` makes, in its order, without building the mesh: posed
 /// patches keep the rest posture's topology, so an animation needs only these (16 × 16 per
 /// patch: ~0.5 ms for the fixture's 92).

@@ -199,7 +199,7 @@ CloudStageResult run_cloud_stage(const CloudStageInputs& in, const std::function
 
 Json halves_against_truth(const CloudStageResult& r, const TruthSkin& truth) {
   HS_CHECK(r.halves.has_value(), "no halves");
-  const RegistrationError e = registration_error(r.halves->alignment.a_to_b, truth.back_to_palm, mesh_vertices(truth.skin));
+  const RegistrationError e = registration_error(r.halves->alignment.a_to_b, truth.back_to_palm, truth.skin.vertices);
   return {{"rotation_deg", e.rotation_deg}, {"skin_mean_mm", e.mean_mm}, {"skin_max_mm", e.max_mm}, {"file", truth.path}};
 }
 

@@ -51,7 +51,7 @@ std::optional<std::string> layout_note(const PatchSkin& s);
 struct PatchStageResult {
   PatchSkin patches;
   PatchOptions options;
-  TriMesh tessellation;                     ///< patches.ply
+  Mesh tessellation;                        ///< patches.ply
   std::optional<OneWayDistance> surface_to_truth, truth_to_surface;
   /// The patches against the polygon skin they were laid on (samples every 4 mm², no truth
   /// needed): where they stray from it, a patch bridges what the skin follows.

@@ -22,7 +22,7 @@ std::string merged_preview_png(const MergedArrays& m, const std::vector<Eigen::V
 }
 
 Json registration_against_truth(const Registration& reg, const TruthSkin& truth) {
-  const std::vector<Eigen::Vector3d> skin = mesh_vertices(truth.skin);
+  const std::vector<Eigen::Vector3d> skin = truth.skin.vertices;
   Json t;
   for (const auto& [name, T] : {std::pair<const char*, Eigen::Isometry3d>{"marker_only", reg.marker_only},
                                 {"chosen", reg.back_to_palm}}) {

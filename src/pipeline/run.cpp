@@ -42,13 +42,13 @@ namespace {
 // The rigged skin in the report's postures: open (the scan's), relaxed, a fist, and the
 // solver's answer to a 75° little-finger MCP alone; the last two also with the thesis's rigid
 // binding. Side views, 360 × 270.
-std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, const TriMesh& mesh, float texture_weight) {
+std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, float texture_weight) {
   const PostureSolver solver(s.model);
   BindingOptions rb;
   rb.mode = "rigid";
-  const SkinBinding rigid = bind_skin(mesh, bones_from_rig(s.rig), rb);
-  const SkinPoser smooth_poser(s.vertices, s.faces, s.binding, s.rig, true),
-      rigid_poser(s.vertices, s.faces, rigid, s.rig, false);
+  const SkinBinding rigid = bind_skin(s.mesh, bones_from_rig(s.rig), rb);
+  const SkinPoser smooth_poser(s.mesh.vertices, s.mesh.faces, s.binding, s.rig, true),
+      rigid_poser(s.mesh.vertices, s.mesh.faces, rigid, s.rig, false);
   const PostureInputs fist = fist_inputs();
   PostureInputs l2;
   l2.pins.emplace_back(dof_index("little.mcp.flex").value(), 75.0);
@@ -66,7 +66,7 @@ std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, const TriMesh& me
         {"fist, rigid binding (the thesis)", &closed, &rigid}, {"little MCP 75°, rigid binding (the thesis)", &little, &rigid}}) {
     const bool is_rigid = binding == &rigid;
     const auto v = (is_rigid ? rigid_poser : smooth_poser).pose(*angles, is_rigid ? Blend::Linear : Blend::DualQuaternion);
-    const TriMesh m = mesh_from_arrays(v, s.faces);
+    const Mesh m{v, s.mesh.faces};
     out.push_back({caption, render_mesh_png({&m}, ro)});
   }
   return out;
@@ -189,9 +189,8 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   // --- rigging: the skin bound to the skeleton, with the posture model (docs/rigging.md) ---
   progress(std::string("rigging: ") + (in.options.rigging.smooth ? "bone-heat weights" : "rigid binding"));
   const StageTimer t_rig;
-  const TriMesh& mesh = R.skin.skin.mesh;
-  R.rigged.vertices = mesh_vertices(mesh);
-  R.rigged.faces = mesh_faces(mesh);
+  const Mesh& mesh = R.skin.skin.mesh;
+  R.rigged.mesh = mesh;
   R.rigged.rig = R.skin.rig;
   R.rigged.binding = bind_skin(mesh, bones_from_rig(R.skin.rig), binding_options(in.options));
   // The patches' control points take the skin's weights (a posture moves them as it moves the skin).
@@ -205,7 +204,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
     TextureOptions to;
     to.size = static_cast<int>(in.options.texture.size);
     to.blend_deg = in.options.texture.blend_deg;
-    R.texture = bake_skin_texture(R.rigged.vertices, R.rigged.faces, *back_photo, *palm_photo, R.registration.back_to_palm,
+    R.texture = bake_skin_texture(R.rigged.mesh.vertices, R.rigged.mesh.faces, *back_photo, *palm_photo, R.registration.back_to_palm,
                                   R.registration.markers_palm, R.registration.marker_radius_mm, to);
     R.rigged.texture = std::move(R.texture->map);
   } else {
@@ -215,7 +214,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   const float texture_weight = static_cast<float>(in.options.texture.weight);
   R.skin_png = skin_preview_png(R.skin, R.texture ? &R.rigged.texture : nullptr, texture_weight);
   if (R.patches)  // for report.html, which the patch stage writes
-    R.posed = posed_pictures(R.rigged, mesh, texture_weight);
+    R.posed = posed_pictures(R.rigged, texture_weight);
   const std::vector<unsigned char> glb = skin_glb(R.rigged);
   R.glb.assign(glb.begin(), glb.end());
   R.seconds = total.seconds();
@@ -340,8 +339,8 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
     stages.push_back({{"name", "rigging"},
                       {"seconds", r.rigging_seconds},
                       {"binding", r.rigged.binding.mode},
-                      {"vertices", r.rigged.vertices.size()},
-                      {"mean_influences", r.rigged.vertices.empty() ? 0.0 : static_cast<double>(influences) / r.rigged.vertices.size()},
+                      {"vertices", r.rigged.mesh.vertices.size()},
+                      {"mean_influences", r.rigged.mesh.vertices.empty() ? 0.0 : static_cast<double>(influences) / r.rigged.mesh.vertices.size()},
                       {"posture_model", in.posture_model}});
   }
   if (r.texture) {

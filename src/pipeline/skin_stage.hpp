@@ -15,7 +15,7 @@
 #include "core/rig.hpp"
 #include "core/texture_map.hpp"
 #include "mesh/mesh_distance.hpp"
-#include "mesh/trimesh.hpp"
+#include "mesh/mesh.hpp"
 #include "pipeline/options.hpp"
 #include "skin/auto_rig.hpp"
 #include "skin/baseline.hpp"

@@ -186,19 +186,13 @@ class BlendedTexture {
 
 }  // namespace
 
-std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const RenderOptions& o) {
+std::string render_mesh_png(const std::vector<const Mesh*>& meshes, const RenderOptions& o) {
   std::vector<Eigen::Vector3d> all;
-  for (const TriMesh* m : meshes)
-    for (auto v : m->vertices()) {
-      const auto& p = m->point(v);
-      all.emplace_back(p[0], p[1], p[2]);
-    }
+  for (const Mesh* m : meshes) all.insert(all.end(), m->vertices.begin(), m->vertices.end());
   GlPicture pic(o, all);
   for (size_t m = 0; m < meshes.size(); ++m) {
-    TriMesh mesh = *meshes[m];
-    mesh.request_vertex_normals();
-    mesh.request_face_normals();
-    mesh.update_normals();
+    const Mesh& mesh = *meshes[m];
+    const std::vector<Eigen::Vector3d> normal = shading_normals(mesh);
     const TextureMap* tex = m == 0 && o.texture && !o.texture->empty() ? o.texture : nullptr;
     HS_CHECK(!tex || tex->corner_uv.size() == mesh.n_faces(), "the texture's faces disagree with the mesh's");
     HS_CHECK(!tex || tex->rgb.size() == static_cast<size_t>(tex->size) * tex->size * 3, "the texture's image is not size x size RGB");
@@ -207,25 +201,22 @@ std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const Ren
     std::vector<GLdouble> xyz, nrm;
     std::vector<GLfloat> uv;
     std::vector<GLuint> idx;
-    const auto put = [&](TriMesh::VertexHandle v) {
-      const auto& p = mesh.point(v);
-      const auto& n = mesh.normal(v);
+    const auto put = [&](int v) {
+      const Eigen::Vector3d &p = mesh.vertices[static_cast<size_t>(v)], &n = normal[static_cast<size_t>(v)];
       xyz.insert(xyz.end(), {p[0], p[1], p[2]});
       nrm.insert(nrm.end(), {n[0], n[1], n[2]});
     };
     if (tex) {
-      for (auto f : mesh.faces()) {
-        int k = 0;
-        for (auto v : mesh.fv_range(f)) {
-          put(v);
-          const Eigen::Vector2f& c = tex->corner_uv[static_cast<size_t>(f.idx())][k++];
+      for (size_t f = 0; f < mesh.faces.size(); ++f)
+        for (int k = 0; k < 3; ++k) {
+          put(mesh.faces[f][k]);
+          const Eigen::Vector2f& c = tex->corner_uv[f][k];
           uv.insert(uv.end(), {c.x(), c.y()});
         }
-      }
     } else {
-      for (auto v : mesh.vertices()) put(v);
-      for (auto f : mesh.faces())
-        for (auto v : mesh.fv_range(f)) idx.push_back(static_cast<GLuint>(v.idx()));
+      for (int v = 0; v < static_cast<int>(mesh.vertices.size()); ++v) put(v);
+      for (const auto& f : mesh.faces)
+        for (int v : f) idx.push_back(static_cast<GLuint>(v));
     }
     std::optional<BlendedTexture> blended;
     if (tex)

@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "core/texture_map.hpp"
-#include "mesh/trimesh.hpp"
+#include "mesh/mesh.hpp"
 #include "scan/cubist_io.hpp"
 
 namespace handskin {
@@ -29,7 +29,7 @@ struct RenderOptions {
 /// Shaded orthographic render of one or more meshes (fit to the picture), by Mesa's
 /// off-screen OpenGL (gl_render.cpp): depth-tested, smooth-shaded, 2x supersampled. Returns
 /// PNG bytes.
-std::string render_mesh_png(const std::vector<const TriMesh*>& meshes, const RenderOptions& options);
+std::string render_mesh_png(const std::vector<const Mesh*>& meshes, const RenderOptions& options);
 
 /// Shaded splats of a point cloud with normals, one colour per point (fit to the picture).
 std::string render_points_png(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& normals,

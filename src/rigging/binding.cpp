@@ -11,7 +11,7 @@
 
 // Why by hand: bone heat is one sparse solve per link with the cotangent Laplacian. libigl
 // (not packaged in Debian) has it; CGAL has no skinning weights; the Laplacian is a dozen
-// lines over OpenMesh's half-edges, and Eigen's sparse Cholesky does the solves.
+// lines over the mesh's faces, and Eigen's sparse Cholesky does the solves.
 
 namespace handskin {
 
@@ -45,7 +45,7 @@ VertexWeights top_weights(std::vector<std::pair<double, int>> w, double min_weig
   return out;
 }
 
-SkinBinding bind_skin(const TriMesh& mesh, const std::vector<Bone>& bones, const BindingOptions& o) {
+SkinBinding bind_skin(const Mesh& mesh, const std::vector<Bone>& bones, const BindingOptions& o) {
   std::string err;
   if (!o.IsValid(&err)) throw InputError("binding options", err);
   if (mesh.n_vertices() == 0) throw InputError("skin", "no vertices to bind");
@@ -54,11 +54,7 @@ SkinBinding bind_skin(const TriMesh& mesh, const std::vector<Bone>& bones, const
   const int n = static_cast<int>(mesh.n_vertices()), nb = static_cast<int>(bones.size());
   SkinBinding B;
   B.mode = o.mode;
-  std::vector<Eigen::Vector3d> x(static_cast<size_t>(n));
-  for (const auto v : mesh.vertices()) {
-    const auto& p = mesh.point(v);
-    x[v.idx()] = {p[0], p[1], p[2]};
-  }
+  const std::vector<Eigen::Vector3d>& x = mesh.vertices;
   std::vector<int> nearest(static_cast<size_t>(n));
   std::vector<double> dist(static_cast<size_t>(n));
   for (int i = 0; i < n; ++i) {
@@ -82,10 +78,7 @@ SkinBinding bind_skin(const TriMesh& mesh, const std::vector<Bone>& bones, const
     // lumped areas (a third of each adjacent triangle).
     std::vector<Eigen::Triplet<double>> tl;
     std::vector<double> area(static_cast<size_t>(n), 0.0);
-    for (const auto f : mesh.faces()) {
-      std::array<int, 3> id{};
-      int k = 0;
-      for (const auto v : mesh.fv_range(f)) id[k++] = v.idx();
+    for (const std::array<int, 3>& id : mesh.faces) {
       const double a2 = (x[id[1]] - x[id[0]]).cross(x[id[2]] - x[id[0]]).norm();
       if (!(a2 > 1e-12)) continue;
       for (int c = 0; c < 3; ++c) area[id[c]] += a2 / 6;

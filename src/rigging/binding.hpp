@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "core/rig.hpp"
-#include "mesh/trimesh.hpp"
+#include "mesh/mesh.hpp"
 
 namespace handskin {
 
@@ -44,7 +44,7 @@ struct SkinBinding {
 VertexWeights top_weights(std::vector<std::pair<double, int>> w, double min_weight);
 
 /// Throws InputError if the mesh has no vertices or the rig gives no links.
-SkinBinding bind_skin(const TriMesh& mesh, const std::vector<Bone>& bones, const BindingOptions& options);
+SkinBinding bind_skin(const Mesh& mesh, const std::vector<Bone>& bones, const BindingOptions& options);
 
 /// The joint each link moves with (its first joint): joints()[k + 1].parent for link k.
 int link_joint(int link);

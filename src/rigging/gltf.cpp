@@ -135,15 +135,15 @@ struct VertexArrays {
 // faces over the written vertices. Without a texture, the skin's own.
 void split_seams(const RiggedSkin& s, bool textured, std::vector<int>* source, std::vector<Eigen::Vector2f>* uv,
                  std::vector<std::array<int, 3>>* faces) {
-  source->resize(s.vertices.size());
+  source->resize(s.mesh.vertices.size());
   for (size_t i = 0; i < source->size(); ++i) (*source)[i] = static_cast<int>(i);
-  uv->assign(textured ? s.vertices.size() : 0, Eigen::Vector2f::Constant(-1));
-  *faces = s.faces;
+  uv->assign(textured ? s.mesh.vertices.size() : 0, Eigen::Vector2f::Constant(-1));
+  *faces = s.mesh.faces;
   if (textured) {
     std::map<std::pair<int, std::pair<float, float>>, int> copies;
     for (size_t f = 0; f < faces->size(); ++f)
       for (int k = 0; k < 3; ++k) {
-        const int v = s.faces[f][k];
+        const int v = s.mesh.faces[f][k];
         const Eigen::Vector2f& c = s.texture.corner_uv[f][k];
         if ((*uv)[v].x() < 0) (*uv)[v] = c;
         if ((*uv)[v] == c) continue;
@@ -174,11 +174,11 @@ VertexArrays vertex_arrays(const RiggedSkin& s, const std::vector<int>& source) 
   pos.resize(3 * n), nrm.assign(3 * n, 0.0f), wts.assign(4 * n, 0.0f);
   jts.assign(4 * n, 0);
   lo.assign(3, 1e300), hi.assign(3, -1e300);
-  const std::vector<Eigen::Vector3d> normal = vertex_normals(s.vertices, s.faces);
+  const std::vector<Eigen::Vector3d> normal = vertex_normals(s.mesh.vertices, s.mesh.faces);
   for (size_t out_i = 0; out_i < n; ++out_i) {
     const size_t i = static_cast<size_t>(source[out_i]);
     for (int c = 0; c < 3; ++c) {
-      pos[3 * out_i + c] = static_cast<float>(s.vertices[i](c) * kMetre);
+      pos[3 * out_i + c] = static_cast<float>(s.mesh.vertices[i](c) * kMetre);
       lo[c] = std::min(lo[c], static_cast<double>(pos[3 * out_i + c]));
       hi[c] = std::max(hi[c], static_cast<double>(pos[3 * out_i + c]));
     }
@@ -371,7 +371,7 @@ void add_scene(tinygltf::Model& m, const RiggedSkin& s, const Angles* pose, cons
                  {"posture_model", model_to_json(s.model)},
                  {"binding", s.binding.mode}};
   if (pose) extras["pose_deg"] = std::vector<double>(pose->begin(), pose->end());
-  if (textured) extras["seam_sources"] = std::vector<int>(source.begin() + static_cast<long>(s.vertices.size()), source.end());
+  if (textured) extras["seam_sources"] = std::vector<int>(source.begin() + static_cast<long>(s.mesh.vertices.size()), source.end());
   scene.extras = to_value(Json{{"handskin", extras}});
   m.scenes.push_back(scene);
   m.defaultScene = 0;
@@ -381,7 +381,7 @@ void add_scene(tinygltf::Model& m, const RiggedSkin& s, const Angles* pose, cons
 }  // namespace
 
 std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose, const PostureAnimation* animation) {
-  HS_CHECK(s.vertices.size() == s.binding.vertices.size(), "binding and mesh differ in size");
+  HS_CHECK(s.mesh.vertices.size() == s.binding.vertices.size(), "binding and mesh differ in size");
   const Skeleton skel(s.rig, "rig");
   Angles zero{};
   const auto rest = skel.frames(zero);
@@ -391,7 +391,7 @@ std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose, con
   m.asset.generator = "handskin";
   m.buffers.emplace_back();
   const bool textured = !s.texture.empty();
-  HS_CHECK(!textured || s.texture.corner_uv.size() == s.faces.size(), "texture and mesh differ in faces");
+  HS_CHECK(!textured || s.texture.corner_uv.size() == s.mesh.faces.size(), "texture and mesh differ in faces");
   std::vector<int> source;
   std::vector<Eigen::Vector2f> uv;
   std::vector<std::array<int, 3>> faces;
@@ -505,7 +505,7 @@ void read_vertices(const tinygltf::Model& m, const tinygltf::Primitive& prim, co
   link_of.fill(-1);
   for (int k = kJointCount - 2; k >= 0; --k) link_of[link_joint(k)] = k;
   for (size_t i = 0; i < n; ++i) {
-    s.vertices.emplace_back(pos[3 * i] / kMetre, pos[3 * i + 1] / kMetre, pos[3 * i + 2] / kMetre);
+    s.mesh.vertices.emplace_back(pos[3 * i] / kMetre, pos[3 * i + 1] / kMetre, pos[3 * i + 2] / kMetre);
     VertexWeights w;
     double sum = 0;
     int used = 0;
@@ -531,7 +531,7 @@ void read_vertices(const tinygltf::Model& m, const tinygltf::Primitive& prim, co
 // The triangles over the vertices.
 void read_triangles(const tinygltf::Model& m, const tinygltf::Primitive& prim, const std::string& file, RiggedSkin* sp) {
   RiggedSkin& s = *sp;
-  const size_t n = s.vertices.size();
+  const size_t n = s.mesh.vertices.size();
   if (prim.indices < 0) throw InputError(file, "the skin mesh has no indices");
   const tinygltf::Accessor& ia = m.accessors[prim.indices];
   if (ia.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT || ia.count % 3 || ia.bufferView < 0)
@@ -544,14 +544,14 @@ void read_triangles(const tinygltf::Model& m, const tinygltf::Primitive& prim, c
   for (size_t k = 0; k < idx.size(); k += 3) {
     for (int c = 0; c < 3; ++c)
       if (idx[k + c] >= n) throw InputError(file, "indices: a vertex index out of range");
-    s.faces.push_back({static_cast<int>(idx[k]), static_cast<int>(idx[k + 1]), static_cast<int>(idx[k + 2])});
+    s.mesh.faces.push_back({static_cast<int>(idx[k]), static_cast<int>(idx[k + 1]), static_cast<int>(idx[k + 2])});
   }
 }
 
 // The texture: its image, and each face's corners' coordinates.
 void read_texture(const tinygltf::Model& m, const tinygltf::Primitive& prim, const std::string& file, RiggedSkin* sp) {
   RiggedSkin& s = *sp;
-  const size_t n = s.vertices.size();
+  const size_t n = s.mesh.vertices.size();
   auto attr = [&](const char* name) { return attribute(prim, file, name); };
   const int material = prim.material;
   const int tex = material >= 0 && material < static_cast<int>(m.materials.size())
@@ -571,7 +571,7 @@ void read_texture(const tinygltf::Model& m, const tinygltf::Primitive& prim, con
     if (tc.size() != 2 * n) throw InputError(file, "TEXCOORD_0 and POSITION differ in count");
     for (float f : tc)
       if (f < 0 || f > 1) throw InputError(file, "TEXCOORD_0: a coordinate outside [0, 1]");
-    for (const auto& f : s.faces) {
+    for (const auto& f : s.mesh.faces) {
       std::array<Eigen::Vector2f, 3> c;
       for (int k = 0; k < 3; ++k) c[k] = {tc[2 * f[k]], tc[2 * f[k] + 1]};
       s.texture.corner_uv.push_back(c);
@@ -582,7 +582,7 @@ void read_texture(const tinygltf::Model& m, const tinygltf::Primitive& prim, con
 // Vertices written once per chart (after the skin's own) go back to their skin vertex.
 void merge_seams(const Json& h, const std::string& file, RiggedSkin* sp) {
   RiggedSkin& s = *sp;
-  const size_t n = s.vertices.size();
+  const size_t n = s.mesh.vertices.size();
   if (h.contains("seam_sources")) {
     const Json& seams = h["seam_sources"];
     if (!seams.is_array() || seams.size() > n) throw InputError(file, "extras.handskin.seam_sources must be a list of vertex indices");
@@ -591,13 +591,13 @@ void merge_seams(const Json& h, const std::string& file, RiggedSkin* sp) {
       if (!seams[k].is_number_integer() || seams[k].get<long long>() < 0 || seams[k].get<long long>() >= static_cast<long long>(skin_n))
         throw InputError(file, "extras.handskin.seam_sources[" + std::to_string(k) + "] is not a vertex of the skin");
       const size_t src = seams[k].get<size_t>();
-      if (s.vertices[skin_n + k] != s.vertices[src])
+      if (s.mesh.vertices[skin_n + k] != s.mesh.vertices[src])
         throw InputError(file, "seam vertex " + std::to_string(skin_n + k) + " is not a copy of skin vertex " + std::to_string(src));
     }
-    for (auto& f : s.faces)
+    for (auto& f : s.mesh.faces)
       for (int& v : f)
         if (static_cast<size_t>(v) >= skin_n) v = seams[static_cast<size_t>(v) - skin_n].get<int>();
-    s.vertices.resize(skin_n);
+    s.mesh.vertices.resize(skin_n);
     s.binding.vertices.resize(skin_n);
   }
 }

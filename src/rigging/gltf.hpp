@@ -20,6 +20,7 @@
 
 #include "core/rig.hpp"
 #include "core/texture_map.hpp"
+#include "mesh/mesh.hpp"
 #include "posture/model.hpp"
 #include "posture/skeleton.hpp"
 #include "rigging/animation.hpp"
@@ -28,8 +29,7 @@
 namespace handskin {
 
 struct RiggedSkin {
-  std::vector<Eigen::Vector3d> vertices;       ///< scan posture, palm frame, mm
-  std::vector<std::array<int, 3>> faces;
+  Mesh mesh;  ///< scan posture, palm frame, mm
   Rig rig;
   SkinBinding binding;
   PostureModel model;

@@ -1,6 +1,5 @@
 #include "scan/cloud_file.hpp"
 
-#include <OpenMesh/Core/IO/MeshIO.hh>
 #include <pcl/PCLPointCloud2.h>
 #include <pcl/conversions.h>
 #include <pcl/io/pcd_io.h>
@@ -16,7 +15,7 @@
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
-#include "mesh/trimesh.hpp"
+#include "mesh/mesh.hpp"
 #include "scan/cloud.hpp"
 
 namespace handskin {
@@ -109,21 +108,18 @@ void read_pcl(PointCloudFile* out) {
 // OBJ, STL (ASCII or binary) and OFF through OpenMesh's readers: the vertices (an STL's
 // corners merged), whatever the faces.
 void read_openmesh(PointCloudFile* out) {
-  TriMesh mesh;
-  OpenMesh::IO::Options opt;
-  bool ok = false;
+  std::optional<Mesh> mesh;
   try {
-    ok = OpenMesh::IO::read_mesh(mesh, out->path, opt);
+    mesh = read_mesh_file(out->path);
   } catch (const std::exception& e) {
     throw InputError(out->path, std::string("unreadable ") + out->format + " file: " + e.what());
   }
-  if (!ok) throw InputError(out->path, "unreadable " + out->format + " file");
-  out->points.reserve(mesh.n_vertices());
-  for (const auto v : mesh.vertices()) {
-    const auto& p = mesh.point(v);
-    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
-      throw InputError(out->path, "vertex " + std::to_string(v.idx()) + " has a non-finite coordinate");
-    out->points.emplace_back(p[0], p[1], p[2]);
+  if (!mesh) throw InputError(out->path, "unreadable " + out->format + " file");
+  out->points.reserve(mesh->vertices.size());
+  for (size_t k = 0; k < mesh->vertices.size(); ++k) {
+    const Eigen::Vector3d& p = mesh->vertices[k];
+    if (!p.allFinite()) throw InputError(out->path, "vertex " + std::to_string(k) + " has a non-finite coordinate");
+    out->points.push_back(p);
   }
 }
 

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "mesh/trimesh.hpp"
+#include "mesh/mesh.hpp"
 
 namespace handskin {
 
@@ -16,7 +16,7 @@ struct TruthSkin {
   std::string path;                      ///< the truth.json
   Eigen::Isometry3d back_to_palm = Eigen::Isometry3d::Identity();
   std::string skin_path;                 ///< its "skin" mesh, relative to the truth.json
-  TriMesh skin;
+  Mesh skin;
   std::vector<Eigen::Vector3d> markers;  ///< "markers_palm": marker centres, palm frame
   double exclude_mm = 7;                 ///< samples this near a marker's centre are left out (radius + 3)
 };

@@ -56,12 +56,13 @@ BaselineResult poisson_baseline(const std::vector<Eigen::Vector3d>& points, cons
   pcl::PointCloud<pcl::PointXYZ> v;
   pcl::fromPCLPointCloud2(pm.cloud, v);
   HS_CHECK(!pm.polygons.empty() && !v.empty(), "Poisson reconstruction gave no surface");
-  std::vector<TriMesh::VertexHandle> vh;
-  for (const auto& p : v.points) vh.push_back(r.mesh.add_vertex(TriMesh::Point(p.x, p.y, p.z)));
+  Mesh soup;
+  for (const auto& p : v.points) soup.vertices.emplace_back(p.x, p.y, p.z);
   for (const auto& f : pm.polygons) {
     HS_CHECK(f.vertices.size() == 3, "Poisson reconstruction gave a non-triangle");
-    if (!r.mesh.add_face(vh[f.vertices[0]], vh[f.vertices[1]], vh[f.vertices[2]]).is_valid()) ++r.faces_dropped;
+    soup.faces.push_back({static_cast<int>(f.vertices[0]), static_cast<int>(f.vertices[1]), static_cast<int>(f.vertices[2])});
   }
+  r.mesh = manifold_faces(std::move(soup), &r.faces_dropped);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }

@@ -5,12 +5,12 @@
 #include <Eigen/Core>
 #include <vector>
 
-#include "mesh/trimesh.hpp"
+#include "mesh/mesh.hpp"
 
 namespace handskin {
 
 struct BaselineResult {
-  TriMesh mesh;
+  Mesh mesh;
   double seconds = 0;
   size_t points_used = 0;
   size_t faces_dropped = 0;  ///< faces the mesh could not take (they would make an edge non-manifold)

@@ -132,7 +132,7 @@ std::vector<TubeBuild> build_tubes(const HandFrame& H, const TubePoints& tube_po
 // Each vertex's bone (the nearest link; a digit's vertex one of that digit's), tube and ring.
 void label_vertices(const SM& skin, const SM::Property_map<SM::Vertex_index, std::pair<int, int>>& origin_of,
                     const HandFrame& H, SkinResult* R) {
-  const auto V = mesh_vertices(R->mesh);
+  const auto& V = R->mesh.vertices;
   size_t vi = 0;
   for (auto v : skin.vertices()) {
     const auto [tube, ring] = origin_of[v];
@@ -233,10 +233,10 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
     }
     settle_fair_figures(skin, faired, &before, &R.fair_unseen);
   }
-  R.mesh = to_trimesh(skin);  // vertices in the order of skin.vertices()
+  R.mesh = to_mesh(skin);  // vertices in the order of skin.vertices()
   R.seconds_fit = since(tf);
 
-  // --- checks, labels, the OpenMesh result ---
+  // --- checks, labels ---
   const auto t3 = Clock::now();
   if (o.check_self_intersections) {
     // The take-back after steps 8 and 9 ends with the test, on the positions as written.
@@ -250,7 +250,7 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
 }
 
 void save_skin_ply(const std::string& path, const SkinResult& skin) {
-  auto V = mesh_vertices(skin.mesh);
+  auto V = skin.mesh.vertices;
   // Fault injection for tests (docs/architecture.md): HANDSKIN_FAULT=cross:1 writes the skin
   // with its first vertex pushed through the hand to the far side, so that its triangles
   // cross the skin: the report's checks of the written file must say so.
@@ -260,7 +260,7 @@ void save_skin_ply(const std::string& path, const SkinResult& skin) {
     c /= static_cast<double>(V.size());
     V[0] = 2 * c - V[0];
   }
-  const auto F = mesh_faces(skin.mesh);
+  const auto& F = skin.mesh.faces;
   HS_CHECK(skin.vertex_bone.size() == V.size(), "skin labels do not match its vertices");
   std::string out = "ply\nformat binary_little_endian 1.0\ncomment handskin skin, palm frame, mm\n";
   out += "element vertex " + std::to_string(V.size()) +

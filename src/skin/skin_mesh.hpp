@@ -19,7 +19,7 @@
 #include <vector>
 
 #include "core/rig.hpp"
-#include "mesh/trimesh.hpp"
+#include "mesh/mesh.hpp"
 #include "skin/slices.hpp"
 
 namespace handskin {
@@ -135,7 +135,7 @@ struct WristCut {  // hand frame (the rig's axes, X toward the fingers)
   double rms_mm = 0;                             ///< the rim points' distance to the plane
 };
 struct SkinResult {
-  TriMesh mesh;                 ///< palm frame (the rig's), mm, outward-oriented
+  Mesh mesh;                 ///< palm frame (the rig's), mm, outward-oriented
   std::vector<int> vertex_bone; ///< per vertex: index into `bones` (nearest link, for binding)
   std::vector<int> vertex_tube; ///< per vertex: SkinTube it came from
   std::vector<int> vertex_ring; ///< per vertex: its ring (plane) in the tube; -1 on caps and seams

@@ -65,14 +65,14 @@ struct Hit {
 
 }  // namespace
 
-CloudSim simulate_cloud(const TriMesh& hand, const Rig& rig, const CloudSimOptions& o, std::uint64_t seed) {
+CloudSim simulate_cloud(const Mesh& hand, const Rig& rig, const CloudSimOptions& o, std::uint64_t seed) {
   std::string err;
   if (!o.IsValid(&err)) throw InputError("synth cloud options", err);
   Rng rng(seed);
   const Eigen::Isometry3d T_hand_rig = hand_frame_from_rig(rig);
-  std::vector<Eigen::Vector3d> v = mesh_vertices(hand);
+  std::vector<Eigen::Vector3d> v = hand.vertices;
   for (auto& p : v) p = T_hand_rig * p;
-  std::vector<std::array<int, 3>> f = mesh_faces(hand);
+  std::vector<std::array<int, 3>> f = hand.faces;
   if (v.empty() || f.empty()) throw InputError("--mesh", "the hand mesh has no faces");
   const std::vector<Eigen::Vector3d> hv = v;
   const size_t hand_faces = f.size();
@@ -144,11 +144,7 @@ CloudSim simulate_cloud(const TriMesh& hand, const Rig& rig, const CloudSimOptio
 
   const Eigen::Isometry3d T_cloud_rig = T_b * T_hand_rig;
   out.skin = hand;
-  for (auto vh : out.skin.vertices()) {
-    const auto& p = out.skin.point(vh);
-    const Eigen::Vector3d q = T_cloud_rig * Eigen::Vector3d(p[0], p[1], p[2]);
-    out.skin.set_point(vh, TriMesh::Point(q.x(), q.y(), q.z()));
-  }
+  for (Eigen::Vector3d& p : out.skin.vertices) p = T_cloud_rig * p;
   out.rig = rig;
   out.rig.frame = "palm";
   for (auto& j : out.rig.joints) j = T_cloud_rig * j;

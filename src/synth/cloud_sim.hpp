@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "core/rig.hpp"
-#include "mesh/trimesh.hpp"
+#include "mesh/mesh.hpp"
 
 namespace handskin {
 
@@ -36,12 +36,12 @@ struct CloudSim {
   std::vector<Eigen::Vector3d> half_a, half_b;  ///< the back views and the palm views, each in its own pose
   Eigen::Isometry3d a_to_b = Eigen::Isometry3d::Identity();  ///< p_b = a_to_b · p_a (mm)
   Eigen::Isometry3d cloud_from_hand = Eigen::Isometry3d::Identity();  ///< the merged cloud's pose = half b's (mm)
-  TriMesh skin;        ///< the true skin in the merged cloud's frame (mm)
+  Mesh skin;        ///< the true skin in the merged cloud's frame (mm)
   Rig rig;             ///< the rig in that frame, palm_normal set (frame "palm", mm)
   size_t hand_points = 0, stand_points = 0, outliers = 0, dropped_grazing = 0;
 };
 
 /// Scan `hand` (with `rig`, same frame) from around. Deterministic for a seed.
-CloudSim simulate_cloud(const TriMesh& hand, const Rig& rig, const CloudSimOptions& options, std::uint64_t seed);
+CloudSim simulate_cloud(const Mesh& hand, const Rig& rig, const CloudSimOptions& options, std::uint64_t seed);
 
 }  // namespace handskin

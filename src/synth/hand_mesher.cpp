@@ -68,7 +68,7 @@ HandMeshResult mesh_hand(const HandModel& model, const HandMeshOptions& options)
 
   HandMeshResult r;
   r.self_intersects = CGAL::Polygon_mesh_processing::does_self_intersect(sm);
-  r.mesh = to_trimesh(sm);
+  r.mesh = to_mesh(sm);
   r.health = mesh_health(r.mesh);
   HS_CHECK(r.health.closed() && r.health.manifold() && r.health.faces == sm.number_of_faces(),
            "meshed hand is not a closed manifold");

@@ -2,7 +2,7 @@
 /// Meshing the implicit default hand with CGAL's surface mesher.
 #include <string>
 
-#include "mesh/trimesh.hpp"
+#include "mesh/mesh.hpp"
 #include "synth/hand_model.hpp"
 
 namespace handskin {
@@ -16,7 +16,7 @@ struct HandMeshOptions {
 };
 
 struct HandMeshResult {
-  TriMesh mesh;        ///< closed, 2-manifold, outward-oriented, in the hand frame (mm)
+  Mesh mesh;        ///< closed, 2-manifold, outward-oriented, in the hand frame (mm)
   MeshHealth health;
   bool self_intersects = false;
   double seconds = 0;

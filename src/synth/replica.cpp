@@ -70,7 +70,7 @@ Eigen::Isometry3d yaw_then(double yaw_deg, const Eigen::Matrix3d& base) {
 // The replica sawn flat `saw_mm` proximal of the wrist joint (hand frame: x = -saw_mm), the
 // cut closed by a flat face (CGAL's clip with the clipped volume kept closed). The sawn mesh
 // must stay one closed piece.
-TriMesh saw_flat(const std::vector<Eigen::Vector3d>& v, const std::vector<std::array<int, 3>>& f, double saw_mm) {
+Mesh saw_flat(const std::vector<Eigen::Vector3d>& v, const std::vector<std::array<int, 3>>& f, double saw_mm) {
   using EK = CGAL::Exact_predicates_inexact_constructions_kernel;  // clip corefines: robust predicates
   using SM = CGAL::Surface_mesh<EK::Point_3>;
   SM sm;
@@ -89,7 +89,7 @@ TriMesh saw_flat(const std::vector<Eigen::Vector3d>& v, const std::vector<std::a
   if (!one_piece)
     throw InputError("--saw", "sawing " + std::to_string(saw_mm) + " mm beyond the wrist leaves no single closed hand");
   CGAL::Polygon_mesh_processing::triangulate_faces(sm);
-  return to_trimesh(sm);
+  return to_mesh(sm);
 }
 
 }  // namespace
@@ -357,7 +357,7 @@ Eigen::Isometry3d place_on_table(const std::vector<Eigen::Vector3d>& hv, const s
 
 }  // namespace
 
-ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const ReplicaOptions& ro,
+ScanPair synthesize_scan_pair(const Mesh& hand_in, const Rig& rig_in, const ReplicaOptions& ro,
                               const ScannerOptions& so, std::uint64_t seed, bool verbose) {
   std::string err;
   if (!ro.IsValid(&err)) throw InputError("replica options", err);
@@ -366,15 +366,15 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
 
   // Work in the hand frame.
   const Eigen::Isometry3d T_hand_rig = hand_frame_from_rig(rig_in);
-  std::vector<Eigen::Vector3d> hv = mesh_vertices(hand_in);
+  std::vector<Eigen::Vector3d> hv = hand_in.vertices;
   for (auto& p : hv) p = T_hand_rig * p;
-  std::vector<std::array<int, 3>> hf = mesh_faces(hand_in);
+  std::vector<std::array<int, 3>> hf = hand_in.faces;
   // The saw: the hand frame's origin is the wrist joint and its X axis the hand's long axis.
-  std::optional<TriMesh> sawn;  // the sawn replica's skin, hand frame
+  std::optional<Mesh> sawn;  // the sawn replica's skin, hand frame
   if (ro.saw_mm) {
     sawn = saw_flat(hv, hf, *ro.saw_mm);
-    hv = mesh_vertices(*sawn);
-    hf = mesh_faces(*sawn);
+    hv = sawn->vertices;
+    hf = sawn->faces;
   }
   RayCaster caster(hv, hf);
   Rig rig_hand = rig_in;
@@ -431,11 +431,7 @@ ScanPair synthesize_scan_pair(const TriMesh& hand_in, const Rig& rig_in, const R
       out.palm_photo = take_photo(out.palm, so, out.T_palm_hand, hv, hf, albedo);
       out.skin_palm = sawn ? *sawn : hand_in;
       const Eigen::Isometry3d T_palm_skin = sawn ? out.T_palm_hand : T_palm_rig;  // the sawn skin is in the hand frame
-      for (auto vh : out.skin_palm.vertices()) {
-        const auto& p = out.skin_palm.point(vh);
-        const Eigen::Vector3d q = T_palm_skin * Eigen::Vector3d(p[0], p[1], p[2]);
-        out.skin_palm.set_point(vh, TriMesh::Point(q.x(), q.y(), q.z()));
-      }
+      for (Eigen::Vector3d& p : out.skin_palm.vertices) p = T_palm_skin * p;
       return out;
     }
     if (verbose) std::fprintf(stderr, "[synth scan] a marker is hidden in one scan; drawing a new placement\n");

@@ -8,7 +8,7 @@
 
 #include "core/png_io.hpp"
 #include "core/rig.hpp"
-#include "mesh/trimesh.hpp"
+#include "mesh/mesh.hpp"
 #include "synth/scanner.hpp"
 
 namespace handskin {
@@ -41,7 +41,7 @@ struct ScanPair {
   std::vector<Eigen::Vector3d> markers_hand;      ///< marker centres, hand frame
   std::optional<Eigen::Vector3d> extra_bump_hand; ///< the blob's centre, hand frame (if any)
   Rig rig_palm;                                   ///< joints in the palm scan's frame
-  TriMesh skin_palm;                              ///< the true skin (no markers), palm frame
+  Mesh skin_palm;                                 ///< the true skin (no markers), palm frame
   /// Each scan's photo: the camera's colour image on the range image's grid (row = scanline),
   /// the hand painted by SkinAlbedo, the markers white plaster, the table grey.
   Rgb8Image back_photo, palm_photo;
@@ -51,7 +51,7 @@ struct ScanPair {
 /// Build the replica from `hand` + `rig` (same frame), place it twice on the table (back up,
 /// then turned over about its long axis) with random yaw and shift, and scan both sides.
 /// Every marker is visible in both scans (placements are redrawn until so, or InputError).
-ScanPair synthesize_scan_pair(const TriMesh& hand, const Rig& rig, const ReplicaOptions& replica,
+ScanPair synthesize_scan_pair(const Mesh& hand, const Rig& rig, const ReplicaOptions& replica,
                               const ScannerOptions& scanner, std::uint64_t seed, bool verbose);
 
 }  // namespace handskin

@@ -12,7 +12,7 @@
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
 #include "mesh/triangle_tree.hpp"
-#include "mesh/trimesh.hpp"
+#include "mesh/mesh.hpp"
 
 namespace handskin {
 

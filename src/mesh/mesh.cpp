@@ -1,3 +1,5 @@
+#include "mesh/mesh.hpp"
+
 #include "mesh/trimesh.hpp"
 
 #include <OpenMesh/Core/IO/MeshIO.hh>
@@ -6,6 +8,7 @@
 #include <Eigen/Geometry>  // cross(): only declared by <Eigen/Core>
 #include <cmath>
 #include <filesystem>
+#include <optional>
 #include <vector>
 
 #include "core/atomic_file.hpp"
@@ -13,22 +16,26 @@
 
 namespace handskin {
 
-TriMesh load_mesh(const std::string& path) {
-  read_file(path);  // existence and readability, with a clear message
+std::optional<Mesh> read_mesh_file(const std::string& path) {
   TriMesh mesh;
   OpenMesh::IO::Options opt;
-  if (!OpenMesh::IO::read_mesh(mesh, path, opt)) throw InputError(path, "unreadable mesh");
-  if (mesh.n_faces() == 0) throw InputError(path, "mesh has no faces");
-  for (auto v : mesh.vertices()) {
-    const auto& p = mesh.point(v);
-    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
-      throw InputError(path, "mesh holds non-finite coordinates");
-  }
-  return mesh;
+  if (!OpenMesh::IO::read_mesh(mesh, path, opt)) return std::nullopt;
+  return from_trimesh(mesh);
 }
 
-void save_mesh(const std::string& path, const TriMesh& mesh) {
+Mesh load_mesh(const std::string& path) {
+  read_file(path);  // existence and readability, with a clear message
+  std::optional<Mesh> mesh = read_mesh_file(path);
+  if (!mesh) throw InputError(path, "unreadable mesh");
+  if (mesh->faces.empty()) throw InputError(path, "mesh has no faces");
+  for (const Eigen::Vector3d& p : mesh->vertices)
+    if (!p.allFinite()) throw InputError(path, "mesh holds non-finite coordinates");
+  return *mesh;
+}
+
+void save_mesh(const std::string& path, const Mesh& m) {
   omlog().disable();  // the OBJ writer logs "write file" to stderr on every call
+  const TriMesh mesh = to_trimesh(m);
   write_via_temp(path, [&](const std::string& tmp) {
     OpenMesh::IO::Options opt = OpenMesh::IO::Options::Binary;
     const std::string ext = std::filesystem::path(path).extension().string();
@@ -37,38 +44,59 @@ void save_mesh(const std::string& path, const TriMesh& mesh) {
   });
 }
 
-std::vector<Eigen::Vector3d> mesh_vertices(const TriMesh& mesh) {
-  std::vector<Eigen::Vector3d> v;
-  v.reserve(mesh.n_vertices());
-  for (auto vh : mesh.vertices()) {
-    const auto& p = mesh.point(vh);
-    v.emplace_back(p[0], p[1], p[2]);
-  }
-  return v;
+Mesh manifold_faces(Mesh mesh, size_t* dropped) {
+  size_t n = 0;
+  Mesh kept = from_trimesh(to_trimesh(mesh, &n));
+  if (dropped) *dropped = n;
+  return kept;
 }
 
-std::vector<std::array<int, 3>> mesh_faces(const TriMesh& mesh) {
-  std::vector<std::array<int, 3>> f;
-  f.reserve(mesh.n_faces());
+Mesh from_trimesh(const TriMesh& mesh) {
+  Mesh m;
+  m.vertices.reserve(mesh.n_vertices());
+  for (auto vh : mesh.vertices()) {
+    const auto& p = mesh.point(vh);
+    m.vertices.emplace_back(p[0], p[1], p[2]);
+  }
+  m.faces.reserve(mesh.n_faces());
   for (auto fh : mesh.faces()) {
     std::array<int, 3> t{};
     int k = 0;
     for (auto vh : mesh.fv_range(fh)) t[k++] = vh.idx();
-    f.push_back(t);
+    m.faces.push_back(t);
   }
-  return f;
-}
-
-TriMesh mesh_from_arrays(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& faces) {
-  TriMesh m;
-  std::vector<TriMesh::VertexHandle> h;
-  h.reserve(vertices.size());
-  for (const auto& p : vertices) h.push_back(m.add_vertex(TriMesh::Point(p.x(), p.y(), p.z())));
-  for (const auto& f : faces) m.add_face(h[f[0]], h[f[1]], h[f[2]]);
   return m;
 }
 
-MeshHealth mesh_health(const TriMesh& mesh) {
+TriMesh to_trimesh(const Mesh& mesh, size_t* dropped) {
+  TriMesh m;
+  std::vector<TriMesh::VertexHandle> h;
+  h.reserve(mesh.vertices.size());
+  for (const auto& p : mesh.vertices) h.push_back(m.add_vertex(TriMesh::Point(p.x(), p.y(), p.z())));
+  size_t n = 0;
+  for (const auto& f : mesh.faces)
+    if (!m.add_face(h[f[0]], h[f[1]], h[f[2]]).is_valid()) ++n;
+  if (dropped) *dropped = n;
+  return m;
+}
+
+MeshHealth mesh_health(const Mesh& mesh) { return trimesh_health(to_trimesh(mesh)); }
+
+std::vector<Eigen::Vector3d> shading_normals(const Mesh& m) {
+  TriMesh mesh = to_trimesh(m);
+  mesh.request_vertex_normals();
+  mesh.request_face_normals();
+  mesh.update_normals();
+  std::vector<Eigen::Vector3d> n;
+  n.reserve(mesh.n_vertices());
+  for (auto v : mesh.vertices()) {
+    const auto& u = mesh.normal(v);
+    n.emplace_back(u[0], u[1], u[2]);
+  }
+  return n;
+}
+
+MeshHealth trimesh_health(const TriMesh& mesh) {
   MeshHealth h;
   h.vertices = mesh.n_vertices();
   h.faces = mesh.n_faces();
