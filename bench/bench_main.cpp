@@ -654,7 +654,7 @@ int main(int argc, char** argv) {
   const char* rig = std::getenv("HANDSKIN_BENCH_RIG");
   if (merged && rig) {
     benchmark::RegisterBenchmark("BM_SkinBuild/file", [merged, rig](benchmark::State& st) {
-      static const MergedArrays m = merged_arrays(*load_merged(merged));
+      static const MergedArrays m = read_merged(merged);
       static const Rig r = load_rig(rig);
       skin_build(st, m, r);
     })->Unit(benchmark::kMillisecond)->Iterations(10);

@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <set>
 
 #include "core/atomic_file.hpp"
@@ -12,6 +13,7 @@
 #include "core/rig.hpp"
 #include "pipeline/options.hpp"
 #include "pipeline/stage_options.hpp"
+#include "register/registration.hpp"
 #include "scan/cloud.hpp"
 #include "scan/cubist_io.hpp"
 #include "test_util.hpp"
@@ -230,13 +232,53 @@ TEST(Clouds, OrganisedLayoutAndFileRoundTrip) {
     ASSERT_EQ(back->size(), dense->size());
     for (size_t k = 0; k < back->size(); ++k) EXPECT_FLOAT_EQ(back->points[k].y, dense->points[k].y);
   }
-  // An organised cloud with NaNs loads as its measured points.
+  // An organised cloud with NaNs loads as its measured points (PLY or PCD); anywhere else a
+  // NaN is refused, naming the point.
   save_cloud(dir + "/org.pcd", *org);
   EXPECT_EQ(load_cloud(dir + "/org.pcd")->size(), s.count_valid());
+  save_cloud(dir + "/org.ply", *org);
+  EXPECT_EQ(load_cloud(dir + "/org.ply")->size(), s.count_valid());
+  Cloud loose = *dense;
+  loose.points[3].y = std::numeric_limits<float>::quiet_NaN();
+  loose.is_dense = false;
+  save_cloud(dir + "/loose.ply", loose);
+  expect_input_error([&] { load_cloud(dir + "/loose.ply"); }, {"loose.ply", "point 3", "non-finite"});
   test::write_text(dir + "/junk.ply", "ply\nformat nonsense\n");
   expect_input_error([&] { load_cloud(dir + "/junk.ply"); }, {"junk.ply"});
   expect_input_error([&] { load_cloud(dir + "/c.xyz"); }, {"c.xyz", "extension"});
   expect_input_error([&] { load_cloud(dir + "/missing.ply"); }, {"missing.ply", "no such file"});
+}
+
+// merged.ply is read by the project's one cloud reader: the points, normals and sides as
+// written; a cloud that is not a merged one, or whose labels are not sides, is refused.
+TEST(Clouds, MergedCloudReadsBackAndBadOnesAreRefused) {
+  const std::string dir = test::temp_dir("merged-read");
+  MergedCloud m;
+  for (int k = 0; k < 4; ++k) {
+    pcl::PointXYZLNormal q;
+    q.x = 1.5f * k, q.y = -2.25f, q.z = 0.125f * k;
+    q.normal_x = 0, q.normal_y = 0.6f, q.normal_z = 0.8f;
+    q.label = k % 2 ? kSideBack : kSidePalm;
+    q.curvature = 0;
+    m.push_back(q);
+  }
+  save_merged(dir + "/m.ply", m);
+  const MergedArrays a = read_merged(dir + "/m.ply");
+  ASSERT_EQ(a.points.size(), 4u);
+  for (size_t k = 0; k < 4; ++k) {
+    EXPECT_EQ(a.points[k], m[k].getVector3fMap().cast<double>());
+    EXPECT_EQ(a.normals[k], m[k].getNormalVector3fMap().cast<double>());
+    EXPECT_EQ(a.sides[k], m[k].label);
+  }
+  m[2].label = 7;
+  save_merged(dir + "/bad.ply", m);
+  expect_input_error([&] { read_merged(dir + "/bad.ply"); }, {"bad.ply", "point 2", "side label 7"});
+  m[2].label = kSidePalm;
+  m[1].normal_y = std::numeric_limits<float>::infinity();
+  save_merged(dir + "/inf.ply", m);
+  expect_input_error([&] { read_merged(dir + "/inf.ply"); }, {"inf.ply", "point 1", "not finite"});
+  save_cloud(dir + "/points.ply", std::vector<Eigen::Vector3d>{{0, 0, 0}, {1, 0, 0}});
+  expect_input_error([&] { read_merged(dir + "/points.ply"); }, {"points.ply", "no normals"});
 }
 
 TEST(Clouds, ScanToCloudToScanIsExact) {

@@ -310,6 +310,42 @@ TEST(Patches, TheCommandWritesPatchesOnTheFixture) {
   EXPECT_NE(out.find("give --rig"), std::string::npos) << out;
 }
 
+// On a run folder, `patches` fits the folder's own skin (skin.ply with skin_grid.json): the
+// run's patches again, byte for byte, without building the skin. A malformed skin_grid.json
+// is one line naming it and the key; a folder whose skin was built on another rig gets its
+// skin built again on the rig given, and says so.
+TEST(Patches, TheCommandFitsTheRunFoldersOwnSkin) {
+  const std::string kBin = HANDSKIN_BINARY, kFix = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
+  const std::string dir = test::temp_dir("patches-folder-skin") + "/run";
+  fs::copy(test::default_fixture_run(), dir, fs::copy_options::recursive);
+  ASSERT_TRUE(fs::exists(dir + "/skin_grid.json"));
+  std::string out;
+  ASSERT_EQ(test::run(kBin + " patches --skin-dir " + dir + " --out " + dir + "/p", &out), 0) << out;
+  EXPECT_NE(out.find("skin_grid.json"), std::string::npos) << out;
+  EXPECT_EQ(out.find("building the skin"), std::string::npos) << out;
+  EXPECT_TRUE(read_file(dir + "/p/patches.json") == read_file(dir + "/patches.json"));
+  // Another rig (a fingertip 0.5 mm away): the skin is built again on it.
+  Rig moved = load_rig(kFix + "rig.json");
+  moved.joints[joint_index("index-finger-tip").value()] += Eigen::Vector3d(0.5, 0, 0);
+  save_rig(dir + "/moved_rig.json", moved);
+  ASSERT_EQ(test::run(kBin + " patches --skin-dir " + dir + " --rig " + dir + "/moved_rig.json --out " + dir + "/q", &out), 0)
+      << out;
+  EXPECT_NE(out.find("built on another rig"), std::string::npos) << out;
+  EXPECT_NE(out.find("building the skin"), std::string::npos) << out;
+  // Malformed: refused in one line, nothing written.
+  Json grid = load_json_object(dir + "/skin_grid.json");
+  grid["tubes"].erase(5);
+  save_json(dir + "/skin_grid.json", grid);
+  EXPECT_EQ(test::run(kBin + " -q patches --skin-dir " + dir + " --out " + dir + "/r", &out), 1);
+  EXPECT_NE(out.find("skin_grid.json: 'tubes' must hold 6 tubes"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir + "/r"));
+  grid = load_json_object(dir + "/skin_grid.json");
+  grid["format"] = "handskin-skin-grid/9";
+  save_json(dir + "/skin_grid.json", grid);
+  EXPECT_EQ(test::run(kBin + " -q patches --skin-dir " + dir + " --out " + dir + "/r", &out), 1);
+  EXPECT_NE(out.find("skin_grid.json: key 'format' must be \"handskin-skin-grid/1\""), std::string::npos) << out;
+}
+
 TEST(Patches, FollowThePostureAndTheirLayoutComesBack) {
   const std::string kBin = HANDSKIN_BINARY, kFix = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
   const std::string dir = test::temp_dir("patches-layout") + "/out";
@@ -347,7 +383,7 @@ TEST(Patches, FollowThePostureAndTheirLayoutComesBack) {
 
   // A posture moves the patches with their links; shared borders stay shared.
   const Rig rig = load_palm_rig(kFix + "rig.json");
-  const MergedArrays m = merged_arrays(*load_merged(dir + "/merged.ply"));
+  const MergedArrays m = read_merged(dir + "/merged.ply");
   const SkinResult skin = build_skin(m.points, rig, skin_options(PipelineOptions{}));
   const PatchSkin s = fit_patch_skin(skin, rig, m.points, m.sides, patch_options(PipelineOptions{}));
   // The fixture's patches lie near its polygon skin (5 x 5 samples per patch: p95 0.37 mm), so

@@ -73,7 +73,7 @@ void skin_command(const SkinArgs& a, const Progress& progress) {
   in.slices = po.skin.slices_json;
   if (!a.truth.empty()) in.truth = load_truth_skin(a.truth);  // before any work, so a bad file fails early
   progress("skin", "reading " + a.merged);
-  MergedArrays m = merged_arrays(*load_merged(a.merged));
+  MergedArrays m = read_merged(a.merged);
   in.points = std::move(m.points);
   in.normals = std::move(m.normals);
   in.sides = std::move(m.sides);

@@ -44,7 +44,7 @@ void save_mesh(const std::string& path, const Mesh& m) {
   });
 }
 
-Mesh manifold_faces(Mesh mesh, size_t* dropped) {
+Mesh manifold_faces(const Mesh& mesh, size_t* dropped) {
   size_t n = 0;
   Mesh kept = from_trimesh(to_trimesh(mesh, &n));
   if (dropped) *dropped = n;

@@ -34,7 +34,7 @@ void save_mesh(const std::string& path, const Mesh& mesh);
 
 /// The faces OpenMesh's half-edge structure can take, added in order (a face that would make
 /// an edge or a vertex non-manifold is left out and counted in `dropped`).
-Mesh manifold_faces(Mesh mesh, size_t* dropped);
+Mesh manifold_faces(const Mesh& mesh, size_t* dropped);
 
 struct MeshHealth {
   size_t vertices = 0, faces = 0;

@@ -181,6 +181,7 @@ CloudStageResult run_cloud_stage(const CloudStageInputs& in, const std::function
   for (const auto& file : in.files) {
     progress("reading " + file);
     read.push_back(read_point_cloud(file, in.units));
+    make_normals_unit(&read.back());
     const PointCloudFile& f = read.back();
     r.files.push_back({f.path, f.format, f.points.size(), f.no_return, !f.normals.empty()});
   }

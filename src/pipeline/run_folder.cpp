@@ -4,6 +4,7 @@
 
 #include "core/errors.hpp"
 #include "core/json_util.hpp"
+#include "pipeline/skin_grid.hpp"
 #include "pipeline/skin_stage.hpp"
 #include "pipeline/stage_options.hpp"
 #include "register/registration.hpp"
@@ -34,11 +35,21 @@ RunFolderPatches patches_for_run_folder(const std::string& dir, const Rig& rig, 
   p.merged = (std::filesystem::path(dir) / "merged.ply").string();
   p.rig = rig;
   progress("reading " + p.merged);
-  const MergedArrays m = merged_arrays(*load_merged(p.merged));
+  const MergedArrays m = read_merged(p.merged);
   if (const auto note = orient_rig_to_cloud(&p.rig, m.points, m.sides); note && !note->empty())
     progress(rig_path + ": " + *note);
-  progress("rebuilding the skin on " + rig_path);
-  const SkinResult skin = build_skin(m.points, p.rig, skin_options(po));
+  // The folder's own skin (skin.ply with skin_grid.json) when it was built on this rig;
+  // otherwise (a folder from before skin_grid.json, or another --rig) it is built again.
+  namespace fs = std::filesystem;
+  const std::string ply = (fs::path(dir) / "skin.ply").string(), grid = (fs::path(dir) / "skin_grid.json").string();
+  std::optional<SkinResult> folder_skin;
+  if (fs::exists(ply) && fs::exists(grid)) {
+    progress("reading " + ply + " and " + grid);
+    folder_skin = read_folder_skin(ply, grid, p.rig);
+    if (!folder_skin) progress("the folder's skin was built on another rig than " + rig_path);
+  }
+  if (!folder_skin) progress("building the skin on " + rig_path);
+  const SkinResult skin = folder_skin ? std::move(*folder_skin) : build_skin(m.points, p.rig, skin_options(po));
   PatchOptions opts = patch_options(po);
   opts.layout = layout;
   progress(std::string("fitting bicubic patches") + (layout ? " on the layout of " + layout_name : "") +

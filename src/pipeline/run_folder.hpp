@@ -25,8 +25,9 @@ struct RunFolderPatches {
   PatchStageResult result;
 };
 
-/// Read the folder's merged cloud, rebuild the skin on `rig` (read from `rig_path`, palm frame)
-/// with the pipeline's skin options, run the patch stage (on `layout` when given) and bind the
+/// Read the folder's merged cloud and its skin (skin.ply and skin_grid.json) — or, when the
+/// folder has no skin_grid.json or its skin was built on another rig, build the skin on `rig`
+/// (read from `rig_path`, palm frame) with the pipeline's skin options — run the patch stage (on `layout` when given) and bind the
 /// control points with the skin's weights as `run` does.
 RunFolderPatches patches_for_run_folder(const std::string& dir, const Rig& rig, const std::string& rig_path,
                                         const PipelineOptions& po,

@@ -7,6 +7,7 @@
 #include "core/errors.hpp"
 #include "render/preview.hpp"
 #include "pipeline/figures_json.hpp"
+#include "pipeline/skin_grid.hpp"
 #include "pipeline/stage_options.hpp"
 
 namespace handskin {
@@ -334,13 +335,13 @@ Json to_json(const SkinStageResult& r) {
 }
 
 const std::vector<std::string>& skin_output_names() {
-  static const std::vector<std::string> names = {"skin.ply", "skin.obj", "skin.png", "rig_auto.json", "slices.json",
-                                                 "baseline.ply"};
+  static const std::vector<std::string> names = {"skin.ply", "skin.obj", "skin.png", "skin_grid.json", "rig_auto.json",
+                                                 "slices.json", "baseline.ply"};
   return names;
 }
 
 std::vector<std::string> skin_output_plan(bool automatic, bool slices, bool baseline) {
-  std::vector<std::string> n = {"skin.ply", "skin.obj", "skin.png"};
+  std::vector<std::string> n = {"skin.ply", "skin.obj", "skin.png", "skin_grid.json"};
   if (automatic) n.push_back("rig_auto.json");
   if (slices) n.push_back("slices.json");
   if (baseline) n.push_back("baseline.ply");
@@ -365,6 +366,9 @@ Json write_skin_outputs(OutputSet& out, const SkinStageResult& r, const std::str
   outputs["skin_obj"] = out.final_path("skin.obj");
   write_file_atomic(out.stage("skin.png"), skin_png);
   outputs["skin_png"] = out.final_path("skin.png");
+  // Compact: ~5000 grid points; every number in its shortest round-trip form.
+  write_file_atomic(out.stage("skin_grid.json"), skin_grid_to_json(r.skin, r.rig).dump() + "\n");
+  outputs["skin_grid"] = out.final_path("skin_grid.json");
   if (r.automatic) {
     save_rig(out.stage("rig_auto.json"), r.rig);
     outputs["rig_auto"] = out.final_path("rig_auto.json");

@@ -1,7 +1,5 @@
 #include "register/registration.hpp"
 
-#include <pcl/io/ply_io.h>
-
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -12,6 +10,7 @@
 #include "core/errors.hpp"
 #include "core/transform.hpp"
 #include "scan/cloud.hpp"
+#include "scan/cloud_file.hpp"
 
 namespace handskin {
 
@@ -697,23 +696,21 @@ RegistrationError registration_error(const Eigen::Isometry3d& est, const Eigen::
   return e;
 }
 
-MergedCloud::Ptr load_merged(const std::string& path) {
-  if (!std::filesystem::is_regular_file(path)) throw InputError(path, "no such file");
-  MergedCloud::Ptr cloud(new MergedCloud);
-  // PCL's reader reports the camera element it skips on every file save_merged writes.
-  const auto verbosity = pcl::console::getVerbosityLevel();
-  pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);  // errors too: ours names the file
-  const int status = pcl::io::loadPLYFile(path, *cloud);
-  pcl::console::setVerbosityLevel(verbosity);
-  if (status < 0) throw InputError(path, "not a readable PLY point cloud");
-  if (cloud->empty()) throw InputError(path, "the cloud holds no points");
-  for (size_t i = 0; i < cloud->size(); ++i) {
-    const auto& p = (*cloud)[i];
-    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) || !std::isfinite(p.normal_x) ||
-        !std::isfinite(p.normal_y) || !std::isfinite(p.normal_z))
-      throw InputError(path, "point " + std::to_string(i) + " is not finite (x y z nx ny nz)");
+MergedArrays read_merged(const std::string& path) {
+  const PointCloudFile f = read_point_cloud(path);
+  if (f.normals.empty()) throw InputError(path, "no normals (nx ny nz): not a merged cloud of handskin's (for another scanner's cloud: run --cloud)");
+  if (f.labels.empty()) throw InputError(path, "no side label per point: not a merged cloud of handskin's (for another scanner's cloud: run --cloud)");
+  MergedArrays a;
+  a.points = f.points;
+  a.normals = f.normals;
+  a.sides = f.labels;
+  for (size_t i = 0; i < a.points.size(); ++i) {
+    if (!a.normals[i].allFinite()) throw InputError(path, "point " + std::to_string(i) + " is not finite (x y z nx ny nz)");
+    if (a.sides[i] != kSidePalm && a.sides[i] != kSideBack)
+      throw InputError(path, "point " + std::to_string(i) + " has side label " + std::to_string(a.sides[i]) +
+                                 " (0 palm, 1 back)");
   }
-  return cloud;
+  return a;
 }
 
 void save_merged(const std::string& path, const MergedCloud& cloud) { save_cloud(path, cloud); }

@@ -182,8 +182,10 @@ RegistrationError registration_error(const Eigen::Isometry3d& estimate, const Ei
 
 /// Binary PLY, atomically (x y z nx ny nz label curvature; label 0 = palm, 1 = back).
 void save_merged(const std::string& path, const MergedCloud& cloud);
-/// Read a merged cloud written by save_merged. Throws InputError naming the file when it
-/// cannot be read, is empty, or holds non-finite points or normals.
-MergedCloud::Ptr load_merged(const std::string& path);
+/// Read a merged cloud written by save_merged (through read_point_cloud: PLY, or PCD) as the
+/// arrays the stages take. Throws InputError naming the file (and the point) when it cannot
+/// be read, is empty, has no normals or no side labels, or holds a non-finite point or normal
+/// or a side label other than 0 or 1.
+MergedArrays read_merged(const std::string& path);
 
 }  // namespace handskin

@@ -12,6 +12,7 @@
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
+#include "scan/cloud_file.hpp"
 
 namespace handskin {
 
@@ -80,23 +81,15 @@ RangeScan cloud_to_scan(const Cloud& cloud, const ScanMeta& meta, size_t* droppe
 Cloud::Ptr load_cloud(const std::string& path) {
   const std::string ext = extension_of(path);
   if (ext != ".ply" && ext != ".pcd") throw InputError(path, "unknown point-cloud extension (use .ply or .pcd)");
-  read_file(path);  // existence and readability, with a clear message
+  const PointCloudFile file = read_point_cloud(path);
   auto cloud = std::make_shared<Cloud>();
-  int rc = -1;
-  try {
-    rc = ext == ".ply" ? pcl::io::loadPLYFile(path, *cloud) : pcl::io::loadPCDFile(path, *cloud);
-  } catch (const std::exception& e) {
-    throw InputError(path, std::string("unreadable point cloud: ") + e.what());
-  }
-  if (rc < 0) throw InputError(path, "unreadable point cloud");
-  if (cloud->empty()) throw InputError(path, "point cloud holds no points");
-  for (const auto& p : cloud->points)
-    if (std::isinf(p.x) || std::isinf(p.y) || std::isinf(p.z))
-      throw InputError(path, "point cloud holds infinite coordinates");
-  // NaN points are how organised clouds say "no return": they are dropped.
-  Cloud::Ptr dense = dense_copy(*cloud);
-  if (dense->empty()) throw InputError(path, "point cloud holds no finite points");
-  return dense;
+  cloud->reserve(file.points.size());
+  for (const Eigen::Vector3d& p : file.points)
+    cloud->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
+  cloud->width = static_cast<std::uint32_t>(cloud->size());
+  cloud->height = 1;
+  cloud->is_dense = true;
+  return cloud;
 }
 
 namespace {

@@ -85,6 +85,9 @@ void read_pcl(PointCloudFile* out) {
   const bool normals = has_field(blob, "normal_x") && has_field(blob, "normal_y") && has_field(blob, "normal_z");
   pcl::PointCloud<pcl::Normal> nrm;
   if (normals) pcl::fromPCLPointCloud2(blob, nrm);
+  const bool labels = has_field(blob, "label");
+  pcl::PointCloud<pcl::Label> lab;
+  if (labels) pcl::fromPCLPointCloud2(blob, lab);
   const bool organised = blob.height > 1;
   out->points.reserve(xyz.size());
   for (size_t k = 0; k < xyz.size(); ++k) {
@@ -102,6 +105,7 @@ void read_pcl(PointCloudFile* out) {
       const auto& n = nrm.points[k];
       out->normals.emplace_back(n.normal_x, n.normal_y, n.normal_z);
     }
+    if (labels) out->labels.push_back(lab.points[k].label);
   }
 }
 
@@ -201,11 +205,14 @@ PointCloudFile read_point_cloud(const std::string& path, LengthUnit unit, size_t
   const double s = millimetres_per(unit);
   if (s != 1.0)
     for (auto& p : out.points) p *= s;
-  for (auto& n : out.normals) {
+  return out;
+}
+
+void make_normals_unit(PointCloudFile* file) {
+  for (auto& n : file->normals) {
     const double len = n.norm();
     n = len > 1e-12 && std::isfinite(len) ? Eigen::Vector3d(n / len) : Eigen::Vector3d::Zero();
   }
-  return out;
 }
 
 }  // namespace handskin

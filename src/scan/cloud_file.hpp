@@ -3,6 +3,7 @@
 /// their software write — PLY (binary or ASCII; points, or a mesh's vertices), PCD, OBJ, STL,
 /// OFF, and XYZ/PTS/TXT text — into plain arrays in millimetres.
 #include <Eigen/Core>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -16,21 +17,28 @@ std::optional<LengthUnit> parse_length_unit(const std::string& name);
 const char* length_unit_name(LengthUnit u);
 double millimetres_per(LengthUnit u);
 
-/// A cloud file read: points (mm), normals when the file has them (else empty), and what it was.
+/// A cloud file read: points (mm), normals when the file has them (else empty; as stored,
+/// not made unit), labels when a PLY/PCD has a `label` field (else empty: handskin's
+/// merged.ply keeps each point's side there), and what it was.
 struct PointCloudFile {
   std::string path;
   std::string format;  ///< "ply", "pcd", "obj", "stl", "off", "xyz", "pts", "txt"
   std::vector<Eigen::Vector3d> points, normals;
+  std::vector<std::uint32_t> labels;
   size_t no_return = 0;  ///< an organised cloud's NaN points (no return), dropped
 };
+/// Each normal made unit length; one of zero or non-finite length becomes (0, 0, 0), "none".
+void make_normals_unit(PointCloudFile* file);
 
 /// The extensions read_point_cloud knows, for messages: ".ply, .pcd, .obj, .stl, .off, .xyz, .pts, .txt".
 const char* point_cloud_extensions();
 
-/// Read a cloud file and scale it to mm. Throws InputError naming the file (and the line or
+/// Read a cloud file and scale it to mm: the project's one reader of point clouds (`run
+/// --cloud`, `convert`, merged.ply). Throws InputError naming the file (and the line, point or
 /// key) when it cannot be read, has an unknown extension, holds no points, holds a
-/// non-finite coordinate (an organised PCD's NaN points are no-returns and are dropped), or
-/// holds more than `max_points` points.
+/// non-finite coordinate (an organised PLY's or PCD's NaN points are no-returns and are
+/// dropped), or holds more than `max_points` points. Normals are kept as stored, non-finite
+/// ones too (make_normals_unit makes them "none").
 PointCloudFile read_point_cloud(const std::string& path, LengthUnit unit = LengthUnit::Millimetre,
                                 size_t max_points = 20'000'000);
 

@@ -62,7 +62,7 @@ BaselineResult poisson_baseline(const std::vector<Eigen::Vector3d>& points, cons
     HS_CHECK(f.vertices.size() == 3, "Poisson reconstruction gave a non-triangle");
     soup.faces.push_back({static_cast<int>(f.vertices[0]), static_cast<int>(f.vertices[1]), static_cast<int>(f.vertices[2])});
   }
-  r.mesh = manifold_faces(std::move(soup), &r.faces_dropped);
+  r.mesh = manifold_faces(soup, &r.faces_dropped);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }

@@ -230,6 +230,8 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
       const Crossings c = take_back_crossings(&skin, before);  // also rounds to the written floats
       R.data_fit.reverted = c.reverted;
       R.data_fit.self_intersects = c.self_intersects;
+    } else {
+      round_as_written(&skin);
     }
     settle_fair_figures(skin, faired, &before, &R.fair_unseen);
   }

@@ -201,6 +201,8 @@ struct Crossings {
   bool self_intersects = false;
 };
 Crossings take_back_crossings(SM* sm, const std::vector<K::Point_3>& before);
+/// Every vertex rounded to single precision, as skin.ply stores it (take_back_crossings does it too).
+void round_as_written(SM* sm);
 /// Step 9's figures from its moves: the moves kept (mean, largest) and, given the positions
 /// the take-back restores (`before`, by vertex index), the vertices it put back.
 void settle_fair_figures(const SM& sm, const Moves& moved, const std::vector<K::Point_3>* before, FairUnseen* f);
