@@ -80,18 +80,15 @@ void read_pcl(PointCloudFile* out) {
   if (rc < 0) throw InputError(out->path, "unreadable " + out->format + " file");
   if (!has_field(blob, "x") || !has_field(blob, "y") || !has_field(blob, "z"))
     throw InputError(out->path, "no x, y, z fields: not a point cloud");
-  pcl::PointCloud<pcl::PointXYZ> xyz;
-  pcl::fromPCLPointCloud2(blob, xyz);
+  // One conversion for every field we keep (a field the file lacks stays 0 and is not taken).
   const bool normals = has_field(blob, "normal_x") && has_field(blob, "normal_y") && has_field(blob, "normal_z");
-  pcl::PointCloud<pcl::Normal> nrm;
-  if (normals) pcl::fromPCLPointCloud2(blob, nrm);
   const bool labels = has_field(blob, "label");
-  pcl::PointCloud<pcl::Label> lab;
-  if (labels) pcl::fromPCLPointCloud2(blob, lab);
+  pcl::PointCloud<pcl::PointXYZLNormal> all;
+  pcl::fromPCLPointCloud2(blob, all);
   const bool organised = blob.height > 1;
-  out->points.reserve(xyz.size());
-  for (size_t k = 0; k < xyz.size(); ++k) {
-    const auto& p = xyz.points[k];
+  out->points.reserve(all.size());
+  for (size_t k = 0; k < all.size(); ++k) {
+    const auto& p = all.points[k];
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
       // An organised cloud's NaN points are its no-returns; anywhere else a bad coordinate.
       if (organised && std::isnan(p.x) && std::isnan(p.y) && std::isnan(p.z)) {
@@ -101,11 +98,8 @@ void read_pcl(PointCloudFile* out) {
       throw InputError(out->path, "point " + std::to_string(k) + " has a non-finite coordinate");
     }
     out->points.emplace_back(p.x, p.y, p.z);
-    if (normals) {
-      const auto& n = nrm.points[k];
-      out->normals.emplace_back(n.normal_x, n.normal_y, n.normal_z);
-    }
-    if (labels) out->labels.push_back(lab.points[k].label);
+    if (normals) out->normals.emplace_back(p.normal_x, p.normal_y, p.normal_z);
+    if (labels) out->labels.push_back(p.label);
   }
 }
 
