@@ -94,6 +94,31 @@ TEST(CloudFile, ReadsEveryFormatAndScalesUnits) {
     const bool normals = std::string(f) != "m.obj" && std::string(f) != "t.pts";
     EXPECT_EQ(c.normals.size(), normals ? P.size() : 0u) << f;
   }
+  // Coordinates and normals stored as doubles (Open3D's and CloudCompare's PLYs), or as
+  // integers, read at their values: PCL's own conversion maps float fields only, and read
+  // doubles as zeros.
+  {
+    std::string dbl = "ply\nformat ascii 1.0\nelement vertex " + std::to_string(P.size()) +
+                      "\nproperty double x\nproperty double y\nproperty double z\nproperty double nx\n"
+                      "property double ny\nproperty double nz\nend_header\n";
+    for (const auto& p : P) {
+      char b[200];
+      std::snprintf(b, sizeof b, "%.17g %.17g %.17g 0 0 1\n", p.x(), p.y(), p.z());
+      dbl += b;
+    }
+    test::write_text(d + "/double.ply", dbl);
+    const PointCloudFile c = read_point_cloud(d + "/double.ply");
+    ASSERT_EQ(c.points.size(), P.size());
+    for (size_t k = 0; k < P.size(); ++k) EXPECT_EQ(c.points[k], P[k]) << k;  // every bit
+    ASSERT_EQ(c.normals.size(), P.size());
+    EXPECT_EQ(c.normals[0], Eigen::Vector3d(0, 0, 1));
+    test::write_text(d + "/int.ply", "ply\nformat ascii 1.0\nelement vertex 2\nproperty int x\nproperty short y\n"
+                                     "property uchar z\nend_header\n-3 7 200\n4 -5 0\n");
+    const PointCloudFile i = read_point_cloud(d + "/int.ply");
+    ASSERT_EQ(i.points.size(), 2u);
+    EXPECT_EQ(i.points[0], Eigen::Vector3d(-3, 7, 200));
+    EXPECT_EQ(i.points[1], Eigen::Vector3d(4, -5, 0));
+  }
   // A mesh's vertices: an ASCII STL of two triangles shares two corners (merged on reading).
   test::write_text(d + "/s.stl",
                    "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n"

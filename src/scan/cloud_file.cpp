@@ -1,13 +1,12 @@
 #include "scan/cloud_file.hpp"
 
 #include <pcl/PCLPointCloud2.h>
-#include <pcl/conversions.h>
 #include <pcl/io/pcd_io.h>
 #include <pcl/io/ply_io.h>
-#include <pcl/point_types.h>
 
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -15,6 +14,7 @@
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
+#include "core/json_util.hpp"
 #include "mesh/mesh.hpp"
 #include "scan/cloud.hpp"
 
@@ -56,10 +56,41 @@ std::string lower_extension(const std::string& path) {
   return e.empty() ? e : e.substr(1);
 }
 
-bool has_field(const pcl::PCLPointCloud2& c, const std::string& name) {
+const pcl::PCLPointField* field_of(const pcl::PCLPointCloud2& c, const std::string& name) {
   for (const auto& f : c.fields)
-    if (f.name == name) return true;
-  return false;
+    if (f.name == name) return &f;
+  return nullptr;
+}
+
+// One field of every point as doubles, whatever its stored type. pcl::fromPCLPointCloud2 maps
+// a field only when its type is the point type's (float): a PLY of doubles — Open3D's and
+// CloudCompare's default — read as zeros.
+std::vector<double> field_values(const pcl::PCLPointCloud2& c, const pcl::PCLPointField& f, const std::string& path) {
+  const size_t n = static_cast<size_t>(c.width) * c.height;
+  std::vector<double> v(n);
+  const auto at = [&](size_t k) { return c.data.data() + k * c.point_step + f.offset; };
+  const auto read = [&](auto zero) {
+    using T = decltype(zero);
+    for (size_t k = 0; k < n; ++k) {
+      T x;
+      std::memcpy(&x, at(k), sizeof x);
+      v[k] = static_cast<double>(x);
+    }
+  };
+  if (c.data.size() < n * c.point_step || f.offset >= c.point_step)
+    throw InputError(path, "field '" + f.name + "' lies outside the points' data");
+  switch (f.datatype) {
+    case pcl::PCLPointField::INT8: read(std::int8_t{}); break;
+    case pcl::PCLPointField::UINT8: read(std::uint8_t{}); break;
+    case pcl::PCLPointField::INT16: read(std::int16_t{}); break;
+    case pcl::PCLPointField::UINT16: read(std::uint16_t{}); break;
+    case pcl::PCLPointField::INT32: read(std::int32_t{}); break;
+    case pcl::PCLPointField::UINT32: read(std::uint32_t{}); break;
+    case pcl::PCLPointField::FLOAT32: read(float{}); break;
+    case pcl::PCLPointField::FLOAT64: read(double{}); break;
+    default: throw InputError(path, "field '" + f.name + "' has a type that is not a number");
+  }
+  return v;
 }
 
 // PLY and PCD through PCL's readers (binary and ASCII; a PLY mesh's faces are skipped).
@@ -78,28 +109,37 @@ void read_pcl(PointCloudFile* out) {
     throw InputError(out->path, std::string("unreadable ") + out->format + " file: " + e.what());
   }
   if (rc < 0) throw InputError(out->path, "unreadable " + out->format + " file");
-  if (!has_field(blob, "x") || !has_field(blob, "y") || !has_field(blob, "z"))
-    throw InputError(out->path, "no x, y, z fields: not a point cloud");
-  // One conversion for every field we keep (a field the file lacks stays 0 and is not taken).
-  const bool normals = has_field(blob, "normal_x") && has_field(blob, "normal_y") && has_field(blob, "normal_z");
-  const bool labels = has_field(blob, "label");
-  pcl::PointCloud<pcl::PointXYZLNormal> all;
-  pcl::fromPCLPointCloud2(blob, all);
+  const pcl::PCLPointField *fx = field_of(blob, "x"), *fy = field_of(blob, "y"), *fz = field_of(blob, "z");
+  if (!fx || !fy || !fz) throw InputError(out->path, "no x, y, z fields: not a point cloud");
+  const std::vector<double> x = field_values(blob, *fx, out->path), y = field_values(blob, *fy, out->path),
+                            z = field_values(blob, *fz, out->path);
+  const pcl::PCLPointField *fnx = field_of(blob, "normal_x"), *fny = field_of(blob, "normal_y"),
+                           *fnz = field_of(blob, "normal_z"), *fl = field_of(blob, "label");
+  const bool normals = fnx && fny && fnz, labels = fl;
+  std::vector<double> nx, ny, nz, label;
+  if (normals)
+    nx = field_values(blob, *fnx, out->path), ny = field_values(blob, *fny, out->path), nz = field_values(blob, *fnz, out->path);
+  if (labels) label = field_values(blob, *fl, out->path);
   const bool organised = blob.height > 1;
-  out->points.reserve(all.size());
-  for (size_t k = 0; k < all.size(); ++k) {
-    const auto& p = all.points[k];
-    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+  out->points.reserve(x.size());
+  for (size_t k = 0; k < x.size(); ++k) {
+    const Eigen::Vector3d p(x[k], y[k], z[k]);
+    if (!p.allFinite()) {
       // An organised cloud's NaN points are its no-returns; anywhere else a bad coordinate.
-      if (organised && std::isnan(p.x) && std::isnan(p.y) && std::isnan(p.z)) {
+      if (organised && p.array().isNaN().all()) {
         ++out->no_return;
         continue;
       }
       throw InputError(out->path, "point " + std::to_string(k) + " has a non-finite coordinate");
     }
-    out->points.emplace_back(p.x, p.y, p.z);
-    if (normals) out->normals.emplace_back(p.normal_x, p.normal_y, p.normal_z);
-    if (labels) out->labels.push_back(p.label);
+    out->points.push_back(p);
+    if (normals) out->normals.emplace_back(nx[k], ny[k], nz[k]);
+    if (labels) {
+      if (!(label[k] >= 0 && label[k] <= 4294967295.0 && label[k] == std::floor(label[k])))
+        throw InputError(out->path, "point " + std::to_string(k) + " has label " + number_text(label[k]) +
+                                        ": not a whole number");
+      out->labels.push_back(static_cast<std::uint32_t>(label[k]));
+    }
   }
 }
 
