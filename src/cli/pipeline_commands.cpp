@@ -303,11 +303,11 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
 
   auto pa = std::make_shared<PatchesArgs>();
   auto* pc = app.add_subcommand("patches", "Bicubic Bezier patches over a closed quad layout of the whole skin, and the fitting-error report (thesis §4.1.4)");
-  pc->add_option("--skin-dir", pa->skin_dir, "Output folder of run (or of register + skin): merged.ply and the rig")->required();
+  pc->add_option("--skin-dir", pa->skin_dir, "Output folder of run (or of register + skin): merged.ply, the rig, and the skin fitted (skin.ply with skin_grid.json; built again on the rig without them)")->required();
   pc->add_option("--rig", pa->rig, "The skin's rig (default: rig_auto.json there, else the rig its report.json names)");
   pc->add_option("--out", pa->out, "Output folder: patches.json, patches.obj, patches.ply, report.json, report.html "
                                    "(default: <skin-dir>/patches)");
-  pc->add_option("--pipeline", pa->pipeline, "Pipeline parameters (slicing, skin, patches sections)");
+  pc->add_option("--pipeline", pa->pipeline, "Pipeline parameters (the patches section; slicing and skin when the skin is built again)");
   pc->add_option("--count", pa->count, "Patches wanted, [24, 1500] (default: patches.count, 96); the hand's layout has 98, split k x k: 98 k^2 nearest");
   pc->add_option("--layout", pa->layout,
                  "A layout given back: a patches.json (or handskin-patch-layout/1) whose 'layout' (corners, four-sided faces) is fitted on instead of the hand's; --count is then ignored");
