@@ -697,13 +697,13 @@ RegistrationError registration_error(const Eigen::Isometry3d& est, const Eigen::
 }
 
 MergedArrays read_merged(const std::string& path) {
-  const PointCloudFile f = read_point_cloud(path);
+  PointCloudFile f = read_point_cloud(path);
   if (f.normals.empty()) throw InputError(path, "no normals (nx ny nz): not a merged cloud of handskin's (for another scanner's cloud: run --cloud)");
   if (f.labels.empty()) throw InputError(path, "no side label per point: not a merged cloud of handskin's (for another scanner's cloud: run --cloud)");
   MergedArrays a;
-  a.points = f.points;
-  a.normals = f.normals;
-  a.sides = f.labels;
+  a.points = std::move(f.points);
+  a.normals = std::move(f.normals);
+  a.sides = std::move(f.labels);
   for (size_t i = 0; i < a.points.size(); ++i) {
     if (!a.normals[i].allFinite()) throw InputError(path, "point " + std::to_string(i) + " is not finite (x y z nx ny nz)");
     if (a.sides[i] != kSidePalm && a.sides[i] != kSideBack)

@@ -78,25 +78,24 @@ RangeScan cloud_to_scan(const Cloud& cloud, const ScanMeta& meta, size_t* droppe
   return scan;
 }
 
-Cloud::Ptr load_cloud(const std::string& path) {
+namespace {
+// The extension of a cloud file handskin reads or writes as PCL's own formats.
+std::string ply_or_pcd(const std::string& path) {
   const std::string ext = extension_of(path);
   if (ext != ".ply" && ext != ".pcd") throw InputError(path, "unknown point-cloud extension (use .ply or .pcd)");
-  const PointCloudFile file = read_point_cloud(path);
-  auto cloud = std::make_shared<Cloud>();
-  cloud->reserve(file.points.size());
-  for (const Eigen::Vector3d& p : file.points)
-    cloud->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
-  cloud->width = static_cast<std::uint32_t>(cloud->size());
-  cloud->height = 1;
-  cloud->is_dense = true;
-  return cloud;
+  return ext;
 }
 
-namespace {
+Cloud cloud_of(const std::vector<Eigen::Vector3d>& points) {
+  Cloud c;
+  c.reserve(points.size());
+  for (const auto& p : points) c.push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
+  return c;  // push_back keeps width = size, height = 1, dense
+}
+
 template <typename PointT>
 void save_any_cloud(const std::string& path, const pcl::PointCloud<PointT>& cloud) {
-  const std::string ext = extension_of(path);
-  if (ext != ".ply" && ext != ".pcd") throw InputError(path, "unknown point-cloud extension (use .ply or .pcd)");
+  const std::string ext = ply_or_pcd(path);
   write_via_temp(path, [&](const std::string& tmp) {
     const int rc = ext == ".ply" ? pcl::io::savePLYFileBinary(tmp, cloud) : pcl::io::savePCDFileBinary(tmp, cloud);
     if (rc < 0) throw InputError(path, "cannot write point cloud");
@@ -104,16 +103,16 @@ void save_any_cloud(const std::string& path, const pcl::PointCloud<PointT>& clou
 }
 }  // namespace
 
+Cloud::Ptr load_cloud(const std::string& path) {
+  ply_or_pcd(path);
+  return std::make_shared<Cloud>(cloud_of(read_point_cloud(path).points));
+}
+
 void save_cloud(const std::string& path, const Cloud& cloud) { save_any_cloud(path, cloud); }
 void save_cloud(const std::string& path, const pcl::PointCloud<pcl::PointXYZLNormal>& cloud) {
   save_any_cloud(path, cloud);
 }
-void save_cloud(const std::string& path, const std::vector<Eigen::Vector3d>& points) {
-  Cloud c;
-  c.reserve(points.size());
-  for (const auto& p : points) c.push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z())));
-  save_any_cloud(path, c);
-}
+void save_cloud(const std::string& path, const std::vector<Eigen::Vector3d>& points) { save_any_cloud(path, cloud_of(points)); }
 
 void silence_pcl_console() { pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS); }
 
