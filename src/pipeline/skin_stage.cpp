@@ -205,18 +205,37 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
     // once more with the thumb's base on the thumb's own centre line. The proportions put it
     // in the thenar, which suits a thumb near the palm's plane; a thumb raised and turned out
     // of it (the WebXR hand) then has its metacarpal's link cross the thenar off its sections.
+    // Then the skeleton placed again with the digits parted by the sheets (a finger touching
+    // its neighbour along most of its length leaves only its tip to the silhouette's parting:
+    // H12 of the family as a cloud), with either thumb base.
     if (!rig_refused.empty()) {
       const std::string first = rig_refused;
       const std::exception_ptr refused = build_error;
+      auto attempt = [&](const AutoRig& placed, const Rig& rig, const std::string& note) {
+        build(rig);
+        if (build_error) return false;
+        AutoRig kept = placed;
+        kept.rig = rig;
+        kept.notes.push_back(note + first);
+        R.placed = std::move(kept);
+        R.rig = rig;
+        return true;
+      };
+      const std::string base_note = "the thumb's base placed on the thumb's centre line: with the proportions' base, ";
       progress("the skin refused the placed skeleton (" + first + "); trying the thumb's base on its centre line");
-      build(R.placed->thumb_base_on_line);
-      if (build_error) {
-        build_error = refused;  // the first refusal is the one to report
-      } else {
-        R.rig = R.placed->thumb_base_on_line;
-        R.placed->rig = R.rig;
-        R.placed->notes.push_back("the thumb's base placed on the thumb's centre line: with the proportions' base, " + first);
+      bool ok = attempt(*R.placed, R.placed->thumb_base_on_line, base_note);
+      if (!ok) {
+        progress("trying the skeleton placed with the digits parted by the sheets");
+        std::optional<AutoRig> by_sheets;
+        try {
+          by_sheets = place_skeleton(in.points, in.sheets.empty() ? in.sides : in.sheets, DigitParting::Sheets);
+        } catch (const InputError&) {  // no five digits that way either: the first refusal stands
+        }
+        const std::string sheets_note = "the digits parted by the sheets: with the silhouette's, ";
+        ok = by_sheets && (attempt(*by_sheets, by_sheets->rig, sheets_note) ||
+                           attempt(*by_sheets, by_sheets->thumb_base_on_line, sheets_note + "and " + base_note));
       }
+      if (!ok) build_error = refused;  // the first refusal is the one to report
     }
   } else {
     R.rig = *in.rig;

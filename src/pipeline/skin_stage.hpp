@@ -45,6 +45,9 @@ std::optional<std::string> orient_rig_to_cloud(Rig* rig, const std::vector<Eigen
 struct SkinStageInputs {
   std::vector<Eigen::Vector3d> points, normals;  ///< merged cloud, palm frame (markers removed)
   std::vector<std::uint32_t> sides;               ///< per point: 0 palm scan, 1 back scan
+  /// A cloud's sheets (sheet_labels), for the skeleton's second placement; empty: `sides`
+  /// are the scans' own sheets.
+  std::vector<std::uint32_t> sheets;
   std::string cloud_name = "merged cloud";        ///< names the cloud in errors (its file, when read from one)
   std::optional<Rig> rig;                         ///< joints in the palm frame; none: placed automatically
   std::string rig_name = "rig";                   ///< names the given rig in errors (its file)

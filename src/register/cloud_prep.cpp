@@ -197,6 +197,35 @@ std::optional<Eigen::Vector4f> dominant_plane(const PclCloud::Ptr& few, double i
   return plane / plane.head<3>().norm();
 }
 
+// The plane's inlier band (support_inlier_mm each side) also holds the hand's last millimetre
+// where it stands on the support or ends just above it, which went with the support. A band
+// point is given back to the hand when it lies outside the support's own noise — 2.5 robust
+// sigmas (1.4826 × the median absolute residual of the band's points about their median), at
+// least kMinBandMm — and within kNearHandMm of a point beyond the band (the hand's flank goes
+// on above it). The second condition keeps the support's own noise tail out: without it, tail
+// points 2-4 mm beside the wrist joined the hand through the parts' gap, drew the skin's wrist
+// rim out onto the stand and failed the cloud->skin largest-distance gate (H02 of the cloud
+// study). A band point's normal cannot tell the flank from the support: within a normal's
+// radius of the flank's last points lies the support, whose many points decide the fit.
+constexpr double kBandSigmas = 2.5, kMinBandMm = 0.2, kNearHandMm = 1.0;
+void give_back_hand_end(const std::vector<Eigen::Vector3d>& sub, const std::vector<Eigen::Vector3d>& off,
+                        const Eigen::Vector4f& plane, const Eigen::Vector3d& c, std::vector<char>* on) {
+  const Eigen::Vector3d n = plane.head<3>().cast<double>();
+  const double d = static_cast<double>(plane(3)) - n.dot(c);  // sub is not centred
+  std::vector<double> r;
+  for (size_t k = 0; k < sub.size(); ++k)
+    if ((*on)[k]) r.push_back(n.dot(sub[k]) + d);
+  if (r.size() < 50) return;
+  std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+  const double med = r[r.size() / 2];
+  for (double& x : r) x = std::abs(x - med);
+  std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+  const double band = std::max(kBandSigmas * 1.4826 * r[r.size() / 2], kMinBandMm);
+  const PointGrid hand(off, kNearHandMm);
+  for (size_t k = 0; k < sub.size(); ++k)
+    if ((*on)[k] && std::abs(n.dot(sub[k]) + d - med) > band && hand.any_within(sub[k], kNearHandMm)) (*on)[k] = 0;
+}
+
 // 4. The support: a plane that holds a share of the points, most of them clear of every point
 // off it (a hand's own flat stretches — a flat palm, the back — are surrounded by the rest of
 // the hand). The dominant plane may be the hand's own (a flat hand's palm holds more points
@@ -232,6 +261,7 @@ std::vector<size_t> drop_support(const std::vector<Eigen::Vector3d>& pts, const 
       r->support_found = true;
       const Eigen::Vector3d n = plane->head<3>().cast<double>();
       r->support_plane << n, static_cast<double>((*plane)(3)) - n.dot(c);
+      give_back_hand_end(sub, off, *plane, c, &on);
       std::vector<int> kept;
       for (size_t k = 0; k < sub.size(); ++k)
         if (!on[k]) kept.push_back(static_cast<int>(k));

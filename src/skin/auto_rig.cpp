@@ -131,7 +131,8 @@ HandFrame principal_frame(const std::vector<Eigen::Vector3d>& pts, const std::ve
   Eigen::Vector3d X = axes.col(0), Z = axes.col(2);
   Eigen::Vector3d back = Eigen::Vector3d::Zero(), palm = Eigen::Vector3d::Zero();
   size_t nb = 0, np = 0;
-  for (size_t i = 0; i < pts.size(); ++i) (sides[i] == 1 ? (++nb, back) : (++np, palm)) += pts[i];
+  for (size_t i = 0; i < pts.size(); ++i)
+    if (sides[i] <= 1) (sides[i] == 1 ? (++nb, back) : (++np, palm)) += pts[i];
   if (nb == 0 || np == 0) throw InputError("merged cloud", "needs points of both scans (back and palm) to place a skeleton");
   if ((back / nb - palm / np).dot(Z) < 0) Z = -Z;
   double umin = 1e300, umax = -1e300;
@@ -331,14 +332,15 @@ void assemble_rig(const HandFrame& frame, const std::vector<Eigen::Vector3d>& h,
 
 }  // namespace auto_rig_steps
 
-AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vector<std::uint32_t>& sides) {
+AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vector<std::uint32_t>& sides,
+                       DigitParting parting) {
   using namespace auto_rig_steps;
   if (pts.size() < 1000 || sides.size() != pts.size())
     throw InputError("merged cloud", "too few points (or no side labels) to place a skeleton in");
   AutoRig out;
   HandFrame frame = principal_frame(pts, sides);
   std::vector<Eigen::Vector3d> h(pts.size());  // hand coordinates
-  DigitCells cells = find_digit_cells(pts, sides, &frame, &h, &out);
+  DigitCells cells = find_digit_cells(pts, sides, parting, &frame, &h, &out);
   std::vector<Digit> digits = collect_digits(cells, h);
   orient_digits(&frame, &h, &cells.pc, &digits, &out);
   for (size_t k = 0; k < digits.size(); ++k) trace_centre_line(h, cells.pc, k < 4, &digits[k]);

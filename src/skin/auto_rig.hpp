@@ -25,11 +25,19 @@ struct AutoRig {
   Rig thumb_base_on_line;
 };
 
+/// How the five digits are told apart.
+enum class DigitParting {
+  Silhouette,  ///< the silhouette (closed, then unclosed); the sheets when it gives fewer than five
+  Sheets,      ///< the sheets only: each digit's points from the back's and the palm's sheets
+};
+
 /// Place the 25 joints in a merged cloud (palm frame, mm) of an open hand, right or left,
 /// its digits straight or curled. `sides` labels each point 0 (palm scan) or 1 (back scan),
-/// which orients the back normal. Throws InputError when five digits and a wrist cannot be
-/// told apart (e.g. fingers touching, a digit missing).
-AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& points, const std::vector<std::uint32_t>& sides);
+/// which orients the back normal and gives the sheets; 2 marks a point of neither sheet (a
+/// cloud seen from around: its flanks, which neither a back nor a palm scan sees). Throws
+/// InputError when five digits and a wrist cannot be told apart (e.g. a digit missing).
+AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& points, const std::vector<std::uint32_t>& sides,
+                       DigitParting parting = DigitParting::Silhouette);
 
 struct JointError {
   double mean_mm = 0, max_mm = 0;

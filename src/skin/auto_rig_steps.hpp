@@ -155,7 +155,7 @@ struct Chains {
 
 HandFrame principal_frame(const std::vector<Eigen::Vector3d>& pts, const std::vector<std::uint32_t>& sides);
 DigitCells find_digit_cells(const std::vector<Eigen::Vector3d>& pts, const std::vector<std::uint32_t>& sides,
-                            HandFrame* frame, std::vector<Eigen::Vector3d>* h, AutoRig* out);
+                            DigitParting parting, HandFrame* frame, std::vector<Eigen::Vector3d>* h, AutoRig* out);
 std::vector<Digit> collect_digits(const DigitCells& dc, const std::vector<Eigen::Vector3d>& h);
 void orient_digits(HandFrame* frame, std::vector<Eigen::Vector3d>* h, Eigen::Vector2d* pc, std::vector<Digit>* digits,
                    AutoRig* out);

@@ -1,6 +1,7 @@
 #include "skin/skin_steps.hpp"
 
 #include <CGAL/Random.h>
+#include <CGAL/boost/graph/Euler_operations.h>
 
 #include <CGAL/Polygon_mesh_processing/connected_components.h>
 #include <CGAL/Polygon_mesh_processing/corefinement.h>
@@ -19,6 +20,10 @@ namespace handskin::skin_steps {
 namespace PMP = CGAL::Polygon_mesh_processing;
 
 namespace {
+
+/// Edges of the union shorter than this (1 µm; a float's step at 300 mm is 0.03 µm) are
+/// collapsed (collapse_short_edges).
+constexpr double kMicroEdgeMm = 1e-3;
 
 // Move each ring point out (or, where the ring is concave, in) by half the sagitta of its
 // chords, so that the polygon straddles the curve it samples instead of lying inside it: the
@@ -110,6 +115,37 @@ SM canonical_order(const SM& in) {
   for (auto v : order) vh.push_back(out.add_vertex(in.point(v)));
   for (const auto& t : faces) out.add_face(vh[t[0]], vh[t[1]], vh[t[2]]);
   return out;
+}
+
+// The corefinement cuts each surface where the other crosses it. Where the palm and a digit's
+// base cross almost along one line (a little finger's root placed at the palm's edge), it
+// leaves clusters of vertices micrometres apart, joined by slivers. Once rounded to the floats
+// skin.ply stores they coincide, their triangles are degenerate and the skin "crosses itself"
+// (H04 of the family as two halves; docs/skin.md). Every edge shorter than `eps` is collapsed
+// where the link condition allows it; the vertex kept keeps its position, so that its origin
+// (tube, ring) is still found by position. CGAL's experimental remove_almost_degenerate_faces
+// also flips caps, which would change the skin elsewhere; only the micro-edges are wanted.
+int collapse_short_edges(SM* sm, double eps) {
+  int collapsed = 0;
+  for (bool again = true; again;) {
+    again = false;
+    std::vector<SM::Edge_index> candidates;
+    for (auto e : sm->edges()) {
+      const auto h = sm->halfedge(e);
+      if (CGAL::squared_distance(sm->point(sm->source(h)), sm->point(sm->target(h))) < eps * eps) candidates.push_back(e);
+    }
+    for (auto e : candidates) {
+      if (sm->is_removed(e)) continue;
+      const auto h = sm->halfedge(e);
+      if (!(CGAL::squared_distance(sm->point(sm->source(h)), sm->point(sm->target(h))) < eps * eps)) continue;
+      if (!CGAL::Euler::does_satisfy_link_condition(e, *sm)) continue;
+      CGAL::Euler::collapse_edge(e, *sm);
+      ++collapsed;
+      again = true;
+    }
+  }
+  sm->collect_garbage();
+  return collapsed;
 }
 
 }  // namespace
@@ -208,6 +244,7 @@ SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& Ti
     *pockets_out = pockets;
     skin = std::move(outer);
   }
+  collapse_short_edges(&skin, kMicroEdgeMm);
   return canonical_order(skin);
 }
 
