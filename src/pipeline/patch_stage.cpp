@@ -38,7 +38,7 @@ std::optional<std::string> layout_note(const PatchSkin& s) {
 
 PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
                                  const std::vector<std::uint32_t>& sides, const PatchOptions& options,
-                                 const TruthSkin* truth, int error_grid) {
+                                 const TruthSkin* truth, int error_grid, bool pictures) {
   const auto t0 = std::chrono::steady_clock::now();
   PatchStageResult r;
   r.options = options;
@@ -52,7 +52,7 @@ PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const s
     r.truth_to_surface = one_way_distance(sample_surface(truth->skin, 4.0), to_surface, truth->markers, truth->exclude_mm);
   }
   r.figures = patch_report_figures(r.patches, error_grid);
-  r.pictures = patch_report_pictures(r.patches, rig);
+  if (pictures) r.pictures = patch_report_pictures(r.patches, rig);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }

@@ -62,10 +62,12 @@ struct PatchStageResult {
   double seconds = 0;
 };
 
-/// Fit the patches, tessellate them, and with a truth measure the surface against it.
+/// Fit the patches, tessellate them, and with a truth measure the surface against it; with
+/// `pictures`, also the report's pictures (else the caller makes them with
+/// patch_report_pictures, e.g. beside other work: `run` does).
 PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
                                  const std::vector<std::uint32_t>& sides, const PatchOptions& options,
-                                 const TruthSkin* truth, int error_grid = 100);
+                                 const TruthSkin* truth, int error_grid = 100, bool pictures = true);
 
 /// The stage's figures (report.json's body).
 Json to_json(const PatchStageResult& r);
