@@ -285,6 +285,22 @@ static void BM_PatchesFixture(benchmark::State& st) {
 }
 BENCHMARK(BM_PatchesFixture)->Unit(benchmark::kMillisecond)->Iterations(5);
 
+// The same refined to 0.5 mm (issue 38: --patch-tolerance 0.5; bar: at most 2 x BM_PatchesFixture).
+static void BM_PatchesFixtureTolerance(benchmark::State& st) {
+  const MergedArrays& m = fixture_merged();
+  static const Rig rig = load_rig(kFix + "rig.json");
+  static const SkinResult skin = build_skin(m.points, rig, SkinOptions{});
+  PatchOptions o;
+  o.tolerance_mm = 0.5;
+  PatchSkin p;
+  for (auto _ : st) p = fit_patch_skin(skin, rig, m.points, m.sides, o);
+  st.counters["patches"] = static_cast<double>(p.patches.size());
+  st.counters["fits"] = p.refinement ? static_cast<double>(p.refinement->patches.size()) : 0.0;
+  st.counters["held"] = p.refinement && p.refinement->held ? 1.0 : 0.0;
+  st.counters["worst_mm"] = p.refinement ? p.refinement->worst_mm.back() : 0.0;
+}
+BENCHMARK(BM_PatchesFixtureTolerance)->Unit(benchmark::kMillisecond)->Iterations(2);
+
 // The fitting-error report of the 98 patches on the fixture (issue 13's bar: ≤ 1 s): Table
 // 4.1's cell-grid error and the noise floor, then report.html with its four pictures (the fit
 // outside the timing).

@@ -22,6 +22,7 @@ namespace {
 // ---------------- run ----------------
 struct RunArgs {
   RunInputs in;
+  std::optional<double> patch_tolerance;
   std::string units = "mm", hand;
   std::string out_dir;
   bool force = false, strict = false;
@@ -33,6 +34,7 @@ void run_command(RunArgs a, const Progress& progress) {
   if (!a.hand.empty()) in.hand = a.hand == "left" ? HandSide::Left : HandSide::Right;
   OutputSet out(a.out_dir, output_options(a.force));  // an output path that cannot be a folder fails before any work
   if (!in.pipeline_path.empty()) in.options = load_pipeline(in.pipeline_path);
+  if (a.patch_tolerance) in.options.patches.tolerance_mm = *a.patch_tolerance;  // range checked by the parser
   out.claim(run_output_plan(in), run_output_names());  // the folder writable, locked, its names ours
   const RunResult r = run_pipeline(in, [&](const std::string& m) { progress("run", m); });
   progress("run", "writing the outputs");
@@ -161,6 +163,7 @@ void register_command(const RegisterArgs& a, const Progress& progress) {
 struct PatchesArgs {
   std::string skin_dir, rig, out, pipeline, truth, layout;
   std::optional<long> count;
+  std::optional<double> patch_tolerance;
   bool force = false, strict = false;
 };
 
@@ -176,6 +179,7 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
     names.push_back("report.json");
     out.claim(names);
   }
+  if (a.patch_tolerance) po.patches.tolerance_mm = *a.patch_tolerance;  // range checked by the parser
   if (a.count) {
     po.patches.count = *a.count;
     std::string err;
@@ -258,6 +262,10 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
   run->add_flag("--force", ra->force, "Move things of yours in the way of an output (same name, not written by "
                                       "handskin) aside into <out>/handskin-backup-<date>/ instead of refusing");
   run->add_flag("--strict", ra->strict, "A failed quality gate (report.json \"gates\") writes nothing and exits 3");
+  run->add_option("--patch-tolerance", ra->patch_tolerance,
+                  "Split the patches whose measured points lie farther than this (mm, (0, 100]) and fit again, up to "
+                  "patches.max_patches (300) patches (default: patches.tolerance_mm, none: the thesis's layout)")
+      ->check(CLI::Range(1e-3, 100.0));
   run->add_flag("--baseline", in->baseline, "Also a Poisson reconstruction of the cloud (baseline.ply and its figures, for comparison; ~0.5 s)");
   run->parse_complete_callback([run, back, palm, cloud] {
     if (cloud->count() > 2) throw CLI::ValidationError("--cloud", "one merged cloud or two halves, not " + std::to_string(cloud->count()));
@@ -308,6 +316,10 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
   pc->add_option("--out", pa->out, "Output folder: patches.json, patches.obj, patches.ply, report.json, report.html "
                                    "(default: <skin-dir>/patches)");
   pc->add_option("--pipeline", pa->pipeline, "Pipeline parameters (the patches section; slicing and skin when the skin is built again)");
+  pc->add_option("--patch-tolerance", pa->patch_tolerance,
+                 "Split the patches whose measured points lie farther than this (mm, (0, 100]) and fit again, up to "
+                 "patches.max_patches (300) patches (default: patches.tolerance_mm, none)")
+      ->check(CLI::Range(1e-3, 100.0));
   pc->add_option("--count", pa->count, "Patches wanted, [24, 1500] (default: patches.count, 96); the hand's layout has 98, split k x k: 98 k^2 nearest");
   pc->add_option("--layout", pa->layout,
                  "A layout given back: a patches.json (or handskin-patch-layout/1) whose 'layout' (corners, four-sided faces) is fitted on instead of the hand's; --count is then ignored");

@@ -15,6 +15,7 @@
 ///   7. bind_and_check      each control point's link, and the continuity figures (G0, G1)
 #include <Eigen/Core>
 #include <array>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -94,5 +95,11 @@ class NetFit {
  private:
   std::unique_ptr<NetSolver> solver_;
 };
+
+/// Refinement to a tolerance (refine.cpp): while a patch's measured points lie farther than
+/// o.tolerance_mm, the patches that miss are split (close_cuts, split_layout) and `refit`
+/// fits the split layout from its seed; the result and its figures replace *s
+/// (PatchSkin::refinement).
+void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::function<PatchSkin(const LayoutSplit&)>& refit);
 
 }  // namespace handskin::patch_steps

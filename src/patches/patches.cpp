@@ -105,8 +105,9 @@ DistanceFigures figures_of(std::vector<double> r) {
   return f;
 }
 
-// --- 1. the control net of the layout, started on its bilinear faces ---
-Net start_net(const PatchLayout& layout, PatchSkin* out) {
+// --- 1. the control net of the layout, started on its bilinear faces (or on a seed: a split
+// surface's control points, a shared one the same from every face on it) ---
+Net start_net(const PatchLayout& layout, PatchSkin* out, const std::vector<std::array<Eigen::Vector3d, 16>>* seed) {
   Net net = build_net(layout);
   out->patch_control = net.ids;
   out->control.assign(net.count, Eigen::Vector3d::Zero());
@@ -118,7 +119,8 @@ Net start_net(const PatchLayout& layout, PatchSkin* out) {
       for (int j = 0; j < 4; ++j) {
         const double s = i / 3.0, t = j / 3.0;
         out->control[net.ids[f][4 * i + j]] =
-            (1 - s) * (1 - t) * V[c[0]] + s * (1 - t) * V[c[1]] + s * t * V[c[2]] + (1 - s) * t * V[c[3]];
+            seed ? (*seed)[f][4 * i + j]
+                 : Eigen::Vector3d((1 - s) * (1 - t) * V[c[0]] + s * (1 - t) * V[c[1]] + s * t * V[c[2]] + (1 - s) * t * V[c[3]]);
       }
     out->patches[f].name = f < layout.names.size() ? layout.names[f] : "face" + std::to_string(f);
   }
@@ -428,15 +430,20 @@ bool PatchOptions::IsValid(std::string* error) const {
   if (max_corrections < 0 || max_corrections > 100) return invalid(error, "max_corrections must be in [0, 100]");
   if (!(correction_tolerance > 0)) return invalid(error, "correction_tolerance must be > 0");
   if (tessellation < 1 || tessellation > 64) return invalid(error, "tessellation must be in [1, 64]");
+  if (!(tolerance_mm >= 0 && tolerance_mm <= 100)) return invalid(error, "tolerance_mm must be in [0, 100] (0: none)");
+  if (max_patches < 1 || max_patches > 20000) return invalid(error, "max_patches must be in [1, 20000]");
+  if (refine_rounds < 0 || refine_rounds > 20) return invalid(error, "refine_rounds must be in [0, 20]");
   return true;
 }
 
 PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector3d>& points,
                       const std::vector<std::uint32_t>& sides, const std::vector<Eigen::Vector3d>& support,
-                      const std::vector<Bone>& bones, const PatchOptions& o) {
+                      const std::vector<Bone>& bones, const PatchOptions& o,
+                      const std::vector<std::array<Eigen::Vector3d, 16>>* seed) {
   std::string err;
   if (!o.IsValid(&err)) throw InputError("patch options", err);
   HS_CHECK(points.size() == sides.size(), "points and sides differ in length");
+  HS_CHECK(!seed || seed->size() == layout.faces.size(), "one seed per face");
   const auto t0 = std::chrono::steady_clock::now();
   PatchSkin out;
   out.layout = layout;
@@ -444,7 +451,7 @@ PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector
   for (const auto& b : bones) out.bones.push_back(b.name());
   for (int v : T.valence) out.irregular_corners += v != 4;
 
-  const Net net = start_net(layout, &out);
+  const Net net = start_net(layout, &out, seed);
   std::vector<int> in_fit;
   std::vector<Datum> data = gather_data(points, sides, support, net.count, o, &in_fit);
   if (data.size() < 16 * out.patches.size())
@@ -526,6 +533,10 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
     }
     s.layout_tries = std::move(tries);
   }
+  if (o.tolerance_mm > 0)
+    refine_to_tolerance(&s, o, [&](const LayoutSplit& split) {
+      return fit_patches(split.layout, points, sides, support, skin.bones, o, &split.seed);
+    });
   s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return s;
 }

@@ -40,6 +40,15 @@ struct PatchOptions {
   int tessellation = 8;                   ///< patches.ply: quads per patch side
   /// A layout given back (`--layout`): used as it is (no subdivision) instead of the hand's.
   std::optional<PatchLayout> layout;
+  /// Refinement to a tolerance (`--patch-tolerance`, issue 38; 0: none, the layout as it is).
+  /// After the fit, every patch whose measured points' largest distance to the surface exceeds
+  /// it is split at its midpoints (de Casteljau: the surface unchanged), the splits carried
+  /// along the layout's quad strips so that no T-junction arises, and the net refitted with
+  /// parameter correction; until every patch holds it, `refine_rounds` rounds were made, or a
+  /// further split would exceed `max_patches` (refine.cpp).
+  double tolerance_mm = 0;
+  int max_patches = 300;
+  int refine_rounds = 4;
   bool IsValid(std::string* error) const;
 };
 
@@ -105,16 +114,50 @@ struct PatchSkin {
   std::string g1_max_where;                  ///< the two patches whose border has the largest jump (away)
   std::array<std::string, 2> worst_patch;    ///< per side: the patch of the farthest point's foot point
   int irregular_corners = 0;                 ///< layout corners where other than 4 patches meet
+  /// The refinement to a tolerance, when asked (PatchOptions::tolerance_mm).
+  struct Refinement {
+    double tolerance_mm = 0;
+    std::vector<int> patches;            ///< per fit (0: the layout's): the patch count
+    std::vector<int> over;               ///< per fit: patches whose points' largest distance exceeds the tolerance
+    std::vector<double> worst_mm;        ///< per fit: the largest distance of a measured point
+    std::vector<double> seconds;         ///< per fit: its time
+    bool held = false;                   ///< every patch of the kept fit holds the tolerance
+    std::string stopped;                 ///< why it stopped short of that (rounds, patches, no gain)
+  };
+  std::optional<Refinement> refinement;
   size_t control_points = 0;
   double seconds = 0;
 };
 
 /// Fit one patch per face of `layout` to the measured `points` (palm frame, with their scan
 /// `sides`), with `support` (the polygon skin's vertices) as weak data; `bones` bind the
-/// control points.
+/// control points. The net starts on the layout's bilinear faces, or on `seed` (per face its
+/// 16 control points, P00…P33) when given.
 PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector3d>& points,
                       const std::vector<std::uint32_t>& sides, const std::vector<Eigen::Vector3d>& support,
-                      const std::vector<Bone>& bones, const PatchOptions& options);
+                      const std::vector<Bone>& bones, const PatchOptions& options,
+                      const std::vector<std::array<Eigen::Vector3d, 16>>* seed = nullptr);
+
+/// Cuts of a face (refine.cpp): kCutU splits it at u = 1/2 (its sides 0 and 2 at their
+/// midpoints), kCutV at v = 1/2 (sides 1 and 3); both: four faces.
+constexpr int kCutU = 1, kCutV = 2;
+/// The cuts closed along the layout's quad strips: a face whose side is split is cut across
+/// to its opposite side, and so on round the strip, so that every split edge is split in both
+/// faces on it (no T-junction).
+std::vector<int> close_cuts(const LayoutTopology& topology, std::vector<int> cuts);
+/// A fitted surface's layout with faces cut (closed cuts, one per face): the new corners on
+/// the surface (each split edge's midpoint once), each new face's 16 control points by de
+/// Casteljau at the midpoints (the same surface: a split border's curve is split the same way
+/// from both faces on it), its name the old one's with "/u0", "/v1", "/00"… appended, the
+/// creases split with their edges, and each new face's parent.
+struct LayoutSplit {
+  PatchLayout layout;
+  std::vector<std::array<Eigen::Vector3d, 16>> seed;
+  std::vector<int> parent;
+};
+LayoutSplit split_layout(const PatchSkin& s, const std::vector<int>& cuts);
+/// The largest distance of a measured point (PatchSkin::samples) with its foot point on each patch.
+std::vector<double> patch_max_error(const PatchSkin& s);
 
 /// The hand's patches: the layout given in `options`, else the hand's (hand_patch_layout on
 /// the skin and its rig, subdivided), fitted to the merged cloud with the skin as support.

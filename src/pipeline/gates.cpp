@@ -74,6 +74,11 @@ QualityGates check_gates(const GateInputs& in, const PipelineOptions& o) {
             o.gates.patches_to_skin_max_mm, "mm", "gates.patches_to_skin_max_mm");
     at_most("patches.g0_gap", "largest gap between neighbouring patches along their shared borders", p.patches.g0_gap_mm,
             o.gates.g0_gap_mm, "mm", "gates.g0_gap_mm");
+    if (const auto& r = p.patches.refinement)
+      at_most("patches.tolerance",
+              "the measured points' largest distance to the refined patches" +
+                  (r->stopped.empty() ? std::string() : " (the refinement stopped: " + r->stopped + ")"),
+              r->worst_mm.back(), r->tolerance_mm, "mm", "patches.tolerance_mm");
   }
   if (in.registration) {
     const RegistrationFigures& f = in.registration->figures;

@@ -61,6 +61,8 @@ const std::vector<KeySpec>& key_table() {
       {"patches", "c1_weight", Kind::Real, 0, 1e4, false, HS_FIELD(patches.c1_weight)},
       {"patches", "fairness", Kind::Real, 0, 10, false, HS_FIELD(patches.fairness)},
       {"patches", "skin_weight", Kind::Real, 0, 10, true, HS_FIELD(patches.skin_weight)},
+      {"patches", "tolerance_mm", Kind::Real, 0, 100, false, HS_FIELD(patches.tolerance_mm)},
+      {"patches", "max_patches", Kind::Int, 24, 20000, false, HS_FIELD(patches.max_patches)},
       {"rigging", "smooth", Kind::Bool, 0, 1, false, HS_FIELD(rigging.smooth)},
       {"texture", "enabled", Kind::Bool, 0, 1, false, HS_FIELD(texture.enabled)},
       {"texture", "size", Kind::Int, 64, 8192, false, HS_FIELD(texture.size)},

@@ -56,6 +56,8 @@ struct PipelineOptions {
     double c1_weight = 10;         ///< C1 across the borders, relative to the data's weight (0: G0 only)
     double fairness = 1e-3;        ///< second differences inside each patch, relative to the data's weight
     double skin_weight = 0.05;     ///< the polygon skin's samples as data where the scans saw nothing, relative to a measured point
+    double tolerance_mm = 0;       ///< split the patches whose measured points lie farther than this (0: none; --patch-tolerance)
+    long max_patches = 300;        ///< ... up to this many patches in all
   } patches;
   struct Rigging {                 ///< the skin bound to the skeleton, skin.glb (docs/rigging.md)
     bool smooth = true;            ///< bone-heat weights (false: rigid, each vertex with its nearest link, as the thesis)

@@ -89,6 +89,14 @@ Json to_json(const PatchStageResult& r) {
             {"table_4_1", to_json(r.figures)},
             {"options", {{"fairness", r.options.fairness}, {"c1_weight", r.options.c1_weight},
                          {"skin_weight", r.options.skin_weight}, {"tessellation", r.options.tessellation}}}};
+  if (const auto& f = s.refinement) {
+    Json rounds = Json::array();
+    for (size_t k = 0; k < f->patches.size(); ++k)
+      rounds.push_back({{"patches", f->patches[k]}, {"over_tolerance", f->over[k]}, {"worst_mm", f->worst_mm[k]},
+                        {"fit_seconds", k < f->seconds.size() ? f->seconds[k] : 0.0}});
+    j["refinement"] = {{"tolerance_mm", f->tolerance_mm}, {"max_patches", r.options.max_patches},
+                       {"fits", rounds}, {"held", f->held}, {"stopped", f->stopped}};
+  }
   if (r.surface_to_truth)
     j["truth"] = {{"file", r.truth_file},
                   {"surface_to_truth_mm", to_json(*r.surface_to_truth)},

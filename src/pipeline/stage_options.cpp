@@ -49,6 +49,8 @@ PatchOptions patch_options(const PipelineOptions& o) {
   p.c1_weight = o.patches.c1_weight;
   p.fairness = o.patches.fairness;
   p.skin_weight = o.patches.skin_weight;
+  p.tolerance_mm = o.patches.tolerance_mm;
+  p.max_patches = static_cast<int>(o.patches.max_patches);
   return p;
 }
 

@@ -1,0 +1,249 @@
+// Patches refined to a tolerance (issue 38, docs/patches.md "Refinement"): the patches whose
+// measured points lie farther than the tolerance from the surface are split at their
+// midpoints and the net refitted.
+//
+// No T-junctions: a face split at u = 1/2 splits its sides 0 and 2, so the faces across those
+// sides must split them too, which cuts each of them across to its opposite side, and so on
+// round the quad strip (the layout's dual loop) until it closes or ends at a face cut already.
+// Every split edge is then split in both faces on it, and the new net shares its borders'
+// control points as the first one did (build_net): G0 holds exactly. Propagating along the
+// strips spends patches beyond those that miss (a strip round a finger is 4 faces; one along
+// it runs on into the palm), which the patch budget bounds; the alternative, keeping a split
+// neighbour's border as the unsplit one's curve, would tie the new control points to the old
+// curve's and leave the refined patches less free where they need it most.
+//
+// The split itself changes nothing: the new faces' control points are the old patches' by de
+// Casteljau at the midpoint (a border's curve splits the same way from either face on it), and
+// the refit starts from that surface (fit_patches' seed).
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <functional>
+#include <map>
+
+#include "core/errors.hpp"
+#include "patches/patch_steps.hpp"
+#include "patches/patches.hpp"
+
+namespace handskin {
+
+namespace {
+
+using Net16 = std::array<Eigen::Vector3d, 16>;
+
+// A cubic's control points split at t = 1/2.
+void de_casteljau(const Eigen::Vector3d p[4], Eigen::Vector3d lo[4], Eigen::Vector3d hi[4]) {
+  const Eigen::Vector3d p01 = 0.5 * (p[0] + p[1]), p12 = 0.5 * (p[1] + p[2]), p23 = 0.5 * (p[2] + p[3]);
+  const Eigen::Vector3d p012 = 0.5 * (p01 + p12), p123 = 0.5 * (p12 + p23), m = 0.5 * (p012 + p123);
+  lo[0] = p[0], lo[1] = p01, lo[2] = p012, lo[3] = m;
+  hi[0] = m, hi[1] = p123, hi[2] = p23, hi[3] = p[3];
+}
+
+// P(i, j) = P[4 i + j], i along u: the halves u in [0, 1/2] and [1/2, 1].
+std::pair<Net16, Net16> split_u(const Net16& P) {
+  Net16 a, b;
+  for (int j = 0; j < 4; ++j) {
+    Eigen::Vector3d c[4], lo[4], hi[4];
+    for (int i = 0; i < 4; ++i) c[i] = P[4 * i + j];
+    de_casteljau(c, lo, hi);
+    for (int i = 0; i < 4; ++i) a[4 * i + j] = lo[i], b[4 * i + j] = hi[i];
+  }
+  return {a, b};
+}
+
+std::pair<Net16, Net16> split_v(const Net16& P) {
+  Net16 a, b;
+  for (int i = 0; i < 4; ++i) {
+    Eigen::Vector3d c[4], lo[4], hi[4];
+    for (int j = 0; j < 4; ++j) c[j] = P[4 * i + j];
+    de_casteljau(c, lo, hi);
+    for (int j = 0; j < 4; ++j) a[4 * i + j] = lo[j], b[4 * i + j] = hi[j];
+  }
+  return {a, b};
+}
+
+int faces_after(const std::vector<int>& cuts) {
+  int n = 0;
+  for (int c : cuts) n += (c & kCutU ? 2 : 1) * (c & kCutV ? 2 : 1);
+  return n;
+}
+
+}  // namespace
+
+std::vector<int> close_cuts(const LayoutTopology& T, std::vector<int> cuts) {
+  HS_CHECK(cuts.size() == T.neighbour.size(), "one cut per face");
+  std::vector<std::pair<int, int>> todo;  // (face, side split)
+  for (size_t f = 0; f < cuts.size(); ++f) {
+    if (cuts[f] & kCutU) todo.push_back({static_cast<int>(f), 0}), todo.push_back({static_cast<int>(f), 2});
+    if (cuts[f] & kCutV) todo.push_back({static_cast<int>(f), 1}), todo.push_back({static_cast<int>(f), 3});
+  }
+  while (!todo.empty()) {
+    const auto [f, s] = todo.back();
+    todo.pop_back();
+    const int g = T.neighbour[f][s], gs = T.neighbour_side[f][s];
+    const int bit = gs % 2 == 0 ? kCutU : kCutV;
+    if (cuts[g] & bit) continue;
+    cuts[g] |= bit;
+    todo.push_back({g, gs});
+    todo.push_back({g, (gs + 2) % 4});
+  }
+  return cuts;
+}
+
+LayoutSplit split_layout(const PatchSkin& s, const std::vector<int>& cuts) {
+  const PatchLayout& L = s.layout;
+  HS_CHECK(cuts.size() == L.faces.size() && s.patches.size() == L.faces.size(), "one cut per face");
+  LayoutSplit out;
+  PatchLayout& N = out.layout;
+  // The corners on the fitted surface (a corner's control point is the surface's corner).
+  N.vertices = L.vertices;
+  for (size_t v = 0; v < L.vertices.size(); ++v) N.vertices[v] = s.control[v];
+  std::map<std::pair<int, int>, int> mid;
+  const auto edge_mid = [&](int f, int side) {
+    const int a = L.faces[f][side], b = L.faces[f][(side + 1) % 4];
+    const auto key = std::minmax(a, b);
+    if (const auto it = mid.find(key); it != mid.end()) return it->second;
+    static constexpr double kAt[4][2] = {{0.5, 0}, {1, 0.5}, {0.5, 1}, {0, 0.5}};
+    N.vertices.push_back(s.patches[f].eval(kAt[side][0], kAt[side][1]));
+    const int v = static_cast<int>(N.vertices.size()) - 1;
+    mid.emplace(key, v);
+    return v;
+  };
+  const auto add = [&](const std::array<int, 4>& c, const Net16& P, const std::string& name, int parent) {
+    N.faces.push_back(c);
+    N.names.push_back(name);
+    out.seed.push_back(P);
+    out.parent.push_back(parent);
+  };
+  for (size_t f = 0; f < L.faces.size(); ++f) {
+    const auto& c = L.faces[f];
+    const Net16& P = s.patches[f].P;
+    const std::string name = f < L.names.size() ? L.names[f] : "face" + std::to_string(f);
+    const int fi = static_cast<int>(f);
+    switch (cuts[f]) {
+      case 0:
+        add(c, P, name, fi);
+        break;
+      case kCutU: {
+        const int m0 = edge_mid(fi, 0), m2 = edge_mid(fi, 2);
+        const auto [a, b] = split_u(P);
+        add({c[0], m0, m2, c[3]}, a, name + "/u0", fi);
+        add({m0, c[1], c[2], m2}, b, name + "/u1", fi);
+        break;
+      }
+      case kCutV: {
+        const int m1 = edge_mid(fi, 1), m3 = edge_mid(fi, 3);
+        const auto [a, b] = split_v(P);
+        add({c[0], c[1], m1, m3}, a, name + "/v0", fi);
+        add({m3, m1, c[2], c[3]}, b, name + "/v1", fi);
+        break;
+      }
+      default: {
+        const int m0 = edge_mid(fi, 0), m1 = edge_mid(fi, 1), m2 = edge_mid(fi, 2), m3 = edge_mid(fi, 3);
+        N.vertices.push_back(s.patches[f].eval(0.5, 0.5));
+        const int cc = static_cast<int>(N.vertices.size()) - 1;
+        const auto [lo, hi] = split_u(P);
+        const auto [lo_lo, lo_hi] = split_v(lo);
+        const auto [hi_lo, hi_hi] = split_v(hi);
+        add({c[0], m0, cc, m3}, lo_lo, name + "/00", fi);
+        add({m0, c[1], m1, cc}, hi_lo, name + "/10", fi);
+        add({cc, m1, c[2], m2}, hi_hi, name + "/11", fi);
+        add({m3, cc, m2, c[3]}, lo_hi, name + "/01", fi);
+      }
+    }
+  }
+  for (const auto& e : L.creases) {
+    if (const auto it = mid.find(std::minmax(e[0], e[1])); it != mid.end()) {
+      N.creases.push_back({e[0], it->second});
+      N.creases.push_back({it->second, e[1]});
+    } else {
+      N.creases.push_back(e);
+    }
+  }
+  return out;
+}
+
+std::vector<double> patch_max_error(const PatchSkin& s) {
+  std::vector<double> worst(s.patches.size(), 0.0);
+  for (const auto& q : s.samples)
+    if (q.patch >= 0 && static_cast<size_t>(q.patch) < worst.size()) worst[q.patch] = std::max(worst[q.patch], double{q.error});
+  return worst;
+}
+
+namespace patch_steps {
+
+void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::function<PatchSkin(const LayoutSplit&)>& refit) {
+  PatchSkin::Refinement R;
+  R.tolerance_mm = o.tolerance_mm;
+  R.seconds.push_back(s->seconds);
+  for (int round = 0;; ++round) {
+    const std::vector<double> err = patch_max_error(*s);
+    std::vector<int> over;
+    for (size_t f = 0; f < err.size(); ++f)
+      if (err[f] > o.tolerance_mm) over.push_back(static_cast<int>(f));
+    std::sort(over.begin(), over.end(), [&](int a, int b) { return err[a] > err[b] || (err[a] == err[b] && a < b); });
+    R.patches.push_back(static_cast<int>(s->patches.size()));
+    R.over.push_back(static_cast<int>(over.size()));
+    R.worst_mm.push_back(err.empty() ? 0.0 : *std::max_element(err.begin(), err.end()));
+    if (over.empty()) {
+      R.held = true;
+      break;
+    }
+    if (round == o.refine_rounds) {
+      R.stopped = std::to_string(o.refine_rounds) + " rounds made (patches.refine_rounds)";
+      break;
+    }
+    // The worst patches first, each cut across its longer direction (its control net's mean
+    // length along u and along v), else across the other when that one's strips would exceed
+    // the budget; a patch neither cut of which fits is left. One cut a round: both at once
+    // spent the fixture's whole budget (98 -> 296 patches) in one round on 46 patches, and the
+    // strips of the ones that needed one cut only.
+    const LayoutTopology T = layout_topology(s->layout, "patch layout");
+    std::vector<int> cuts(s->patches.size(), 0);
+    for (int f : over) {
+      const auto& P = s->patches[f].P;
+      double along_u = 0, along_v = 0;
+      for (int k = 0; k < 4; ++k) along_u += (P[12 + k] - P[k]).norm(), along_v += (P[4 * k + 3] - P[4 * k]).norm();
+      // A patch that was split already and still misses is cut both ways (the fixture's
+      // ring.0.radial/v0, the web's flank: one more cut along it left its worst point at 0.60 mm).
+      const bool again = s->patches[f].name.find('/') != std::string::npos;
+      std::vector<int> order = along_u >= along_v ? std::vector<int>{kCutU, kCutV} : std::vector<int>{kCutV, kCutU};
+      if (again) order.insert(order.begin(), kCutU | kCutV);
+      for (const int c : order) {
+        std::vector<int> trial = cuts;
+        trial[f] |= c;
+        trial = close_cuts(T, std::move(trial));
+        if (faces_after(trial) > o.max_patches) continue;
+        cuts = std::move(trial);
+        break;
+      }
+    }
+    if (std::all_of(cuts.begin(), cuts.end(), [](int c) { return c == 0; })) {
+      R.stopped = "no split of a patch that misses fits within " + std::to_string(o.max_patches) +
+                  " patches (patches.max_patches)";
+      break;
+    }
+    PatchSkin t = refit(split_layout(*s, cuts));
+    R.seconds.push_back(t.seconds);
+    const std::vector<double> terr = patch_max_error(t);
+    const double worst_now = terr.empty() ? 0.0 : *std::max_element(terr.begin(), terr.end());
+    const auto over_now = std::count_if(terr.begin(), terr.end(), [&](double e) { return e > o.tolerance_mm; });
+    if (over_now >= static_cast<long>(over.size()) && worst_now >= R.worst_mm.back()) {
+      char b[200];
+      std::snprintf(b, sizeof b, "a split to %zu patches left %ld over the tolerance, the worst point %.3f mm: the fit before it kept",
+                    t.patches.size(), static_cast<long>(over_now), worst_now);
+      R.stopped = b;
+      R.seconds.pop_back();
+      break;
+    }
+    t.layout_tries = std::move(s->layout_tries);
+    t.thumb_ring_shift = s->thumb_ring_shift;
+    *s = std::move(t);
+  }
+  s->refinement = std::move(R);
+}
+
+}  // namespace patch_steps
+
+}  // namespace handskin
