@@ -63,6 +63,9 @@ std::pair<Net16, Net16> split_v(const Net16& P) {
   return {a, b};
 }
 
+// A patch longer than this times its width is cut across its length whatever its strip costs.
+constexpr double kAspect = 1.5;
+
 int faces_after(const std::vector<int>& cuts) {
   int n = 0;
   for (int c : cuts) n += (c & kCutU ? 2 : 1) * (c & kCutV ? 2 : 1);
@@ -209,6 +212,15 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
       // ring.0.radial/v0, the web's flank: one more cut along it left its worst point at 0.60 mm).
       const bool again = s->patches[f].name.find('/') != std::string::npos;
       std::vector<int> order = along_u >= along_v ? std::vector<int>{kCutU, kCutV} : std::vector<int>{kCutV, kCutU};
+      // A patch about as long as it is wide is cut the way whose strip costs fewer patches.
+      if (std::max(along_u, along_v) < kAspect * std::min(along_u, along_v)) {
+        const auto cost = [&](int c) {
+          std::vector<int> trial = cuts;
+          trial[f] |= c;
+          return faces_after(close_cuts(T, std::move(trial)));
+        };
+        if (cost(order[1]) < cost(order[0])) std::swap(order[0], order[1]);
+      }
       if (again) order.insert(order.begin(), kCutU | kCutV);
       for (const int c : order) {
         std::vector<int> trial = cuts;
