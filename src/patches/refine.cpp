@@ -40,28 +40,21 @@ void de_casteljau(const Eigen::Vector3d p[4], Eigen::Vector3d lo[4], Eigen::Vect
   hi[0] = m, hi[1] = p123, hi[2] = p23, hi[3] = p[3];
 }
 
-// P(i, j) = P[4 i + j], i along u: the halves u in [0, 1/2] and [1/2, 1].
-std::pair<Net16, Net16> split_u(const Net16& P) {
+// P(i, j) = P[4 i + j], i along u: the halves u in [0, 1/2] and [1/2, 1] (`along_u`), or
+// the halves in v.
+std::pair<Net16, Net16> split_half(const Net16& P, bool along_u) {
   Net16 a, b;
-  for (int j = 0; j < 4; ++j) {
+  for (int r = 0; r < 4; ++r) {
+    const auto at = [&](int k) { return along_u ? 4 * k + r : 4 * r + k; };
     Eigen::Vector3d c[4], lo[4], hi[4];
-    for (int i = 0; i < 4; ++i) c[i] = P[4 * i + j];
+    for (int k = 0; k < 4; ++k) c[k] = P[at(k)];
     de_casteljau(c, lo, hi);
-    for (int i = 0; i < 4; ++i) a[4 * i + j] = lo[i], b[4 * i + j] = hi[i];
+    for (int k = 0; k < 4; ++k) a[at(k)] = lo[k], b[at(k)] = hi[k];
   }
   return {a, b};
 }
-
-std::pair<Net16, Net16> split_v(const Net16& P) {
-  Net16 a, b;
-  for (int i = 0; i < 4; ++i) {
-    Eigen::Vector3d c[4], lo[4], hi[4];
-    for (int j = 0; j < 4; ++j) c[j] = P[4 * i + j];
-    de_casteljau(c, lo, hi);
-    for (int j = 0; j < 4; ++j) a[4 * i + j] = lo[j], b[4 * i + j] = hi[j];
-  }
-  return {a, b};
-}
+std::pair<Net16, Net16> split_u(const Net16& P) { return split_half(P, true); }
+std::pair<Net16, Net16> split_v(const Net16& P) { return split_half(P, false); }
 
 // A patch longer than this times its width is cut across its length whatever its strip costs.
 constexpr double kAspect = 1.5;
