@@ -8,16 +8,16 @@
 // Every split edge is then split in both faces on it, and the new net shares its borders'
 // control points as the first one did (build_net): G0 holds exactly. Propagating along the
 // strips spends patches beyond those that miss (a strip round a finger is 4 faces; one along
-// it runs on into the palm), which the patch budget bounds; the alternative, keeping a split
-// neighbour's border as the unsplit one's curve, would tie the new control points to the old
-// curve's and leave the refined patches less free where they need it most.
+// it runs on into the palm, and on the hand's layout the strips reach nearly every face),
+// which the patch budget bounds. The local alternative — a split side's halves held to the
+// unsplit neighbour's border curve by de Casteljau — needs the net's least squares to take
+// control points that are linear combinations of the unknowns (docs/patches.md).
 //
 // The split itself changes nothing: the new faces' control points are the old patches' by de
 // Casteljau at the midpoint (a border's curve splits the same way from either face on it), and
 // the refit starts from that surface (fit_patches' seed).
 #include <algorithm>
 #include <array>
-#include <chrono>
 #include <cstdio>
 #include <functional>
 #include <map>
@@ -198,6 +198,11 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
     const LayoutTopology T = layout_topology(s->layout, "patch layout");
     std::vector<int> cuts(s->patches.size(), 0);
     for (int f : over) {
+      const auto with_cut = [&](int c) {  // the cuts so far and c on f, closed
+        std::vector<int> trial = cuts;
+        trial[f] |= c;
+        return close_cuts(T, std::move(trial));
+      };
       const auto& P = s->patches[f].P;
       double along_u = 0, along_v = 0;
       for (int k = 0; k < 4; ++k) along_u += (P[12 + k] - P[k]).norm(), along_v += (P[4 * k + 3] - P[4 * k]).norm();
@@ -206,19 +211,12 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
       const bool again = s->patches[f].name.find('/') != std::string::npos;
       std::vector<int> order = along_u >= along_v ? std::vector<int>{kCutU, kCutV} : std::vector<int>{kCutV, kCutU};
       // A patch about as long as it is wide is cut the way whose strip costs fewer patches.
-      if (std::max(along_u, along_v) < kAspect * std::min(along_u, along_v)) {
-        const auto cost = [&](int c) {
-          std::vector<int> trial = cuts;
-          trial[f] |= c;
-          return faces_after(close_cuts(T, std::move(trial)));
-        };
-        if (cost(order[1]) < cost(order[0])) std::swap(order[0], order[1]);
-      }
+      if (std::max(along_u, along_v) < kAspect * std::min(along_u, along_v) &&
+          faces_after(with_cut(order[1])) < faces_after(with_cut(order[0])))
+        std::swap(order[0], order[1]);
       if (again) order.insert(order.begin(), kCutU | kCutV);
       for (const int c : order) {
-        std::vector<int> trial = cuts;
-        trial[f] |= c;
-        trial = close_cuts(T, std::move(trial));
+        std::vector<int> trial = with_cut(c);
         if (faces_after(trial) > o.max_patches) continue;
         cuts = std::move(trial);
         break;

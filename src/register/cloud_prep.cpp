@@ -209,9 +209,9 @@ std::optional<Eigen::Vector4f> dominant_plane(const PclCloud::Ptr& few, double i
 // radius of the flank's last points lies the support, whose many points decide the fit.
 constexpr double kBandSigmas = 2.5, kMinBandMm = 0.2, kNearHandMm = 1.0;
 void give_back_hand_end(const std::vector<Eigen::Vector3d>& sub, const std::vector<Eigen::Vector3d>& off,
-                        const Eigen::Vector4f& plane, const Eigen::Vector3d& c, std::vector<char>* on) {
-  const Eigen::Vector3d n = plane.head<3>().cast<double>();
-  const double d = static_cast<double>(plane(3)) - n.dot(c);  // sub is not centred
+                        const Eigen::Vector4d& plane, std::vector<char>* on) {
+  const Eigen::Vector3d n = plane.head<3>();
+  const double d = plane(3);
   std::vector<double> r;
   for (size_t k = 0; k < sub.size(); ++k)
     if ((*on)[k]) r.push_back(n.dot(sub[k]) + d);
@@ -261,7 +261,7 @@ std::vector<size_t> drop_support(const std::vector<Eigen::Vector3d>& pts, const 
       r->support_found = true;
       const Eigen::Vector3d n = plane->head<3>().cast<double>();
       r->support_plane << n, static_cast<double>((*plane)(3)) - n.dot(c);
-      give_back_hand_end(sub, off, *plane, c, &on);
+      give_back_hand_end(sub, off, r->support_plane, &on);
       std::vector<int> kept;
       for (size_t k = 0; k < sub.size(); ++k)
         if (!on[k]) kept.push_back(static_cast<int>(k));

@@ -125,27 +125,23 @@ SM canonical_order(const SM& in) {
 // where the link condition allows it; the vertex kept keeps its position, so that its origin
 // (tube, ring) is still found by position. CGAL's experimental remove_almost_degenerate_faces
 // also flips caps, which would change the skin elsewhere; only the micro-edges are wanted.
-int collapse_short_edges(SM* sm, double eps) {
-  int collapsed = 0;
+void collapse_short_edges(SM* sm, double eps) {
+  const auto is_short = [&](SM::Edge_index e) {
+    const auto h = sm->halfedge(e);
+    return CGAL::squared_distance(sm->point(sm->source(h)), sm->point(sm->target(h))) < eps * eps;
+  };
   for (bool again = true; again;) {
     again = false;
     std::vector<SM::Edge_index> candidates;
-    for (auto e : sm->edges()) {
-      const auto h = sm->halfedge(e);
-      if (CGAL::squared_distance(sm->point(sm->source(h)), sm->point(sm->target(h))) < eps * eps) candidates.push_back(e);
-    }
-    for (auto e : candidates) {
-      if (sm->is_removed(e)) continue;
-      const auto h = sm->halfedge(e);
-      if (!(CGAL::squared_distance(sm->point(sm->source(h)), sm->point(sm->target(h))) < eps * eps)) continue;
-      if (!CGAL::Euler::does_satisfy_link_condition(e, *sm)) continue;
+    for (auto e : sm->edges())
+      if (is_short(e)) candidates.push_back(e);
+    for (auto e : candidates) {  // a collapse before may have removed or lengthened it
+      if (sm->is_removed(e) || !is_short(e) || !CGAL::Euler::does_satisfy_link_condition(e, *sm)) continue;
       CGAL::Euler::collapse_edge(e, *sm);
-      ++collapsed;
       again = true;
     }
   }
   sm->collect_garbage();
-  return collapsed;
 }
 
 }  // namespace
