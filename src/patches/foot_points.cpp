@@ -61,27 +61,32 @@ bool foot_point(const std::vector<BezierPatch>& P, const LayoutTopology& T, Datu
       if (std::abs(ds) < 1e-7) break;
       continue;
     }
-    const int g2 = T.neighbour[d->patch][side];
+    // Where along the side (from its corner `side` to the next) the step crossed, and where
+    // that is on the face across (which runs the side the other way, or holds half of it).
+    const double q = side == 0 ? cs : side == 1 ? ct : side == 2 ? 1 - cs : 1 - ct;
+    int g2, gs2;
+    double gq;
+    T.across(d->patch, side, q, &g2, &gs2, &gq);
     if (g2 < 0 || crossings == 4) {
       d->s = cs, d->t = ct;
       return true;
     }
     ++crossings;
-    // Where along the side (from its corner `side` to the next) the step crossed; the
-    // neighbour runs the side the other way.
-    const double q = side == 0 ? cs : side == 1 ? ct : side == 2 ? 1 - cs : 1 - ct;
-    const Eigen::Vector2d at = on_side(T.neighbour_side[d->patch][side], 1 - q);
+    const Eigen::Vector2d at = on_side(gs2, gq);
     d->patch = g2, d->s = at.x(), d->t = at.y();
   }
   // Settled on a side: where two patches meet at a sharp fold (the wrist cut) the residual can
   // stand square to this patch there while the neighbour comes nearer; look across once.
   constexpr double kNearSide = 0.01;
   const int on = d->t < kNearSide ? 0 : d->s > 1 - kNearSide ? 1 : d->t > 1 - kNearSide ? 2 : d->s < kNearSide ? 3 : -1;
-  if (across && on >= 0 && T.neighbour[d->patch][on] >= 0) {
+  if (across && on >= 0) {
     const double q = on == 0 ? d->s : on == 1 ? d->t : on == 2 ? 1 - d->s : 1 - d->t;
-    const Eigen::Vector2d at = on_side(T.neighbour_side[d->patch][on], 1 - q);
+    int g2, gs2;
+    double gq;
+    T.across(d->patch, on, q, &g2, &gs2, &gq);
+    const Eigen::Vector2d at = on_side(gs2, gq);
     Datum e = *d;
-    e.patch = T.neighbour[d->patch][on], e.s = at.x(), e.t = at.y();
+    e.patch = g2, e.s = at.x(), e.t = at.y();
     if (!foot_point(P, T, &e, iterations, false) &&
         (P[e.patch].eval(e.s, e.t) - e.p).squaredNorm() < (P[d->patch].eval(d->s, d->t) - d->p).squaredNorm() - 1e-12)
       *d = e;

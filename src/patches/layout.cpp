@@ -6,6 +6,7 @@
 #include <cmath>
 #include <map>
 #include <optional>
+#include <set>
 #include <tuple>
 
 #include "core/errors.hpp"
@@ -132,17 +133,45 @@ bool PatchLayout::is_crease(int a, int b) const {
   return false;
 }
 
+void LayoutTopology::across(int f, int s, double q, int* g, int* gs, double* gq) const {
+  const int h = half[f][s];
+  if (neighbour[f][s] < 0) {  // a long side: the face across the half q lies in
+    const int k = q < 0.5 ? 0 : 1;
+    const auto& piece = halves.at({f, s})[k];
+    *g = piece.first, *gs = piece.second, *gq = std::clamp(1 - 2 * q + k, 0.0, 1.0);
+  } else if (h >= 0) {  // a short side: where it lies along the long one
+    *g = neighbour[f][s], *gs = neighbour_side[f][s], *gq = 0.5 * h + 0.5 * (1 - q);
+  } else {
+    *g = neighbour[f][s], *gs = neighbour_side[f][s], *gq = 1 - q;
+  }
+}
+
+std::vector<int> LayoutTopology::faces_across(int f) const {
+  std::vector<int> out;
+  for (int s = 0; s < 4; ++s) {
+    if (neighbour[f][s] >= 0) {
+      out.push_back(neighbour[f][s]);
+    } else {
+      for (const auto& piece : halves.at({f, s})) out.push_back(piece.first);
+    }
+  }
+  return out;
+}
+
 LayoutTopology layout_topology(const PatchLayout& L, const std::string& what) {
   LayoutTopology T;
   const int nf = static_cast<int>(L.faces.size());
+  const int nv = static_cast<int>(L.vertices.size());
   T.neighbour.assign(nf, {-1, -1, -1, -1});
   T.neighbour_side.assign(nf, {-1, -1, -1, -1});
-  T.valence.assign(L.vertices.size(), 0);
+  T.half.assign(nf, {-1, -1, -1, -1});
+  T.hangs_on.assign(nv, {-1, -1});
+  T.valence.assign(nv, 0);
   std::map<EdgeKey, std::pair<int, int>> directed;
   for (int f = 0; f < nf; ++f) {
     const auto& c = L.faces[f];
     for (int s = 0; s < 4; ++s) {
-      if (c[s] < 0 || c[s] >= static_cast<int>(L.vertices.size()))
+      if (c[s] < 0 || c[s] >= nv)
         throw InputError(what, "face " + std::to_string(f) + " names vertex " + std::to_string(c[s]) + ", not in the layout");
       for (int t = s + 1; t < 4; ++t)
         if (c[s] == c[t]) throw InputError(what, "face " + std::to_string(f) + " repeats its corner " + std::to_string(c[s]));
@@ -152,38 +181,97 @@ LayoutTopology layout_topology(const PatchLayout& L, const std::string& what) {
                                    " is run the same way by two faces (faces not oriented alike, or more than two faces on it)");
     }
   }
+  std::map<int, std::vector<int>> lone_from;  // edges run by one face only: from a vertex, their ends
   for (const auto& [e, fs] : directed) {
     const auto it = directed.find({e.second, e.first});
-    if (it == directed.end())
-      throw InputError(what, "edge " + std::to_string(e.first) + "-" + std::to_string(e.second) +
-                                 " has one face only: the layout is not closed");
+    if (it == directed.end()) {
+      lone_from[e.first].push_back(e.second);
+      continue;
+    }
     T.neighbour[fs.first][fs.second] = it->second.first;
     T.neighbour_side[fs.first][fs.second] = it->second.second;
   }
-  T.edges = directed.size() / 2;
+  // T-junctions: three edges run by one face each, a -> b, b -> m, m -> a, are a long side and
+  // its two halves. Which of the three is the long one the corners' places tell (its chord is
+  // about twice the others'); topology alone cannot, as each of the three closes the other two.
+  std::set<EdgeKey> used;
+  size_t lone = 0;
+  for (const auto& [a, ends] : lone_from) {
+    lone += ends.size();
+    for (const int b : ends) {
+      if (used.count({a, b})) continue;
+      int m = -1;
+      for (const int x : lone_from.count(b) ? lone_from.at(b) : std::vector<int>{})
+        if (x != a && !used.count({b, x}) && lone_from.count(x) &&
+            std::count(lone_from.at(x).begin(), lone_from.at(x).end(), a) && !used.count({x, a}))
+          m = x;
+      if (m < 0)
+        throw InputError(what, "edge " + std::to_string(a) + "-" + std::to_string(b) +
+                                   " has one face only: the layout is not closed");
+      used.insert({a, b}), used.insert({b, m}), used.insert({m, a});
+      // The triangle's vertices in turn; the long edge is the longest chord, (p, q) with r hanging.
+      std::array<int, 3> t = {a, b, m};
+      int k = 0;
+      double longest = -1;
+      for (int i = 0; i < 3; ++i) {
+        const double d = (L.vertices[t[i]] - L.vertices[t[(i + 1) % 3]]).squaredNorm();
+        if (d > longest) longest = d, k = i;
+      }
+      const int p = t[k], q = t[(k + 1) % 3], r = t[(k + 2) % 3];
+      const auto owner = directed.at({p, q});
+      const auto first = directed.at({r, p}), second = directed.at({q, r});  // across the halves from p and into q
+      if (T.hangs_on[r].first >= 0)
+        throw InputError(what, "vertex " + std::to_string(r) + " hangs on two sides");
+      T.hangs_on[r] = owner;
+      T.halves[owner] = {first, second};
+      T.neighbour[owner.first][owner.second] = -1;
+      int h = 0;
+      for (const auto& piece : {first, second}) {
+        T.neighbour[piece.first][piece.second] = owner.first;
+        T.neighbour_side[piece.first][piece.second] = owner.second;
+        T.half[piece.first][piece.second] = h++;
+      }
+    }
+  }
+  T.edges = (directed.size() - lone) / 2 + lone / 3;
+  for (int v = 0; v < nv; ++v)
+    if (T.hangs_on[v].first >= 0 && T.valence[v] != 2)
+      throw InputError(what, "vertex " + std::to_string(v) + " hangs on a side but is a corner of " +
+                                 std::to_string(T.valence[v]) + " faces, not 2");
   // Round each corner: from a face with the corner at k, its edge (v, c[k + 1]); the face
-  // across its other edge (c[k − 1], v) comes next.
-  T.around.assign(L.vertices.size(), {});
-  std::vector<std::pair<int, int>> first(L.vertices.size(), {-1, -1});
+  // across its other edge (c[k − 1], v) at v comes next. A hanging vertex is not walked round.
+  T.around.assign(nv, {});
+  std::vector<std::pair<int, int>> first(nv, {-1, -1});
   for (int f = 0; f < nf; ++f)
     for (int k = 0; k < 4; ++k)
       if (first[L.faces[f][k]].first < 0) first[L.faces[f][k]] = {f, k};
-  for (size_t v = 0; v < L.vertices.size(); ++v) {
+  for (int v = 0; v < nv; ++v) {
     auto [f, k] = first[v];
-    if (f < 0) continue;
+    if (f < 0 || T.hangs_on[v].first >= 0) continue;
     for (int step = 0; step < T.valence[v]; ++step) {
-      T.around[v].push_back(L.faces[f][(k + 1) % 4]);
-      const int g = T.neighbour[f][(k + 3) % 4];
+      // An edge to a vertex hanging on a long side from v is that long side: its far end.
+      int end = L.faces[f][(k + 1) % 4];
+      if (const auto on = T.hangs_on[end]; on.first >= 0) {
+        const int a = L.faces[on.first][on.second], b = L.faces[on.first][(on.second + 1) % 4];
+        if (a == v || b == v) end = a == v ? b : a;
+      }
+      T.around[v].push_back(end);
+      int g, gs;
+      double gq;
+      T.across(f, (k + 3) % 4, 1.0, &g, &gs, &gq);
       int kg = -1;
       for (int q = 0; q < 4; ++q)
-        if (L.faces[g][q] == static_cast<int>(v)) kg = q;
+        if (L.faces[g][q] == v) kg = q;
+      if (kg < 0) throw InputError(what, "the faces round vertex " + std::to_string(v) + " do not close into one fan");
       f = g, k = kg;
     }
     if (f != first[v].first)
       throw InputError(what, "the faces round vertex " + std::to_string(v) + " do not close into one fan");
   }
-  for (size_t v = 0; v < T.valence.size(); ++v)
+  for (int v = 0; v < nv; ++v) {
     if (T.valence[v] == 0) throw InputError(what, "vertex " + std::to_string(v) + " is in no face");
+    if (T.hangs_on[v].first >= 0) T.valence[v] = 4;
+  }
   return T;
 }
 
@@ -282,6 +370,7 @@ PatchLayout subdivide_layout(const PatchLayout& L, int k) {
         out.faces.push_back({g[i * (k + 1) + j], g[(i + 1) * (k + 1) + j], g[(i + 1) * (k + 1) + j + 1], g[i * (k + 1) + j + 1]});
         out.names.push_back((f < L.names.size() ? L.names[f] : "face" + std::to_string(f)) + "." + std::to_string(i) +
                             std::to_string(j));
+        if (!L.levels.empty()) out.levels.push_back(L.levels[f]);
       }
   }
   for (const auto& e : L.creases)

@@ -18,6 +18,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -33,22 +34,51 @@ struct PatchLayout {
   /// Edges (corner pairs) where the surface may fold sharply, e.g. the wrist cut's rim: no G1
   /// is asked across them.
   std::vector<std::array<int, 2>> creases;
+  /// Per face: how many times it was halved along u and along v (the refinement to a
+  /// tolerance); empty when no face was. A halving halves the parameter's speed, so the fit's C1
+  /// conditions across a border weigh each side's cross derivative by 2^level (net_fit.cpp).
+  std::vector<std::array<int, 2>> levels;
   bool is_crease(int a, int b) const;
+  /// Face f's halvings along u (dir 0) or v (dir 1).
+  int level(int f, int dir) const { return levels.empty() ? 0 : levels[f][dir]; }
 };
 
 /// Edge-to-edge structure of a layout. Side s of a face runs from its corner s to corner s + 1.
+///
+/// A layout refined locally (patches/refine.cpp, issue 38) has T-junctions, at most two faces
+/// against one: a *long* side runs beside two faces, each of whose *short* side is one half of
+/// it, and the vertex between the halves *hangs* on the long side (it is no corner of the long
+/// side's face). The surface holds it there exactly: a short side's border curve is the long
+/// side's curve split at its midpoint (de Casteljau), so the two short sides' control points are
+/// fixed combinations of the long side's (build_net).
 struct LayoutTopology {
-  std::vector<std::array<int, 4>> neighbour;       ///< per face side: the face across it
-  std::vector<std::array<int, 4>> neighbour_side;  ///< and which of its sides that is
+  /// Per face side: the face across it and which of its sides that is; on a long side -1 (its
+  /// two faces are in `halves`); on a short side the long side's face and side.
+  std::vector<std::array<int, 4>> neighbour;
+  std::vector<std::array<int, 4>> neighbour_side;
+  /// Per face side: -1 shared whole (or long); on a short side which half of the long side it
+  /// is (0: the half from the long side's start).
+  std::vector<std::array<int, 4>> half;
+  /// Per long side (face, side): the faces and sides across its first and second halves.
+  std::map<std::pair<int, int>, std::array<std::pair<int, int>, 2>> halves;
+  /// Per vertex: the long side (face, side) it hangs on, or (-1, -1). A hanging vertex counts as
+  /// regular (valence 4): the faces either side of it split one smooth curve.
+  std::vector<std::pair<int, int>> hangs_on;
   std::vector<int> valence;                        ///< per vertex: the faces meeting there
-  std::vector<std::vector<int>> around;            ///< per vertex: its edges' other ends, in turn round it
+  std::vector<std::vector<int>> around;            ///< per vertex: its edges' other ends, in turn round it (none for a hanging one)
   size_t edges = 0;
   bool regular(int vertex) const { return valence[vertex] == 4; }
+  bool conforming() const { return halves.empty(); }
+  /// The point `q` along side s of face f (0 at its corner s) seen from across: the face, its
+  /// side and how far along that side (each face runs a shared side its own way).
+  void across(int f, int s, double q, int* g, int* gs, double* gq) const;
+  /// Every face across one of f's sides (a long side's two).
+  std::vector<int> faces_across(int f) const;
 };
 
 /// The topology of a closed, consistently oriented quad layout. Throws InputError (naming
-/// `what`) when an edge has other than two faces, two faces run an edge the same way, a face
-/// repeats a corner, or a vertex is in no face.
+/// `what`) when an edge has other than two faces (but a long side's two halves), two faces run
+/// an edge the same way, a face repeats a corner, or a vertex is in no face.
 LayoutTopology layout_topology(const PatchLayout& layout, const std::string& what);
 
 /// The hand's layout on `skin` (built on `rig`; `points`/`sides` tell the back from the palm).

@@ -16,15 +16,30 @@ namespace handskin::patch_steps {
 
 namespace {
 
-// The control point on the layout edge (v, w) next to corner v.
-int net_edge_near(const PatchSkin& s, int v, int w) {
+// A face's parameter speed across its side s (relative to the layout it was refined from):
+// halved by every halving along the cross direction (v across sides 0 and 2, u across 1 and 3).
+double cross_speed(const PatchLayout& L, int f, int s) { return std::ldexp(1.0, -L.level(f, s % 2 == 0 ? 1 : 0)); }
+
+// The control point on the layout edge (v, w) next to corner v, and the face's parameter speed
+// along it.
+int net_edge_near(const PatchSkin& s, int v, int w, double* speed) {
   const auto& faces = s.layout.faces;
   for (size_t f = 0; f < faces.size(); ++f)
     for (int k = 0; k < 4; ++k)
       if (faces[f][k] == v && faces[f][(k + 1) % 4] == w) {
         std::array<std::array<int, 2>, 4> on, in;
         border(k, &on, &in);
+        *speed = cross_speed(s.layout, static_cast<int>(f), k + 1);
         return s.patch_control[f][4 * on[1][0] + on[1][1]];
+      }
+  // A long side (LayoutTopology::around names its far end) run the other way by its face only.
+  for (size_t f = 0; f < faces.size(); ++f)
+    for (int k = 0; k < 4; ++k)
+      if (faces[f][k] == w && faces[f][(k + 1) % 4] == v) {
+        std::array<std::array<int, 2>, 4> on, in;
+        border(k, &on, &in);
+        *speed = cross_speed(s.layout, static_cast<int>(f), k + 1);
+        return s.patch_control[f][4 * on[2][0] + on[2][1]];
       }
   HS_CHECK(false, "patch net: no face runs an edge of the layout");
   return -1;
@@ -58,6 +73,7 @@ std::vector<G1Border> g1_borders(const PatchSkin& out, const LayoutTopology& T) 
     for (int s = 0; s < 4; ++s) {
       const int g = T.neighbour[f][s], gs = T.neighbour_side[f][s];
       if (g < f || (g == f && gs < s)) continue;  // each border once
+      if (T.half[f][s] >= 0) continue;  // a T-junction's (hanging_borders)
       if (out.layout.is_crease(faces[f][s], faces[f][(s + 1) % 4])) continue;
       if (T.regular(faces[f][s]) && T.regular(faces[f][(s + 1) % 4])) continue;
       G1Border b{f, s, g, gs, {}};
@@ -106,6 +122,73 @@ Eigen::Matrix<double, 36, 36> g1_block(const PatchSkin& out, const G1Border& b, 
       row.segment<3>(3 * k) -= 3 * Bf[k] * L / lf * n;
       row.segment<3>(3 * (8 + k)) += 3 * Bg[k] * L / lg * n;
       row.segment<3>(3 * (3 - k)) -= 3 * Bg[k] * L / lg * n;
+    }
+    M.noalias() += w * row * row.transpose();
+  }
+  return M;
+}
+
+// G1 across a T-junction's short side (LayoutTopology) that ends where other than four patches
+// meet (its C1 rows are left out there, as a shared border's): the kink rows of g1_block at
+// samples along the short side, the long side's face g sampled where it lies along its side. Its cross derivative
+// there involves g's whole border and inner row, so the rows couple 16 control points: f's
+// border (derived from g's, LayoutTopology) and inner row, g's border and inner row.
+struct HangingBorder {
+  int f, s, g, gs, h;
+  std::array<int, 16> ids;  ///< f's border and inner row (f's order), g's border and inner row (g's order)
+};
+std::vector<HangingBorder> hanging_borders(const PatchSkin& out, const LayoutTopology& T) {
+  std::vector<HangingBorder> list;
+  const auto& faces = out.layout.faces;
+  for (int f = 0; f < static_cast<int>(out.patches.size()); ++f)
+    for (int s = 0; s < 4; ++s) {
+      if (T.half[f][s] < 0 || out.layout.is_crease(faces[f][s], faces[f][(s + 1) % 4])) continue;
+      if (T.regular(faces[f][s]) && T.regular(faces[f][(s + 1) % 4])) continue;  // C1 holds it (net_penalties)
+      HangingBorder b{f, s, T.neighbour[f][s], T.neighbour_side[f][s], T.half[f][s], {}};
+      std::array<std::array<int, 2>, 4> on_f, in_f, on_g, in_g;
+      border(s, &on_f, &in_f);
+      border(b.gs, &on_g, &in_g);
+      for (int k = 0; k < 4; ++k) {
+        b.ids[k] = out.patch_control[f][4 * on_f[k][0] + on_f[k][1]];
+        b.ids[4 + k] = out.patch_control[f][4 * in_f[k][0] + in_f[k][1]];
+        b.ids[8 + k] = out.patch_control[b.g][4 * on_g[k][0] + on_g[k][1]];
+        b.ids[12 + k] = out.patch_control[b.g][4 * in_g[k][0] + in_g[k][1]];
+      }
+      list.push_back(b);
+    }
+  return list;
+}
+Eigen::Matrix<double, 48, 48> hanging_block(const PatchSkin& out, const HangingBorder& b, double w) {
+  constexpr int kSamples = 9;
+  Eigen::Matrix<double, 48, 48> M = Eigen::Matrix<double, 48, 48>::Zero();
+  for (int q = 1; q <= kSamples; ++q) {
+    const double t = q / (kSamples + 1.0), tg = 0.5 * b.h + 0.5 * (1 - t);
+    const Eigen::Vector2d a = on_side(b.s, t), c = on_side(b.gs, tg);
+    Eigen::Vector3d Sa, Sau, Sav, Sc, Scu, Scv;
+    out.patches[b.f].derivatives(a.x(), a.y(), &Sa, &Sau, &Sav);
+    out.patches[b.g].derivatives(c.x(), c.y(), &Sc, &Scu, &Scv);
+    const Eigen::Vector3d na = Sau.cross(Sav), nc = Scu.cross(Scv);
+    if (na.norm() < 1e-12 || nc.norm() < 1e-12) continue;
+    const Eigen::Vector3d nm = na.normalized() + nc.normalized();
+    if (nm.norm() < 1e-6) continue;
+    const Eigen::Vector3d n = nm.normalized();
+    double Bf[4], Bg[4];
+    bernstein(t, Bf, nullptr);
+    bernstein(tg, Bg, nullptr);
+    Eigen::Vector3d Df = Eigen::Vector3d::Zero(), Dg = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 4; ++k) {
+      Df += 3 * Bf[k] * (out.control[b.ids[4 + k]] - out.control[b.ids[k]]);
+      Dg += 3 * Bg[k] * (out.control[b.ids[12 + k]] - out.control[b.ids[8 + k]]);
+    }
+    const double lf = Df.norm(), lg = Dg.norm();
+    if (lf < 1e-9 || lg < 1e-9) continue;
+    const double L = (lf + lg) / 6;
+    Eigen::Matrix<double, 48, 1> row = Eigen::Matrix<double, 48, 1>::Zero();
+    for (int k = 0; k < 4; ++k) {
+      row.segment<3>(3 * (4 + k)) += 3 * Bf[k] * L / lf * n;
+      row.segment<3>(3 * k) -= 3 * Bf[k] * L / lf * n;
+      row.segment<3>(3 * (12 + k)) += 3 * Bg[k] * L / lg * n;
+      row.segment<3>(3 * (8 + k)) -= 3 * Bg[k] * L / lg * n;
     }
     M.noalias() += w * row * row.transpose();
   }
@@ -194,8 +277,18 @@ struct NetSolver {
   std::vector<int> block_slot;  ///< per patch, its 48 × 48 block's entries' indices in A's values
   std::vector<G1Border> g1;  ///< the borders held G1 (their kink rows change every round)
   std::vector<int> g1_slot;  ///< per such border, its 36 × 36 block's entries' indices in A's values
-  Eigen::VectorXd x;  ///< the last solution
-  Eigen::VectorXd rhs;  ///< the last right-hand side (A x = rhs)
+  std::vector<HangingBorder> hanging;  ///< the T-junctions' short sides, held G1 too
+  std::vector<int> hanging_slot;  ///< per such side, its 48 × 48 block's entries' indices in A's values
+  /// At T-junctions (PatchSkin::control_derived) the unknowns are the free control points only:
+  /// every control point's coordinates are C times theirs, and the system solved is Cᵀ A C
+  /// (`Ar`), its right-hand side Cᵀ b. Without T-junctions C is the identity and is not made.
+  bool reduced = false;
+  Eigen::SparseMatrix<double> C1;  ///< control points × free ones (one coordinate)
+  Eigen::SparseMatrix<double> C;   ///< C1 ⊗ I₃, the unknowns interleaved
+  Eigen::SparseMatrix<double> Ar;
+  const Eigen::SparseMatrix<double>& system() const { return reduced ? Ar : A; }
+  Eigen::VectorXd x;  ///< the last solution (of the system solved)
+  Eigen::VectorXd rhs;  ///< the last right-hand side (system() x = rhs)
   bool exact = false;  ///< x solves the last system directly or to kCgTolerance
 };
 
@@ -204,7 +297,8 @@ namespace {
 // A direct solve of A x = b with A the solver's matrix; the factor is kept (later rounds'
 // conjugate gradients are preconditioned by it).
 Eigen::VectorXd solve_directly(NetSolver* solver, const Eigen::VectorXd& b) {
-  solver->llt.factorize(solver->A);
+  if (solver->reduced) solver->llt.analyzePattern(solver->Ar);  // Cᵀ A C's pattern is made anew each round
+  solver->llt.factorize(solver->system());
   HS_CHECK(solver->llt.info() == Eigen::Success, "patch fit: the normal equations could not be factored");
   solver->factored = true;
   return solver->llt.solve(b);
@@ -215,7 +309,9 @@ Eigen::VectorXd solve_directly(NetSolver* solver, const Eigen::VectorXd& b) {
 void take_solution(PatchSkin* out, NetSolver* solver, Eigen::VectorXd X, bool exact) {
   solver->x = std::move(X);
   solver->exact = exact;
-  for (size_t k = 0; k < out->control.size(); ++k) out->control[k] = solver->x.segment<3>(3 * static_cast<long>(k));
+  const Eigen::VectorXd full = solver->reduced ? Eigen::VectorXd(solver->C * solver->x) : Eigen::VectorXd();
+  const Eigen::VectorXd& all = solver->reduced ? full : solver->x;
+  for (size_t k = 0; k < out->control.size(); ++k) out->control[k] = all.segment<3>(3 * static_cast<long>(k));
   rebuild_patches(out);
 }
 
@@ -250,11 +346,16 @@ std::vector<Eigen::Triplet<double>> net_penalties(const PatchSkin& out, const La
     for (int s = 0; s < 4; ++s) {
       const int g = T.neighbour[f][s], gs = T.neighbour_side[f][s];
       if (g < f || (g == f && gs < s)) continue;  // each border once
+      if (T.half[f][s] >= 0) continue;  // a T-junction: held G1 (hanging_block)
       std::array<std::array<int, 2>, 4> on_f, in_f, on_g, in_g;
       border(s, &on_f, &in_f);
       border(gs, &on_g, &in_g);
       const auto& idf = out.patch_control[f];
       const auto& idg = out.patch_control[g];
+      // A face halved along the border's cross direction more often than its neighbour has a
+      // slower parameter there (cross_speed): C1 weighs each side's cross derivative by it.
+      const double speed_f = cross_speed(out.layout, f, s), speed_g = cross_speed(out.layout, g, gs);
+      const double wf = 2 * speed_g / (speed_f + speed_g), wg = 2 * speed_f / (speed_f + speed_g);  // D_f / speed_f = −D_g / speed_g
       for (int k = 0; k < 4; ++k) {
         const auto& b = on_f[k];
         const auto& a = in_f[k];
@@ -266,7 +367,41 @@ std::vector<Eigen::Triplet<double>> net_penalties(const PatchSkin& out, const La
         // keeps its C1 condition.
         if (k <= 2 && !T.regular(faces[f][s])) continue;
         if (k >= 1 && !T.regular(faces[f][(s + 1) % 4])) continue;
-        triple(idf[4 * a[0] + a[1]], idf[4 * b[0] + b[1]], idg[4 * c[0] + c[1]], per_point * (o.c1_weight + o.fairness));
+        if (speed_f == speed_g) {
+          triple(idf[4 * a[0] + a[1]], idf[4 * b[0] + b[1]], idg[4 * c[0] + c[1]], per_point * (o.c1_weight + o.fairness));
+        } else {
+          penalty({idf[4 * a[0] + a[1]], idf[4 * b[0] + b[1]], idg[4 * c[0] + c[1]]}, {wf, -2, wg},
+                  per_point * (o.c1_weight + o.fairness));
+        }
+      }
+    }
+  // C1 across a T-junction's short side: its cross differences (inner row − border) against the
+  // long side's face's, cut to the same half by de Casteljau (kHalfCurve), as a split of a face
+  // that was C1 with its neighbour leaves them. With the short side's border itself that half of
+  // the long side's, the condition reads: each border point midway between its inner neighbour
+  // and the same combination of the long side's inner row.
+  for (int f = 0; f < patches; ++f)
+    for (int s = 0; s < 4; ++s) {
+      const int h = T.half[f][s];
+      if (h < 0 || out.layout.is_crease(faces[f][s], faces[f][(s + 1) % 4])) continue;
+      const int g = T.neighbour[f][s], gs = T.neighbour_side[f][s];
+      std::array<std::array<int, 2>, 4> on_f, in_f, on_g, in_g;
+      border(s, &on_f, &in_f);
+      border(gs, &on_g, &in_g);
+      const double speed_f = cross_speed(out.layout, f, s), speed_g = cross_speed(out.layout, g, gs);
+      const double wf = 2 * speed_g / (speed_f + speed_g), wg = 2 * speed_f / (speed_f + speed_g);  // D_f / speed_f = −D_g / speed_g
+      for (int k = 0; k < 4; ++k) {
+        if (k <= 2 && !T.regular(faces[f][s])) continue;
+        if (k >= 1 && !T.regular(faces[f][(s + 1) % 4])) continue;
+        std::vector<int> ids = {out.patch_control[f][4 * in_f[k][0] + in_f[k][1]], out.patch_control[f][4 * on_f[k][0] + on_f[k][1]]};
+        std::vector<double> coef = {wf, -2};
+        for (int j = 0; j < 4; ++j)
+          if (const double w = kHalfCurve[h][3 - k][j]; w != 0)
+            ids.push_back(out.patch_control[g][4 * in_g[j][0] + in_g[j][1]]), coef.push_back(wg * w);
+        for (size_t x = 0; x < ids.size(); ++x)
+          for (size_t y = 0; y < ids.size(); ++y)
+            for (int c = 0; c < 3; ++c)
+              A.emplace_back(3 * ids[x] + c, 3 * ids[y] + c, per_point * (o.c1_weight + o.fairness) * coef[x] * coef[y]);
       }
     }
   // Where other than four patches meet, the control points next to the corner along its
@@ -283,9 +418,21 @@ std::vector<Eigen::Triplet<double>> net_penalties(const PatchSkin& out, const La
     const int m = static_cast<int>(T.around[v].size());
     const double c = std::cos(2 * M_PI / m);
     std::vector<int> e(m);
-    for (int i = 0; i < m; ++i) e[i] = net_edge_near(out, static_cast<int>(v), T.around[v][i]);
+    std::vector<double> speed(m);  // the edges' control points lie nearer the corner on a face halved along them
+    bool same = true;
     for (int i = 0; i < m; ++i) {
-      penalty({e[(i + m - 1) % m], e[(i + 1) % m], e[i], static_cast<int>(v)}, {1, 1, -2 * c, -2 * (1 - c)},
+      e[i] = net_edge_near(out, static_cast<int>(v), T.around[v][i], &speed[i]);
+      same = same && speed[i] == speed[0];
+    }
+    for (int i = 0; i < m; ++i) {
+      if (same) {
+        penalty({e[(i + m - 1) % m], e[(i + 1) % m], e[i], static_cast<int>(v)}, {1, 1, -2 * c, -2 * (1 - c)},
+                per_point * o.corner_weight);
+        continue;
+      }
+      // (e − v) / speed for each edge: s₋(e₋ − v) + s₊(e₊ − v) − 2c s(e − v), s = 1 / speed.
+      const double sa = 1 / speed[(i + m - 1) % m], sb = 1 / speed[(i + 1) % m], si = 1 / speed[i];
+      penalty({e[(i + m - 1) % m], e[(i + 1) % m], e[i], static_cast<int>(v)}, {sa, sb, -2 * c * si, -(sa + sb - 2 * c * si)},
               per_point * o.corner_weight);
     }
   }
@@ -401,11 +548,14 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
     // The pattern: every patch's 48 × 48 block (as zeros) and the penalties.
     // Each dense block's unknowns: every patch's 48, then every G1 border's 36.
     solver->g1 = g1_borders(*out, T);
+    solver->hanging = hanging_borders(*out, T);
     std::vector<std::vector<int>> blocks;
     for (int f = 0; f < patches; ++f) blocks.push_back(unknowns_of(out->patch_control[f].data(), 16));
     for (const G1Border& g : solver->g1) blocks.push_back(unknowns_of(g.ids.data(), 12));
+    for (const HangingBorder& g : solver->hanging) blocks.push_back(unknowns_of(g.ids.data(), 16));
     std::vector<Eigen::Triplet<double>> A = net_penalties(*out, T, o, wsum / n);
-    A.reserve(A.size() + static_cast<size_t>(patches) * 48 * 48 + solver->g1.size() * 36 * 36);
+    A.reserve(A.size() + static_cast<size_t>(patches) * 48 * 48 + solver->g1.size() * 36 * 36 +
+              solver->hanging.size() * 48 * 48);
     for (const auto& u : blocks)
       for (int a : u)
         for (int b : u) A.emplace_back(a, b, 0.0);
@@ -415,11 +565,39 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
     solver->penalty_values.assign(As.valuePtr(), As.valuePtr() + As.nonZeros());
     solver->block_slot.resize(static_cast<size_t>(patches) * 48 * 48);
     solver->g1_slot.resize(solver->g1.size() * 36 * 36);
+    solver->hanging_slot.resize(solver->hanging.size() * 48 * 48);
+    const size_t g1_end = patches + solver->g1.size();
     for (size_t k = 0; k < blocks.size(); ++k)
       block_slots(As, blocks[k],
                   k < static_cast<size_t>(patches) ? &solver->block_slot[k * 48 * 48]
-                                                   : &solver->g1_slot[(k - patches) * 36 * 36]);
-    solver->llt.analyzePattern(As);
+                  : k < g1_end                     ? &solver->g1_slot[(k - patches) * 36 * 36]
+                                                   : &solver->hanging_slot[(k - g1_end) * 48 * 48]);
+    solver->reduced = std::any_of(out->control_derived.begin(), out->control_derived.end(),
+                                  [](const auto& d) { return !d.empty(); });
+    if (solver->reduced) {
+      std::vector<int> free_index(n, -1);
+      int m = 0;
+      for (int k = 0; k < n; ++k)
+        if (out->control_derived[k].empty()) free_index[k] = m++;
+      std::vector<Eigen::Triplet<double>> c1, c3;
+      for (int k = 0; k < n; ++k) {
+        auto put = [&](int j, double w) {
+          c1.emplace_back(k, j, w);
+          for (int c = 0; c < 3; ++c) c3.emplace_back(3 * k + c, 3 * j + c, w);
+        };
+        if (free_index[k] >= 0) put(free_index[k], 1.0);
+        for (const auto& [j, w] : out->control_derived[k]) {
+          HS_CHECK(free_index[j] >= 0, "patch net: a T-junction's point derived from another derived one");
+          put(free_index[j], w);
+        }
+      }
+      solver->C1.resize(n, m);
+      solver->C1.setFromTriplets(c1.begin(), c1.end());
+      solver->C.resize(3 * n, 3 * m);
+      solver->C.setFromTriplets(c3.begin(), c3.end());
+    } else {
+      solver->llt.analyzePattern(As);
+    }
   }
   std::copy(solver->penalty_values.begin(), solver->penalty_values.end(), As.valuePtr());
   for (int f = 0; f < patches; ++f) {
@@ -437,6 +615,18 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
       for (int a = 0; a < 36; ++a)
         for (int b = 0; b < 36; ++b) As.valuePtr()[slot[36 * a + b]] += gb[k](a, b);
     }
+    std::vector<Eigen::Matrix<double, 48, 48>> hb(solver->hanging.size());
+#pragma omp parallel for schedule(static)
+    for (long k = 0; k < static_cast<long>(hb.size()); ++k) hb[k] = hanging_block(*out, solver->hanging[k], w);
+    for (size_t k = 0; k < hb.size(); ++k) {
+      const int* slot = &solver->hanging_slot[k * 48 * 48];
+      for (int a = 0; a < 48; ++a)
+        for (int b = 0; b < 48; ++b) As.valuePtr()[slot[48 * a + b]] += hb[k](a, b);
+    }
+  }
+  if (solver->reduced) {
+    if (normals) solver->Ar = solver->C.transpose() * As * solver->C;
+    R = Eigen::VectorXd(solver->C.transpose() * R);
   }
   Eigen::VectorXd X;
   bool exact = true;  // the first fit and a factored round are direct solves
@@ -451,18 +641,20 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
         if (it.row() % 3 == 0) t.emplace_back(it.row() / 3, c / 3, it.value());
     Eigen::SparseMatrix<double> A1(n, n);
     A1.setFromTriplets(t.begin(), t.end());
+    if (solver->reduced) A1 = solver->C1.transpose() * A1 * solver->C1;
+    const int m = static_cast<int>(A1.rows());
     Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt1(A1);
     HS_CHECK(llt1.info() == Eigen::Success, "patch fit: the normal equations could not be factored");
-    const Eigen::MatrixXd X1 = llt1.solve(Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(R.data(), n, 3));
-    X.resize(3 * n);
-    for (int k = 0; k < n; ++k) X.segment<3>(3 * k) = X1.row(k).transpose();
+    const Eigen::MatrixXd X1 = llt1.solve(Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(R.data(), m, 3));
+    X.resize(3 * m);
+    for (int k = 0; k < m; ++k) X.segment<3>(3 * k) = X1.row(k).transpose();
   } else {
     bool direct = !solver->factored || solver->stalled;
     solver->stalled = false;
     if (!direct) {
       X = solver->x;
       int iterations = 0;
-      direct = !preconditioned_cg(As, solver->llt, R, kCgRoundTolerance, &X, &iterations);
+      direct = !preconditioned_cg(solver->system(), solver->llt, R, kCgRoundTolerance, &X, &iterations);
       // Given up within kCgStalled iterations: the matrices still change fast from round to
       // round (the early rounds), so the next round factors without trying.
       solver->stalled = direct && iterations <= kCgStalled;
@@ -480,7 +672,7 @@ void polish_net(PatchSkin* out, NetSolver* solver) {
   if (solver->exact) return;
   Eigen::VectorXd X = solver->x;
   int iterations = 0;
-  if (!preconditioned_cg(solver->A, solver->llt, solver->rhs, kCgTolerance, &X, &iterations))
+  if (!preconditioned_cg(solver->system(), solver->llt, solver->rhs, kCgTolerance, &X, &iterations))
     X = solve_directly(solver, solver->rhs);
   take_solution(out, solver, std::move(X), true);
 }

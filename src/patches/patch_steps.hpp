@@ -31,11 +31,23 @@ int nearest_link(const Eigen::Vector3d& p, const std::vector<Bone>& bones);
 
 /// The control net of a layout: one control point per corner, two per edge, four inside each
 /// face. Patch f's P(i, j) (i along corner 0 → 1, j along corner 0 → 3) is ids[f][4 i + j].
+///
+/// At a T-junction (LayoutTopology) the short sides' control points and the hanging corner
+/// are not unknowns: each is a fixed combination of the long side's four (de Casteljau at its
+/// midpoint), so the short sides' curves are the long side's halves exactly (G0 holds there
+/// too). `derived` gives, per control point, those combinations in the unknowns (empty for an
+/// unknown). Throws InputError (naming `what`) when they depend on one another in a loop.
 struct Net {
   std::vector<std::array<int, 16>> ids;
   int count = 0;
+  std::vector<std::vector<std::pair<int, double>>> derived;
 };
-Net build_net(const PatchLayout& L);
+Net build_net(const PatchLayout& L, const LayoutTopology& T);
+/// A cubic's halves by de Casteljau at 1/2: kHalfCurve[h][i][j] is half h's control point i as a
+/// combination of the whole curve's control points j.
+inline constexpr double kHalfCurve[2][4][4] = {
+    {{1, 0, 0, 0}, {0.5, 0.5, 0, 0}, {0.25, 0.5, 0.25, 0}, {0.125, 0.375, 0.375, 0.125}},
+    {{0.125, 0.375, 0.375, 0.125}, {0, 0.25, 0.5, 0.25}, {0, 0, 0.5, 0.5}, {0, 0, 0, 1}}};
 /// Side s of a patch (from its corner s to corner s + 1): the border's control points in that
 /// order, as (i, j), and each one's inner neighbour.
 void border(int s, std::array<std::array<int, 2>, 4>* on, std::array<std::array<int, 2>, 4>* in);
@@ -97,7 +109,7 @@ class NetFit {
 };
 
 /// Refinement to a tolerance (refine.cpp): while a patch's measured points lie farther than
-/// o.tolerance_mm, the patches that miss are split (close_cuts, split_layout) and `refit`
+/// o.tolerance_mm, the patches that miss are split (balance_cuts, split_layout) and `refit`
 /// fits the split layout from its seed; the result and its figures replace *s
 /// (PatchSkin::refinement).
 void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::function<PatchSkin(const LayoutSplit&)>& refit);

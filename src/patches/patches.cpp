@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <future>
+#include <map>
 #include <limits>
 #include <memory>
 #include <tuple>
@@ -35,7 +37,7 @@ int nearest_link(const Eigen::Vector3d& p, const std::vector<Bone>& bones) {
   return best;
 }
 
-Net build_net(const PatchLayout& L) {
+Net build_net(const PatchLayout& L, const LayoutTopology& T) {
   Net N;
   N.count = static_cast<int>(L.vertices.size());
   std::map<std::pair<int, int>, int> edge_base;
@@ -56,6 +58,51 @@ Net build_net(const PatchLayout& L) {
     P(1, 1) = N.count++, P(2, 1) = N.count++, P(1, 2) = N.count++, P(2, 2) = N.count++;
     N.ids.push_back(id);
   }
+  N.derived.assign(N.count, {});
+  if (T.conforming()) return N;
+  // Each long side's halves by de Casteljau at 1/2, in its four control points L0…L3 (from its
+  // start): half 0 is [L0, (L0+L1)/2, (L0+2L1+L2)/4, M], half 1 [M, (L1+2L2+L3)/4, (L2+L3)/2, L3],
+  // M = (L0+3L1+3L2+L3)/8 the hanging corner. A short side runs its half the other way.
+  std::vector<std::vector<std::pair<int, double>>> direct(N.count);
+  for (const auto& [long_side, pieces] : T.halves) {
+    std::array<std::array<int, 2>, 4> on, in;
+    border(long_side.second, &on, &in);
+    int Lid[4];
+    for (int k = 0; k < 4; ++k) Lid[k] = N.ids[long_side.first][4 * on[k][0] + on[k][1]];
+    for (int h = 0; h < 2; ++h) {
+      const auto [g, gs] = pieces[h];
+      border(gs, &on, &in);
+      for (int k = 0; k < 4; ++k) {
+        const int id = N.ids[g][4 * on[k][0] + on[k][1]];
+        const double* w = kHalfCurve[h][3 - k];
+        if (std::count(w, w + 4, 1.0) == 1) continue;  // the long side's own corner
+        std::vector<std::pair<int, double>> combo;
+        for (int j = 0; j < 4; ++j)
+          if (w[j] != 0) combo.push_back({Lid[j], w[j]});
+        direct[id] = std::move(combo);
+      }
+    }
+  }
+  // In the unknowns: a long side's corner can hang on another long side in turn.
+  std::vector<char> state(N.count, 0);  // 0 not resolved, 1 resolving, 2 resolved
+  std::function<void(int)> resolve = [&](int id) {
+    if (state[id] == 2) return;
+    if (state[id] == 1) throw InputError("patch layout", "its T-junctions hang on one another in a loop");
+    state[id] = 1;
+    std::map<int, double> sum;
+    for (const auto& [j, w] : direct[id]) {
+      if (direct[j].empty()) {
+        sum[j] += w;
+        continue;
+      }
+      resolve(j);
+      for (const auto& [k, wk] : N.derived[j]) sum[k] += w * wk;
+    }
+    N.derived[id].assign(sum.begin(), sum.end());
+    state[id] = 2;
+  };
+  for (int id = 0; id < N.count; ++id)
+    if (!direct[id].empty()) resolve(id);
   return N;
 }
 
@@ -107,9 +154,11 @@ DistanceFigures figures_of(std::vector<double> r) {
 
 // --- 1. the control net of the layout, started on its bilinear faces (or on a seed: a split
 // surface's control points, a shared one the same from every face on it) ---
-Net start_net(const PatchLayout& layout, PatchSkin* out, const std::vector<std::array<Eigen::Vector3d, 16>>* seed) {
-  Net net = build_net(layout);
+Net start_net(const PatchLayout& layout, const LayoutTopology& T, PatchSkin* out,
+              const std::vector<std::array<Eigen::Vector3d, 16>>* seed) {
+  Net net = build_net(layout, T);
   out->patch_control = net.ids;
+  out->control_derived = net.derived;
   out->control.assign(net.count, Eigen::Vector3d::Zero());
   out->patches.resize(layout.faces.size());
   for (size_t f = 0; f < layout.faces.size(); ++f) {
@@ -190,6 +239,8 @@ void correct_parameters(PatchSkin* out, const LayoutTopology& T, const PatchLayo
     for (const auto& fs : at_corner)
       for (int f : fs)
         for (int g : fs) touches[f][g] = 1;
+    for (size_t f = 0; f < layout.faces.size(); ++f)  // a long side's face and the half away from its corner
+      for (int g : T.faces_across(static_cast<int>(f))) touches[f][g] = touches[g][f] = 1;
   }
   std::vector<double> moved(data->size(), -1);
   // The surface of the round with the lowest RMS: a round whose refit raised the RMS (the
@@ -343,11 +394,15 @@ void bind_and_check(PatchSkin* out, const LayoutTopology& T, const PatchLayout& 
   for (size_t f = 0; f < out->patches.size(); ++f)
     for (int s = 0; s < 4; ++s) {
       const int g = T.neighbour[f][s], gs = T.neighbour_side[f][s];
-      if (g < static_cast<int>(f) || (g == static_cast<int>(f) && gs < s)) continue;
+      // Each border once: a shared one from the face with the lower index, a T-junction's from
+      // its short sides (the long side's face is sampled where each lies along it).
+      const bool short_side = T.half[f][s] >= 0;
+      if (!short_side && (g < static_cast<int>(f) || (g == static_cast<int>(f) && gs < s))) continue;
       if (layout.is_crease(layout.faces[f][s], layout.faces[f][(s + 1) % 4])) continue;
       const bool irregular_start = !T.regular(layout.faces[f][s]), irregular_end = !T.regular(layout.faces[f][(s + 1) % 4]);
       for (int q = 1; q <= 9; ++q) {
-        const Eigen::Vector2d a = on_side(s, q / 10.0), b = on_side(gs, 1 - q / 10.0);
+        const double along = short_side ? 0.5 * T.half[f][s] + 0.5 * (1 - q / 10.0) : 1 - q / 10.0;
+        const Eigen::Vector2d a = on_side(s, q / 10.0), b = on_side(gs, along);
         Eigen::Vector3d Sa, Sau, Sav, Sb, Sbu, Sbv;
         out->patches[f].derivatives(a.x(), a.y(), &Sa, &Sau, &Sav);
         out->patches[g].derivatives(b.x(), b.y(), &Sb, &Sbu, &Sbv);
@@ -374,6 +429,12 @@ void bind_and_check(PatchSkin* out, const LayoutTopology& T, const PatchLayout& 
 }  // namespace
 
 void rebuild_patches(PatchSkin* s) {
+  for (size_t k = 0; k < s->control_derived.size(); ++k)
+    if (!s->control_derived[k].empty()) {
+      Eigen::Vector3d p = Eigen::Vector3d::Zero();
+      for (const auto& [j, w] : s->control_derived[k]) p += w * s->control[j];
+      s->control[k] = p;
+    }
   for (size_t f = 0; f < s->patches.size(); ++f)
     for (int k = 0; k < 16; ++k) {
       const int id = s->patch_control[f][k];
@@ -451,13 +512,28 @@ PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector
   for (const auto& b : bones) out.bones.push_back(b.name());
   for (int v : T.valence) out.irregular_corners += v != 4;
 
-  const Net net = start_net(layout, &out, seed);
+  const Net net = start_net(layout, T, &out, seed);
   std::vector<int> in_fit;
   std::vector<Datum> data = gather_data(points, sides, support, net.count, o, &in_fit);
   if (data.size() < 16 * out.patches.size())
     throw InputError("patches", "too few points (" + std::to_string(data.size()) + ") for " +
                                     std::to_string(out.patches.size()) + " patches");
   place_data(out.patches, T, &data);
+  if (seed) {
+    // A seed is a fitted surface (split_layout): its foot points' normals are good already, so
+    // the first least squares is a correction round (the normal error, G1 where C1 cannot
+    // hold) and not a fresh start. A point-to-point first fit, with no G1 rows next to the
+    // corners where other than four patches meet, folded the flanks of two fingers at their
+    // web on the fixture (175° between their normals), and nothing after it unfolded them.
+#pragma omp parallel for schedule(static)
+    for (long k = 0; k < static_cast<long>(data.size()); ++k) {
+      Datum& d = data[k];
+      Eigen::Vector3d Sp, Su, Sv;
+      out.patches[d.patch].derivatives(d.s, d.t, &Sp, &Su, &Sv);
+      const Eigen::Vector3d nn = Su.cross(Sv);
+      d.n = nn.norm() > 1e-12 ? Eigen::Vector3d(nn.normalized()) : Eigen::Vector3d::Zero();
+    }
+  }
   NetFit net_fit;  // --- 4. the least squares ---
   net_fit.fit(&out, T, data, o);
   correct_parameters(&out, T, layout, &data, o, &net_fit);
@@ -543,12 +619,42 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
 
 namespace {
 // The tessellation's vertex of each patch's (n + 1)² grid point: a layout corner's and a
-// shared border's points are one vertex for every patch on them.
-std::vector<std::vector<int>> tessellation_index(const PatchSkin& s, int n, std::vector<std::array<int, 3>>* made) {
+// shared border's points are one vertex for every patch on them. A border point is named by
+// its edge and its step along it in halves of a grid step, so that at a T-junction a short
+// side's points are the long side's at every other half step, and the points between (made by
+// the short sides' patches) are in `mids`: per face and side, on a long side, the vertex
+// halfway along each of its n grid steps.
+struct TessellationIndex {
+  std::vector<std::vector<int>> index;
+  std::vector<std::array<std::vector<int>, 4>> mids;
+};
+TessellationIndex tessellation_index(const PatchSkin& s, int n, std::vector<std::array<int, 3>>* made) {
   HS_CHECK(n >= 1, "tessellation needs at least one quad per patch side");
-  std::vector<std::vector<int>> index(s.patches.size(), std::vector<int>(static_cast<size_t>(n + 1) * (n + 1), -1));
+  TessellationIndex X;
+  X.index.assign(s.patches.size(), std::vector<int>(static_cast<size_t>(n + 1) * (n + 1), -1));
+  X.mids.resize(s.patches.size());
   std::vector<int> corner(s.layout.vertices.size(), -1);
   std::map<std::tuple<int, int, int>, int> on_edge;
+  const bool conforming = s.control_derived.empty() ||
+                          std::all_of(s.control_derived.begin(), s.control_derived.end(), [](const auto& d) { return d.empty(); });
+  const LayoutTopology T = conforming ? LayoutTopology{} : layout_topology(s.layout, "patch layout");
+  // The slot of the point `k` grid steps along side `side` of face f (0 < k < n).
+  const auto border_slot = [&](size_t f, int side, int k) -> int* {
+    const auto& c = s.layout.faces[f];
+    int p = c[side], q = c[(side + 1) % 4], fine = 2 * k;
+    if (!conforming) {
+      if (const int h = T.half[f][side]; h >= 0) {
+        const auto& g = s.layout.faces[T.neighbour[f][side]];
+        const int gs = T.neighbour_side[f][side];
+        p = g[gs], q = g[(gs + 1) % 4], fine = h * n + (n - k);
+      } else if (T.neighbour[f][side] < 0 && fine == n) {
+        for (size_t v = 0; v < T.hangs_on.size(); ++v)
+          if (T.hangs_on[v] == std::make_pair(static_cast<int>(f), side)) return &corner[v];
+      }
+    }
+    if (p > q) std::swap(p, q), fine = 2 * n - fine;
+    return &on_edge.emplace(std::make_tuple(p, q, fine), -1).first->second;
+  };
   made->clear();
   for (size_t f = 0; f < s.patches.size(); ++f) {
     const auto& c = s.layout.faces[f];
@@ -557,14 +663,14 @@ std::vector<std::vector<int>> tessellation_index(const PatchSkin& s, int n, std:
         int* slot = nullptr;
         if ((i == 0 || i == n) && (j == 0 || j == n)) {
           slot = &corner[c[i == 0 ? (j == 0 ? 0 : 3) : (j == 0 ? 1 : 2)]];
-        } else if (i == 0 || i == n || j == 0 || j == n) {
-          int a, b, step;
-          if (j == 0) a = c[0], b = c[1], step = i;
-          else if (i == n) a = c[1], b = c[2], step = j;
-          else if (j == n) a = c[3], b = c[2], step = i;
-          else a = c[0], b = c[3], step = j;
-          if (a > b) std::swap(a, b), step = n - step;
-          slot = &on_edge.emplace(std::make_tuple(a, b, step), -1).first->second;
+        } else if (j == 0) {
+          slot = border_slot(f, 0, i);
+        } else if (i == n) {
+          slot = border_slot(f, 1, j);
+        } else if (j == n) {
+          slot = border_slot(f, 2, n - i);
+        } else if (i == 0) {
+          slot = border_slot(f, 3, n - j);
         }
         int id;
         if (slot && *slot >= 0) {
@@ -574,10 +680,29 @@ std::vector<std::vector<int>> tessellation_index(const PatchSkin& s, int n, std:
           made->push_back({static_cast<int>(f), i, j});
           if (slot) *slot = id;
         }
-        index[f][i * (n + 1) + j] = id;
+        X.index[f][i * (n + 1) + j] = id;
       }
   }
-  return index;
+  if (!conforming)
+    for (const auto& [long_side, pieces] : T.halves) {
+      const auto [f, side] = long_side;
+      const auto& c = s.layout.faces[f];
+      for (int k = 0; k < n; ++k) {
+        int p = c[side], q = c[(side + 1) % 4], fine = 2 * k + 1;
+        int id = -1;
+        if (fine == n) {
+          for (size_t v = 0; v < T.hangs_on.size(); ++v)
+            if (T.hangs_on[v] == long_side) id = corner[v];
+        } else {
+          if (p > q) std::swap(p, q), fine = 2 * n - fine;
+          const auto it = on_edge.find(std::make_tuple(p, q, fine));
+          if (it != on_edge.end()) id = it->second;
+        }
+        HS_CHECK(id >= 0, "tessellation: a T-junction's short side made no point halfway along a grid step");
+        X.mids[f][side].push_back(id);
+      }
+    }
+  return X;
 }
 
 // Each vertex the index made, evaluated once on the patch that made it.
@@ -596,18 +721,40 @@ void tessellation_vertices(const PatchSkin& s, int n, std::vector<Eigen::Vector3
 
 Mesh tessellate(const PatchSkin& s, int n) {
   std::vector<std::array<int, 3>> made;
-  const auto index = tessellation_index(s, n, &made);
+  const TessellationIndex X = tessellation_index(s, n, &made);
   std::vector<Eigen::Vector3d> points;
   evaluate_made(s, n, made, &points);
   std::vector<std::array<int, 3>> tris;
   for (size_t f = 0; f < s.patches.size(); ++f)
     for (int i = 0; i < n; ++i)
       for (int j = 0; j < n; ++j) {
-        const int a = index[f][i * (n + 1) + j], b = index[f][(i + 1) * (n + 1) + j];
-        const int c = index[f][(i + 1) * (n + 1) + j + 1], d = index[f][i * (n + 1) + j + 1];
-        // (u, v) counter-clockwise: Su × Sv points out of the hand.
-        tris.push_back({a, b, c});
-        tris.push_back({a, c, d});
+        const auto& index = X.index[f];
+        const int a = index[i * (n + 1) + j], b = index[(i + 1) * (n + 1) + j];
+        const int c = index[(i + 1) * (n + 1) + j + 1], d = index[i * (n + 1) + j + 1];
+        // The points halfway along the quad's edges on a long side (-1: none), edge ab, bc, cd, da.
+        const auto& M = X.mids[f];
+        const int mid[4] = {j == 0 && !M[0].empty() ? M[0][i] : -1, i + 1 == n && !M[1].empty() ? M[1][j] : -1,
+                            j + 1 == n && !M[2].empty() ? M[2][n - i - 1] : -1, i == 0 && !M[3].empty() ? M[3][n - j - 1] : -1};
+        if (mid[0] < 0 && mid[1] < 0 && mid[2] < 0 && mid[3] < 0) {
+          // (u, v) counter-clockwise: Su × Sv points out of the hand.
+          tris.push_back({a, b, c});
+          tris.push_back({a, c, d});
+          continue;
+        }
+        // A quad on a long side: the polygon of its corners and those points, fanned from a
+        // corner neither of whose edges has one (else from such a point), so that no triangle
+        // lies along a side.
+        const int corners[4] = {a, b, c, d};
+        std::vector<int> poly;
+        int start = -1;
+        for (int e = 0; e < 4; ++e) {
+          if (start < 0 && mid[e] < 0 && mid[(e + 3) % 4] < 0) start = static_cast<int>(poly.size());
+          poly.push_back(corners[e]);
+          if (mid[e] >= 0) poly.push_back(mid[e]);
+        }
+        if (start < 0) start = 1;  // the point halfway along ab (every edge has one)
+        std::rotate(poly.begin(), poly.begin() + start, poly.end());
+        for (size_t k = 1; k + 1 < poly.size(); ++k) tris.push_back({poly[0], poly[k], poly[k + 1]});
       }
   return Mesh{std::move(points), std::move(tris)};
 }

@@ -42,10 +42,10 @@ struct PatchOptions {
   std::optional<PatchLayout> layout;
   /// Refinement to a tolerance (`--patch-tolerance`, issue 38; 0: none, the layout as it is).
   /// After the fit, every patch whose measured points' largest distance to the surface exceeds
-  /// it is split at its midpoints (de Casteljau: the surface unchanged), the splits carried
-  /// along the layout's quad strips so that no T-junction arises, and the net refitted with
-  /// parameter correction; until every patch holds it, `refine_rounds` rounds were made, or a
-  /// further split would exceed `max_patches` (refine.cpp).
+  /// it is split at its midpoints (de Casteljau: the surface unchanged), leaving T-junctions
+  /// whose short sides are held to the long side's halves exactly (balance_cuts, build_net), and
+  /// the net refitted from that surface; until every patch holds it, `refine_rounds` rounds
+  /// were made, or a further split would exceed `max_patches` (refine.cpp).
   double tolerance_mm = 0;
   int max_patches = 300;
   int refine_rounds = 4;
@@ -77,6 +77,11 @@ struct PatchSkin {
   std::vector<VertexWeights> control_weights;
   std::string binding_mode;                ///< the polygon skin's binding the weights came from ("smooth", "rigid")
   std::vector<std::array<int, 16>> patch_control;  ///< per patch: its 16 control points (P00…P33)
+  /// Per control point: empty when the fit solves for it; at a T-junction of a layout refined
+  /// locally (LayoutTopology), the control points it is a fixed combination of and their
+  /// weights: a short side's border curve is one half of the long side's (de Casteljau), so
+  /// G0 holds exactly there. rebuild_patches sets them from the others (also after posing).
+  std::vector<std::vector<std::pair<int, double>>> control_derived;
   std::vector<BezierPatch> patches;
   std::vector<std::string> bones;   ///< link names (BezierPatch::link)
   /// Data → surface by foot points, per side of the merged cloud (0 palm scan, 1 back scan).
@@ -141,21 +146,26 @@ PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector
 /// Cuts of a face (refine.cpp): kCutU splits it at u = 1/2 (its sides 0 and 2 at their
 /// midpoints), kCutV at v = 1/2 (sides 1 and 3); both: four faces.
 constexpr int kCutU = 1, kCutV = 2;
-/// The cuts closed along the layout's quad strips: a face whose side is split is cut across
-/// to its opposite side, and so on round the strip, so that every split edge is split in both
-/// faces on it (no T-junction).
-std::vector<int> close_cuts(const LayoutTopology& topology, std::vector<int> cuts);
-/// A fitted surface's layout with faces cut (closed cuts, one per face): the new corners on
-/// the surface (each split edge's midpoint once), each new face's 16 control points by de
-/// Casteljau at the midpoints (the same surface: a split border's curve is split the same way
-/// from both faces on it), its name the old one's with "/u0", "/v1", "/00"… appended, the
-/// creases split with their edges, and each new face's parent.
+/// The cuts balanced so that no side lies against more than two (LayoutTopology's T-junctions):
+/// a face that would split a short side (a half of a long side across) has the long side's
+/// face cut along it too, and so on. A cut of a side shared whole leaves a T-junction, but
+/// beside a corner where other than four patches meet, where the face across is cut along it too.
+std::vector<int> balance_cuts(const PatchLayout& layout, const LayoutTopology& topology, std::vector<int> cuts);
+/// A fitted surface's layout with faces cut (balanced cuts, one per face): the new corners on
+/// the surface (each split side's midpoint once; a long side's is the vertex hanging on it),
+/// each new face's 16 control points by de Casteljau at the midpoints (the same surface: a
+/// split border's curve is split the same way from both faces on it, and a side left whole
+/// beside a split one is the long side of a T-junction, whose halves the split faces' sides
+/// are), its name the old one's with "/u0", "/v1", "/00"… appended, the creases split with their
+/// edges, and each new face's parent.
 struct LayoutSplit {
   PatchLayout layout;
   std::vector<std::array<Eigen::Vector3d, 16>> seed;
   std::vector<int> parent;
 };
 LayoutSplit split_layout(const PatchSkin& s, const std::vector<int>& cuts);
+/// Per patch, the q-quantile of its measured points' distances (0 with fewer than 40 points).
+std::vector<double> patch_error_percentile(const PatchSkin& s, double q);
 /// The largest distance of a measured point (PatchSkin::samples) with its foot point on each patch.
 std::vector<double> patch_max_error(const PatchSkin& s);
 
@@ -181,7 +191,8 @@ PatchSkin pose_patch_skin(const PatchSkin& s, const Skeleton& skeleton, const An
                           Blend blend = Blend::DualQuaternion);
 
 /// Each patch's 16 control points (and their links) copied from the net (`control`,
-/// `control_link`, `patch_control`).
+/// `control_link`, `patch_control`), the T-junctions' control points first set from the
+/// others (`control_derived`).
 void rebuild_patches(PatchSkin* s);
 
 /// Every patch tessellated at `n` × `n` quads (two triangles each), the vertices on shared

@@ -10,7 +10,13 @@ Json layout_to_json(const PatchLayout& L) {
   for (const auto& c : L.faces) f.push_back({c[0], c[1], c[2], c[3]});
   Json c = Json::array();
   for (const auto& e : L.creases) c.push_back({e[0], e[1]});
-  return {{"vertices", v}, {"faces", f}, {"names", L.names}, {"creases", c}};
+  Json out = {{"vertices", v}, {"faces", f}, {"names", L.names}, {"creases", c}};
+  if (!L.levels.empty()) {
+    Json l = Json::array();
+    for (const auto& x : L.levels) l.push_back({x[0], x[1]});
+    out["levels"] = l;
+  }
+  return out;
 }
 
 namespace {
@@ -51,6 +57,21 @@ PatchLayout layout_from_json(const Json& j, const std::string& file) {
     const Json& c = j["creases"];
     if (!c.is_array()) throw InputError(file, "key 'creases' must be an array of corner pairs");
     for (size_t k = 0; k < c.size(); ++k) L.creases.push_back(vertex_indices<2>(c[k], "creases[" + std::to_string(k) + "]", v.size(), file));
+  }
+  if (j.contains("levels")) {
+    const Json& l = j["levels"];
+    if (!l.is_array() || l.size() != f.size()) throw InputError(file, "key 'levels' must give every face its halvings along u and v");
+    for (size_t k = 0; k < l.size(); ++k) {
+      const std::string where = "levels[" + std::to_string(k) + "]";
+      if (!l[k].is_array() || l[k].size() != 2) throw InputError(file, where + " must be two counts");
+      std::array<int, 2> x{};
+      for (int d = 0; d < 2; ++d) {
+        if (!l[k][d].is_number_integer() || l[k][d].get<long>() < 0 || l[k][d].get<long>() > 30)
+          throw InputError(file, where + " must hold counts in [0, 30]");
+        x[d] = static_cast<int>(l[k][d].get<long>());
+      }
+      L.levels.push_back(x);
+    }
   }
   layout_topology(L, file);  // closed and oriented alike, or an error naming the edge
   return L;

@@ -163,7 +163,7 @@ std::string layout_view(const PatchSkin& s, const Eigen::Matrix3d& hand, const c
   std::vector<int> colour(s.patches.size(), -1);
   for (size_t f = 0; f < s.patches.size(); ++f) {
     int used = 0;
-    for (int g : T.neighbour[f])
+    for (int g : T.faces_across(static_cast<int>(f)))
       if (colour[g] >= 0) used |= 1 << colour[g];
     colour[f] = 0;
     while (used >> colour[f] & 1) ++colour[f];
