@@ -363,19 +363,21 @@ TEST(Patches, ToleranceSplitsOnlyWhereThePointsMiss) {
   const int n = r["patches"].get<int>();
   EXPECT_GT(n, 98);
   EXPECT_LE(n, 300);
-  EXPECT_TRUE(f["held"].get<bool>()) << f.dump();  // measured: 98 -> 171 -> 208 patches, worst 0.918 -> 0.708 -> 0.472 mm
-  EXPECT_LE(n, 230);  // local splits (T-junctions): the strips of the first version spent 290
+  // Measured: 98 -> 208 -> 246 -> 252 patches, the worst point 0.918 -> 0.777 -> 0.464 -> 0.383 mm
+  // (the later splits for the rough patches, docs/patches.md).
+  EXPECT_TRUE(f["held"].get<bool>()) << f.dump();
+  EXPECT_LE(n, 270);
   for (const char* side : {"palm", "back"}) EXPECT_LE(r["data_to_surface_mm"][side]["max"].get<double>(), 0.5) << side;
   EXPECT_LE(r["continuity"]["g0_gap_mm"].get<double>(), 1e-6);
   // Issue 38's bars on the fixture: data -> surface mean <= 1.2 x the noise floor; against the
-  // truth mean <= 0.06, p95 <= 0.2 mm, >= 99.5 % within 1 mm (measured 0.078 / 0.076 against
-  // 0.074; 0.073 / 0.192 mm; 100.00 %). The truth mean is NOT within the issue's 0.06: splitting
-  // only the patches whose worst point misses leaves the rest as the thesis's layout fits them
-  // (the strips of the first version split nearly every patch and reached 0.056 with 290). The
-  // check below guards the figure measured; the issue stays open on it (docs/patches.md).
+  // truth mean <= 0.06, p95 <= 0.2 mm, >= 99.5 % within 1 mm (measured 0.069 / 0.067 against
+  // 0.074; 0.0602 / 0.161 mm; 100.00 %). The truth mean is NOT within the issue's 0.06 (by
+  // 0.0002 mm): the check below guards the figure measured, and the issue stays open on it
+  // (docs/patches.md).
   for (const char* side : {"palm", "back"})
     EXPECT_LE(r["data_to_surface_mm"][side]["mean"].get<double>(), 1.2 * r["table_4_1"]["noise_floor_mm"][side].get<double>());
-  EXPECT_LE(r["truth"]["surface_to_truth_mm"]["mean"].get<double>(), 0.08);
+  EXPECT_LE(r["truth"]["surface_to_truth_mm"]["mean"].get<double>(), 0.065);
+  EXPECT_LE(r["continuity"]["g1_normal_jump_deg"]["p95"].get<double>(), 0.3);  // measured 0.15
   EXPECT_LE(r["truth"]["surface_to_truth_mm"]["p95"].get<double>(), 0.2);
   EXPECT_GE(r["truth"]["truth_to_surface_mm"]["within_1mm"].get<double>(), 0.995);
   bool gate = false;

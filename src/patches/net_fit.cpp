@@ -115,7 +115,10 @@ Eigen::Matrix<double, 36, 36> g1_block(const PatchSkin& out, const G1Border& b, 
     }
     const double lf = Df.norm(), lg = Dg.norm();
     if (lf < 1e-9 || lg < 1e-9) continue;
-    const double L = (lf + lg) / 6;
+    // Weighed as the unsplit faces' rows would be: a face halved across the border has half
+    // the cross derivative, and the rows' weight (L²) would fall fourfold with each halving (on
+    // the fixture the web's flanks, split twice, kinked by 40° at their shared border so).
+    const double L = (lf / cross_speed(out.layout, b.f, b.s) + lg / cross_speed(out.layout, b.g, b.gs)) / 6;
     Eigen::Matrix<double, 36, 1> row = Eigen::Matrix<double, 36, 1>::Zero();
     for (int k = 0; k < 4; ++k) {
       row.segment<3>(3 * (4 + k)) += 3 * Bf[k] * L / lf * n;
@@ -182,7 +185,7 @@ Eigen::Matrix<double, 48, 48> hanging_block(const PatchSkin& out, const HangingB
     }
     const double lf = Df.norm(), lg = Dg.norm();
     if (lf < 1e-9 || lg < 1e-9) continue;
-    const double L = (lf + lg) / 6;
+    const double L = (lf / cross_speed(out.layout, b.f, b.s) + lg / cross_speed(out.layout, b.g, b.gs)) / 6;
     Eigen::Matrix<double, 48, 1> row = Eigen::Matrix<double, 48, 1>::Zero();
     for (int k = 0; k < 4; ++k) {
       row.segment<3>(3 * (4 + k)) += 3 * Bf[k] * L / lf * n;

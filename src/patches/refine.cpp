@@ -64,7 +64,7 @@ std::pair<Net16, Net16> split_v(const Net16& P) { return split_half(P, false); }
 constexpr double kRoughPercentile = 0.95, kRoughShare = 0.5;
 constexpr size_t kRoughMinPoints = 40;
 
-// A patch longer than this times its width is cut across its length whatever its strip costs.
+// A patch longer than this times its width is cut across its length whatever its balance costs.
 constexpr double kAspect = 1.5;
 
 int faces_after(const std::vector<int>& cuts) {
@@ -232,17 +232,17 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
       R.stopped = std::to_string(o.refine_rounds) + " rounds made (patches.refine_rounds)";
       break;
     }
-    // The worst patches first, each cut across its longer direction (its control net's mean
-    // length along u and along v), else across the other when that one's strips would exceed
-    // the budget; a patch neither cut of which fits is left. One cut a round: both at once
-    // spent the fixture's whole budget (98 -> 296 patches) in one round on 46 patches, and the
-    // strips of the ones that needed one cut only.
+    // The patches that miss, worst first, then the rough ones; each cut across its longer
+    // direction (its control net's mean length along u and along v), else across the other
+    // when the first, balanced, would exceed the budget; a patch neither cut of which fits is
+    // left. One cut a round (both at once spent the fixture's budget in one round when the
+    // cuts ran round their strips).
     const LayoutTopology T = layout_topology(s->layout, "patch layout");
     std::vector<int> cuts(s->patches.size(), 0);
     std::vector<int> todo = over;
     todo.insert(todo.end(), rough.begin(), rough.end());
     for (int f : todo) {
-      const auto with_cut = [&](int c) {  // the cuts so far and c on f, closed
+      const auto with_cut = [&](int c) {  // the cuts so far and c on f, balanced
         std::vector<int> trial = cuts;
         trial[f] |= c;
         return balance_cuts(s->layout, T, std::move(trial));
@@ -254,7 +254,7 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
       // ring.0.radial/v0, the web's flank: one more cut along it left its worst point at 0.60 mm).
       const bool again = s->patches[f].name.find('/') != std::string::npos;
       std::vector<int> order = along_u >= along_v ? std::vector<int>{kCutU, kCutV} : std::vector<int>{kCutV, kCutU};
-      // A patch about as long as it is wide is cut the way whose strip costs fewer patches.
+      // A patch about as long as it is wide is cut the way whose balance costs fewer patches.
       if (std::max(along_u, along_v) < kAspect * std::min(along_u, along_v) &&
           faces_after(with_cut(order[1])) < faces_after(with_cut(order[0])))
         std::swap(order[0], order[1]);
