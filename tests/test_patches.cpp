@@ -178,6 +178,18 @@ TEST(Patches, SplitsStayLocalWithExactTJunctionsAndKeepTheSurface) {
     EXPECT_EQ(back.levels, one.layout.levels);
     EXPECT_EQ(layout_topology(back, "back").halves.size(), 2u);
   }
+  // Graded: a face halved along v once already and cut so again would run at a quarter of its
+  // neighbours' speed across its sides 0 and 2, so they are cut along v too (and no further).
+  {
+    PatchLayout graded = s.layout;
+    graded.levels.assign(graded.faces.size(), {0, 0});
+    graded.levels[middle] = {0, 1};
+    std::vector<int> v_cut(s.patches.size(), 0);
+    v_cut[middle] = kCutV;
+    v_cut = balance_cuts(graded, T, v_cut);
+    EXPECT_EQ(std::count(v_cut.begin(), v_cut.end(), kCutV), 3);
+    for (int side : {0, 2}) EXPECT_EQ(v_cut[T.neighbour[middle][side]], kCutV);
+  }
   // A cut beside a cube corner (a corner of three patches) is carried to the face across.
   std::vector<int> corner_cuts(s.patches.size(), 0);
   corner_cuts[0] = kCutU;
@@ -363,21 +375,19 @@ TEST(Patches, ToleranceSplitsOnlyWhereThePointsMiss) {
   const int n = r["patches"].get<int>();
   EXPECT_GT(n, 98);
   EXPECT_LE(n, 300);
-  // Measured: 98 -> 208 -> 246 -> 252 patches, the worst point 0.918 -> 0.777 -> 0.464 -> 0.383 mm
+  // Measured: 98 -> 208 -> 246 -> 266 patches, the worst point 0.918 -> 0.777 -> 0.464 -> 0.361 mm
   // (the later splits for the rough patches, docs/patches.md).
   EXPECT_TRUE(f["held"].get<bool>()) << f.dump();
-  EXPECT_LE(n, 270);
+  EXPECT_LE(n, 290);
   for (const char* side : {"palm", "back"}) EXPECT_LE(r["data_to_surface_mm"][side]["max"].get<double>(), 0.5) << side;
   EXPECT_LE(r["continuity"]["g0_gap_mm"].get<double>(), 1e-6);
   // Issue 38's bars on the fixture: data -> surface mean <= 1.2 x the noise floor; against the
-  // truth mean <= 0.06, p95 <= 0.2 mm, >= 99.5 % within 1 mm (measured 0.069 / 0.067 against
-  // 0.074; 0.0602 / 0.161 mm; 100.00 %). The truth mean is NOT within the issue's 0.06 (by
-  // 0.0002 mm): the check below guards the figure measured, and the issue stays open on it
-  // (docs/patches.md).
+  // truth mean <= 0.06, p95 <= 0.2 mm, >= 99.5 % within 1 mm (measured 0.067 / 0.066 against
+  // 0.074; 0.058 / 0.157 mm; 100.00 %).
   for (const char* side : {"palm", "back"})
     EXPECT_LE(r["data_to_surface_mm"][side]["mean"].get<double>(), 1.2 * r["table_4_1"]["noise_floor_mm"][side].get<double>());
-  EXPECT_LE(r["truth"]["surface_to_truth_mm"]["mean"].get<double>(), 0.065);
-  EXPECT_LE(r["continuity"]["g1_normal_jump_deg"]["p95"].get<double>(), 0.3);  // measured 0.15
+  EXPECT_LE(r["truth"]["surface_to_truth_mm"]["mean"].get<double>(), 0.06);
+  EXPECT_LE(r["continuity"]["g1_normal_jump_deg"]["p95"].get<double>(), 0.3);  // measured 0.13
   EXPECT_LE(r["truth"]["surface_to_truth_mm"]["p95"].get<double>(), 0.2);
   EXPECT_GE(r["truth"]["truth_to_surface_mm"]["within_1mm"].get<double>(), 0.995);
   bool gate = false;

@@ -77,27 +77,40 @@ int faces_after(const std::vector<int>& cuts) {
 
 std::vector<int> balance_cuts(const PatchLayout& L, const LayoutTopology& T, std::vector<int> cuts) {
   HS_CHECK(cuts.size() == T.neighbour.size() && cuts.size() == L.faces.size(), "one cut per face");
-  std::vector<std::pair<int, int>> todo;  // (face, side split)
-  for (size_t f = 0; f < cuts.size(); ++f) {
-    if (cuts[f] & kCutU) todo.push_back({static_cast<int>(f), 0}), todo.push_back({static_cast<int>(f), 2});
-    if (cuts[f] & kCutV) todo.push_back({static_cast<int>(f), 1}), todo.push_back({static_cast<int>(f), 3});
-  }
-  while (!todo.empty()) {
-    const auto [f, s] = todo.back();
-    todo.pop_back();
-    const int g = T.neighbour[f][s], gs = T.neighbour_side[f][s];
-    if (g < 0) continue;  // a long side: its halves' faces share it now
-    // A side shared whole gets a T-junction, unless it ends where other than four patches meet:
-    // there the fit holds the border G1 by its normals only (no C1), and a T-junction beside
-    // such a corner folded the flanks of two fingers at their web on the fixture (165° between
-    // their normals). Such a side is split on both faces, as a quad strip would be.
-    const bool by_irregular = !T.regular(L.faces[f][s]) || !T.regular(L.faces[f][(s + 1) % 4]);
-    if (T.half[f][s] < 0 && !by_irregular) continue;
-    const int bit = gs % 2 == 0 ? kCutU : kCutV;
-    if (cuts[g] & bit) continue;
+  const auto bit_of = [](int dir) { return dir == 0 ? kCutU : kCutV; };
+  const auto level_after = [&](int f, int dir) { return L.level(f, dir) + ((cuts[f] & bit_of(dir)) ? 1 : 0); };
+  std::vector<int> todo;  // faces whose cuts changed
+  for (size_t f = 0; f < cuts.size(); ++f)
+    if (cuts[f]) todo.push_back(static_cast<int>(f));
+  const auto add = [&](int g, int bit) {
+    if (cuts[g] & bit) return;
     cuts[g] |= bit;
-    todo.push_back({g, gs});
-    todo.push_back({g, (gs + 2) % 4});
+    todo.push_back(g);
+  };
+  while (!todo.empty()) {
+    const int f = todo.back();
+    todo.pop_back();
+    for (int s = 0; s < 4; ++s) {
+      std::vector<std::pair<int, int>> across;
+      if (T.neighbour[f][s] >= 0) across.push_back({T.neighbour[f][s], T.neighbour_side[f][s]});
+      else for (const auto& piece : T.halves.at({f, s})) across.push_back(piece);
+      const bool split = cuts[f] & (s % 2 == 0 ? kCutU : kCutV);
+      for (const auto& [g, gs] : across) {
+        // A split side shared whole leaves a T-junction, unless it ends where other than four
+        // patches meet: there the fit holds the border G1 by its normals only (no C1), and a
+        // T-junction beside such a corner folded the flanks of two fingers at their web on the
+        // fixture (165° between their normals); such a side is split on both faces. A split
+        // short side would leave a quarter of the long side against it: the long side's face
+        // is cut along it too. (A long side split is shared whole by its halves now.)
+        const bool by_irregular = !T.regular(L.faces[f][s]) || !T.regular(L.faces[f][(s + 1) % 4]);
+        if (split && T.neighbour[f][s] >= 0 && (T.half[f][s] >= 0 || by_irregular)) add(g, gs % 2 == 0 ? kCutU : kCutV);
+        // Graded: across a border the faces' parameters run at most twice as fast one as the
+        // other (their halvings across it differ by at most one). A sliver halved three times
+        // against a neighbour halved once kinked by 36° at a web on the fixture.
+        const int d = s % 2 == 0 ? 1 : 0, dg = gs % 2 == 0 ? 1 : 0;
+        if (level_after(f, d) > level_after(g, dg) + 1) add(g, bit_of(dg));
+      }
+    }
   }
   return cuts;
 }
