@@ -89,17 +89,23 @@ std::vector<G1Border> g1_borders(const PatchSkin& out, const LayoutTopology& T) 
     }
   return list;
 }
-// The border's kink penalty, Σ over samples of w·(L·kink)² (L the cross derivatives' mean
-// length / 3, so that it weighs like a C1 row in mm²), as a 36 × 36 matrix on its ids.
-Eigen::Matrix<double, 36, 36> g1_block(const PatchSkin& out, const G1Border& b, double w) {
+// The kink penalty of the border between side s of patch f and side gs of patch g, Σ over
+// samples of w·(L·kink)² (L the cross derivatives' mean length / 3, so that it weighs like a C1
+// row in mm²), as a 3N × 3N matrix on the block's N control points `ids`. `fb`, `fi`, `gb`, `gi`:
+// where in `ids` f's border, f's inner row, g's border and g's inner row are (each in its own
+// patch's order along the side); the sample t along f's side lies at tg(t) along g's.
+template <int N, typename Along>
+Eigen::Matrix<double, 3 * N, 3 * N> kink_block(const PatchSkin& out, int f, int s, int g, int gs, const std::array<int, N>& ids,
+                                               const int fb[4], const int fi[4], const int gb[4], const int gi[4], Along tg_of,
+                                               double w) {
   constexpr int kSamples = 9;
-  Eigen::Matrix<double, 36, 36> M = Eigen::Matrix<double, 36, 36>::Zero();
+  Eigen::Matrix<double, 3 * N, 3 * N> M = Eigen::Matrix<double, 3 * N, 3 * N>::Zero();
   for (int q = 1; q <= kSamples; ++q) {
-    const double t = q / (kSamples + 1.0);
-    const Eigen::Vector2d a = on_side(b.s, t), c = on_side(b.gs, 1 - t);
+    const double t = q / (kSamples + 1.0), tg = tg_of(t);
+    const Eigen::Vector2d a = on_side(s, t), c = on_side(gs, tg);
     Eigen::Vector3d Sa, Sau, Sav, Sc, Scu, Scv;
-    out.patches[b.f].derivatives(a.x(), a.y(), &Sa, &Sau, &Sav);
-    out.patches[b.g].derivatives(c.x(), c.y(), &Sc, &Scu, &Scv);
+    out.patches[f].derivatives(a.x(), a.y(), &Sa, &Sau, &Sav);
+    out.patches[g].derivatives(c.x(), c.y(), &Sc, &Scu, &Scv);
     const Eigen::Vector3d na = Sau.cross(Sav), nc = Scu.cross(Scv);
     if (na.norm() < 1e-12 || nc.norm() < 1e-12) continue;
     const Eigen::Vector3d nm = na.normalized() + nc.normalized();
@@ -107,28 +113,32 @@ Eigen::Matrix<double, 36, 36> g1_block(const PatchSkin& out, const G1Border& b, 
     const Eigen::Vector3d n = nm.normalized();
     double Bf[4], Bg[4];
     bernstein(t, Bf, nullptr);
-    bernstein(1 - t, Bg, nullptr);
+    bernstein(tg, Bg, nullptr);
     Eigen::Vector3d Df = Eigen::Vector3d::Zero(), Dg = Eigen::Vector3d::Zero();
     for (int k = 0; k < 4; ++k) {
-      Df += 3 * Bf[k] * (out.control[b.ids[4 + k]] - out.control[b.ids[k]]);
-      Dg += 3 * Bg[k] * (out.control[b.ids[8 + k]] - out.control[b.ids[3 - k]]);  // g runs the border the other way
+      Df += 3 * Bf[k] * (out.control[ids[fi[k]]] - out.control[ids[fb[k]]]);
+      Dg += 3 * Bg[k] * (out.control[ids[gi[k]]] - out.control[ids[gb[k]]]);
     }
     const double lf = Df.norm(), lg = Dg.norm();
     if (lf < 1e-9 || lg < 1e-9) continue;
     // Weighed as the unsplit faces' rows would be: a face halved across the border has half
-    // the cross derivative, and the rows' weight (L²) would fall fourfold with each halving (on
-    // the fixture the web's flanks, split twice, kinked by 40° at their shared border so).
-    const double L = (lf / cross_speed(out.layout, b.f, b.s) + lg / cross_speed(out.layout, b.g, b.gs)) / 6;
-    Eigen::Matrix<double, 36, 1> row = Eigen::Matrix<double, 36, 1>::Zero();
+    // the cross derivative, and the rows' weight (L²) would fall fourfold with each halving.
+    const double L = (lf / cross_speed(out.layout, f, s) + lg / cross_speed(out.layout, g, gs)) / 6;
+    Eigen::Matrix<double, 3 * N, 1> row = Eigen::Matrix<double, 3 * N, 1>::Zero();
     for (int k = 0; k < 4; ++k) {
-      row.segment<3>(3 * (4 + k)) += 3 * Bf[k] * L / lf * n;
-      row.segment<3>(3 * k) -= 3 * Bf[k] * L / lf * n;
-      row.segment<3>(3 * (8 + k)) += 3 * Bg[k] * L / lg * n;
-      row.segment<3>(3 * (3 - k)) -= 3 * Bg[k] * L / lg * n;
+      row.template segment<3>(3 * fi[k]) += 3 * Bf[k] * L / lf * n;
+      row.template segment<3>(3 * fb[k]) -= 3 * Bf[k] * L / lf * n;
+      row.template segment<3>(3 * gi[k]) += 3 * Bg[k] * L / lg * n;
+      row.template segment<3>(3 * gb[k]) -= 3 * Bg[k] * L / lg * n;
     }
     M.noalias() += w * row * row.transpose();
   }
   return M;
+}
+// A shared border's: g runs it the other way, its border is f's reversed.
+Eigen::Matrix<double, 36, 36> g1_block(const PatchSkin& out, const G1Border& b, double w) {
+  static constexpr int fb[4] = {0, 1, 2, 3}, fi[4] = {4, 5, 6, 7}, gb[4] = {3, 2, 1, 0}, gi[4] = {8, 9, 10, 11};
+  return kink_block<12>(out, b.f, b.s, b.g, b.gs, b.ids, fb, fi, gb, gi, [](double t) { return 1 - t; }, w);
 }
 
 // G1 across a T-junction's short side (LayoutTopology) that ends where other than four patches
@@ -162,40 +172,9 @@ std::vector<HangingBorder> hanging_borders(const PatchSkin& out, const LayoutTop
   return list;
 }
 Eigen::Matrix<double, 48, 48> hanging_block(const PatchSkin& out, const HangingBorder& b, double w) {
-  constexpr int kSamples = 9;
-  Eigen::Matrix<double, 48, 48> M = Eigen::Matrix<double, 48, 48>::Zero();
-  for (int q = 1; q <= kSamples; ++q) {
-    const double t = q / (kSamples + 1.0), tg = 0.5 * b.h + 0.5 * (1 - t);
-    const Eigen::Vector2d a = on_side(b.s, t), c = on_side(b.gs, tg);
-    Eigen::Vector3d Sa, Sau, Sav, Sc, Scu, Scv;
-    out.patches[b.f].derivatives(a.x(), a.y(), &Sa, &Sau, &Sav);
-    out.patches[b.g].derivatives(c.x(), c.y(), &Sc, &Scu, &Scv);
-    const Eigen::Vector3d na = Sau.cross(Sav), nc = Scu.cross(Scv);
-    if (na.norm() < 1e-12 || nc.norm() < 1e-12) continue;
-    const Eigen::Vector3d nm = na.normalized() + nc.normalized();
-    if (nm.norm() < 1e-6) continue;
-    const Eigen::Vector3d n = nm.normalized();
-    double Bf[4], Bg[4];
-    bernstein(t, Bf, nullptr);
-    bernstein(tg, Bg, nullptr);
-    Eigen::Vector3d Df = Eigen::Vector3d::Zero(), Dg = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 4; ++k) {
-      Df += 3 * Bf[k] * (out.control[b.ids[4 + k]] - out.control[b.ids[k]]);
-      Dg += 3 * Bg[k] * (out.control[b.ids[12 + k]] - out.control[b.ids[8 + k]]);
-    }
-    const double lf = Df.norm(), lg = Dg.norm();
-    if (lf < 1e-9 || lg < 1e-9) continue;
-    const double L = (lf / cross_speed(out.layout, b.f, b.s) + lg / cross_speed(out.layout, b.g, b.gs)) / 6;
-    Eigen::Matrix<double, 48, 1> row = Eigen::Matrix<double, 48, 1>::Zero();
-    for (int k = 0; k < 4; ++k) {
-      row.segment<3>(3 * (4 + k)) += 3 * Bf[k] * L / lf * n;
-      row.segment<3>(3 * k) -= 3 * Bf[k] * L / lf * n;
-      row.segment<3>(3 * (12 + k)) += 3 * Bg[k] * L / lg * n;
-      row.segment<3>(3 * (8 + k)) -= 3 * Bg[k] * L / lg * n;
-    }
-    M.noalias() += w * row * row.transpose();
-  }
-  return M;
+  static constexpr int fb[4] = {0, 1, 2, 3}, fi[4] = {4, 5, 6, 7}, gb[4] = {8, 9, 10, 11}, gi[4] = {12, 13, 14, 15};
+  const double h = b.h;
+  return kink_block<16>(out, b.f, b.s, b.g, b.gs, b.ids, fb, fi, gb, gi, [h](double t) { return 0.5 * h + 0.5 * (1 - t); }, w);
 }
 
 // The normal equations' solver, kept from round to round. The matrix's pattern is the same
