@@ -24,25 +24,21 @@ double cross_speed(const PatchLayout& L, int f, int s) { return std::ldexp(1.0, 
 // along it.
 int net_edge_near(const PatchSkin& s, int v, int w, double* speed) {
   const auto& faces = s.layout.faces;
-  for (size_t f = 0; f < faces.size(); ++f)
-    for (int k = 0; k < 4; ++k)
-      if (faces[f][k] == v && faces[f][(k + 1) % 4] == w) {
-        std::array<std::array<int, 2>, 4> on, in;
-        border(k, &on, &in);
-        *speed = cross_speed(s.layout, static_cast<int>(f), k + 1);
-        return s.patch_control[f][4 * on[1][0] + on[1][1]];
-      }
-  // A long side (LayoutTopology::around names its far end) run the other way by its face only.
-  for (size_t f = 0; f < faces.size(); ++f)
-    for (int k = 0; k < 4; ++k)
-      if (faces[f][k] == w && faces[f][(k + 1) % 4] == v) {
-        std::array<std::array<int, 2>, 4> on, in;
-        border(k, &on, &in);
-        *speed = cross_speed(s.layout, static_cast<int>(f), k + 1);
-        return s.patch_control[f][4 * on[2][0] + on[2][1]];
-      }
-  HS_CHECK(false, "patch net: no face runs an edge of the layout");
-  return -1;
+  // The face that runs v -> w; else (a long side, which LayoutTopology::around names by its far
+  // end) the one that runs w -> v, its face's only.
+  int found = -1, side = -1;
+  bool forward = false;
+  for (size_t f = 0; f < faces.size() && !forward; ++f)
+    for (int k = 0; k < 4 && !forward; ++k) {
+      const int a = faces[f][k], b = faces[f][(k + 1) % 4];
+      if ((a == v && b == w) || (found < 0 && a == w && b == v)) found = static_cast<int>(f), side = k, forward = a == v;
+    }
+  HS_CHECK(found >= 0, "patch net: no face runs an edge of the layout");
+  std::array<std::array<int, 2>, 4> on, in;
+  border(side, &on, &in);
+  *speed = cross_speed(s.layout, found, side + 1);
+  const auto& near = on[forward ? 1 : 2];
+  return s.patch_control[found][4 * near[0] + near[1]];
 }
 
 
@@ -275,6 +271,19 @@ struct NetSolver {
 };
 
 namespace {
+
+// Each border's kink block (made on every thread) added at its slots in A's values.
+template <int M, typename Border, typename Make>
+void add_kink_blocks(const std::vector<Border>& borders, const std::vector<int>& slots, Make make, double* values) {
+  std::vector<Eigen::Matrix<double, M, M>> blocks(borders.size());
+#pragma omp parallel for schedule(static)
+  for (long k = 0; k < static_cast<long>(blocks.size()); ++k) blocks[k] = make(borders[k]);
+  for (size_t k = 0; k < blocks.size(); ++k) {
+    const int* slot = &slots[k * M * M];
+    for (int a = 0; a < M; ++a)
+      for (int b = 0; b < M; ++b) values[slot[M * a + b]] += blocks[k](a, b);
+  }
+}
 
 // A direct solve of A x = b with A the solver's matrix; the factor is kept (later rounds'
 // conjugate gradients are preconditioned by it).
@@ -589,22 +598,9 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
   }
   if (normals) {
     const double w = wsum / n * (o.c1_weight + o.fairness) * kG1Weight;
-    std::vector<Eigen::Matrix<double, 36, 36>> gb(solver->g1.size());
-#pragma omp parallel for schedule(static)
-    for (long k = 0; k < static_cast<long>(gb.size()); ++k) gb[k] = g1_block(*out, solver->g1[k], w);
-    for (size_t k = 0; k < gb.size(); ++k) {
-      const int* slot = &solver->g1_slot[k * 36 * 36];
-      for (int a = 0; a < 36; ++a)
-        for (int b = 0; b < 36; ++b) As.valuePtr()[slot[36 * a + b]] += gb[k](a, b);
-    }
-    std::vector<Eigen::Matrix<double, 48, 48>> hb(solver->hanging.size());
-#pragma omp parallel for schedule(static)
-    for (long k = 0; k < static_cast<long>(hb.size()); ++k) hb[k] = hanging_block(*out, solver->hanging[k], w);
-    for (size_t k = 0; k < hb.size(); ++k) {
-      const int* slot = &solver->hanging_slot[k * 48 * 48];
-      for (int a = 0; a < 48; ++a)
-        for (int b = 0; b < 48; ++b) As.valuePtr()[slot[48 * a + b]] += hb[k](a, b);
-    }
+    add_kink_blocks<36>(solver->g1, solver->g1_slot, [&](const G1Border& b) { return g1_block(*out, b, w); }, As.valuePtr());
+    add_kink_blocks<48>(solver->hanging, solver->hanging_slot, [&](const HangingBorder& b) { return hanging_block(*out, b, w); },
+                        As.valuePtr());
   }
   if (solver->reduced) {
     if (normals) solver->Ar = solver->C.transpose() * As * solver->C;
