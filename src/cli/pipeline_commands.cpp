@@ -263,8 +263,9 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
                                       "handskin) aside into <out>/handskin-backup-<date>/ instead of refusing");
   run->add_flag("--strict", ra->strict, "A failed quality gate (report.json \"gates\") writes nothing and exits 3");
   run->add_option("--patch-tolerance", ra->patch_tolerance,
-                  "Split the patches whose measured points lie farther than this (mm, (0, 100]) and fit again, up to "
-                  "patches.max_patches (300) patches (default: patches.tolerance_mm, none: the thesis's layout)")
+                  "Split the patches whose measured points lie farther than this (mm, [0.001, 100]), locally with exact "
+                  "T-junctions, and fit again, up to patches.max_patches (300) patches (default: patches.tolerance_mm, "
+                  "none: the thesis's layout)")
       ->check(CLI::Range(1e-3, 100.0));
   run->add_flag("--baseline", in->baseline, "Also a Poisson reconstruction of the cloud (baseline.ply and its figures, for comparison; ~0.5 s)");
   run->parse_complete_callback([run, back, palm, cloud] {
@@ -317,8 +318,8 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
                                    "(default: <skin-dir>/patches)");
   pc->add_option("--pipeline", pa->pipeline, "Pipeline parameters (the patches section; slicing and skin when the skin is built again)");
   pc->add_option("--patch-tolerance", pa->patch_tolerance,
-                 "Split the patches whose measured points lie farther than this (mm, (0, 100]) and fit again, up to "
-                 "patches.max_patches (300) patches (default: patches.tolerance_mm, none)")
+                 "Split the patches whose measured points lie farther than this (mm, [0.001, 100]), locally with exact "
+                 "T-junctions, and fit again, up to patches.max_patches (300) patches (default: patches.tolerance_mm, none)")
       ->check(CLI::Range(1e-3, 100.0));
   pc->add_option("--count", pa->count, "Patches wanted, [24, 1500] (default: patches.count, 96); the hand's layout has 98, split k x k: 98 k^2 nearest");
   pc->add_option("--layout", pa->layout,
