@@ -146,15 +146,16 @@ void LayoutTopology::across(int f, int s, double q, int* g, int* gs, double* gq)
   }
 }
 
+std::vector<std::pair<int, int>> LayoutTopology::sides_across(int f, int s) const {
+  if (neighbour[f][s] >= 0) return {{neighbour[f][s], neighbour_side[f][s]}};
+  const auto& pieces = halves.at({f, s});
+  return {pieces[0], pieces[1]};
+}
+
 std::vector<int> LayoutTopology::faces_across(int f) const {
   std::vector<int> out;
-  for (int s = 0; s < 4; ++s) {
-    if (neighbour[f][s] >= 0) {
-      out.push_back(neighbour[f][s]);
-    } else {
-      for (const auto& piece : halves.at({f, s})) out.push_back(piece.first);
-    }
-  }
+  for (int s = 0; s < 4; ++s)
+    for (const auto& piece : sides_across(f, s)) out.push_back(piece.first);
   return out;
 }
 
@@ -223,6 +224,7 @@ LayoutTopology layout_topology(const PatchLayout& L, const std::string& what) {
       if (T.hangs_on[r].first >= 0)
         throw InputError(what, "vertex " + std::to_string(r) + " hangs on two sides");
       T.hangs_on[r] = owner;
+      T.hanging[owner] = r;
       T.halves[owner] = {first, second};
       T.neighbour[owner.first][owner.second] = -1;
       int h = 0;

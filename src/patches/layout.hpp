@@ -64,6 +64,7 @@ struct LayoutTopology {
   /// Per vertex: the long side (face, side) it hangs on, or (-1, -1). A hanging vertex counts as
   /// regular (valence 4): the faces either side of it split one smooth curve.
   std::vector<std::pair<int, int>> hangs_on;
+  std::map<std::pair<int, int>, int> hanging;  ///< per long side (face, side): the vertex hanging on it
   std::vector<int> valence;                        ///< per vertex: the faces meeting there
   std::vector<std::vector<int>> around;            ///< per vertex: its edges' other ends, in turn round it (none for a hanging one)
   size_t edges = 0;
@@ -72,6 +73,8 @@ struct LayoutTopology {
   /// The point `q` along side s of face f (0 at its corner s) seen from across: the face, its
   /// side and how far along that side (each face runs a shared side its own way).
   void across(int f, int s, double q, int* g, int* gs, double* gq) const;
+  /// The faces (and their sides) across side s of face f: one, or a long side's two.
+  std::vector<std::pair<int, int>> sides_across(int f, int s) const;
   /// Every face across one of f's sides (a long side's two).
   std::vector<int> faces_across(int f) const;
 };

@@ -228,6 +228,16 @@ void place_data(const std::vector<BezierPatch>& P, const LayoutTopology& T, std:
   for (long k = 0; k < static_cast<long>(data->size()); ++k) locate_globally(P, T, S, grid, &(*data)[k]);
 }
 
+// The surface's unit normal at d's foot point into d.n (zero where it is degenerate); returns
+// the foot point.
+Eigen::Vector3d take_normal(const std::vector<BezierPatch>& P, Datum* d) {
+  Eigen::Vector3d Sp, Su, Sv;
+  P[d->patch].derivatives(d->s, d->t, &Sp, &Su, &Sv);
+  const Eigen::Vector3d nn = Su.cross(Sv);
+  d->n = nn.norm() > 1e-12 ? Eigen::Vector3d(nn.normalized()) : Eigen::Vector3d::Zero();
+  return Sp;
+}
+
 // --- 5. parameter correction (eqs. 4.6–4.7): foot points on the current surface, refit ---
 void correct_parameters(PatchSkin* out, const LayoutTopology& T, const PatchLayout& layout, std::vector<Datum>* data,
                         const PatchOptions& o, NetFit* net) {
@@ -279,10 +289,7 @@ void correct_parameters(PatchSkin* out, const LayoutTopology& T, const PatchLayo
 #pragma omp parallel for schedule(static)
     for (long k = 0; k < static_cast<long>(data->size()); ++k) {
       Datum& d = (*data)[k];
-      Eigen::Vector3d Sp, Su, Sv;
-      out->patches[d.patch].derivatives(d.s, d.t, &Sp, &Su, &Sv);
-      const Eigen::Vector3d nn = Su.cross(Sv);
-      d.n = nn.norm() > 1e-12 ? Eigen::Vector3d(nn.normalized()) : Eigen::Vector3d::Zero();
+      const Eigen::Vector3d Sp = take_normal(out->patches, &d);
       moved[k] = -1;
       if (d.side < 0) continue;
       if (touches[was[k]][d.patch]) moved[k] = (Sp - before[k]).norm();
@@ -401,11 +408,13 @@ void bind_and_check(PatchSkin* out, const LayoutTopology& T, const PatchLayout& 
       if (layout.is_crease(layout.faces[f][s], layout.faces[f][(s + 1) % 4])) continue;
       const bool irregular_start = !T.regular(layout.faces[f][s]), irregular_end = !T.regular(layout.faces[f][(s + 1) % 4]);
       for (int q = 1; q <= 9; ++q) {
-        const double along = short_side ? 0.5 * T.half[f][s] + 0.5 * (1 - q / 10.0) : 1 - q / 10.0;
-        const Eigen::Vector2d a = on_side(s, q / 10.0), b = on_side(gs, along);
+        int g_at, gs_at;  // g and gs (a shared side's or a short side's long one)
+        double along;
+        T.across(static_cast<int>(f), s, q / 10.0, &g_at, &gs_at, &along);
+        const Eigen::Vector2d a = on_side(s, q / 10.0), b = on_side(gs_at, along);
         Eigen::Vector3d Sa, Sau, Sav, Sb, Sbu, Sbv;
         out->patches[f].derivatives(a.x(), a.y(), &Sa, &Sau, &Sav);
-        out->patches[g].derivatives(b.x(), b.y(), &Sb, &Sbu, &Sbv);
+        out->patches[g_at].derivatives(b.x(), b.y(), &Sb, &Sbu, &Sbv);
         out->g0_gap_mm = std::max(out->g0_gap_mm, (Sa - Sb).norm());
         const Eigen::Vector3d na = Sau.cross(Sav), nb = Sbu.cross(Sbv);
         if (na.norm() < 1e-12 || nb.norm() < 1e-12) continue;
@@ -526,13 +535,7 @@ PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector
     // corners where other than four patches meet, folded the flanks of two fingers at their
     // web on the fixture (175° between their normals), and nothing after it unfolded them.
 #pragma omp parallel for schedule(static)
-    for (long k = 0; k < static_cast<long>(data.size()); ++k) {
-      Datum& d = data[k];
-      Eigen::Vector3d Sp, Su, Sv;
-      out.patches[d.patch].derivatives(d.s, d.t, &Sp, &Su, &Sv);
-      const Eigen::Vector3d nn = Su.cross(Sv);
-      d.n = nn.norm() > 1e-12 ? Eigen::Vector3d(nn.normalized()) : Eigen::Vector3d::Zero();
-    }
+    for (long k = 0; k < static_cast<long>(data.size()); ++k) take_normal(out.patches, &data[k]);
   }
   NetFit net_fit;  // --- 4. the least squares ---
   net_fit.fit(&out, T, data, o);
@@ -648,8 +651,7 @@ TessellationIndex tessellation_index(const PatchSkin& s, int n, std::vector<std:
         const int gs = T.neighbour_side[f][side];
         p = g[gs], q = g[(gs + 1) % 4], fine = h * n + (n - k);
       } else if (T.neighbour[f][side] < 0 && fine == n) {
-        for (size_t v = 0; v < T.hangs_on.size(); ++v)
-          if (T.hangs_on[v] == std::make_pair(static_cast<int>(f), side)) return &corner[v];
+        return &corner[T.hanging.at({static_cast<int>(f), side})];
       }
     }
     if (p > q) std::swap(p, q), fine = 2 * n - fine;
@@ -691,8 +693,7 @@ TessellationIndex tessellation_index(const PatchSkin& s, int n, std::vector<std:
         int p = c[side], q = c[(side + 1) % 4], fine = 2 * k + 1;
         int id = -1;
         if (fine == n) {
-          for (size_t v = 0; v < T.hangs_on.size(); ++v)
-            if (T.hangs_on[v] == long_side) id = corner[v];
+          id = corner[T.hanging.at(long_side)];
         } else {
           if (p > q) std::swap(p, q), fine = 2 * n - fine;
           const auto it = on_edge.find(std::make_tuple(p, q, fine));

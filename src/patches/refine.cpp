@@ -91,11 +91,8 @@ std::vector<int> balance_cuts(const PatchLayout& L, const LayoutTopology& T, std
     const int f = todo.back();
     todo.pop_back();
     for (int s = 0; s < 4; ++s) {
-      std::vector<std::pair<int, int>> across;
-      if (T.neighbour[f][s] >= 0) across.push_back({T.neighbour[f][s], T.neighbour_side[f][s]});
-      else for (const auto& piece : T.halves.at({f, s})) across.push_back(piece);
       const bool split = cuts[f] & (s % 2 == 0 ? kCutU : kCutV);
-      for (const auto& [g, gs] : across) {
+      for (const auto& [g, gs] : T.sides_across(f, s)) {
         // A split side shared whole leaves a T-junction, unless it ends where other than four
         // patches meet: there the fit holds the border G1 by its normals only (no C1), and a
         // T-junction beside such a corner folded the flanks of two fingers at their web on the
@@ -126,9 +123,8 @@ LayoutSplit split_layout(const PatchSkin& s, const std::vector<int>& cuts) {
   for (size_t v = 0; v < L.vertices.size(); ++v) N.vertices[v] = s.control[v];
   // A long side's midpoint is the vertex hanging on it already.
   std::map<std::pair<int, int>, int> mid;
-  for (size_t v = 0; v < T.hangs_on.size(); ++v)
-    if (const auto [f, side] = T.hangs_on[v]; f >= 0)
-      mid.emplace(std::minmax(L.faces[f][side], L.faces[f][(side + 1) % 4]), static_cast<int>(v));
+  for (const auto& [long_side, v] : T.hanging)
+    mid.emplace(std::minmax(L.faces[long_side.first][long_side.second], L.faces[long_side.first][(long_side.second + 1) % 4]), v);
   const auto edge_mid = [&](int f, int side) {
     const int a = L.faces[f][side], b = L.faces[f][(side + 1) % 4];
     const auto key = std::minmax(a, b);
