@@ -264,6 +264,15 @@ struct NetSolver {
   Eigen::SparseMatrix<double> C1;  ///< control points × free ones (one coordinate)
   Eigen::SparseMatrix<double> C;   ///< C1 ⊗ I₃, the unknowns interleaved
   Eigen::SparseMatrix<double> Ar;
+  /// Cᵀ A C by a fixed scatter: A's pattern and C are the same every round, and so is Ar's
+  /// pattern, so each of A's values adds, with fixed weights, into fixed entries of Ar's values:
+  /// those of A's value p are `scatter[scatter_begin[p] .. scatter_begin[p + 1])`. One pass over
+  /// A's values a round instead of two general sparse products (12–80 ms a round at 250–270
+  /// patches on the fixture; the scatter itself is made once per fit, in 50–80 ms), and Ar's
+  /// pattern is analysed once per fit instead of before every factorisation (10–20 ms each).
+  std::vector<int> scatter_begin;
+  std::vector<std::pair<int, double>> scatter;
+  bool analysed = false;  ///< llt holds the analysis of Ar's pattern
   const Eigen::SparseMatrix<double>& system() const { return reduced ? Ar : A; }
   Eigen::VectorXd x;  ///< the last solution (of the system solved)
   Eigen::VectorXd rhs;  ///< the last right-hand side (system() x = rhs)
@@ -288,7 +297,7 @@ void add_kink_blocks(const std::vector<Border>& borders, const std::vector<int>&
 // A direct solve of A x = b with A the solver's matrix; the factor is kept (later rounds'
 // conjugate gradients are preconditioned by it).
 Eigen::VectorXd solve_directly(NetSolver* solver, const Eigen::VectorXd& b) {
-  if (solver->reduced) solver->llt.analyzePattern(solver->Ar);  // Cᵀ A C's pattern is made anew each round
+  if (solver->reduced && !solver->analysed) solver->llt.analyzePattern(solver->Ar), solver->analysed = true;
   solver->llt.factorize(solver->system());
   HS_CHECK(solver->llt.info() == Eigen::Success, "patch fit: the normal equations could not be factored");
   solver->factored = true;
@@ -457,6 +466,50 @@ void block_slots(const Eigen::SparseMatrix<double>& A, const std::vector<int>& u
   }
 }
 
+// Ar's pattern (Cᵀ A C of A's pattern) and the scatter that makes its values from A's
+// (NetSolver::scatter). A's value at (i, j) adds C(i, a) C(j, b) of itself to Ar(a, b).
+void reduction_scatter(NetSolver* solver) {
+  const Eigen::SparseMatrix<double>& A = solver->A;
+  const Eigen::SparseMatrix<double, Eigen::RowMajor> Crow = solver->C;  // per unknown, the free unknowns it is made of
+  using RowIt = Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator;
+  // The pattern, column by column: A's entry (i, j) reaches every (a, b) with a in row i of C
+  // and b in row j.
+  const int m = static_cast<int>(solver->C.cols());
+  std::vector<std::vector<int>> rows_of(m);
+  for (int j = 0; j < A.outerSize(); ++j)
+    for (RowIt cj(Crow, j); cj; ++cj) {
+      std::vector<int>& col = rows_of[cj.col()];
+      for (Eigen::SparseMatrix<double>::InnerIterator it(A, j); it; ++it)
+        for (RowIt ci(Crow, it.row()); ci; ++ci) col.push_back(static_cast<int>(ci.col()));
+    }
+  std::vector<int> outer(m + 1, 0), inner;
+  for (int b = 0; b < m; ++b) {
+    std::vector<int>& col = rows_of[b];
+    std::sort(col.begin(), col.end());
+    col.erase(std::unique(col.begin(), col.end()), col.end());
+    inner.insert(inner.end(), col.begin(), col.end());
+    outer[b + 1] = static_cast<int>(inner.size());
+    std::vector<int>().swap(col);
+  }
+  const std::vector<double> zeros(inner.size(), 0.0);
+  solver->Ar = Eigen::Map<const Eigen::SparseMatrix<double>>(m, m, static_cast<long>(inner.size()), outer.data(), inner.data(),
+                                                            zeros.data());
+  const auto slot = [&](int r, int c) {  // the index of Ar's entry (r, c) in its values
+    const int* it = std::lower_bound(inner.data() + outer[c], inner.data() + outer[c + 1], r);
+    return static_cast<int>(it - inner.data());
+  };
+  solver->scatter_begin.assign(1, 0);
+  solver->scatter.clear();
+  solver->scatter.reserve(static_cast<size_t>(A.nonZeros()) + static_cast<size_t>(A.nonZeros()) / 4);
+  for (int j = 0; j < A.outerSize(); ++j)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(A, j); it; ++it) {
+      for (RowIt ci(Crow, it.row()); ci; ++ci)
+        for (RowIt cj(Crow, j); cj; ++cj)
+          solver->scatter.emplace_back(slot(static_cast<int>(ci.col()), static_cast<int>(cj.col())), ci.value() * cj.value());
+      solver->scatter_begin.push_back(static_cast<int>(solver->scatter.size()));
+    }
+}
+
 // Least squares for every control point at once (eq. 4.5): the data, C1 across every border
 // but next to a corner where other than four patches meet (there it would flatten the corner's
 // tangents): those borders are held G1 (g1_block) from the second round on, the corner itself
@@ -586,6 +639,7 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
       solver->C1.setFromTriplets(c1.begin(), c1.end());
       solver->C.resize(3 * n, 3 * m);
       solver->C.setFromTriplets(c3.begin(), c3.end());
+      reduction_scatter(solver);
     } else {
       solver->llt.analyzePattern(As);
     }
@@ -603,7 +657,14 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
                         As.valuePtr());
   }
   if (solver->reduced) {
-    if (normals) solver->Ar = solver->C.transpose() * As * solver->C;
+    if (normals) {
+      double* ar = solver->Ar.valuePtr();
+      std::fill(ar, ar + solver->Ar.nonZeros(), 0.0);
+      const double* a = As.valuePtr();
+      for (long p = 0; p < As.nonZeros(); ++p)
+        for (int q = solver->scatter_begin[p]; q < solver->scatter_begin[p + 1]; ++q)
+          ar[solver->scatter[q].first] += solver->scatter[q].second * a[p];
+    }
     R = Eigen::VectorXd(solver->C.transpose() * R);
   }
   Eigen::VectorXd X;
