@@ -6,7 +6,7 @@ that a refactor left behaviour unchanged (issue 36).
 
 Every file must be in both and byte-identical, except what a clock writes: in JSON files the
 values of timing keys (total_seconds, seconds, *_seconds, timings_ms, *_ms); in report.html the
-cells of the run's timing table ("The run") and "N ms"; in the commands' printed lines, "N ms";
+cells of the run's timing table ("The run"), the refinement table's fit times and "N ms"; in the commands' printed lines, "N ms";
 the manifest's digests of the JSON and HTML files follow.
 Prints each difference, one line each; exits 1 when there is any.
 """
@@ -29,10 +29,15 @@ def strip_json(o):
 def strip_html(text):
     text = re.sub(r"[0-9]+ ms\b", "# ms", text)
     i = text.find("<h2>The run</h2>")
-    if i < 0:
-        return text
-    j = text.find("</table>", i)
-    return text[:i] + re.sub(r"<td>[0-9.]+</td>", "<td>#</td>", text[i:j]) + text[j:]
+    if i >= 0:
+        j = text.find("</table>", i)
+        text = text[:i] + re.sub(r"<td>[0-9.]+</td>", "<td>#</td>", text[i:j]) + text[j:]
+    # The refinement's table: its last column is each fit's time.
+    i = text.find("<h2>Refinement to ")
+    if i >= 0:
+        j = text.find("</table>", i)
+        text = text[:i] + re.sub(r"<td>[0-9.]+</td>(\s*</tr>)", r"<td>#</td>\1", text[i:j]) + text[j:]
+    return text
 
 
 def strip_text(text):

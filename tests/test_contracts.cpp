@@ -384,10 +384,12 @@ TEST(Contracts, TheBaselineIsOptInAndRepeatsByteForByte) {
 TEST(Contracts, RunGivesTheSameBytesOnOneThreadAndOnTwo) {
   // Stages run pieces in parallel (registration's detections, the skin's check beside its
   // build, the patches' foot points), each into its own slot: the thread count changes nothing.
+  // (--threads; scripts/check_threads.sh, test threads_same_bytes, compares every file of the
+  // run and of a refined patch fit.)
   std::string out;
   const std::string one = test::temp_dir("t1") + "/out", two = test::temp_dir("t2") + "/out";
-  ASSERT_EQ(test::run("OMP_NUM_THREADS=1 " + run_cmd(one), &out), 0) << out;
-  ASSERT_EQ(test::run("OMP_NUM_THREADS=2 " + run_cmd(two), &out), 0) << out;
+  ASSERT_EQ(test::run(run_cmd(one) + " --threads 1", &out), 0) << out;
+  ASSERT_EQ(test::run(run_cmd(two) + " --threads 2", &out), 0) << out;
   for (const char* f : {"merged.ply", "skin.ply", "skin.obj", "slices.json", "patches.json", "patches.ply", "skin.glb", "skin.png"})
     EXPECT_TRUE(read_file(one + "/" + f) == read_file(two + "/" + f)) << f;
   Json a = load_json_object(one + "/registration.json"), b = load_json_object(two + "/registration.json");

@@ -390,13 +390,22 @@ TEST(Patches, ToleranceSplitsOnlyWhereThePointsMiss) {
   EXPECT_LE(r["continuity"]["g1_normal_jump_deg"]["p95"].get<double>(), 0.3);  // measured 0.13
   EXPECT_LE(r["truth"]["surface_to_truth_mm"]["p95"].get<double>(), 0.2);
   EXPECT_GE(r["truth"]["truth_to_surface_mm"]["within_1mm"].get<double>(), 0.995);
-  bool gate = false;
-  for (const auto& g : r["gates"])
+  bool gate = false, kink = false;
+  for (const auto& g : r["gates"]) {
     if (g["name"] == "patches.tolerance") {
       gate = true;
       EXPECT_TRUE(g["pass"].get<bool>());
     }
+    // The G1 gate says what the continuity figures measure (the refined fit folds at the
+    // ring-little web: 65-76 deg, docs/patches.md), and fails when they pass its limit.
+    if (g["name"] == "patches.g1_kink") {
+      kink = true;
+      EXPECT_EQ(g["value"].get<double>(), r["continuity"]["g1_normal_jump_deg"]["max"].get<double>());
+      EXPECT_EQ(g["pass"].get<bool>(), g["value"].get<double>() <= g["limit"].get<double>());
+    }
+  }
   EXPECT_TRUE(gate);
+  EXPECT_TRUE(kink);
   // patches.json carries the refined net: its layout has the split faces (names with '/'),
   // and the patches' tessellation is closed.
   const Json p = load_json_object(dir + "/tol/patches.json");

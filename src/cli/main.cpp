@@ -8,6 +8,7 @@
 
 #include "cli/commands.hpp"
 #include "core/errors.hpp"
+#include "pipeline/threads.hpp"
 #include "scan/cloud.hpp"
 
 using namespace handskin;
@@ -21,6 +22,10 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", "handskin 0.1.0");
   cli::Progress progress;
   app.add_flag("-q,--quiet", progress.quiet, "No progress lines on stderr");
+  int threads = 0;
+  app.add_option("--threads", threads,
+                 "Threads for the parallel steps (default: every core); the outputs are the same bytes with any number")
+      ->check(CLI::Range(1, 1024));
   cli::Commands commands;
   cli::add_pipeline_commands(app, progress, &commands);
   cli::add_posture_commands(app, progress, &commands);
@@ -41,6 +46,7 @@ int main(int argc, char** argv) {
     return 2;
   }
 
+  if (threads > 0) set_thread_count(threads);
   try {
     for (const auto& c : commands)
       if (c.app->parsed()) c.run();

@@ -74,6 +74,10 @@ QualityGates check_gates(const GateInputs& in, const PipelineOptions& o) {
             o.gates.patches_to_skin_max_mm, "mm", "gates.patches_to_skin_max_mm");
     at_most("patches.g0_gap", "largest gap between neighbouring patches along their shared borders", p.patches.g0_gap_mm,
             o.gates.g0_gap_mm, "mm", "gates.g0_gap_mm");
+    at_most("patches.g1_kink",
+            "largest angle between neighbouring patches' normals along their borders, away from the corners where "
+            "other than four patches meet (at " + p.patches.g1_max_where + ")",
+            p.patches.g1_max_deg, o.gates.g1_kink_deg, "deg", "gates.g1_kink_deg");
     if (const auto& r = p.patches.refinement)
       at_most("patches.tolerance",
               "the measured points' largest distance to the refined patches" +

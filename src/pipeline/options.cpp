@@ -73,6 +73,7 @@ const std::vector<KeySpec>& key_table() {
       {"gates", "patches_to_skin_p95_mm", Kind::Real, 0, 100, true, HS_FIELD(gates.patches_to_skin_p95_mm)},
       {"gates", "patches_to_skin_max_mm", Kind::Real, 0, 100, true, HS_FIELD(gates.patches_to_skin_max_mm)},
       {"gates", "g0_gap_mm", Kind::Real, 0, 1, true, HS_FIELD(gates.g0_gap_mm)},
+      {"gates", "g1_kink_deg", Kind::Real, 0, 180, true, HS_FIELD(gates.g1_kink_deg)},
   };
   return t;
 }

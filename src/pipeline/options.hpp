@@ -75,6 +75,7 @@ struct PipelineOptions {
     double patches_to_skin_p95_mm = 0.75;   ///< the patch surface to skin.ply
     double patches_to_skin_max_mm = 3.0;
     double g0_gap_mm = 1e-6;                ///< largest gap between neighbouring patches
+    double g1_kink_deg = 30;                ///< largest angle between neighbouring patches' normals, away from irregular corners
   } gates;
 
   /// False with a message naming the key when a value is out of range.

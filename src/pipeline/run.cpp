@@ -15,6 +15,7 @@
 #include "pipeline/gates.hpp"
 #include "pipeline/registration_stage.hpp"
 #include "pipeline/stage_options.hpp"
+#include "pipeline/threads.hpp"
 
 namespace handskin {
 
@@ -166,7 +167,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   // are made (Mesa's llvmpipe renders on the CPU: ~0.3 s for a cloud's 120 000 splats). Each
   // picture is drawn in its own OpenGL context: the same bytes on any thread.
   std::future<std::string> merged_png = std::async(
-      std::launch::async, [m = merged, markers = clouds ? std::vector<Eigen::Vector3d>{} : R.registration.markers_palm] {
+      side_launch(), [m = merged, markers = clouds ? std::vector<Eigen::Vector3d>{} : R.registration.markers_palm] {
         return merged_preview_png(m, markers);
       });
 
@@ -223,7 +224,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   // The patches' pictures on a thread of their own beside the skin's, the posed ones and the glb.
   std::future<PatchReportPictures> patch_pictures;
   if (R.patches)
-    patch_pictures = std::async(std::launch::async, [&patches = R.patches->patches, &rig = R.skin.rig] {
+    patch_pictures = std::async(side_launch(), [&patches = R.patches->patches, &rig = R.skin.rig] {
       return patch_report_pictures(patches, rig);
     });
   const float texture_weight = static_cast<float>(in.options.texture.weight);
