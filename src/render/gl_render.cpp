@@ -1,4 +1,4 @@
-// Pictures of meshes, point clouds and skeletons with Mesa's off-screen OpenGL (OSMesa,
+// Pictures of meshes and skeletons with Mesa's off-screen OpenGL (OSMesa,
 // Debian's libosmesa6-dev). llvmpipe rasterises on the CPU, so no display or GPU is needed,
 // and the pictures get what a real renderer gives:
 // - per-pixel depth;
@@ -17,28 +17,58 @@
 #include "core/errors.hpp"
 #include "core/png_io.hpp"
 #include "render/preview.hpp"
+#include "render/raster.hpp"
 
 namespace handskin {
 
+namespace raster {
+
+Framing frame(const RenderOptions& o, const std::vector<Eigen::Vector3d>& model_points) {
+  HS_CHECK(o.width > 0 && o.height > 0, "empty picture");
+  Framing f;
+  f.lo = Eigen::Vector3d::Constant(1e18), f.hi = -f.lo;
+  for (const auto& p : model_points) {
+    const Eigen::Vector3d q = o.view * p;
+    f.lo = f.lo.cwiseMin(q);
+    f.hi = f.hi.cwiseMax(q);
+  }
+  HS_CHECK(f.hi.x() >= f.lo.x(), "nothing to render");
+  f.scale = 0.92 * std::min(o.width / std::max(f.hi.x() - f.lo.x(), 1e-9), o.height / std::max(f.hi.y() - f.lo.y(), 1e-9));
+  f.centre = 0.5 * (f.lo + f.hi);
+  f.half_w = 0.5 * o.width / f.scale, f.half_h = 0.5 * o.height / f.scale;
+  return f;
+}
+
+std::string downsample_png(const std::vector<std::uint8_t>& rgba, int width, int height) {
+  const int W = width * kSupersample;
+  HS_CHECK(rgba.size() == static_cast<size_t>(W) * height * kSupersample * 4, "a picture's buffer is not its size");
+  std::vector<std::uint8_t> rgb(static_cast<size_t>(width) * height * 3);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x)
+      for (int ch = 0; ch < 3; ++ch) {
+        int sum = 0;
+        for (int dy = 0; dy < kSupersample; ++dy)
+          for (int dx = 0; dx < kSupersample; ++dx)
+            sum += rgba[(static_cast<size_t>(y * kSupersample + dy) * W + x * kSupersample + dx) * 4 + ch];
+        rgb[(static_cast<size_t>(y) * width + x) * 3 + ch] = static_cast<std::uint8_t>(sum / (kSupersample * kSupersample));
+      }
+  return encode_rgb8_png(width, height, rgb);
+}
+
+}  // namespace raster
+
 namespace {
-constexpr int kSupersample = 2;
+using raster::kSupersample;
 
 // One picture: an orthographic camera fitted to view-space points (92 % of the frame, as
 // the range-image previews), the lights, and the view rotation as the modelview.
 class GlPicture {
  public:
   GlPicture(const RenderOptions& o, const std::vector<Eigen::Vector3d>& model_points) : o_(o) {
-    HS_CHECK(o.width > 0 && o.height > 0, "empty picture");
-    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e18), hi = -lo;
-    for (const auto& p : model_points) {
-      const Eigen::Vector3d q = o.view * p;
-      lo = lo.cwiseMin(q);
-      hi = hi.cwiseMax(q);
-    }
-    HS_CHECK(hi.x() >= lo.x(), "nothing to render");
-    scale_ = 0.92 * std::min(o.width / std::max(hi.x() - lo.x(), 1e-9), o.height / std::max(hi.y() - lo.y(), 1e-9));
-    const Eigen::Vector3d c = 0.5 * (lo + hi);
-    const double hw = 0.5 * o.width / scale_, hh = 0.5 * o.height / scale_, depth = std::max(1.0, hi.z() - lo.z());
+    const raster::Framing f = raster::frame(o, model_points);
+    scale_ = f.scale;
+    const Eigen::Vector3d &c = f.centre, &lo = f.lo, &hi = f.hi;
+    const double hw = f.half_w, hh = f.half_h, depth = std::max(1.0, hi.z() - lo.z());
     W_ = o.width * kSupersample;
     H_ = o.height * kSupersample;
     rgba_.resize(static_cast<size_t>(W_) * H_ * 4);
@@ -110,24 +140,14 @@ class GlPicture {
   std::string png() {
     glFinish();
     HS_CHECK(glGetError() == GL_NO_ERROR, "OpenGL reported an error while drawing");
-    std::vector<std::uint8_t> rgb(static_cast<size_t>(o_.width) * o_.height * 3);
-    for (int y = 0; y < o_.height; ++y)
-      for (int x = 0; x < o_.width; ++x)
-        for (int ch = 0; ch < 3; ++ch) {
-          int sum = 0;
-          for (int dy = 0; dy < kSupersample; ++dy)
-            for (int dx = 0; dx < kSupersample; ++dx)
-              sum += rgba_[(static_cast<size_t>(y * kSupersample + dy) * W_ + x * kSupersample + dx) * 4 + ch];
-          rgb[(static_cast<size_t>(y) * o_.width + x) * 3 + ch] = static_cast<std::uint8_t>(sum / (kSupersample * kSupersample));
-        }
-    return encode_rgb8_png(o_.width, o_.height, rgb);
+    return raster::downsample_png(rgba_, o_.width, o_.height);
   }
 
  private:
   const RenderOptions& o_;
   double scale_ = 1;
   int W_ = 0, H_ = 0;
-  std::vector<unsigned char> rgba_;
+  std::vector<std::uint8_t> rgba_;
   OSMesaContext ctx_ = nullptr;
 };
 
@@ -234,27 +254,6 @@ std::string render_mesh_png(const std::vector<const Mesh*>& meshes, const Render
     glDisableClientState(GL_VERTEX_ARRAY);
     glDisableClientState(GL_NORMAL_ARRAY);
   }
-  pic.dots(o.points);
-  return pic.png();
-}
-
-std::string render_points_png(const std::vector<Eigen::Vector3d>& points, const std::vector<Eigen::Vector3d>& normals,
-                              const std::vector<Eigen::Vector3f>& colours, const RenderOptions& o) {
-  HS_CHECK(points.size() == normals.size() && points.size() == colours.size(), "point attributes differ in length");
-  GlPicture pic(o, points);
-  lit_material(Eigen::Vector3f::Ones(), true);
-  // Splats about 0.5 mm across (at least 3 px), so a scan's sampling fills the surface.
-  GlPicture::round_points(std::max(3.0, 1.0 * pic.scale()));
-  // Samples without a normal face the viewer.
-  const Eigen::Vector3d facing = o.view.transpose() * Eigen::Vector3d::UnitZ();
-  glBegin(GL_POINTS);
-  for (size_t k = 0; k < points.size(); ++k) {
-    const Eigen::Vector3d n = normals[k].squaredNorm() > 0.5 ? normals[k] : facing;
-    glColor3f(colours[k][0], colours[k][1], colours[k][2]);
-    glNormal3d(n.x(), n.y(), n.z());
-    glVertex3d(points[k].x(), points[k].y(), points[k].z());
-  }
-  glEnd();
   pic.dots(o.points);
   return pic.png();
 }
