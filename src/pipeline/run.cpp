@@ -217,6 +217,8 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
     R.texture = bake_skin_texture(R.rigged.mesh.vertices, R.rigged.mesh.faces, *back_photo, *palm_photo, R.registration.back_to_palm,
                                   R.registration.markers_palm, R.registration.marker_radius_mm, to);
     R.rigged.texture = std::move(R.texture->map);
+    // Encoded once: texture.png and the glb's image are the same bytes.
+    R.rigged.texture_png = encode_rgb8_png(R.rigged.texture.size, R.rigged.texture.size, R.rigged.texture.rgb);
   } else {
     progress(R.texture_note);
   }
@@ -372,8 +374,7 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
                       {"area_blended", t.blended},
                       {"area_unseen", t.unseen},
                       {"faces", {{"palm_chart", t.palm_chart_faces}, {"back_chart", t.back_chart_faces}, {"unseen", t.unseen_faces}}}});
-    const TextureMap& map = r.rigged.texture;
-    write_file_atomic(out.stage("texture.png"), encode_rgb8_png(map.size, map.size, map.rgb));
+    write_file_atomic(out.stage("texture.png"), r.rigged.texture_png);
     outputs["texture_png"] = out.final_path("texture.png");
   } else {
     stages.push_back({{"name", "texture"}, {"seconds", 0.0}, {"skipped", r.texture_note}});

@@ -233,7 +233,7 @@ void add_mesh(tinygltf::Model& m, const RiggedSkin& s, const VertexArrays& a, si
     for (const auto& c : uv) tc.insert(tc.end(), {c.x(), c.y()});
     prim.attributes["TEXCOORD_0"] = add_accessor(m, add_view(m, tc.data(), tc.size() * 4, TINYGLTF_TARGET_ARRAY_BUFFER),
                                                  TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC2, n);
-    const std::string png = encode_rgb8_png(s.texture.size, s.texture.size, s.texture.rgb);
+    const std::string png = s.texture_png.empty() ? encode_rgb8_png(s.texture.size, s.texture.size, s.texture.rgb) : s.texture_png;
     tinygltf::Image image;
     image.name = "skin";
     image.mimeType = "image/png";

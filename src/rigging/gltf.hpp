@@ -34,6 +34,9 @@ struct RiggedSkin {
   SkinBinding binding;
   PostureModel model;
   TextureMap texture;  ///< empty: none (the material is a flat skin tone)
+  /// `texture` as PNG when it is encoded already (run encodes it once for texture.png and the
+  /// glb); empty: skin_glb encodes it. Must be `texture`'s pixels.
+  std::string texture_png;
 };
 
 /// A joint node's local transform in skin.glb at a posture: relative to its parent joint (the
