@@ -312,16 +312,12 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
     ++g.votes;
     g.sum += v;
   }
-  auto votes_in = [&](long a, long b, long c, long half, Eigen::Vector3d* sum) {
+  auto votes_in = [&](long a, long b, long c, long half) {
     long total = 0;
     for (long da = -half; da <= half; ++da)
       for (long db = -half; db <= half; ++db)
-        for (long dc = -half; dc <= half; ++dc) {
-          const Cell* g = grid.find(key(a + da, b + db, c + dc));
-          if (!g) continue;
-          total += g->votes;
-          if (sum) *sum += g->sum;
-        }
+        for (long dc = -half; dc <= half; ++dc)
+          if (const Cell* g = grid.find(key(a + da, b + db, c + dc))) total += g->votes;
     return total;
   };
   struct Peak {
@@ -336,22 +332,27 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
     const Cell& g = grid.cells[slot];
     const long a = (k >> 42) - (1L << 20), b = ((k >> 21) & ((1L << 21) - 1)) - (1L << 20),
                c = (k & ((1L << 21) - 1)) - (1L << 20);
+    // A local maximum of the votes, and its central cube's votes and their sum, in one pass
+    // over its 27 cells.
     bool is_max = true;
+    long central = 0;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     for (long da = -1; da <= 1 && is_max; ++da)
       for (long db = -1; db <= 1 && is_max; ++db)
         for (long dc = -1; dc <= 1; ++dc) {
           const long nk = key(a + da, b + db, c + dc);
           const Cell* n = grid.find(nk);
-          if (n && (n->votes > g.votes || (n->votes == g.votes && nk < k))) {
+          if (!n) continue;
+          if (n->votes > g.votes || (n->votes == g.votes && nk < k)) {
             is_max = false;
             break;
           }
+          central += n->votes;
+          sum += n->sum;
         }
     if (!is_max) continue;
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    const long central = votes_in(a, b, c, 1, &sum);
     if (central < o.min_votes) continue;
-    const long wide = votes_in(a, b, c, 3, nullptr);
+    const long wide = votes_in(a, b, c, 3);
     if (static_cast<double>(central) < o.min_vote_concentration * static_cast<double>(wide)) continue;
     peaks.push_back({central, k, sum / static_cast<double>(central)});
   }
