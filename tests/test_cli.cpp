@@ -33,10 +33,23 @@ TEST(Cli, HelpListsSubcommands) {
   EXPECT_NE(test::run(kBin, &out), 0);
 }
 
+TEST(Cli, TheScansAsCloudsAreWrittenOnRequestOnly) {
+  // back.ply and palm.ply repeat the input scans (6 MB): --scan-clouds asks for them
+  // (RunOnTheFixtureWritesItsOutputs checks them then); a scan pair's run without it has none.
+  const std::string dir = test::default_fixture_run();
+  EXPECT_FALSE(std::filesystem::exists(dir + "/back.ply"));
+  EXPECT_FALSE(std::filesystem::exists(dir + "/palm.ply"));
+  EXPECT_FALSE(load_json_object(dir + "/report.json")["outputs"].contains("back_cloud"));
+  std::string out;
+  EXPECT_EQ(test::run(kBin + " run --cloud " + kFix + "back.json --scan-clouds --out " + test::temp_dir("sc") + "/o", &out), 2)
+      << out;
+  EXPECT_NE(out.find("--scan-clouds"), std::string::npos) << out;
+}
+
 TEST(Cli, RunOnTheFixtureWritesItsOutputs) {
   const std::string dir = test::temp_dir("run") + "/out";
   std::string out;
-  ASSERT_EQ(test::run(run_args(dir) + " --baseline --pipeline " + HANDSKIN_SOURCE_DIR + "/pipelines/cubist.json", &out), 0)
+  ASSERT_EQ(test::run(run_args(dir) + " --baseline --scan-clouds --pipeline " + HANDSKIN_SOURCE_DIR + "/pipelines/cubist.json", &out), 0)
       << out;
   EXPECT_NE(out.find("ingest"), std::string::npos);  // progress lines
   const Json report = load_json_object(dir + "/report.json");

@@ -268,10 +268,12 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
                   "none: the thesis's layout)")
       ->check(CLI::Range(1e-3, 100.0));
   run->add_flag("--baseline", in->baseline, "Also a Poisson reconstruction of the cloud (baseline.ply and its figures, for comparison; ~0.5 s)");
+  run->add_flag("--scan-clouds", in->scan_clouds,
+                "Also back.ply and palm.ply: each scan's measured points in its own scanner frame (6 MB; `convert` makes them too)");
   run->parse_complete_callback([run, back, palm, cloud] {
     if (cloud->count() > 2) throw CLI::ValidationError("--cloud", "one merged cloud or two halves, not " + std::to_string(cloud->count()));
     if (cloud->count() > 0) {
-      for (const char* scan_only : {"--back", "--palm", "--markers", "--back-photo", "--palm-photo"})
+      for (const char* scan_only : {"--back", "--palm", "--markers", "--back-photo", "--palm-photo", "--scan-clouds"})
         if (run->count(scan_only) > 0) throw CLI::ValidationError(scan_only, "is for a scan pair, not with --cloud");
     } else {
       for (const char* cloud_only : {"--units", "--hand"})

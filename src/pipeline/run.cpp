@@ -156,8 +156,10 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
     }
     R.back = scan_figures(back, in.back_stem);
     R.palm = scan_figures(palm, in.palm_stem);
-    R.back_cloud = dense_copy(*scan_to_organized_cloud(back));
-    R.palm_cloud = dense_copy(*scan_to_organized_cloud(palm));
+    if (in.scan_clouds) {
+      R.back_cloud = dense_copy(*scan_to_organized_cloud(back));
+      R.palm_cloud = dense_copy(*scan_to_organized_cloud(palm));
+    }
     R.ingest_seconds = t_ingest.seconds();
     merged = register_pair(in, back, palm, hints, truth, &R, progress);
     si.cloud_name = "merged cloud of " + in.back_stem + " and " + in.palm_stem;
@@ -269,7 +271,8 @@ std::vector<std::string> run_output_plan(const RunInputs& in) {
     if (in.options.patches.enabled) n.insert(n.end(), patch_output_names().begin(), patch_output_names().end());
     return n;
   }
-  std::vector<std::string> n = {"back.ply", "palm.ply", "report.json", "skin.glb"};
+  std::vector<std::string> n = {"report.json", "skin.glb"};
+  if (in.scan_clouds) n.insert(n.end(), {"back.ply", "palm.ply"});
   if (run_photo_paths(in)) n.push_back("texture.png");
   n.insert(n.end(), registration_output_names().begin(), registration_output_names().end());
   const auto skin = skin_output_plan(in.auto_rig || in.rig_path.empty(), in.options.skin.slices_json,
@@ -303,10 +306,12 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
     write_file_atomic(out.stage("merged.png"), r.merged_png);
     outputs["merged_preview"] = out.final_path("merged.png");
   } else {
-    save_cloud(out.stage("back.ply"), *r.back_cloud);
-    outputs["back_cloud"] = out.final_path("back.ply");
-    save_cloud(out.stage("palm.ply"), *r.palm_cloud);
-    outputs["palm_cloud"] = out.final_path("palm.ply");
+    if (r.back_cloud && r.palm_cloud) {  // --scan-clouds
+      save_cloud(out.stage("back.ply"), *r.back_cloud);
+      outputs["back_cloud"] = out.final_path("back.ply");
+      save_cloud(out.stage("palm.ply"), *r.palm_cloud);
+      outputs["palm_cloud"] = out.final_path("palm.ply");
+    }
     Json reg_report = registration_to_json(r.registration);
     if (r.registration_truth) reg_report["against_truth"] = *r.registration_truth;
     outputs.update(write_registration_outputs(out, r.registration, reg_report, r.merged_png));

@@ -38,6 +38,9 @@ struct RunInputs {
   std::string rig_path;    ///< hand-rig/1, palm frame; empty: the skeleton is placed automatically
   bool auto_rig = false;   ///< place the skeleton automatically even with a rig (and compare)
   bool baseline = false;   ///< also the CGAL Poisson baseline (or the pipeline's skin.baseline)
+  /// Also back.ply and palm.ply: each scan's measured points in its own scanner frame. On
+  /// request only (issue 39): 6 MB a run that repeat the input scans (`convert` makes them too).
+  bool scan_clouds = false;
   std::string markers_path;   ///< optional handskin-markers/1 (manual marker positions)
   std::string pipeline_path;  ///< empty: built-in defaults (= pipelines/cubist.json)
   std::string truth_path;     ///< optional truth.json (synthetic pairs): errors against it in the report
