@@ -157,7 +157,8 @@ def print_table(rows, fails, stats, regs, json_path=None):
                      f"{max(f['patch_mean'] for f in pf):.4f}, p95 worst {max(f['patch_p95'] for f in pf):.3f},"
                      f" max worst {max(f['patch_max'] for f in pf):.2f}, within 1 mm worst "
                      f"{100 * min(f['patch_within_1mm'] for f in pf):.2f} %")
-        line += f"; run median {statistics.median(f['seconds'] for f in fs):.2f} s"
+        line += (f"; run median {statistics.median(f['seconds'] for f in fs):.2f} s,"
+                 f" slowest {max(f['seconds'] for f in fs):.2f} s")
         print(line)
     if regs:
         over = [f"{n} ({r:.4f} deg / {m:.4f} mm)" for n, r, m in regs if r > 0.02 or m > 0.05]
