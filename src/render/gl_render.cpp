@@ -77,7 +77,7 @@ class GlPicture {
     HS_CHECK(OSMesaMakeCurrent(ctx_, rgba_.data(), GL_UNSIGNED_BYTE, W_, H_), "OSMesa could not bind its buffer");
     OSMesaPixelStore(OSMESA_Y_UP, 0);  // row 0 at the top, as PNG
     glViewport(0, 0, W_, H_);
-    glClearColor(246 / 255.f, 246 / 255.f, 248 / 255.f, 1);
+    glClearColor(raster::kBackground[0] / 255.f, raster::kBackground[1] / 255.f, raster::kBackground[2] / 255.f, 1);
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
     glEnable(GL_DEPTH_TEST);
     glMatrixMode(GL_PROJECTION);
@@ -88,8 +88,12 @@ class GlPicture {
     glLoadIdentity();
     // Lights in view space (set under the identity modelview): key from the upper left, fill
     // from below.
-    const GLfloat key[] = {-0.4f, 0.5f, 1.0f, 0.f}, fill[] = {0.3f, -0.7f, 0.65f, 0.f};
-    const GLfloat key_c[] = {0.63f, 0.63f, 0.63f, 1.f}, fill_c[] = {0.3f, 0.3f, 0.3f, 1.f}, amb[] = {0.22f, 0.22f, 0.22f, 1.f};
+    namespace L = raster::light;
+    const auto gf = [](double v) { return static_cast<GLfloat>(v); };
+    const GLfloat key[] = {gf(L::kKey[0]), gf(L::kKey[1]), gf(L::kKey[2]), 0.f}, fill[] = {gf(L::kFill[0]), gf(L::kFill[1]), gf(L::kFill[2]), 0.f};
+    const GLfloat key_c[] = {gf(L::kKeyColour), gf(L::kKeyColour), gf(L::kKeyColour), 1.f},
+                  fill_c[] = {gf(L::kFillColour), gf(L::kFillColour), gf(L::kFillColour), 1.f},
+                  amb[] = {gf(L::kAmbient), gf(L::kAmbient), gf(L::kAmbient), 1.f};
     const GLfloat none[] = {0, 0, 0, 1};
     glEnable(GL_LIGHT0);
     glEnable(GL_LIGHT1);
@@ -129,8 +133,8 @@ class GlPicture {
     if (points.empty()) return;
     glDisable(GL_LIGHTING);
     glDisable(GL_DEPTH_TEST);
-    round_points(7);
-    glColor3f(200 / 255.f, 30 / 255.f, 40 / 255.f);
+    round_points(raster::kDotPx);
+    glColor3f(raster::kDotColour[0] / 255.f, raster::kDotColour[1] / 255.f, raster::kDotColour[2] / 255.f);
     glBegin(GL_POINTS);
     for (const auto& p : points) glVertex3d(p.x(), p.y(), p.z());
     glEnd();
@@ -152,7 +156,8 @@ class GlPicture {
 };
 
 void lit_material(const Eigen::Vector3f& colour, bool per_vertex_colour) {
-  const GLfloat c[] = {colour[0], colour[1], colour[2], 1.f}, spec[] = {0.12f, 0.12f, 0.12f, 1.f};
+  const GLfloat sp = static_cast<GLfloat>(raster::light::kSpecular);
+  const GLfloat c[] = {colour[0], colour[1], colour[2], 1.f}, spec[] = {sp, sp, sp, 1.f};
   glEnable(GL_LIGHTING);
   if (per_vertex_colour) {
     glColorMaterial(GL_FRONT_AND_BACK, GL_AMBIENT_AND_DIFFUSE);
@@ -162,7 +167,7 @@ void lit_material(const Eigen::Vector3f& colour, bool per_vertex_colour) {
     glMaterialfv(GL_FRONT_AND_BACK, GL_AMBIENT_AND_DIFFUSE, c);
   }
   glMaterialfv(GL_FRONT_AND_BACK, GL_SPECULAR, spec);
-  glMaterialf(GL_FRONT_AND_BACK, GL_SHININESS, 24.f);
+  glMaterialf(GL_FRONT_AND_BACK, GL_SHININESS, static_cast<GLfloat>(raster::light::kShininess));
 }
 
 // A texture bound for one draw, as the thesis blended photo and shading: texture unit 0

@@ -19,18 +19,17 @@ namespace handskin {
 
 namespace {
 
-// OpenGL's fixed-function lighting as gl_render.cpp sets it up, for a point (always lit from
-// the front): the scene's ambient 0.22, a key light (diffuse and specular 0.63) from the upper
-// left and a fill light (diffuse 0.3) from below, both directional, the viewer at infinity;
-// the colour is the material's ambient and diffuse, its specular 0.12, shininess 24.
+// OpenGL's fixed-function lighting of the lights gl_render.cpp sets up (raster::light), for a
+// point (always lit from the front): the colour is the material's ambient and diffuse.
 struct Lights {
-  Eigen::Vector3d key = Eigen::Vector3d(-0.4, 0.5, 1.0).normalized();
-  Eigen::Vector3d fill = Eigen::Vector3d(0.3, -0.7, 0.65).normalized();
+  Eigen::Vector3d key = Eigen::Vector3d(raster::light::kKey).normalized();
+  Eigen::Vector3d fill = Eigen::Vector3d(raster::light::kFill).normalized();
   Eigen::Vector3d half = (key + Eigen::Vector3d::UnitZ()).normalized();
   Eigen::Vector3d shade(const Eigen::Vector3d& n, const Eigen::Vector3f& c) const {
+    namespace L = raster::light;
     const double k = n.dot(key), f = std::max(0.0, n.dot(fill));
-    const double diffuse = 0.22 + 0.63 * std::max(0.0, k) + 0.3 * f;
-    const double spec = k > 0 ? 0.63 * 0.12 * std::pow(std::max(0.0, n.dot(half)), 24.0) : 0.0;
+    const double diffuse = L::kAmbient + L::kKeyColour * std::max(0.0, k) + L::kFillColour * f;
+    const double spec = k > 0 ? L::kKeyColour * L::kSpecular * std::pow(std::max(0.0, n.dot(half)), L::kShininess) : 0.0;
     return (diffuse * c.cast<double>().array() + spec).min(1.0).matrix();
   }
 };
@@ -62,7 +61,8 @@ std::string render_points_png(const std::vector<Eigen::Vector3d>& points, const 
   constexpr int S = raster::kSupersample;
   const int W = o.width * S, H = o.height * S;
   std::vector<std::uint8_t> rgba(static_cast<size_t>(W) * H * 4);
-  for (size_t k = 0; k < rgba.size(); k += 4) rgba[k] = 246, rgba[k + 1] = 246, rgba[k + 2] = 248, rgba[k + 3] = 255;
+  for (size_t k = 0; k < rgba.size(); k += 4)
+    rgba[k] = raster::kBackground[0], rgba[k + 1] = raster::kBackground[1], rgba[k + 2] = raster::kBackground[2], rgba[k + 3] = 255;
   std::vector<double> depth(static_cast<size_t>(W) * H, -std::numeric_limits<double>::infinity());
   const double px = W / (2 * f.half_w);  // supersampled pixels per mm
   const auto window = [&](const Eigen::Vector3d& q, double* x, double* y) {
@@ -91,7 +91,9 @@ std::string render_points_png(const std::vector<Eigen::Vector3d>& points, const 
   for (const auto& p : o.points) {
     double x, y;
     window(o.view * p, &x, &y);
-    disc(x, y, 7.0 * S, W, H, [&](size_t at) { rgba[4 * at] = 200, rgba[4 * at + 1] = 30, rgba[4 * at + 2] = 40; });
+    disc(x, y, raster::kDotPx * S, W, H, [&](size_t at) {
+      for (int c = 0; c < 3; ++c) rgba[4 * at + c] = raster::kDotColour[c];
+    });
   }
   return raster::downsample_png(rgba, o.width, o.height);
 }
