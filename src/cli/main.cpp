@@ -8,7 +8,7 @@
 
 #include "cli/commands.hpp"
 #include "core/errors.hpp"
-#include "pipeline/threads.hpp"
+#include "core/threads.hpp"
 #include "scan/cloud.hpp"
 
 using namespace handskin;

@@ -2,8 +2,6 @@
 
 #include <Eigen/Dense>
 
-#include <omp.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -15,6 +13,7 @@
 #include <tuple>
 
 #include "core/errors.hpp"
+#include "core/threads.hpp"
 #include "mesh/mesh_distance.hpp"
 #include "mesh/point_grid.hpp"
 #include "patches/patch_steps.hpp"
@@ -574,7 +573,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
   // the fit's single-threaded factorisations leave room for).
   std::future<std::unique_ptr<MeshDistance>> skin_tree;
   if (!o.layout)
-    skin_tree = std::async(omp_get_max_threads() > 1 ? std::launch::async : std::launch::deferred, [&skin] { return std::make_unique<MeshDistance>(skin.mesh); });
+    skin_tree = std::async(side_launch(), [&skin] { return std::make_unique<MeshDistance>(skin.mesh); });
   PatchSkin s = fit(0);
   if (!o.layout) {
     // Where the patches stray from the polygon skin they were laid on, one bridges what the skin

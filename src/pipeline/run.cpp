@@ -15,7 +15,7 @@
 #include "pipeline/gates.hpp"
 #include "pipeline/registration_stage.hpp"
 #include "pipeline/stage_options.hpp"
-#include "pipeline/threads.hpp"
+#include "core/threads.hpp"
 
 namespace handskin {
 
