@@ -425,6 +425,43 @@ TEST(Register, FixtureMarkerRadiusEstimatedWithinTheBounds) {
   EXPECT_EQ(registration_to_json(strict)["status"], "ok_with_warnings");
 }
 
+// The radius estimate leaves out the back-scan search of a candidate that cannot win (its
+// palm bumps fewer than another candidate's matched markers). Safe only if such a candidate
+// could not have won: the estimate with only the searched candidates must be the same bits,
+// and each left-out one must be beaten by its palm count alone. Two pairs: the fixture, and a
+// second hand with 3 mm markers (where other candidates are searched).
+TEST(Register, RadiusCandidatesLeftOutCouldNotHaveWon) {
+  ReplicaOptions ro;
+  ro.marker_radius_mm = 3.0;
+  const ScanPair second = synthesize_scan_pair(second_hand().mesh, second_hand().rig, ro, ScannerOptions{}, 203, false);
+  const std::pair<RangeScan, RangeScan> pairs[] = {{load_scan(kFixture + "back"), load_scan(kFixture + "palm")},
+                                                   {second.back.scan, second.palm.scan}};
+  for (const auto& [back, palm] : pairs) {
+    RegistrationOptions o;
+    o.estimate_radius = true;
+    o.refine_enabled = false;
+    const Registration full = register_scans(back, palm, "back", "palm", o, nullptr, kQuiet);
+    const MarkerRadiusDetail& d = full.detail.radius;
+    ASSERT_EQ(d.tried.size(), o.radius_candidates_mm.size());
+    size_t best = 0, left_out = 0;
+    std::vector<double> searched;
+    for (const RadiusTry& t : d.tried)
+      if (t.back_searched) best = std::max(best, t.matched), searched.push_back(t.radius_mm);
+    for (const RadiusTry& t : d.tried)
+      if (!t.back_searched) {
+        ++left_out;
+        EXPECT_TRUE(t.palm < 3 || t.palm < best) << t.radius_mm << " mm: " << t.palm << " palm bumps, best " << best;
+      }
+    std::printf("candidates left out of the back scan: %zu of %zu; estimate %.5f mm\n", left_out, d.tried.size(),
+                d.radius_mm);
+    o.radius_candidates_mm = searched;
+    const Registration only = register_scans(back, palm, "back", "palm", o, nullptr, kQuiet);
+    EXPECT_EQ(only.detail.radius.candidate_mm, d.candidate_mm);
+    EXPECT_EQ(only.marker_radius_mm, full.marker_radius_mm);
+    EXPECT_EQ(only.back_to_palm.matrix(), full.back_to_palm.matrix());
+  }
+}
+
 // The estimate over pairs of two hands with 3 mm markers: its error is what moves the back
 // scan along the hand's normal (twice over), so it must be unbiased and tight, not only right
 // on one pair. Each cap's free radius from its depth errors, off the skin it sits in, and one

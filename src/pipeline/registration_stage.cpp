@@ -51,7 +51,10 @@ Json radius_json(const MarkerRadiusDetail& d) {
   if (!d.estimated) return j;
   Json tried = Json::array();
   for (const RadiusTry& t : d.tried)
-    tried.push_back({{"radius_mm", t.radius_mm}, {"palm", t.palm}, {"back", t.back}, {"matched", t.matched}});
+    tried.push_back({{"radius_mm", t.radius_mm},
+                     {"palm", t.palm},
+                     {"back", t.back_searched ? Json(t.back) : Json(nullptr)},
+                     {"matched", t.back_searched ? Json(t.matched) : Json(nullptr)}});
   j["tried"] = tried;
   j["refinement_mm"] = d.refinement_mm;
   j["candidate_mm"] = d.candidate_mm;

@@ -111,6 +111,8 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   RunResult R;
   R.inputs = in;
   const bool clouds = !in.clouds.empty();
+  // The pictures' OpenGL (Mesa with LLVM, ~0.1 s to load) loads beside the first stages.
+  if (thread_count() > 1) preload_gl();
 
   // --- ingest: read and check every input before any work ---
   const StageTimer t_ingest;
@@ -166,8 +168,8 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   }
 
   // The merged cloud's picture is drawn on a thread of its own while the skin and the patches
-  // are made (Mesa's llvmpipe renders on the CPU: ~0.3 s for a cloud's 120 000 splats). Each
-  // picture is drawn in its own OpenGL context: the same bytes on any thread.
+  // are made (its 143 000 splats, render/splats.cpp). Every picture starts from the same
+  // OpenGL state, whichever thread's context draws it: the same bytes on any thread.
   std::future<std::string> merged_png = std::async(
       side_launch(), [m = merged, markers = clouds ? std::vector<Eigen::Vector3d>{} : R.registration.markers_palm] {
         return merged_preview_png(m, markers);

@@ -1,10 +1,8 @@
 #include "register/cloud_prep.hpp"
 
 #include <pcl/filters/voxel_grid.h>
-#include <pcl/sample_consensus/method_types.h>
-#include <pcl/sample_consensus/model_types.h>
+#include <pcl/sample_consensus/sac_model_plane.h>
 #include <pcl/search/kdtree.h>
-#include <pcl/segmentation/sac_segmentation.h>
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -17,6 +15,7 @@
 
 #include "core/errors.hpp"
 #include "mesh/point_grid.hpp"
+#include "register/sac.hpp"
 #include "scan/cloud.hpp"
 #include "scan/cloud_file.hpp"
 
@@ -181,19 +180,11 @@ std::optional<Eigen::Vector4f> dominant_plane(const PclCloud::Ptr& few, double i
   if (few->size() < 50) return std::nullopt;
   auto search = std::make_shared<pcl::search::KdTree<pcl::PointXYZ>>();
   search->setInputCloud(few);
-  pcl::SACSegmentation<pcl::PointXYZ> seg;
-  seg.setModelType(pcl::SACMODEL_PLANE);
-  seg.setMethodType(pcl::SAC_RANSAC);
-  seg.setDistanceThreshold(inlier_mm);
-  seg.setSamplesMaxDist(15.0, search);
-  seg.setMaxIterations(1000);
-  seg.setOptimizeCoefficients(true);
-  seg.setInputCloud(few);
-  pcl::PointIndices inliers;
-  pcl::ModelCoefficients coeff;
-  seg.segment(inliers, coeff);
-  if (coeff.values.size() != 4) return std::nullopt;
-  Eigen::Vector4f plane(coeff.values[0], coeff.values[1], coeff.values[2], coeff.values[3]);
+  auto model = std::make_shared<pcl::SampleConsensusModelPlane<pcl::PointXYZ>>(few, false);
+  model->setSamplesMaxDist(15.0, search);
+  const SacFit fit = ransac<pcl::PointXYZ>(model, inlier_mm, 1000, true);
+  if (fit.coefficients.size() != 4) return std::nullopt;
+  const Eigen::Vector4f plane = fit.coefficients.head<4>();
   return plane / plane.head<3>().norm();
 }
 

@@ -7,7 +7,7 @@
 ///   2. downsample           a voxel grid (PCL VoxelGrid): each voxel's points averaged, which
 ///                           evens out the views' overlaps and averages the noise
 ///   3. drop_outliers        isolated points (PCL RadiusOutlierRemoval's rule)
-///   4. drop_support         the stand or turntable: a RANSAC plane (PCL SACSegmentation)
+///   4. drop_support         the stand or turntable: a RANSAC plane (PCL sample_consensus, register/sac.hpp)
 ///                           that holds a share of the points most of which lie away from
 ///                           everything else
 ///   5. keep_largest_part    the hand as the largest connected part (Euclidean clusters)

@@ -1,16 +1,14 @@
 #include "register/prepare.hpp"
 
-#include <pcl/ModelCoefficients.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
-#include <pcl/sample_consensus/method_types.h>
-#include <pcl/sample_consensus/model_types.h>
-#include <pcl/segmentation/sac_segmentation.h>
+#include <pcl/sample_consensus/sac_model_perpendicular_plane.h>
 
 #include <Eigen/Eigenvalues>
 #include <cmath>
 
 #include "core/errors.hpp"
+#include "register/sac.hpp"
 
 namespace handskin {
 
@@ -74,23 +72,16 @@ PreparedScan prepare_scan(const RangeScan& scan, const PrepareOptions& o, const 
   for (const auto& p : *sub) centre += p.getVector3fMap();
   centre /= static_cast<float>(sub->size());
   for (auto& p : *sub) p.getVector3fMap() -= centre;
-  pcl::SACSegmentation<pcl::PointXYZ> seg;
-  seg.setModelType(pcl::SACMODEL_PERPENDICULAR_PLANE);
-  seg.setMethodType(pcl::SAC_RANSAC);
-  seg.setAxis(Eigen::Vector3f::UnitZ());
-  seg.setEpsAngle(static_cast<float>(o.table_max_tilt_deg * M_PI / 180.0));
-  seg.setDistanceThreshold(o.table_inlier_mm);
-  seg.setMaxIterations(300);
-  seg.setOptimizeCoefficients(false);
-  seg.setInputCloud(sub);
-  pcl::PointIndices inliers;
-  pcl::ModelCoefficients coeff;
-  seg.segment(inliers, coeff);
-  if (coeff.values.size() != 4 || inliers.indices.size() < sub->size() / 10)
+  auto model = std::make_shared<pcl::SampleConsensusModelPerpendicularPlane<pcl::PointXYZ>>(sub, false);
+  model->setAxis(Eigen::Vector3f::UnitZ());
+  model->setEpsAngle(static_cast<float>(o.table_max_tilt_deg * M_PI / 180.0));  // as float, as before
+  const SacFit table = ransac<pcl::PointXYZ>(model, o.table_inlier_mm, 300, false);
+  const Eigen::VectorXf& coeff = table.coefficients;
+  if (coeff.size() != 4 || table.inliers.size() < sub->size() / 10)
     throw InputError(file, "no table plane found (a plane within " + std::to_string(o.table_max_tilt_deg) +
                                " deg of level must hold at least 10% of the returns)");
-  Eigen::Vector3d n(coeff.values[0], coeff.values[1], coeff.values[2]);
-  double d = coeff.values[3] / n.norm();
+  Eigen::Vector3d n(coeff[0], coeff[1], coeff[2]);
+  double d = coeff[3] / n.norm();
   n.normalize();
   d -= n.dot(centre.cast<double>());
   std::vector<Eigen::Vector3d> near;

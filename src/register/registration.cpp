@@ -147,8 +147,8 @@ void both_sides(const Job& job) {
 }
 
 // The marker radius's first estimate from the scans (fills radius_mm, spread_mm,
-// candidate_mm, caps and tried of `d`): every candidate radius is tried in both scans
-// (hints: at the hinted positions) and the bumps found are matched between the scans by
+// candidate_mm, caps and tried of `d`): every candidate radius is tried in both scans (the back
+// scan only where it could still win, below; hints: at the hinted positions) and the bumps found are matched between the scans by
 // their distance pattern. Markers are the bumps that are spheres of one radius *and* sit in
 // the same pattern in both scans; a fingertip or a knuckle of about the candidate's size is
 // sphere-like too, but seen from the other side it fits elsewhere and matches nothing. The
@@ -158,12 +158,8 @@ void estimate_marker_radius(const PreparedScan& back, const PreparedScan& palm, 
                             const MarkerHints* hints, MarkerRadiusDetail* d) {
   double best_score = -1;
   const size_t keep = static_cast<size_t>(o.expected_markers) + 6;  // as find_markers: matching cost grows fast
-  // The detections (every candidate in both scans) are independent: they run in parallel,
-  // each into its own slot, so the result does not depend on the threads. The scoring below
-  // goes through them in order.
   const size_t nc = o.radius_candidates_mm.size();
   std::vector<std::array<std::vector<SphereFit>, 2>> detected(nc);
-  std::vector<std::exception_ptr> failure(2 * nc);
   auto options_for = [&](double rc) {
     SphereOptions so = o.spheres;
     so.radius_mm = rc;
@@ -171,32 +167,69 @@ void estimate_marker_radius(const PreparedScan& back, const PreparedScan& palm, 
     so.inlier_mm = std::min(so.inlier_mm, 0.5 * rc);
     return so;
   };
+  // The searches are independent: each runs into its own slot, in parallel, so the result does
+  // not depend on the threads.
+  auto search = [&](const std::vector<std::pair<size_t, int>>& jobs) {
+    std::vector<std::exception_ptr> failure(jobs.size());
 #pragma omp parallel for schedule(dynamic)
-  for (long job = 0; job < static_cast<long>(2 * nc); ++job) {
-    const size_t c = static_cast<size_t>(job) / 2;
-    const int side = static_cast<int>(job % 2);
-    try {
-      const SphereOptions so = options_for(o.radius_candidates_mm[c]);
-      const std::optional<std::vector<Eigen::Vector3d>>* h = hints ? (side == 0 ? &hints->palm : &hints->back) : nullptr;
-      detected[c][side] = caps_in_scan(side == 0 ? palm : back, h, so, keep);
-    } catch (...) {
-      failure[static_cast<size_t>(job)] = std::current_exception();
+    for (long j = 0; j < static_cast<long>(jobs.size()); ++j) {
+      const auto [c, side] = jobs[static_cast<size_t>(j)];
+      try {
+        const SphereOptions so = options_for(o.radius_candidates_mm[c]);
+        const std::optional<std::vector<Eigen::Vector3d>>* h = hints ? (side == 0 ? &hints->palm : &hints->back) : nullptr;
+        detected[c][side] = caps_in_scan(side == 0 ? palm : back, h, so, keep);
+      } catch (...) {
+        failure[static_cast<size_t>(j)] = std::current_exception();
+      }
     }
+    for (const auto& e : failure)
+      if (e) std::rethrow_exception(e);
+  };
+  // Matched markers between the two scans' bumps of candidate c (0 below 3 bumps a side).
+  std::vector<MarkerMatch> matches(nc);
+  auto match = [&](size_t c) {
+    const std::vector<SphereFit>* fits = detected[c].data();
+    if (fits[0].size() < 3 || fits[1].size() < 3) return size_t{0};
+    std::vector<Eigen::Vector3d> cb, cp;
+    for (const auto& f : fits[1]) cb.push_back(f.centre);
+    for (const auto& f : fits[0]) cp.push_back(f.centre);
+    matches[c] = match_markers(cb, cp, o.match_tolerance_mm);
+    return matches[c].pairs.size();
+  };
+  // 1. Every candidate in the palm scan.
+  std::vector<std::pair<size_t, int>> palm_jobs;
+  for (size_t c = 0; c < nc; ++c) palm_jobs.push_back({c, 0});
+  search(palm_jobs);
+  // 2. The back scan, two candidates at a time (fixed, whatever the threads), those with the
+  // most palm bumps first. A candidate matches at most as many markers as its palm search found
+  // bumps, and a score is its matched count less under 1: one whose palm bumps are fewer than
+  // the best matched count so far cannot win, and is not searched in the back scan (on the
+  // fixture 8 of the 10 candidates; their searches were half the estimate's time).
+  std::vector<size_t> order(nc);
+  for (size_t c = 0; c < nc; ++c) order[c] = c;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return detected[a][0].size() > detected[b][0].size(); });
+  std::vector<char> searched(nc, 0);
+  size_t best_matched = 0;
+  for (size_t next = 0; next < nc;) {
+    std::vector<std::pair<size_t, int>> round;
+    for (; next < nc && round.size() < 2; ++next) {
+      const size_t c = order[next];
+      if (detected[c][0].size() >= 3 && detected[c][0].size() >= best_matched) round.push_back({c, 1});
+    }
+    if (round.empty()) break;
+    search(round);
+    for (const auto& [c, side] : round) searched[c] = 1, best_matched = std::max(best_matched, match(c));
   }
-  for (const auto& e : failure)
-    if (e) std::rethrow_exception(e);
   for (size_t c = 0; c < nc; ++c) {
     const double rc = o.radius_candidates_mm[c];
     const std::vector<SphereFit>* fits = detected[c].data();
-    RadiusTry row{rc, fits[0].size(), fits[1].size(), 0};
+    RadiusTry row{rc, fits[0].size(), fits[1].size(), 0, searched[c] != 0};
     if (fits[0].size() < 3 || fits[1].size() < 3) {
       d->tried.push_back(row);
       continue;
     }
-    std::vector<Eigen::Vector3d> cb, cp;
-    for (const auto& f : fits[1]) cb.push_back(f.centre);
-    for (const auto& f : fits[0]) cp.push_back(f.centre);
-    const MarkerMatch m = match_markers(cb, cp, o.match_tolerance_mm);
+    const MarkerMatch& m = matches[c];
     row.matched = m.pairs.size();
     d->tried.push_back(row);
     if (m.pairs.size() < 3) continue;

@@ -58,6 +58,9 @@ struct RegistrationOptions {
 struct RadiusTry {
   double radius_mm = 0;
   size_t palm = 0, back = 0, matched = 0;
+  /// false: not searched in the back scan, as its palm bumps were fewer than another
+  /// candidate's matched markers (it could not win); back and matched are then 0.
+  bool back_searched = true;
 };
 
 /// The markers' radius used: given, or estimated from the scans (registration.json

@@ -1,12 +1,9 @@
 #include "register/spheres.hpp"
 
 #include <ceres/ceres.h>
-#include <pcl/ModelCoefficients.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
-#include <pcl/sample_consensus/method_types.h>
-#include <pcl/sample_consensus/model_types.h>
-#include <pcl/segmentation/sac_segmentation.h>
+#include <pcl/sample_consensus/sac_model_sphere.h>
 
 #include <algorithm>
 #include <array>
@@ -16,6 +13,7 @@
 #include <unordered_map>
 
 #include "core/errors.hpp"
+#include "register/sac.hpp"
 #include "register/sphere_residual.hpp"
 
 namespace handskin {
@@ -108,19 +106,11 @@ std::optional<SphereFit> fit_sphere_near(const PreparedScan& s, const Eigen::Vec
     const Eigen::Vector3d d = s.points[k] - guess;
     local->push_back(pcl::PointXYZ(static_cast<float>(d.x()), static_cast<float>(d.y()), static_cast<float>(d.z())));
   }
-  pcl::SACSegmentation<pcl::PointXYZ> seg;
-  seg.setModelType(pcl::SACMODEL_SPHERE);
-  seg.setMethodType(pcl::SAC_RANSAC);
-  seg.setRadiusLimits(r * (1 - 2 * o.radius_tolerance), r * (1 + 2 * o.radius_tolerance));
-  seg.setDistanceThreshold(o.inlier_mm);
-  seg.setMaxIterations(400);
-  seg.setOptimizeCoefficients(false);
-  seg.setInputCloud(local);
-  pcl::PointIndices ransac_in;
-  pcl::ModelCoefficients coeff;
-  seg.segment(ransac_in, coeff);
+  auto model = std::make_shared<pcl::SampleConsensusModelSphere<pcl::PointXYZ>>(local, false);
+  model->setRadiusLimits(r * (1 - 2 * o.radius_tolerance), r * (1 + 2 * o.radius_tolerance));
+  const SacFit sphere = ransac<pcl::PointXYZ>(model, o.inlier_mm, 400, false);
   std::vector<Eigen::Vector3d> starts = {guess};
-  if (coeff.values.size() == 4) starts.push_back(guess + Eigen::Vector3d(coeff.values[0], coeff.values[1], coeff.values[2]));
+  if (sphere.coefficients.size() == 4) starts.push_back(guess + sphere.coefficients.head<3>().cast<double>());
 
   // Every sample of a cap lies inside the outline the scanner can see, where the sphere's
   // slope n_z ≥ steep_floor (a test on X and Y, which carry no noise): beyond it a depth

@@ -7,19 +7,78 @@
 // - 2x supersampling for smooth edges.
 // OSMesa rather than EGL surfaceless: one call to make a context on a memory buffer, in every
 // Mesa build.
+//
+// Mesa is loaded when the first picture is drawn (or earlier, preload_gl), not when the program
+// starts: libOSMesa brings LLVM, whose loading took ~0.1 s of every handskin process's start,
+// and most commands draw nothing. The entry points below are pointers of the same names, filled
+// from the library once; unqualified calls in namespace handskin find them before ::gl*.
 #include <GL/gl.h>
 #include <GL/osmesa.h>
+#include <dlfcn.h>
 
 #include <algorithm>
 #include <cmath>
+#include <future>
+#include <mutex>
 #include <optional>
+#include <stdexcept>
 
 #include "core/errors.hpp"
 #include "core/png_io.hpp"
 #include "render/preview.hpp"
 #include "render/raster.hpp"
 
+#define HS_GL_ENTRY_POINTS(X)                                                                                     \
+  X(OSMesaCreateContextExt) X(OSMesaMakeCurrent) X(OSMesaPixelStore) X(OSMesaDestroyContext) X(glAlphaFunc)     \
+  X(glBegin) X(glBindTexture) X(glClear) X(glClearColor) X(glColor3f) X(glColorMaterial) X(glDeleteTextures)    \
+  X(glDisable) X(glDisableClientState) X(glDrawArrays) X(glDrawElements) X(glEnable) X(glEnableClientState)      \
+  X(glEnd) X(glFinish) X(glGenTextures) X(glGetError) X(glLightModelfv) X(glLightModeli) X(glLightfv)            \
+  X(glLineWidth) X(glLoadIdentity) X(glLoadMatrixd) X(glMaterialf) X(glMaterialfv) X(glMatrixMode)              \
+  X(glNormalPointer) X(glOrtho) X(glPixelStorei) X(glPointSize) X(glPopAttrib) X(glPopClientAttrib)             \
+  X(glPushAttrib) X(glPushClientAttrib) X(glShadeModel) X(glTexCoordPointer) X(glTexEnvfv) X(glTexEnvi)         \
+  X(glTexImage2D) X(glTexParameteri) X(glVertex3d) X(glVertexPointer) X(glViewport)
+
 namespace handskin {
+
+namespace {
+#define HS_GL_POINTER(f) decltype(&::f) f = nullptr;
+HS_GL_ENTRY_POINTS(HS_GL_POINTER)
+#undef HS_GL_POINTER
+
+// Loads Mesa's off-screen OpenGL once (thread-safe); throws when it cannot be loaded.
+void load_gl() {
+  static std::once_flag once;
+  static std::string failure;
+  std::call_once(once, [] {
+    void* lib = dlopen(HANDSKIN_OSMESA_SONAME, RTLD_NOW | RTLD_LOCAL);
+    if (!lib) {
+      failure = dlerror();
+      return;
+    }
+#define HS_GL_LOAD(f)                                            \
+  f = reinterpret_cast<decltype(f)>(dlsym(lib, #f));             \
+  if (!f) {                                                      \
+    failure = std::string(HANDSKIN_OSMESA_SONAME " has no ") + #f; \
+    return;                                                      \
+  }
+    HS_GL_ENTRY_POINTS(HS_GL_LOAD)
+#undef HS_GL_LOAD
+  });
+  if (!failure.empty())
+    throw std::runtime_error("Mesa's off-screen OpenGL could not be loaded (Debian package libosmesa6): " + failure);
+}
+}  // namespace
+
+void preload_gl() {
+  // On a thread of its own, so that the loading overlaps the caller's work; a failure is said
+  // again when a picture asks for the library.
+  static std::future<void> loading = std::async(std::launch::async, [] {
+    try {
+      load_gl();
+    } catch (const std::exception&) {
+    }
+  });
+}
 
 namespace raster {
 
@@ -72,10 +131,12 @@ class GlPicture {
     W_ = o.width * kSupersample;
     H_ = o.height * kSupersample;
     rgba_.resize(static_cast<size_t>(W_) * H_ * 4);
-    ctx_ = OSMesaCreateContextExt(OSMESA_RGBA, 24, 0, 0, nullptr);
-    HS_CHECK(ctx_ != nullptr, "OSMesa could not create an off-screen OpenGL context");
-    HS_CHECK(OSMesaMakeCurrent(ctx_, rgba_.data(), GL_UNSIGNED_BYTE, W_, H_), "OSMesa could not bind its buffer");
+    const OSMesaContext ctx = context();  // first: it loads the entry points the calls below go through
+    HS_CHECK(OSMesaMakeCurrent(ctx, rgba_.data(), GL_UNSIGNED_BYTE, W_, H_), "OSMesa could not bind its buffer");
     OSMesaPixelStore(OSMESA_Y_UP, 0);  // row 0 at the top, as PNG
+    // Every picture starts from OpenGL's initial state; the destructor restores it.
+    glPushAttrib(GL_ALL_ATTRIB_BITS);
+    glPushClientAttrib(GL_CLIENT_ALL_ATTRIB_BITS);
     glViewport(0, 0, W_, H_);
     glClearColor(raster::kBackground[0] / 255.f, raster::kBackground[1] / 255.f, raster::kBackground[2] / 255.f, 1);
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
@@ -113,7 +174,10 @@ class GlPicture {
     M[15] = 1;
     glLoadMatrixd(M);
   }
-  ~GlPicture() { OSMesaDestroyContext(ctx_); }
+  ~GlPicture() {
+    glPopClientAttrib();
+    glPopAttrib();
+  }
   GlPicture(const GlPicture&) = delete;
   GlPicture& operator=(const GlPicture&) = delete;
 
@@ -152,7 +216,25 @@ class GlPicture {
   double scale_ = 1;
   int W_ = 0, H_ = 0;
   std::vector<std::uint8_t> rgba_;
-  OSMesaContext ctx_ = nullptr;
+
+  // The thread's context, made at its first picture and kept for its next ones: a new context
+  // costs ~20 ms before anything is drawn (llvmpipe compiles its shaders for each), and a run
+  // draws six posed skins in a row. Rebound to each picture's buffer.
+  static OSMesaContext context() {
+    struct Kept {
+      OSMesaContext ctx = nullptr;
+      ~Kept() {
+        if (ctx) OSMesaDestroyContext(ctx);
+      }
+    };
+    thread_local Kept kept;
+    if (!kept.ctx) {
+      load_gl();
+      kept.ctx = OSMesaCreateContextExt(OSMESA_RGBA, 24, 0, 0, nullptr);
+      HS_CHECK(kept.ctx != nullptr, "OSMesa could not create an off-screen OpenGL context");
+    }
+    return kept.ctx;
+  }
 };
 
 void lit_material(const Eigen::Vector3f& colour, bool per_vertex_colour) {

@@ -26,6 +26,11 @@ struct RenderOptions {
   float texture_weight = 0.7f;
 };
 
+/// Loads Mesa's off-screen OpenGL on a thread of its own, ahead of the first picture (it is
+/// loaded at the first picture otherwise). For commands that will draw: the loading (~0.1 s,
+/// LLVM with it) then overlaps their other work.
+void preload_gl();
+
 /// Shaded orthographic render of one or more meshes (fit to the picture), by Mesa's
 /// off-screen OpenGL (gl_render.cpp): depth-tested, smooth-shaded, 2x supersampled. Returns
 /// PNG bytes.
