@@ -6,7 +6,8 @@ PACKAGES=(
   build-essential cmake pkg-config clang libclang-rt-14-dev
   libeigen3-dev libpcl-dev mpi-default-dev libflann-dev liblz4-dev libcgal-dev libopenmesh-dev libceres-dev libsuitesparse-dev
   nlohmann-json3-dev libcli11-dev libpng-dev libssl-dev libgtest-dev libgmock-dev libbenchmark-dev libtinygltf-dev libosmesa6-dev libcpp-httplib-dev
-  chromium firefox-esr xvfb xauth fonts-dejavu-core blender python3-numpy python3-scipy
+  libocct-data-exchange-dev libocct-modeling-algorithms-dev libocct-modeling-data-dev libocct-foundation-dev
+  chromium firefox-esr xvfb xauth fonts-dejavu-core blender python3-numpy python3-scipy freecad-python3
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

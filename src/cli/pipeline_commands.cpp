@@ -202,7 +202,9 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
   gi.patches = &r;
   const QualityGates gates = check_gates(gi, po);
   put_gates(gates, &report);
-  report["outputs"] = write_patch_outputs(out, r, Json{{"gates", report["gates"]}});
+  Json step;
+  report["outputs"] = write_patch_outputs(out, r, Json{{"gates", report["gates"]}}, {}, &step);
+  report["patches_step"] = step;
   report["outputs"]["report"] = out.final_path("report.json");
   save_json(out.stage("report.json"), report);
   settle_gates(gates, a.strict, out_dir);

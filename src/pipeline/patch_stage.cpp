@@ -167,19 +167,36 @@ std::string patches_obj(const PatchSkin& s) {
 }
 
 const std::vector<std::string>& patch_output_names() {
-  static const std::vector<std::string> names = {"patches.json", "patches.obj", "patches.ply", "report.html"};
+  static const std::vector<std::string> names = {"patches.json", "patches.obj", "patches.ply", "patches.step", "report.html"};
   return names;
 }
 
+Json step_to_json(const StepSummary& s) {
+  return {{"faces", s.faces},
+          {"shells", s.shells},
+          {"closed_shells", s.closed_shells},
+          {"solids", s.solids},
+          {"free_edges", s.free_edges},
+          {"valid", s.valid},
+          {"box_min_mm", {s.box.min().x(), s.box.min().y(), s.box.min().z()}},
+          {"box_max_mm", {s.box.max().x(), s.box.max().y(), s.box.max().z()}}};
+}
+
 Json write_patch_outputs(OutputSet& out, const PatchStageResult& r, const Json& run_report,
-                         const std::vector<ReportPicture>& posed) {
+                         const std::vector<ReportPicture>& posed, Json* step) {
   save_json(out.stage("patches.json"), patches_to_json(r.patches));
   write_file_atomic(out.stage("patches.obj"), patches_obj(r.patches));
   save_mesh(out.stage("patches.ply"), r.tessellation);
+  // The STEP file, its figures read back by OCCT from the bytes written.
+  const StepFile made = r.step ? StepFile{} : patches_step_file(r.patches.patches);
+  const StepFile& file = r.step ? *r.step : made;
+  write_file_atomic(out.stage("patches.step"), file.bytes);
+  if (step) *step = step_to_json(file.shape);
   write_file_atomic(out.stage("report.html"), patch_report_html(r, run_report, posed));
   return {{"patches_json", out.final_path("patches.json")},
           {"patches_obj", out.final_path("patches.obj")},
           {"patches_ply", out.final_path("patches.ply")},
+          {"patches_step", out.final_path("patches.step")},
           {"report_html", out.final_path("report.html")}};
 }
 

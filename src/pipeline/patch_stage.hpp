@@ -10,6 +10,7 @@
 #include "core/output_set.hpp"
 #include "mesh/mesh_distance.hpp"
 #include "core/rig.hpp"
+#include "export/step.hpp"
 #include "patches/patches.hpp"
 #include "scan/truth_io.hpp"
 
@@ -59,6 +60,9 @@ struct PatchStageResult {
   std::string truth_file;
   PatchReportFigures figures;
   PatchReportPictures pictures;
+  /// patches.step with its shape read back; made by the writer when absent (`run` makes it
+  /// beside its pictures).
+  std::optional<StepFile> step;
   double seconds = 0;
 };
 
@@ -80,11 +84,13 @@ Json patches_to_json(const PatchSkin& s);
 /// `deg 3 3` surface over them.
 std::string patches_obj(const PatchSkin& s);
 
-/// Stage patches.json, patches.obj, patches.ply and report.html (`run_report` adds the run's
-/// stages and gates to it) into `out`; returns {key: final path}. Serialises only: the
-/// pictures were rendered by the stage.
+/// Stage patches.json, patches.obj, patches.ply, patches.step and report.html (`run_report`
+/// adds the run's stages and gates to it) into `out`; returns {key: final path}. Serialises
+/// only: the pictures were rendered by the stage (and the STEP file made, when r.step holds
+/// it; else here). `step` (if given) receives the STEP file's shape as OCCT reads it back from
+/// the bytes written (faces, shells, closed, the box).
 Json write_patch_outputs(OutputSet& out, const PatchStageResult& r, const Json& run_report = Json(),
-                         const std::vector<ReportPicture>& posed = {});
+                         const std::vector<ReportPicture>& posed = {}, Json* step = nullptr);
 const std::vector<std::string>& patch_output_names();
 
 }  // namespace handskin

@@ -11,6 +11,7 @@
 #include "posture/solver.hpp"
 #include "rigging/binding.hpp"
 #include "rigging/pose.hpp"
+#include "export/step.hpp"
 #include "render/preview.hpp"
 #include "pipeline/gates.hpp"
 #include "pipeline/registration_stage.hpp"
@@ -112,7 +113,11 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   R.inputs = in;
   const bool clouds = !in.clouds.empty();
   // The pictures' OpenGL (Mesa with LLVM, ~0.1 s to load) loads beside the first stages.
-  if (thread_count() > 1) preload_gl();
+  // So do Open CASCADE's, for patches.step.
+  if (thread_count() > 1) {
+    preload_gl();
+    if (in.options.patches.enabled) preload_step();
+  }
 
   // --- ingest: read and check every input before any work ---
   const StageTimer t_ingest;
@@ -199,6 +204,11 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
     }
     if (const auto note = layout_note(R.patches->patches)) progress("patches: " + *note);
   }
+  // patches.step (Open CASCADE: sewing, writing, reading back, ~0.12 s) beside the rigging,
+  // the texture and the pictures; from a copy of the patches (the rigging adds their weights).
+  std::future<StepFile> patches_step;
+  if (R.patches)
+    patches_step = std::async(side_launch(), [patches = R.patches->patches.patches] { return patches_step_file(patches); });
 
   // --- rigging: the skin bound to the skeleton, with the posture model (docs/rigging.md) ---
   progress(std::string("rigging: ") + (in.options.rigging.smooth ? "bone-heat weights" : "rigid binding"));
@@ -239,7 +249,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
     R.posed = posed_pictures(R.rigged, texture_weight);
   const std::vector<unsigned char> glb = skin_glb(R.rigged);
   R.glb.assign(glb.begin(), glb.end());
-  if (R.patches) R.patches->pictures = patch_pictures.get();
+  if (R.patches) R.patches->pictures = patch_pictures.get(), R.patches->step = patches_step.get();
   R.merged_png = merged_png.get();
   R.seconds = total.seconds();
   return R;
@@ -391,7 +401,11 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
   report["inputs"]["posture_model"] = in.posture_model;
   report["stages"] = stages;  // the computing stages, for the patch report's page
   put_gates(W.gates, &report);
-  if (r.patches) outputs.update(write_patch_outputs(out, *r.patches, report, r.posed));
+  if (r.patches) {
+    Json step;
+    outputs.update(write_patch_outputs(out, *r.patches, report, r.posed, &step));
+    report["patches_step"] = step;
+  }
   stages.push_back({{"name", "write"}, {"seconds", t_write.seconds()}});
   report["stages"] = stages;
   outputs["report"] = out.final_path("report.json");

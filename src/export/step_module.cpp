@@ -1,0 +1,219 @@
+// The STEP writer and reader, a module of its own (libhandskin_step.so) that handskin loads
+// when a STEP file is asked for (export/step.cpp): Open CASCADE's ~20 libraries would
+// otherwise be loaded, and their symbols resolved, at every command's start. Its interface
+// is C (step_module.h), so no C++ object or exception crosses the boundary.
+//
+// The patches become one Bézier face each (Geom_BezierSurface, 4 × 4 poles, P[4i + j] at
+// (i, j): u along i), sewn by BRepBuilderAPI_Sewing into shells (a T-junction's long edge is
+// cut where the short ones meet it), a closed shell made a solid. Each face is named after its
+// patch (XCAF sub-shape names, written as the ADVANCED_FACE's name), in millimetres, AP214.
+#include "export/step_module.h"
+
+#include <APIHeaderSection_MakeHeader.hxx>
+#include <BRepBndLib.hxx>
+#include <BRepBuilderAPI_MakeFace.hxx>
+#include <BRepBuilderAPI_MakeSolid.hxx>
+#include <BRepBuilderAPI_Sewing.hxx>
+#include <BRepCheck_Analyzer.hxx>
+#include <BRep_Builder.hxx>
+#include <BRep_Tool.hxx>
+#include <Bnd_Box.hxx>
+#include <Geom_BezierSurface.hxx>
+#include <IFSelect_ReturnStatus.hxx>
+#include <Interface_Static.hxx>
+#include <Message.hxx>
+#include <Message_Messenger.hxx>
+#include <STEPCAFControl_Reader.hxx>
+#include <STEPCAFControl_Writer.hxx>
+#include <STEPControl_Reader.hxx>
+#include <ShapeAnalysis_FreeBounds.hxx>
+#include <Standard_Failure.hxx>
+#include <TColgp_Array2OfPnt.hxx>
+#include <TDF_Label.hxx>
+#include <TDataStd_Name.hxx>
+#include <TCollection_HAsciiString.hxx>
+#include <TDocStd_Document.hxx>
+#include <TopExp.hxx>
+#include <TopExp_Explorer.hxx>
+#include <TopTools_IndexedDataMapOfShapeListOfShape.hxx>
+#include <TopoDS.hxx>
+#include <TopoDS_Compound.hxx>
+#include <TopoDS_Face.hxx>
+#include <TopoDS_Shell.hxx>
+#include <XCAFApp_Application.hxx>
+#include <XCAFDoc_DocumentTool.hxx>
+#include <XCAFDoc_ShapeTool.hxx>
+
+#include <cstdio>
+#include <cstring>
+#include <exception>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace {
+
+void say(HsStepSummary* out, const std::string& what) {
+  std::snprintf(out->error, sizeof out->error, "%s", what.c_str());
+}
+
+// OCCT's own messages (its printers write to stdout) are silenced once: errors come back in
+// the summary.
+void quiet() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    const Handle(Message_Messenger)& m = Message::DefaultMessenger();
+    m->RemovePrinters(STANDARD_TYPE(Message_Printer));
+  });
+}
+
+// OCCT's Interface_Static parameters are process-wide: one STEP call at a time.
+std::mutex& occt_lock() {
+  static std::mutex m;
+  return m;
+}
+
+// Faces, shells (closed or not), solids, free edges and the bounding box of a shape.
+void summarise(const TopoDS_Shape& shape, HsStepSummary* out) {
+  out->faces = out->shells = out->closed_shells = out->solids = out->free_edges = 0;
+  for (TopExp_Explorer e(shape, TopAbs_FACE); e.More(); e.Next()) ++out->faces;
+  for (TopExp_Explorer e(shape, TopAbs_SOLID); e.More(); e.Next()) ++out->solids;
+  for (TopExp_Explorer e(shape, TopAbs_SHELL); e.More(); e.Next()) {
+    ++out->shells;
+    if (BRep_Tool::IsClosed(e.Current())) ++out->closed_shells;
+  }
+  // Free edges: edges of the shape bounding one face only (none on a closed shell).
+  TopTools_IndexedDataMapOfShapeListOfShape edge_faces;
+  TopExp::MapShapesAndAncestors(shape, TopAbs_EDGE, TopAbs_FACE, edge_faces);
+  for (int i = 1; i <= edge_faces.Extent(); ++i)
+    if (edge_faces(i).Extent() < 2 && !BRep_Tool::Degenerated(TopoDS::Edge(edge_faces.FindKey(i)))) ++out->free_edges;
+  // The box OCCT bounds the faces by without tessellating them: a Bézier face's control points
+  // (as FreeCAD's BoundBox of an untessellated shape). The exact box (AddOptimal) took 0.1 s.
+  Bnd_Box box;
+  BRepBndLib::Add(shape, box, Standard_False);
+  if (box.IsVoid()) {
+    for (double& b : out->box) b = 0;
+  } else {
+    box.Get(out->box[0], out->box[1], out->box[2], out->box[3], out->box[4], out->box[5]);
+  }
+  out->valid = BRepCheck_Analyzer(shape).IsValid() ? 1 : 0;
+}
+
+}  // namespace
+
+extern "C" int handskin_step_write(int n_patches, const double* poles, const char* const* names, const char* path,
+                                   double sew_tolerance_mm, HsStepSummary* out) {
+  std::memset(out, 0, sizeof *out);
+  std::lock_guard<std::mutex> lock(occt_lock());
+  try {
+    quiet();
+    if (n_patches <= 0) return say(out, "no patches to write"), 1;
+    // 1. One face per patch.
+    std::vector<TopoDS_Face> faces;
+    for (int p = 0; p < n_patches; ++p) {
+      TColgp_Array2OfPnt P(1, 4, 1, 4);
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) {
+          const double* c = poles + (static_cast<size_t>(p) * 16 + 4 * i + j) * 3;
+          P.SetValue(i + 1, j + 1, gp_Pnt(c[0], c[1], c[2]));
+        }
+      Handle(Geom_BezierSurface) surface = new Geom_BezierSurface(P);
+      BRepBuilderAPI_MakeFace make(surface, Precision::Confusion());
+      if (!make.IsDone()) return say(out, "patch " + std::string(names[p]) + ": no face could be made of it"), 1;
+      faces.push_back(make.Face());
+    }
+    // 2. Sewn: the shared borders are the same curves to rounding, so a small tolerance joins
+    // them and nothing else.
+    BRepBuilderAPI_Sewing sewing(sew_tolerance_mm);
+    for (const TopoDS_Face& f : faces) sewing.Add(f);
+    sewing.Perform();
+    TopoDS_Shape sewn = sewing.SewedShape();
+    // 3. A closed shell is a solid.
+    TopoDS_Shape result = sewn;
+    if (sewn.ShapeType() == TopAbs_SHELL && BRep_Tool::IsClosed(sewn)) {
+      BRepBuilderAPI_MakeSolid solid(TopoDS::Shell(sewn));
+      if (solid.IsDone()) result = solid.Solid();
+    }
+    // 4. The document: the shape, each face named after its patch.
+    Handle(XCAFApp_Application) app = XCAFApp_Application::GetApplication();
+    Handle(TDocStd_Document) doc;
+    app->NewDocument("MDTV-XCAF", doc);
+    Handle(XCAFDoc_ShapeTool) shapes = XCAFDoc_DocumentTool::ShapeTool(doc->Main());
+    const TDF_Label root = shapes->AddShape(result, Standard_False);
+    TDataStd_Name::Set(root, "handskin patches");
+    for (int p = 0; p < n_patches; ++p) {
+      const TopoDS_Shape& modified = sewing.Modified(faces[static_cast<size_t>(p)]);
+      const TDF_Label face = shapes->AddSubShape(root, modified.IsNull() ? faces[static_cast<size_t>(p)] : modified);
+      if (!face.IsNull()) TDataStd_Name::Set(face, names[p]);
+    }
+    STEPCAFControl_Writer writer;  // first: it registers the parameters set below
+    Interface_Static::SetCVal("write.step.schema", "AP214IS");
+    Interface_Static::SetCVal("write.step.unit", "MM");
+    Interface_Static::SetIVal("write.stepcaf.subshapes.name", 1);
+    writer.SetNameMode(Standard_True);
+    if (!writer.Transfer(doc, STEPControl_AsIs)) return say(out, "OCCT could not translate the shape to STEP"), 1;
+    // The header without the wall-clock time OCCT puts there: the same patches give the same
+    // bytes.
+    APIHeaderSection_MakeHeader header(writer.ChangeWriter().Model());
+    header.SetName(new TCollection_HAsciiString("handskin patches"));
+    header.SetTimeStamp(new TCollection_HAsciiString("2000-01-01T00:00:00"));
+    header.SetAuthorValue(1, new TCollection_HAsciiString("handskin"));
+    header.SetOrganizationValue(1, new TCollection_HAsciiString(""));
+    header.SetOriginatingSystem(new TCollection_HAsciiString("handskin, Open CASCADE 7"));
+    header.SetDescriptionValue(1, new TCollection_HAsciiString("bicubic Bezier patches of a hand's skin, mm"));
+    if (writer.Write(path) != IFSelect_RetDone) return say(out, std::string("cannot write ") + path), 1;
+    out->faces = n_patches;  // the shape's figures: read the file back (handskin_step_read)
+    app->Close(doc);
+    return 0;
+  } catch (const Standard_Failure& e) {
+    say(out, std::string("OCCT: ") + e.GetMessageString());
+  } catch (const std::exception& e) {
+    say(out, e.what());
+  } catch (...) {
+    say(out, "OCCT failed");
+  }
+  return 1;
+}
+
+extern "C" int handskin_step_read(const char* path, HsStepSummary* out, char* names, int names_size) {
+  std::memset(out, 0, sizeof *out);
+  if (names && names_size > 0) names[0] = 0;
+  std::lock_guard<std::mutex> lock(occt_lock());
+  try {
+    quiet();
+    STEPCAFControl_Reader reader;  // first: it registers the parameter set below
+    Interface_Static::SetIVal("read.stepcaf.subshapes.name", 1);
+    reader.SetNameMode(Standard_True);
+    if (reader.ReadFile(path) != IFSelect_RetDone) return say(out, std::string(path) + ": not a STEP file OCCT can read"), 1;
+    Handle(XCAFApp_Application) app = XCAFApp_Application::GetApplication();
+    Handle(TDocStd_Document) doc;
+    app->NewDocument("MDTV-XCAF", doc);
+    if (!reader.Transfer(doc)) return say(out, std::string(path) + ": OCCT could not translate it"), 1;
+    Handle(XCAFDoc_ShapeTool) shapes = XCAFDoc_DocumentTool::ShapeTool(doc->Main());
+    TDF_LabelSequence free;
+    shapes->GetFreeShapes(free);
+    BRep_Builder b;
+    TopoDS_Compound all;
+    b.MakeCompound(all);
+    std::string listed;
+    for (int i = 1; i <= free.Length(); ++i) {
+      b.Add(all, shapes->GetShape(free.Value(i)));
+      TDF_LabelSequence subs;
+      shapes->GetSubShapes(free.Value(i), subs);
+      for (int k = 1; k <= subs.Length(); ++k) {
+        Handle(TDataStd_Name) name;
+        if (subs.Value(k).FindAttribute(TDataStd_Name::GetID(), name))
+          listed += TCollection_AsciiString(name->Get()).ToCString() + std::string("\n");
+      }
+    }
+    summarise(all, out);
+    if (names && names_size > 0) std::snprintf(names, static_cast<size_t>(names_size), "%s", listed.c_str());
+    app->Close(doc);
+    return 0;
+  } catch (const Standard_Failure& e) {
+    say(out, std::string("OCCT: ") + e.GetMessageString());
+  } catch (...) {
+    say(out, "OCCT failed reading the file");
+  }
+  return 1;
+}
