@@ -1,6 +1,7 @@
 // The handskin command as users and scripts drive it.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 
 #include "core/atomic_file.hpp"
@@ -31,6 +32,37 @@ TEST(Cli, HelpListsSubcommands) {
   ASSERT_EQ(test::run(kBin + " synth scan --help", &out), 0) << out;
   EXPECT_NE(out.find("--seed"), std::string::npos);
   EXPECT_NE(test::run(kBin, &out), 0);
+}
+
+// Bad usage exits 2 with one line naming the flag or the command (issue 40's list), and
+// writes nothing; bad data exits 1.
+TEST(Cli, EveryUsageErrorExitsTwoInOneLineNamingItsFlag) {
+  const std::string dir = test::temp_dir("usage") + "/out";
+  const std::string glb = test::default_fixture_run() + "/skin.glb", skin = test::default_fixture_run() + "/skin.ply";
+  const std::pair<std::string, std::string> cases[] = {
+      {"rnu", "unknown command 'rnu' (did you mean run?)"},
+      {"--threads 2 rnu", "unknown command 'rnu'"},
+      {"render --out " + dir + "/x.png", "give exactly one of --mesh or --scan"},
+      {"render --mesh " + skin + " --scan " + kFix + "back --out " + dir + "/x.png", "give exactly one of --mesh or --scan"},
+      {"render --mesh " + skin + " --view top --out " + dir + "/x.png", "--view: unknown view 'top'"},
+      {"pose --model " + glb, "nothing to write"},
+      {"synth hand --side middle --out " + dir, "--side: 'middle'"},
+      {"calibrate --angles " + kFix + "rig.json --weights foo --out " + dir + "/m.json", "weights must be 'thesis' or 'inverse'"},
+      {"solve --model builtin:anatomical --set X=abc", "--set: unknown DOF 'X'"},
+      {"solve --model builtin:anatomical --set index.pip.flex=abc", "--set: 'index.pip.flex=abc'"},
+      {"solve --model builtin:nope", "--model: unknown built-in model 'nope'"},
+  };
+  for (const auto& [args, says] : cases) {
+    std::string out;
+    EXPECT_EQ(test::run(kBin + " -q " + args, &out), 2) << args << ": " << out;
+    EXPECT_NE(out.find(says), std::string::npos) << args << ": " << out;
+    EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << args << ": " << out;
+    EXPECT_EQ(out.rfind("error: ", 0), 0u) << out;
+  }
+  EXPECT_FALSE(fs::exists(dir));
+  // Bad data stays 1: a scan stem that is no scan.
+  std::string out;
+  EXPECT_EQ(test::run(kBin + " -q render --scan " + kFix + "nothing --out " + dir + "/x.png", &out), 1) << out;
 }
 
 TEST(Cli, TheScansAsCloudsAreWrittenOnRequestOnly) {
@@ -119,7 +151,7 @@ TEST(Cli, RunOnTheFixtureWritesItsOutputs) {
   EXPECT_FALSE(fs::exists(dir + "/baseline.ply"));
   // A posture model that does not load stops the run before any work, naming it.
   const std::string bad = test::temp_dir("badmodel") + "/out";
-  EXPECT_EQ(test::run(run_args(bad) + " -q --posture-model builtin:nonesuch", &out), 1);
+  EXPECT_EQ(test::run(run_args(bad) + " -q --posture-model builtin:nonesuch", &out), 2);
   EXPECT_NE(out.find("nonesuch"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(bad));
   EXPECT_FALSE(load_json_object(dir + "/report.json")["stages"][2].contains("baseline"));
@@ -230,21 +262,22 @@ TEST(Cli, BadInputIsOneLineAndLeavesNoOutput) {
   test::write_text(pipe, R"({"format": "handskin-pipeline/1", "slicing": {"plains": 40}})");
   EXPECT_EQ(test::run(run_args(dir) + " --pipeline " + pipe, &out), 1);
   EXPECT_NE(out.find("slicing.plains"), std::string::npos) << out;
-  // Out-of-range option of the synthetic scanner.
-  EXPECT_EQ(test::run(kBin + " -q synth scan --mesh " + kFix + "truth_skin.ply --rig " + kFix + "rig.json --marker-radius -2 --out " + dir, &out), 1);
+  // Out-of-range option of the synthetic scanner: bad usage (exit 2).
+  EXPECT_EQ(test::run(kBin + " -q synth scan --mesh " + kFix + "truth_skin.ply --rig " + kFix + "rig.json --marker-radius -2 --out " + dir, &out), 2);
   EXPECT_NE(out.find("marker_radius_mm"), std::string::npos) << out;
   // The synthetic hand's posture and side: an unknown DOF, a value that is no number, a
-  // joint bent past what the family allows, a side that is neither.
+  // joint bent past what the family allows, a side that is neither: flags' values, so bad
+  // usage (exit 2).
   const std::string hand = kBin + " -q synth hand --no-render --out " + dir;
-  EXPECT_EQ(test::run(hand + " --set index.pip.flx=30", &out), 1);
-  EXPECT_EQ(out, "error: --set: unknown DOF 'index.pip.flx' (names as in docs/formats.md, e.g. index.mcp.flex or I2.flex)\n");
-  EXPECT_EQ(test::run(hand + " --set index.pip.flex=3O", &out), 1);
-  EXPECT_EQ(out, "error: --set: 'index.pip.flex=3O': the value must be a finite number within ±1e4\n");
-  EXPECT_EQ(test::run(hand + " --set index.pip.flex=95", &out), 1);
+  EXPECT_EQ(test::run(hand + " --set index.pip.flx=30", &out), 2);
+  EXPECT_EQ(out, "error: --set: unknown DOF 'index.pip.flx' (names as in docs/formats.md, e.g. index.mcp.flex or I2.flex) (see --help)\n");
+  EXPECT_EQ(test::run(hand + " --set index.pip.flex=3O", &out), 2);
+  EXPECT_EQ(out, "error: --set: 'index.pip.flex=3O': the value must be a finite number within ±1e4 (see --help)\n");
+  EXPECT_EQ(test::run(hand + " --set index.pip.flex=95", &out), 2);
   EXPECT_NE(out.find("index.pip.flex"), std::string::npos) << out;
-  EXPECT_EQ(test::run(hand + " --side middle", &out), 1);
-  EXPECT_EQ(out, "error: --side: 'middle': must be right or left\n");
-  EXPECT_EQ(test::run(hand + " --forearm 60", &out), 1);
+  EXPECT_EQ(test::run(hand + " --side middle", &out), 2);
+  EXPECT_EQ(out, "error: --side: 'middle': must be right or left (see --help)\n");
+  EXPECT_EQ(test::run(hand + " --forearm 60", &out), 2);
   EXPECT_NE(out.find("forearm_mm"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(dir));
 }
@@ -255,7 +288,7 @@ TEST(Cli, ConvertBetweenScansAndClouds) {
   ASSERT_EQ(test::run(kBin + " -q convert --in " + kFix + "back --out " + dir + "/b.pcd", &out), 0) << out;
   ASSERT_EQ(test::run(kBin + " -q convert --in " + dir + "/b.pcd --out " + dir + "/b --side back", &out), 0) << out;
   EXPECT_EQ(load_scan(dir + "/b").values, load_scan(kFix + "back").values);
-  EXPECT_EQ(test::run(kBin + " -q convert --in " + dir + "/b.pcd --out " + dir + "/c", &out), 1);
+  EXPECT_EQ(test::run(kBin + " -q convert --in " + dir + "/b.pcd --out " + dir + "/c", &out), 2);
   EXPECT_NE(out.find("--side"), std::string::npos) << out;
 }
 
@@ -305,7 +338,7 @@ TEST(Cli, SolveSingleAndBatch) {
   EXPECT_EQ(test::run(kBin + " -q solve --model builtin:thesis --inputs " + dir + "/bad.csv --out " + dir + "/o2.csv", &out), 1);
   EXPECT_NE(out.find("bad.csv:3"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(dir + "/o2.csv"));
-  EXPECT_EQ(test::run(kBin + " -q solve --model builtin:thesis --set pinky.mcp.flex=3", &out), 1);
+  EXPECT_EQ(test::run(kBin + " -q solve --model builtin:thesis --set pinky.mcp.flex=3", &out), 2);
   EXPECT_NE(out.find("unknown DOF 'pinky.mcp.flex'"), std::string::npos) << out;
   test::write_text(dir + "/m.json", R"({"format": "hand-posture/1", "dofs": {"ring.pip.flex": {"stiffness": 0}}})");
   EXPECT_EQ(test::run(kBin + " -q solve --model " + dir + "/m.json --set L2.flex=3", &out), 1);
@@ -350,7 +383,7 @@ TEST(Cli, CalibrateSeveralRecordingsAndMixture) {
     EXPECT_EQ(test::run(kBin + " -q calibrate --angles " + dir + "/c.csv --out " + dir + "/bad.json " + bad, &out), 2) << bad;
     EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
   }
-  EXPECT_EQ(test::run(kBin + " -q calibrate --angles " + dir + "/c.csv --out " + dir + "/bad.json --grids", &out), 1);
+  EXPECT_EQ(test::run(kBin + " -q calibrate --angles " + dir + "/c.csv --out " + dir + "/bad.json --grids", &out), 2);
   EXPECT_NE(out.find("thesis-pairs"), std::string::npos) << out;
   test::write_text(dir + "/flat.csv", "I2.flex,I3.flex\n1,2\n1,2\n1,2\n1,2\n1,2\n1,2\n1,2\n1,2\n1,2\n1,2\n1,2\n");
   EXPECT_EQ(test::run(kBin + " -q calibrate --angles " + dir + "/flat.csv --out " + dir + "/bad.json", &out), 1);

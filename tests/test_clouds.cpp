@@ -341,11 +341,11 @@ TEST(SynthCloud, RepeatsByteForByteAndWritesItsTruth) {
   size_t near = 0;
   for (const auto& p : c.points) near += dist.distance(p) < 1.0;
   EXPECT_GT(near, c.points.size() * 8 / 10);
-  // Bad options are refused before anything is written.
+  // Bad options are refused before anything is written (bad usage: exit 2).
   EXPECT_EQ(test::run(kBin + " -q synth cloud --mesh " + kFix + "truth_skin.ply --rig " + kFix + "rig.json --views 1 --out " +
                           d + "/c",
                       &out),
-            1)
+            2)
       << out;
   EXPECT_FALSE(fs::exists(d + "/c/cloud.ply"));
 }

@@ -270,10 +270,10 @@ TEST(Contracts, PostureNumbersAreBoundedAndSolutionsFinite) {
     EXPECT_NE(out.find(key), std::string::npos) << out;
     EXPECT_FALSE(fs::exists(dir + "/o.json"));
   }
-  // Options out of proportion.
+  // Options out of proportion: bad usage (a flag's value), exit 2.
   for (const std::string opt : {"--target index.mcp.flex=10@1e308", "--torque index.mcp.flex=1e308",
                                 "--set index.mcp.flex=1e308"}) {
-    EXPECT_EQ(test::run(kBin + " -q solve --model builtin:thesis " + opt, &out), 1) << opt << out;
+    EXPECT_EQ(test::run(kBin + " -q solve --model builtin:thesis " + opt, &out), 2) << opt << out;
     EXPECT_EQ(lines(out), 1u) << out;
   }
   // Random models anywhere within the bounds: every solve is a finite posture within the
@@ -361,7 +361,7 @@ TEST(Contracts, NothingIsAcceptedSilently) {
   const std::string dir = test::temp_dir("cal");
   test::write_text(dir + "/a.csv", "L2.flex,L3.flex\n10,20\n20,35\n30,52\n40,61\n");
   std::string out;
-  EXPECT_EQ(test::run(kBin + " -q calibrate --angles " + dir + "/a.csv --pair L2.flex:little.mcp.flex --out " + dir + "/m.json", &out), 1);
+  EXPECT_EQ(test::run(kBin + " -q calibrate --angles " + dir + "/a.csv --pair L2.flex:little.mcp.flex --out " + dir + "/m.json", &out), 2);
   EXPECT_NE(out.find("two different DOFs"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(dir + "/m.json"));
 }

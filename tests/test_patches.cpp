@@ -499,7 +499,7 @@ TEST(Patches, TheCommandWritesPatchesOnTheFixture) {
   ASSERT_TRUE(fs::exists(shot)) << out;
   EXPECT_GT(fs::file_size(shot), 100000u);  // pictures and tables, not a blank page
   // Without a rig to find, a clear error.
-  EXPECT_EQ(test::run(kBin + " -q patches --skin-dir " + dir + " --out " + dir + "/x", &out), 1);
+  EXPECT_EQ(test::run(kBin + " -q patches --skin-dir " + dir + " --out " + dir + "/x", &out), 2);
   EXPECT_NE(out.find("give --rig"), std::string::npos) << out;
 }
 

@@ -197,10 +197,10 @@ TEST(Rigging, BadGlbsAndOptionsAreRefused) {
   }
   // Usage.
   const std::string glb = fixture_run() + "/skin.glb";
-  EXPECT_EQ(test::run(kBin + " -q pose --model " + glb + " --out " + dir + "/x.stl", &out), 1);
+  EXPECT_EQ(test::run(kBin + " -q pose --model " + glb + " --out " + dir + "/x.stl", &out), 2);
   EXPECT_NE(out.find(".ply, .obj or .glb"), std::string::npos) << out;
   EXPECT_EQ(test::run(kBin + " -q pose --model " + glb + " --blend cubic --out " + dir + "/x.ply", &out), 2);
-  EXPECT_EQ(test::run(kBin + " -q pose --model " + glb, &out), 1);
+  EXPECT_EQ(test::run(kBin + " -q pose --model " + glb, &out), 2);
   EXPECT_NE(out.find("nothing to write"), std::string::npos) << out;
 }
 

@@ -4,7 +4,10 @@
 // quality gate failed under --strict (nothing written), 4 for a bug.
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cstdio>
+#include <string>
+#include <vector>
 
 #include "cli/commands.hpp"
 #include "core/errors.hpp"
@@ -12,6 +15,41 @@
 #include "scan/cloud.hpp"
 
 using namespace handskin;
+
+namespace {
+// Edit distance (insertions, deletions, substitutions), for "did you mean".
+size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t diagonal = row[0];
+    row[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = up;
+    }
+  }
+  return row[b.size()];
+}
+
+// The command the user typed, when it is none of the app's: the first word that is not a
+// global option (or --threads's value). Empty when the words name a command or there is none.
+std::string unknown_command(const CLI::App& app, int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string w = argv[i];
+    if (w == "--threads") {
+      ++i;
+      continue;
+    }
+    if (!w.empty() && w[0] == '-') continue;
+    for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; }))
+      if (sub->get_name() == w) return "";
+    return w;
+  }
+  return "";
+}
+}  // namespace
 
 int main(int argc, char** argv) {
   silence_pcl_console();  // our errors name the file; PCL's own lines would only repeat them
@@ -37,6 +75,17 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) return app.exit(e);  // --help, --version
+    if (const std::string typed = unknown_command(app, argc, argv); !typed.empty()) {
+      std::string names, nearest;
+      size_t best = 3;  // suggest only a near miss
+      for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; })) {
+        names += (names.empty() ? "" : ", ") + sub->get_name();
+        if (const size_t d = edit_distance(typed, sub->get_name()); d < best) best = d, nearest = sub->get_name();
+      }
+      std::fprintf(stderr, "error: unknown command '%s'%s (commands: %s; see --help)\n", typed.c_str(),
+                   nearest.empty() ? "" : (" (did you mean " + nearest + "?)").c_str(), names.c_str());
+      return 2;
+    }
     // Usage errors: one line, exit 2 (CLI11's own codes are 100+ and its text two lines).
     std::string what = e.what();
     for (char& c : what)
@@ -50,6 +99,9 @@ int main(int argc, char** argv) {
   try {
     for (const auto& c : commands)
       if (c.app->parsed()) c.run();
+  } catch (const UsageError& e) {
+    std::fprintf(stderr, "error: %s (see --help)\n", e.what());
+    return 2;
   } catch (const InputError& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return 1;

@@ -183,7 +183,7 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
   if (a.count) {
     po.patches.count = *a.count;
     std::string err;
-    if (!po.IsValid(&err)) throw InputError("--count", err);
+    if (!po.IsValid(&err)) throw UsageError("--count", err);
   }
   const std::string rig_path = run_folder_rig(a.skin_dir, a.rig);
   const Rig rig = load_palm_rig(rig_path);

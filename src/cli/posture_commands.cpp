@@ -37,9 +37,9 @@ void solve_command(const SolveArgs& a, const Progress& progress) {
   const PostureModel model = load_model(a.model);
   const PostureSolver solver(model);
   if (!a.inputs.empty() || !a.out.empty()) {
-    if (a.inputs.empty() || a.out.empty()) throw InputError("solve", "batch mode needs both --inputs and --out");
+    if (a.inputs.empty() || a.out.empty()) throw UsageError("solve", "batch mode needs both --inputs and --out");
     if (!a.sets.empty() || !a.torques.empty() || !a.targets.empty() || !a.rig.empty())
-      throw InputError("solve", "--set/--torque/--target/--rig do not combine with --inputs (each row's cells are its inputs)");
+      throw UsageError("solve", "--set/--torque/--target/--rig do not combine with --inputs (each row's cells are its inputs)");
     const BatchSolution b = solve_batch(solver, read_angle_table(a.inputs), a.linear);
     write_angle_table(a.out, b.angles);
     if (b.clamped_rows)
@@ -50,7 +50,7 @@ void solve_command(const SolveArgs& a, const Progress& progress) {
   }
   const PostureInputs in = parse_inputs(a);
   // The rig (and the skeleton built from it, once) are checked before any solving.
-  if (!a.picture.empty() && a.rig.empty()) throw InputError("--picture", "needs --rig (the skeleton to draw)");
+  if (!a.picture.empty() && a.rig.empty()) throw UsageError("--picture", "needs --rig (the skeleton to draw)");
   std::optional<Rig> rig;
   std::optional<Skeleton> skeleton;
   if (!a.rig.empty()) {
@@ -138,14 +138,14 @@ void print_cross_validation(const Json& rep) {
 void calibrate_command(CalibrateArgs a, const Progress& progress) {
   for (const auto& p : a.pairs) {
     const size_t colon = p.find(':');
-    if (colon == std::string::npos) throw InputError("--pair", "'" + p + "' is not of the form dofA:dofB");
+    if (colon == std::string::npos) throw UsageError("--pair", "'" + p + "' is not of the form dofA:dofB");
     const int da = require_dof(p.substr(0, colon), "--pair"), db = require_dof(p.substr(colon + 1), "--pair");
-    if (da == db) throw InputError("--pair", "'" + p + "' names one DOF twice; a pair needs two different DOFs");
+    if (da == db) throw UsageError("--pair", "'" + p + "' names one DOF twice; a pair needs two different DOFs");
     a.options.pairs.emplace_back(da, db);
   }
   a.options.evaluate = !a.no_evaluate;
   std::string err;
-  if (!a.options.IsValid(&err)) throw InputError("calibrate", err);
+  if (!a.options.IsValid(&err)) throw UsageError("calibrate", err);
   std::vector<AngleTable> tables;
   size_t rows = 0;
   for (const auto& f : a.angles) tables.push_back(read_angle_table(f)), rows += tables.back().rows.size();
@@ -182,7 +182,7 @@ struct MocapArgs {
 };
 
 void mocap_command(const MocapArgs& a, const Progress& progress) {
-  if (a.every < 1) throw InputError("--every", "must be >= 1");
+  if (a.every < 1) throw UsageError("--every", "must be >= 1");
   const MarkerTrack track = read_marker_file(a.in);
   progress("mocap", std::to_string(track.frames.size()) + " frames, " + std::to_string(track.names.size()) + " markers");
   MocapAngles ang = angles_from_markers(track, a.in);

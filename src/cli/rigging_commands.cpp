@@ -28,12 +28,12 @@ struct PoseArgs {
 
 void pose_command(const PoseArgs& a, const Progress& progress) {
   namespace fs = std::filesystem;
-  if (a.out.empty() && a.png.empty()) throw InputError("pose", "nothing to write: give --out and/or --png");
+  if (a.out.empty() && a.png.empty()) throw UsageError("pose", "nothing to write: give --out and/or --png");
   std::string ext;
   if (!a.out.empty()) {
     ext = fs::path(a.out).extension().string();
     if (ext != ".ply" && ext != ".obj" && ext != ".glb")
-      throw InputError("--out", "'" + a.out + "': the posed skin is written as .ply, .obj or .glb");
+      throw UsageError("--out", "'" + a.out + "': the posed skin is written as .ply, .obj or .glb");
   }
   const Blend blend = parse_blend(a.blend, "--blend");
   const RiggedSkin skin = read_skin_glb(a.model);
@@ -91,9 +91,9 @@ struct AnimateArgs {
 
 void animate_command(const AnimateArgs& a, const Progress& progress) {
   namespace fs = std::filesystem;
-  if (fs::path(a.out).extension() != ".glb") throw InputError("--out", "'" + a.out + "': the animation is written as a .glb");
+  if (fs::path(a.out).extension() != ".glb") throw UsageError("--out", "'" + a.out + "': the animation is written as a .glb");
   if (!a.csv.empty() && fs::path(a.csv).extension() != ".csv")
-    throw InputError("--csv", "'" + a.csv + "': the frames are written as a .csv");
+    throw UsageError("--csv", "'" + a.csv + "': the frames are written as a .csv");
   const RiggedSkin skin = read_skin_glb(a.model);
   const KeyFrames keys = read_keyframes(a.keys);
   const PostureSolver solver(skin.model);

@@ -25,7 +25,7 @@ namespace handskin::cli {
 namespace {
 
 void check_options(bool ok, const std::string& where, const std::string& err) {
-  if (!ok) throw InputError(where, err);
+  if (!ok) throw UsageError(where, err);  // the options are the flags' values
 }
 
 // ---------------- synth hand ----------------
@@ -43,7 +43,7 @@ struct SynthHandArgs {
 void synth_hand(const SynthHandArgs& args, const Progress& progress) {
   SynthHandArgs a = args;
   OutputSet out(a.out, output_options(a.force));
-  if (a.side != "right" && a.side != "left") throw InputError("--side", "'" + a.side + "': must be right or left");
+  if (a.side != "right" && a.side != "left") throw UsageError("--side", "'" + a.side + "': must be right or left");
   a.shape.side = a.side == "left" ? HandSide::Left : HandSide::Right;
   a.shape.posture = parse_posture(a.posture, a.sets);
   a.shape.thumb_pronation_deg =

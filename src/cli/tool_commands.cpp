@@ -27,9 +27,9 @@ struct RenderArgs {
 };
 
 void render(const RenderArgs& a) {
-  if (a.mesh.empty() == a.scan.empty()) throw InputError("render", "give exactly one of --mesh or --scan");
+  if (a.mesh.empty() == a.scan.empty()) throw UsageError("render", "give exactly one of --mesh or --scan");
   if (!a.scan.empty()) {
-    if (!a.rig.empty()) throw InputError("--rig", "draws a mesh's joints; a scan is drawn in its own frame");
+    if (!a.rig.empty()) throw UsageError("--rig", "draws a mesh's joints; a scan is drawn in its own frame");
     write_file_atomic(a.out, render_scan_png(load_scan(a.scan)));
   } else {
     RenderOptions ro;
@@ -64,7 +64,7 @@ bool is_cloud_path(const std::string& p) {
 
 void convert(const ConvertArgs& a, const Progress& progress) {
   if (!is_cloud_path(a.in)) {
-    if (!is_cloud_path(a.out)) throw InputError("--out", "converting a scan needs a .ply or .pcd output");
+    if (!is_cloud_path(a.out)) throw UsageError("--out", "converting a scan needs a .ply or .pcd output");
     const RangeScan scan = load_scan(a.in);
     save_cloud(a.out, *dense_copy(*scan_to_organized_cloud(scan)));
     progress("convert", std::to_string(scan.count_valid()) + " points written");
@@ -76,8 +76,8 @@ void convert(const ConvertArgs& a, const Progress& progress) {
       ScanMeta meta = a.like.empty() ? ScanMeta{} : parse_scan_meta(read_file(a.like + ".json"), a.like + ".json");
       if (a.side == "back") meta.side = ScanSide::Back;
       else if (a.side == "palm") meta.side = ScanSide::Palm;
-      else if (!a.side.empty()) throw InputError("--side", "'" + a.side + "': must be back or palm");
-      else if (a.like.empty()) throw InputError("--side", "give --side back or --side palm (or --like <stem>)");
+      else if (!a.side.empty()) throw UsageError("--side", "'" + a.side + "': must be back or palm");
+      else if (a.like.empty()) throw UsageError("--side", "give --side back or --side palm (or --like <stem>)");
       meta.device = "converted from " + fs::path(a.in).filename().string();
       size_t dropped = 0;
       const RangeScan scan = cloud_to_scan(*load_cloud(a.in), meta, &dropped);

@@ -28,6 +28,14 @@ class InputError : public std::runtime_error {
   std::string detail_;
 };
 
+/// Bad usage: a flag missing, a flag's value that is not one of its choices or not of its
+/// form, flags that do not go together (exit 2; InputError is bad data, exit 1). `where` names
+/// the flag or the command.
+class UsageError : public InputError {
+ public:
+  using InputError::InputError;
+};
+
 /// A quality gate failed under --strict: the command wrote nothing (exit 3).
 class GateFailure : public std::runtime_error {
  public:

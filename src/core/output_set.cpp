@@ -171,7 +171,7 @@ std::map<std::string, OwnedFile> read_manifest(const std::string& dir) {
 OutputSet::OutputSet(std::string out_dir, OutputSetOptions options)
     : out_dir_(std::move(out_dir)), options_(std::move(options)) {
   std::error_code ec;
-  if (out_dir_.empty()) throw InputError("--out", "no output folder given");
+  if (out_dir_.empty()) throw UsageError("--out", "no output folder given");
   if (fs::exists(out_dir_, ec) && !fs::is_directory(out_dir_, ec))
     throw InputError(out_dir_, "exists and is not a folder");
 }

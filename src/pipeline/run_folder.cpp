@@ -23,7 +23,7 @@ std::string run_folder_rig(const std::string& dir, const std::string& given) {
       rig_path = rep["inputs"]["rig"].get<std::string>();
   }
   if (rig_path.empty())
-    throw InputError("--rig", "no rig for " + dir + " (no rig_auto.json, no rig in its report.json); give --rig");
+    throw UsageError("--rig", "no rig for " + dir + " (no rig_auto.json, no rig in its report.json); give --rig");
   return rig_path;
 }
 

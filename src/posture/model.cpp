@@ -154,7 +154,7 @@ PostureModel builtin_model(const std::string& name) {
     }
     for (int d = 6; d < kDofCount; ++d) m.dof[d].stiffness = 1.0;
   } else {
-    throw InputError("--model", "unknown built-in model '" + name + "' (use builtin:anatomical or builtin:thesis)");
+    throw UsageError("--model", "unknown built-in model '" + name + "' (use builtin:anatomical or builtin:thesis)");
   }
   return m;
 }

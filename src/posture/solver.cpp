@@ -416,8 +416,12 @@ PostureInputs fist_inputs() {
 void parse_assignment(const std::string& text, const std::string& option, int* dof, double* value, double* weight) {
   const size_t eq = text.find('=');
   if (eq == std::string::npos || eq == 0)
-    throw InputError(option, "'" + text + "' is not of the form name=value" + (weight ? "[@weight]" : ""));
-  *dof = require_dof(text.substr(0, eq), option);
+    throw UsageError(option, "'" + text + "' is not of the form name=value" + (weight ? "[@weight]" : ""));
+  try {
+    *dof = require_dof(text.substr(0, eq), option);
+  } catch (const InputError& e) {
+    throw UsageError(e.where(), e.detail());  // a flag's value
+  }
   std::string rest = text.substr(eq + 1);
   if (weight) {
     *weight = 1.0;
@@ -427,14 +431,14 @@ void parse_assignment(const std::string& text, const std::string& option, int* d
       const std::string w = rest.substr(at + 1);
       *weight = std::strtod(w.c_str(), &end);
       if (w.empty() || *end != '\0' || !(*weight > 0 && *weight <= kMaxTargetWeight))
-        throw InputError(option, "'" + text + "': the weight after @ must be a number in (0, 1e6]");
+        throw UsageError(option, "'" + text + "': the weight after @ must be a number in (0, 1e6]");
       rest = rest.substr(0, at);
     }
   }
   char* end = nullptr;
   *value = std::strtod(rest.c_str(), &end);
   if (rest.empty() || *end != '\0' || !(std::abs(*value) <= kMaxTorque))
-    throw InputError(option, "'" + text + "': the value must be a finite number within ±1e4");
+    throw UsageError(option, "'" + text + "': the value must be a finite number within ±1e4");
 }
 
 }  // namespace handskin

@@ -22,7 +22,7 @@ Eigen::Matrix3d named_view(const std::string& name) {
     R << -1, 0, 0, 0, 0, 1, 0, 1, 0;
     return R;
   }
-  throw InputError("--view", "unknown view '" + name + "' (use back, palm or side)");
+  throw UsageError("--view", "unknown view '" + name + "' (use back, palm or side)");
 }
 
 

@@ -95,7 +95,7 @@ double bezier_at(const std::vector<double>& T, const std::vector<double>& V, dou
 
 PostureAnimation animate(const PostureSolver& solver, const KeyFrames& keys, double fps, bool inputs_only,
                          const std::string& file) {
-  if (!(fps >= 1 && fps <= 240)) throw InputError("--fps", "must be in [1, 240] frames per second");
+  if (!(fps >= 1 && fps <= 240)) throw UsageError("--fps", "must be in [1, 240] frames per second");
   HS_CHECK(keys.times.size() >= 2, "animate: fewer than two keys");
   const size_t nk = keys.times.size();
   const double t0 = keys.times.front(), duration = keys.times.back() - t0;
