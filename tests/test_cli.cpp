@@ -65,6 +65,47 @@ TEST(Cli, EveryUsageErrorExitsTwoInOneLineNamingItsFlag) {
   EXPECT_EQ(test::run(kBin + " -q render --scan " + kFix + "nothing --out " + dir + "/x.png", &out), 1) << out;
 }
 
+// A run folder travels (issue 40): report.json's inputs are relative to the report, and
+// absolute in inputs_absolute; `patches --skin-dir` works from another working directory on a
+// moved copy (finding the rig by its absolute path), and says which rig is missing when it is
+// gone.
+TEST(Cli, ARunFolderWorksFromAnywhereAndWhenMoved) {
+  const std::string base = test::temp_dir("travel");
+  fs::create_directories(base + "/work");
+  std::string out;
+  // The run started from a working directory of its own, with relative paths.
+  const std::string rel_fix = fs::relative(kFix, base + "/work").string() + "/";
+  ASSERT_EQ(test::run("cd " + base + "/work && " + kBin + " -q run --back " + rel_fix + "back --palm " + rel_fix + "palm --rig " +
+                          rel_fix + "rig.json --out out/r",
+                      &out),
+            0)
+      << out;
+  const std::string run = base + "/work/out/r";
+  const Json r = load_json_object(run + "/report.json");
+  for (const char* key : {"back", "palm", "rig"}) {
+    const std::string rel = r["inputs"][key].get<std::string>(), abs = r["inputs_absolute"][key].get<std::string>();
+    EXPECT_TRUE(fs::path(abs).is_absolute()) << abs;
+    EXPECT_EQ(fs::weakly_canonical(fs::path(run) / rel), fs::weakly_canonical(abs)) << key << ": " << rel;
+  }
+  EXPECT_TRUE(fs::exists(fs::path(run) / r["inputs"]["rig"].get<std::string>()));
+  EXPECT_EQ(r["inputs"]["pipeline"], "(built-in defaults)");
+  EXPECT_EQ(r["inputs_absolute"]["posture_model"], r["inputs"]["posture_model"]);  // builtin: no path
+  // From elsewhere, on a copy moved away from its inputs.
+  fs::copy(run, base + "/moved", fs::copy_options::recursive);
+  fs::create_directories(base + "/elsewhere");
+  ASSERT_EQ(test::run("cd " + base + "/elsewhere && " + kBin + " -q patches --skin-dir ../moved --out p", &out), 0) << out;
+  EXPECT_TRUE(fs::exists(base + "/elsewhere/p/patches.step"));
+  // Its rig gone as well: one line naming --rig and the rig looked for.
+  Json broken = r;
+  broken["inputs"]["rig"] = "../nowhere/rig.json";
+  broken["inputs_absolute"]["rig"] = base + "/nowhere/rig.json";
+  save_json(base + "/moved/report.json", broken);
+  EXPECT_EQ(test::run("cd " + base + "/elsewhere && " + kBin + " -q patches --skin-dir ../moved --out q", &out), 2) << out;
+  EXPECT_NE(out.find("--rig: the rig"), std::string::npos) << out;
+  EXPECT_NE(out.find("nowhere/rig.json"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(base + "/elsewhere/q"));
+}
+
 TEST(Cli, TheScansAsCloudsAreWrittenOnRequestOnly) {
   // back.ply and palm.ply repeat the input scans (6 MB): --scan-clouds asks for them
   // (RunOnTheFixtureWritesItsOutputs checks them then); a scan pair's run without it has none.

@@ -85,6 +85,7 @@ void skin_command(const SkinArgs& a, const Progress& progress) {
   report["format"] = "handskin-skin-report/1";
   report["inputs"] = {{"merged", a.merged}, {"rig", a.rig.empty() ? "(placed automatically)" : a.rig},
                       {"pipeline", a.pipeline.empty() ? "(built-in defaults)" : a.pipeline}};
+  relativise_input_paths(&report["inputs"], out.out_dir(), &report["inputs_absolute"]);
   report["outputs"] = write_skin_outputs(out, r, skin_preview_png(r));
   report["outputs"]["report"] = out.final_path("skin_report.json");
   GateInputs gi;
@@ -198,6 +199,7 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
   Json report = to_json(r);
   report["format"] = "handskin-patches-report/1";
   report["inputs"] = {{"merged", merged}, {"rig", rig_path}, {"pipeline", a.pipeline.empty() ? "(built-in defaults)" : a.pipeline}};
+  relativise_input_paths(&report["inputs"], out.out_dir(), &report["inputs_absolute"]);
   GateInputs gi;
   gi.patches = &r;
   const QualityGates gates = check_gates(gi, po);

@@ -15,6 +15,7 @@
 #include "render/preview.hpp"
 #include "pipeline/gates.hpp"
 #include "pipeline/registration_stage.hpp"
+#include "pipeline/run_folder.hpp"
 #include "pipeline/stage_options.hpp"
 #include "core/threads.hpp"
 
@@ -352,6 +353,7 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
   }
   report["inputs"]["rig"] = in.rig_path.empty() ? "(placed automatically)" : in.rig_path;
   report["inputs"]["pipeline"] = in.pipeline_path.empty() ? "(built-in defaults)" : in.pipeline_path;
+  if (!in.markers_path.empty()) report["inputs"]["markers"] = in.markers_path;
   report["pipeline"] = pipeline_to_json(in.options);
   if (in.baseline) report["pipeline"]["skin"]["baseline"] = true;
   Json stages = Json::array();
@@ -399,6 +401,8 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
   write_file_atomic(out.stage("skin.glb"), r.glb);
   outputs["skin_glb"] = out.final_path("skin.glb");
   report["inputs"]["posture_model"] = in.posture_model;
+  // Paths relative to the report (the folder travels with its inputs), and absolute.
+  relativise_input_paths(&report["inputs"], out.out_dir(), &report["inputs_absolute"]);
   report["stages"] = stages;  // the computing stages, for the patch report's page
   put_gates(W.gates, &report);
   if (r.patches) {

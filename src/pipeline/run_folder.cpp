@@ -12,19 +12,68 @@
 
 namespace handskin {
 
+namespace {
+bool is_input_path(const std::string& v) { return !v.empty() && v[0] != '(' && v.rfind("builtin:", 0) != 0; }
+}  // namespace
+
+void relativise_input_paths(Json* inputs, const std::string& report_dir, Json* absolute) {
+  namespace fs = std::filesystem;
+  static const char* const kPathKeys[] = {"back",  "palm",          "clouds", "rig",    "pipeline",   "merged",
+                                          "markers", "truth",       "posture_model", "layout", "back_photo", "palm_photo"};
+  const fs::path base = fs::absolute(report_dir).lexically_normal();
+  *absolute = Json::object();
+  auto convert = [&](const Json& v, Json* rel, Json* abs) {
+    if (!v.is_string() || !is_input_path(v.get<std::string>())) {
+      *rel = v, *abs = v;
+      return;
+    }
+    const fs::path a = fs::absolute(v.get<std::string>()).lexically_normal();
+    *abs = a.string();
+    *rel = a.lexically_relative(base).string();
+  };
+  for (const char* key : kPathKeys) {
+    if (!inputs->contains(key)) continue;
+    const Json v = (*inputs)[key];
+    if (v.is_array()) {
+      Json rel = Json::array(), abs = Json::array();
+      for (const Json& e : v) {
+        Json r, a;
+        convert(e, &r, &a);
+        rel.push_back(r), abs.push_back(a);
+      }
+      (*inputs)[key] = rel, (*absolute)[key] = abs;
+    } else {
+      convert(v, &(*inputs)[key], &(*absolute)[key]);
+    }
+  }
+}
+
 std::string run_folder_rig(const std::string& dir, const std::string& given) {
   namespace fs = std::filesystem;
-  std::string rig_path = given;
-  if (rig_path.empty() && fs::exists(fs::path(dir) / "rig_auto.json")) rig_path = (fs::path(dir) / "rig_auto.json").string();
-  if (rig_path.empty() && fs::exists(fs::path(dir) / "report.json")) {
-    const Json rep = load_json_object((fs::path(dir) / "report.json").string());
-    if (rep.contains("inputs") && rep["inputs"].contains("rig") && rep["inputs"]["rig"].is_string() &&
-        rep["inputs"]["rig"].get<std::string>().rfind("(", 0) != 0)
-      rig_path = rep["inputs"]["rig"].get<std::string>();
+  if (!given.empty()) return given;
+  if (fs::exists(fs::path(dir) / "rig_auto.json")) return (fs::path(dir) / "rig_auto.json").string();
+  const fs::path report = fs::path(dir) / "report.json";
+  if (fs::exists(report)) {
+    const Json rep = load_json_object(report.string());
+    auto named = [&](const char* section) -> std::string {
+      if (!rep.contains(section) || !rep[section].is_object() || !rep[section].contains("rig") ||
+          !rep[section]["rig"].is_string())
+        return "";
+      const std::string v = rep[section]["rig"].get<std::string>();
+      return is_input_path(v) ? v : "";
+    };
+    const std::string rel = named("inputs"), abs = named("inputs_absolute");
+    std::vector<std::string> tried;
+    if (!rel.empty()) tried.push_back(fs::path(rel).is_absolute() ? rel : (fs::path(dir) / rel).lexically_normal().string());
+    if (!abs.empty()) tried.push_back(abs);
+    if (!rel.empty()) tried.push_back(rel);  // a report from before the paths were the folder's
+    for (const std::string& t : tried)
+      if (fs::is_regular_file(t)) return t;
+    if (!tried.empty())
+      throw UsageError("--rig", "the rig " + report.string() + " names is not there (" + tried.front() +
+                                    (abs.empty() ? "" : ", nor " + abs) + "); give --rig");
   }
-  if (rig_path.empty())
-    throw UsageError("--rig", "no rig for " + dir + " (no rig_auto.json, no rig in its report.json); give --rig");
-  return rig_path;
+  throw UsageError("--rig", "no rig for " + dir + " (no rig_auto.json, no rig in its report.json); give --rig");
 }
 
 RunFolderPatches patches_for_run_folder(const std::string& dir, const Rig& rig, const std::string& rig_path,

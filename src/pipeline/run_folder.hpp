@@ -14,9 +14,18 @@
 namespace handskin {
 
 /// The rig a run folder's skin was built on: `given` when not empty, else the folder's
-/// rig_auto.json (the automatic skeleton's), else the rig its report.json names. InputError
-/// (naming --rig) when there is none.
+/// rig_auto.json (the automatic skeleton's), else the rig its report.json names (relative to
+/// the folder; else its absolute path in `inputs_absolute`; else, for a report from before
+/// 2026-11-28, relative to the working directory). UsageError (naming --rig) when there is none
+/// or none of those files is there.
 std::string run_folder_rig(const std::string& dir, const std::string& given);
+
+/// A report's "inputs" made to travel with its folder: every input path (the keys that name
+/// files: back, palm, clouds, rig, pipeline, merged, markers, truth, posture_model, layout,
+/// back_photo, palm_photo) made relative to `report_dir`, the folder the report is written in,
+/// and the same paths absolute in `*absolute`. Values that are no path ("(placed
+/// automatically)", "builtin:…") are left as they are.
+void relativise_input_paths(Json* inputs, const std::string& report_dir, Json* absolute);
 
 /// The patches of a run folder, and what they were made from.
 struct RunFolderPatches {
