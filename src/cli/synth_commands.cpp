@@ -214,7 +214,7 @@ void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) 
   shc->add_option("--index-ring-ratio", sh->index_ring_ratio, "Index : ring finger length [0.85, 1.05] (default 0.929)");
   shc->add_option("--forearm", sh->forearm, "Forearm stub beyond the wrist joint, mm [0, 40] (default 12 x scale)");
   shc->add_option("--side", sh->side, "right or left")->capture_default_str();
-  shc->add_option("--posture", sh->posture, "relaxed, flat, or a joint-angle CSV (first row; formats/hand-rig.md)")
+  shc->add_option("--posture", sh->posture, "relaxed, flat, or a joint-angle CSV (its first row; docs/formats.md, \"Joint-angle CSV\")")
       ->capture_default_str();
   shc->add_option("--set", sh->sets, "DOF=deg on top of the posture (repeatable), e.g. --set index.pip.flex=30");
   shc->add_option("--thumb-pronation", sh->thumb_pronation,
