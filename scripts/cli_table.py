@@ -7,6 +7,7 @@
 The tables are made from CLI11's help text (each command's `--help`), so they cannot drift
 from the code: the test `cli_table` runs the check.
 """
+import os
 import re
 import subprocess
 import sys
@@ -50,7 +51,9 @@ def help_of(binary, words):
     out = subprocess.run([binary, *words, "--help"], capture_output=True, text=True)
     if out.returncode != 0:
         sys.exit(f"error: {' '.join(words)} --help exited {out.returncode}")
-    return out.stdout
+    # Defaults inside the build folder (the studio's page) are written as <build>/…, so that
+    # the page does not depend on where the tree was built.
+    return out.stdout.replace(os.path.dirname(os.path.abspath(binary)), "<build>")
 
 
 def sections(text):
