@@ -56,14 +56,6 @@ const StepModule& loaded(const std::string& path) {
   return m;
 }
 
-}  // namespace
-
-void preload_step() {
-  static std::future<void> loading = std::async(std::launch::async, [] { step_module(); });
-}
-
-namespace {
-
 StepSummary summary_of(const HsStepSummary& s) {
   StepSummary r;
   r.faces = s.faces, r.shells = s.shells, r.closed_shells = s.closed_shells, r.solids = s.solids;
@@ -73,6 +65,10 @@ StepSummary summary_of(const HsStepSummary& s) {
 }
 
 }  // namespace
+
+void preload_step() {
+  static std::future<void> loading = std::async(std::launch::async, [] { step_module(); });
+}
 
 void write_patches_step(const std::vector<BezierPatch>& patches, const std::string& path, double sew_tolerance_mm) {
   if (patches.empty()) throw InputError(path, "no patches to write");
