@@ -7,3 +7,4 @@ if [ ! -f build/CMakeCache.txt ]; then
   cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
 fi
 cmake --build build -j "$JOBS"
+bash scripts/install_python.sh

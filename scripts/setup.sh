@@ -8,6 +8,7 @@ PACKAGES=(
   nlohmann-json3-dev libcli11-dev libpng-dev libssl-dev libgtest-dev libgmock-dev libbenchmark-dev libtinygltf-dev libosmesa6-dev libcpp-httplib-dev
   libocct-data-exchange-dev libocct-modeling-algorithms-dev libocct-modeling-data-dev libocct-foundation-dev
   chromium firefox-esr xvfb xauth fonts-dejavu-core blender python3-numpy python3-scipy freecad-python3
+  pybind11-dev python3-dev python3-pytest
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -11,6 +11,7 @@
 #include "core/errors.hpp"
 #include "core/png_io.hpp"
 #include "core/rig.hpp"
+#include "mesh/mesh.hpp"
 #include "pipeline/options.hpp"
 #include "pipeline/stage_options.hpp"
 #include "register/registration.hpp"
@@ -343,4 +344,24 @@ TEST(Pipeline, PatchContinuityReachesTheFit) {
   const PatchOptions p = patch_options(parse_pipeline(j, "p.json"));
   EXPECT_EQ(p.c1_weight, 0.0);
   EXPECT_EQ(p.fairness, 0.01);
+}
+
+// A mesh header that declares more than its file can hold is refused at once (OpenMesh's
+// readers reserve what a header declares: 10^11 vertices filled memory for minutes).
+TEST(Formats, AMeshHeaderDeclaringMoreThanItsFileHoldsIsRefusedAtOnce) {
+  const std::string dir = test::temp_dir("declared");
+  const std::vector<std::pair<std::string, std::string>> files = {
+      {"a.ply", "ply\nformat ascii 1.0\nelement vertex 99999999999\nend_header\n"},
+      {"b.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 1000000000\nproperty float x\nproperty float y\n"
+                "property float z\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n"},
+      {"c.off", "OFF\n100000000000 1 0\n"},
+      {"d.stl", std::string(80, '\0') + std::string("\xff\xff\xff\x7f", 4)}};
+  for (const auto& [name, text] : files) {
+    write_file_atomic(dir + "/" + name, text);
+    const std::string e = test::input_error_of([&] { load_mesh(dir + "/" + name); });
+    EXPECT_NE(e.find("its header declares"), std::string::npos) << name << ": " << e;
+  }
+  // a well-formed small file still reads
+  write_file_atomic(dir + "/ok.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  EXPECT_EQ(load_mesh(dir + "/ok.off").faces.size(), 1u);
 }

@@ -15,6 +15,7 @@
 #include <fstream>
 #include <map>
 #include <set>
+#include <csignal>
 #include <unistd.h>
 #include <sstream>
 #include <unordered_map>
@@ -520,4 +521,37 @@ TEST(Trust, OutputSetUnit) {
   EXPECT_EQ(read_manifest(dir).size(), 1u);
   OutputSet again(dir);
   EXPECT_NE(test::input_error_of([&] { again.claim({"user.txt"}); }).find("is in the way"), std::string::npos);
+}
+
+// A host that owns its signals (the Python module): sets without the signal handlers, any
+// number open at once (one per folder), each locking its own; SIGINT's handler is left as the
+// host set it.
+TEST(Trust, OutputSetsWithoutSignalCleanupOpenAtOnceAndLeaveTheHandlers) {
+  const std::string base = test::temp_dir("nosignals");
+  struct sigaction before {};
+  sigaction(SIGINT, nullptr, &before);
+  OutputSetOptions o;
+  o.signal_cleanup = false;
+  {
+    OutputSet a(base + "/a", o), b(base + "/b", o);
+    a.claim({"x.txt"});
+    b.claim({"x.txt"});
+    struct sigaction during {};
+    sigaction(SIGINT, nullptr, &during);
+    EXPECT_EQ(during.sa_handler, before.sa_handler);
+    OutputSet a2(base + "/a", o);  // the same folder is still locked against a second set
+    EXPECT_NE(test::input_error_of([&] { a2.claim({"x.txt"}); }).find("is writing into this folder"), std::string::npos);
+    write_file_atomic(a.stage("x.txt"), "a");
+    write_file_atomic(b.stage("x.txt"), "b");
+    b.commit();
+    a.commit();
+  }
+  EXPECT_EQ(read_file(base + "/a/x.txt"), "a");
+  EXPECT_EQ(read_file(base + "/b/x.txt"), "b");
+  // ... and a CLI set (with the handlers) still works after them.
+  OutputSet c(base + "/c");
+  c.claim({"x.txt"});
+  struct sigaction during {};
+  sigaction(SIGINT, nullptr, &during);
+  EXPECT_NE(during.sa_handler, before.sa_handler);
 }

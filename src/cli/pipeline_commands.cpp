@@ -32,18 +32,15 @@ void run_command(RunArgs a, const Progress& progress) {
   RunInputs& in = a.in;
   in.units = *parse_length_unit(a.units);  // checked by the parser
   if (!a.hand.empty()) in.hand = a.hand == "left" ? HandSide::Left : HandSide::Right;
-  OutputSet out(a.out_dir, output_options(a.force));  // an output path that cannot be a folder fails before any work
+  if (a.out_dir.empty()) throw UsageError("--out", "no output folder given");
   if (!in.pipeline_path.empty()) in.options = load_pipeline(in.pipeline_path);
   if (a.patch_tolerance) in.options.patches.tolerance_mm = *a.patch_tolerance;  // range checked by the parser
-  out.claim(run_output_plan(in), run_output_names());  // the folder writable, locked, its names ours
-  const RunResult r = run_pipeline(in, [&](const std::string& m) { progress("run", m); });
-  progress("run", "writing the outputs");
-  const RunWritten w = write_run_outputs(out, r);
+  const RunWritten w = run_into_folder(
+      in, a.out_dir, output_options(a.force), [&](const std::string& m) { progress("run", m); },
+      [&](const QualityGates& g) { settle_gates(g, a.strict, a.out_dir); });
   const Json& report = w.report;
-  settle_gates(w.gates, a.strict, a.out_dir);
-  out.commit();
   progress("run", "done in " + std::to_string(report["total_seconds"].get<double>()).substr(0, 5) + " s");
-  std::printf("outputs in %s (report: %s)\n", a.out_dir.c_str(), out.final_path("report.json").c_str());
+  std::printf("outputs in %s (report: %s)\n", a.out_dir.c_str(), (std::filesystem::path(a.out_dir) / "report.json").c_str());
   print_gates(w.gates);
 }
 

@@ -169,7 +169,7 @@ std::map<std::string, OwnedFile> read_manifest(const std::string& dir) {
 }
 
 OutputSet::OutputSet(std::string out_dir, OutputSetOptions options)
-    : out_dir_(std::move(out_dir)), options_(std::move(options)) {
+    : out_dir_(std::move(out_dir)), options_(std::move(options)), signals_(options_.signal_cleanup) {
   std::error_code ec;
   if (out_dir_.empty()) throw UsageError("--out", "no output folder given");
   if (fs::exists(out_dir_, ec) && !fs::is_directory(out_dir_, ec))
@@ -182,7 +182,7 @@ OutputSet::~OutputSet() {
 
 void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<std::string>& others) {
   HS_CHECK(!claimed_done_, "an output set is claimed once");
-  HS_CHECK(!g_active, "one output set at a time");
+  HS_CHECK(!signals_ || !g_active, "one output set with signal cleanup at a time");
   for (const auto& n : writes)
     HS_CHECK(n.find('/') == std::string::npos && !n.empty() && n[0] != '.', "output names are plain file names");
   writes_ = writes;
@@ -220,21 +220,23 @@ void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<
                                    "' is not writable (the outputs are staged there and moved in together)");
   }
   // --- the signal handlers clean up what the claim made from now on ---
-  g_path_count = 0;
-  g_staging[0] = 0;
-  g_created_count = 0;
-  for (const auto& c : created_)
-    if (g_created_count < kMaxCreated) copy_path(g_created[g_created_count], c), g_created_count = g_created_count + 1;
   const std::string lock = (out / kLockName).string();
-  copy_path(g_lock, lock);
-  g_active = 1;
-  install_handlers();
+  if (signals_) {
+    g_path_count = 0;
+    g_staging[0] = 0;
+    g_created_count = 0;
+    for (const auto& c : created_)
+      if (g_created_count < kMaxCreated) copy_path(g_created[g_created_count], c), g_created_count = g_created_count + 1;
+    copy_path(g_lock, lock);
+    g_active = 1;
+    install_handlers();
+  }
   // --- the lock: one command writes a folder at a time ---
   for (int attempt = 0; attempt < 8 && lock_fd_ < 0; ++attempt) {
     const int fd = ::open(lock.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (fd < 0) {
       const std::string why = std::strerror(errno);
-      g_lock[0] = 0;
+      if (signals_) g_lock[0] = 0;
       discard();
       throw InputError(out_dir_, "cannot lock: " + why);
     }
@@ -242,7 +244,7 @@ void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<
       char pid[32] = {0};
       const ssize_t n = ::pread(fd, pid, sizeof pid - 1, 0);
       ::close(fd);
-      g_lock[0] = 0;  // not ours to remove
+      if (signals_) g_lock[0] = 0;  // not ours to remove
       discard();
       throw InputError(out_dir_, std::string("another handskin command") +
                                      (n > 0 ? " (pid " + std::string(pid, static_cast<size_t>(n)) + ")" : "") +
@@ -262,7 +264,7 @@ void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<
     }
   }
   if (lock_fd_ < 0) {
-    g_lock[0] = 0;
+    if (signals_) g_lock[0] = 0;
     discard();
     throw InputError(out_dir_, "cannot lock: the lock file keeps changing");
   }
@@ -324,6 +326,7 @@ std::string OutputSet::stage(const std::string& name) {
   if (fault("stage", n)) throw InputError(final_path(name), "cannot write: injected fault (HANDSKIN_FAULT)");
   const std::string path = (fs::path(staging_) / name).string();
   for (const std::string& q : {path, temp_name_for(path)}) {
+    if (!signals_) break;
     HS_CHECK(g_path_count < kMaxPaths, "too many outputs in one set");
     copy_path(g_paths[g_path_count], q);
     g_path_count = g_path_count + 1;
@@ -345,7 +348,7 @@ void OutputSet::ensure_staging() {
     throw InputError(out_dir_, "cannot write: cannot create a staging folder in '" + parent.string() + "'" +
                                    (ec ? ": " + ec.message() : std::string()));
   }
-  copy_path(g_staging, staging_);
+  if (signals_) copy_path(g_staging, staging_);
 }
 
 std::string OutputSet::staged_path(const std::string& name) const {
@@ -362,7 +365,7 @@ void OutputSet::release() noexcept {
     ::close(lock_fd_);
     lock_fd_ = -1;
   }
-  if (g_active) {
+  if (signals_ && g_active) {
     g_active = 0;
     g_lock[0] = 0;
     g_staging[0] = 0;
@@ -384,7 +387,7 @@ void OutputSet::discard() noexcept {
 void OutputSet::commit() {
   HS_CHECK(!committed_, "an output set is committed once");
   HS_CHECK(claimed_done_, "an output set is claimed before it commits");
-  g_committing = 1;
+  if (signals_) g_committing = 1;
   std::error_code ec;
   const fs::path out(out_dir_);
   // The new manifest: the old one's entries, the files staged now, less what goes.
@@ -410,10 +413,10 @@ void OutputSet::commit() {
   };
   auto fail = [&](const std::string& name, const std::string& why) {
     undo();
-    g_committing = 0;
+    if (signals_) g_committing = 0;
     moved_aside_.clear();
     discard();
-    const int pending = g_pending;
+    const int pending = signals_ ? g_pending : 0;
     if (pending) std::raise(pending);
     throw InputError(final_path(name), "cannot move into place: " + why + "; " + out_dir_ + " is as it was");
   };
@@ -503,10 +506,10 @@ void OutputSet::commit() {
   staging_.clear();
   created_.clear();
   release();
-  g_committing = 0;
+  if (signals_) g_committing = 0;
   if (options_.say)
     for (const auto& m : moved_aside_) options_.say("moved aside (not handskin's): " + m);
-  const int pending = g_pending;
+  const int pending = signals_ ? g_pending : 0;
   if (pending) std::raise(pending);  // the files are in place: now die as asked
 }
 

@@ -61,6 +61,10 @@ std::map<std::string, OwnedFile> read_manifest(const std::string& dir);
 struct OutputSetOptions {
   bool force = false;  ///< move things in the way aside into a dated backup instead of refusing
   std::function<void(const std::string&)> say;  ///< one progress line (what was moved aside)
+  /// The SIGINT/SIGTERM/SIGHUP handlers that clean up a set cut short (the CLI's sets). Off
+  /// for a host process that owns its signals (the Python module): a signal then does what the
+  /// host says, and any number of sets may be open at once (one per output folder).
+  bool signal_cleanup = true;
 };
 
 class OutputSet {
@@ -109,6 +113,7 @@ class OutputSet {
   std::vector<std::string> created_;           ///< folders the claim made, deepest first
   int lock_fd_ = -1;
   bool claimed_done_ = false, committed_ = false;
+  bool signals_;  ///< options_.signal_cleanup: this set registers with the signal handlers
 };
 
 }  // namespace handskin

@@ -7,7 +7,13 @@
 
 #include <Eigen/Geometry>  // cross(): only declared by <Eigen/Core>
 #include <cmath>
+#include <algorithm>
+#include <cctype>
+#include <cstdint>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <optional>
 #include <vector>
 
@@ -16,10 +22,104 @@
 
 namespace handskin {
 
+namespace {
+
+/// The fewest bytes one value of a PLY property type takes in a binary file.
+size_t ply_type_bytes(const std::string& t) {
+  if (t == "char" || t == "uchar" || t == "int8" || t == "uint8") return 1;
+  if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
+  if (t == "double" || t == "float64") return 8;
+  return 4;  // int, uint, float, int32, uint32, float32 (and anything else: the reader refuses it)
+}
+
+/// A header's declared element counts against the file's size: OpenMesh's readers reserve
+/// what the header declares before reading, so a header declaring 10^11 vertices made them
+/// fill memory for minutes (found by the Python module's bad-input test). PLY (each element at
+/// least its properties' bytes, 2 per value in ASCII), OFF (ASCII: 6 bytes a vertex, 8 a face)
+/// and binary STL (50 bytes a triangle) are checked; a file that cannot hold what it declares
+/// is an InputError naming the count.
+void check_declared_counts(const std::string& path) {
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(path, ec);
+  if (ec) return;  // the reader says what is wrong
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  std::ifstream in(path, std::ios::binary);
+  auto refuse = [&](const std::string& what, double count, double bytes) {
+    if (count * bytes > static_cast<double>(size))
+      throw InputError(path, "its header declares " + std::to_string(static_cast<long long>(count)) + " " + what +
+                                 ", more than its " + std::to_string(size) + " bytes can hold");
+  };
+  if (ext == ".ply") {
+    std::string line, format;
+    std::vector<std::pair<std::string, double>> elements;  // name, count
+    std::vector<size_t> bytes;                              // per element: fewest bytes (binary)
+    std::vector<size_t> values;                             // per element: values (ASCII)
+    for (int n = 0; n < 10000 && std::getline(in, line); ++n) {
+      std::istringstream ls(line);
+      std::string key;
+      ls >> key;
+      if (key == "end_header") break;
+      if (key == "format") ls >> format;
+      if (key == "element") {
+        std::string name;
+        double count = 0;
+        ls >> name >> count;
+        elements.emplace_back(name, count);
+        bytes.push_back(0);
+        values.push_back(0);
+      }
+      if (key == "property" && !elements.empty()) {
+        std::string type;
+        ls >> type;
+        if (type == "list") {
+          std::string count_type;
+          ls >> count_type;
+          bytes.back() += ply_type_bytes(count_type);  // an empty list: its count alone
+        } else {
+          bytes.back() += ply_type_bytes(type);
+        }
+        values.back() += 1;
+      }
+    }
+    double total = 0;
+    for (size_t i = 0; i < elements.size(); ++i) {
+      // (at least 1 byte: an element without properties is still a line, and nothing a reader takes)
+      const double each = std::max(1.0, format == "ascii" ? 2.0 * static_cast<double>(values[i]) : static_cast<double>(bytes[i]));
+      refuse("'" + elements[i].first + "' elements", elements[i].second, each);
+      total += elements[i].second * each;
+    }
+    refuse("elements in all", 1, total);
+  } else if (ext == ".off") {
+    std::string magic;
+    double v = 0, f = 0;
+    in >> magic >> v >> f;
+    if (in && magic.find("OFF") != std::string::npos && magic.find("BINARY") == std::string::npos) {
+      refuse("vertices", v, 6);
+      refuse("faces", f, 8);
+    }
+  } else if (ext == ".stl") {
+    char head[84] = {0};
+    in.read(head, 84);
+    if (in.gcount() == 84 && std::string(head, 5) != "solid") {
+      std::uint32_t n = 0;
+      std::memcpy(&n, head + 80, 4);
+      refuse("triangles", n, 50);
+    }
+  }
+}
+
+}  // namespace
+
 std::optional<Mesh> read_mesh_file(const std::string& path) {
+  check_declared_counts(path);
   TriMesh mesh;
   OpenMesh::IO::Options opt;
-  if (!OpenMesh::IO::read_mesh(mesh, path, opt)) return std::nullopt;
+  try {
+    if (!OpenMesh::IO::read_mesh(mesh, path, opt)) return std::nullopt;
+  } catch (const std::bad_alloc&) {  // a header that declares more elements than memory holds
+    throw InputError(path, "unreadable mesh: its header declares more elements than fit in memory");
+  }
   return from_trimesh(mesh);
 }
 

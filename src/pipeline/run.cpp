@@ -420,4 +420,16 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
   return W;
 }
 
+RunWritten run_into_folder(const RunInputs& in, const std::string& out_dir, const OutputSetOptions& out_options,
+                           const ProgressFn& progress, const std::function<void(const QualityGates&)>& settle) {
+  OutputSet out(out_dir, out_options);  // an output path that cannot be a folder fails before any work
+  out.claim(run_output_plan(in), run_output_names());  // the folder writable, locked, its names ours
+  const RunResult r = run_pipeline(in, progress);
+  if (progress) progress("writing the outputs");
+  RunWritten w = write_run_outputs(out, r);
+  if (settle) settle(w.gates);
+  out.commit();
+  return w;
+}
+
 }  // namespace handskin

@@ -106,4 +106,12 @@ struct RunWritten {
 /// back). The caller commits (or, with --strict and a failed gate, does not).
 RunWritten write_run_outputs(OutputSet& out, const RunResult& r);
 
+/// `handskin run` as one call, for every front end (the CLI, the Python module): the output
+/// folder claimed before any work (`out_options`: --force, the signal handlers), every stage
+/// computed, every output staged, `settle` shown the quality gates measured on the staged
+/// files (it may throw — GateFailure under --strict — and then nothing is written), then the
+/// commit. Returns the report as written.
+RunWritten run_into_folder(const RunInputs& in, const std::string& out_dir, const OutputSetOptions& out_options,
+                           const ProgressFn& progress, const std::function<void(const QualityGates&)>& settle);
+
 }  // namespace handskin

@@ -1,5 +1,7 @@
 #include "rigging/gltf.hpp"
 
+#include <filesystem>
+
 #include <tiny_gltf.h>
 
 #include <cmath>
@@ -604,6 +606,7 @@ void merge_seams(const Json& h, const std::string& file, RiggedSkin* sp) {
 
 // The glb as tinygltf reads it (images kept encoded).
 tinygltf::Model load_glb(const std::string& file) {
+  if (std::error_code ec; !std::filesystem::is_regular_file(file, ec)) throw InputError(file, "no such file");
   tinygltf::Model m;
   tinygltf::TinyGLTF gltf;
   gltf.SetImageLoader(keep_image_bytes, nullptr);
