@@ -23,9 +23,9 @@ mkdir -p "$ART"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 "$BIN" -q run --back fixtures/default/back --palm fixtures/default/palm --rig fixtures/default/rig.json --out "$work/run" >/dev/null
-"$BIN" -q pose --model "$work/run/skin.glb" --set L2.flex=60 --set index.pip.flex=90 --out "$work/posed.glb" >/dev/null
+"$BIN" -q pose --skin "$work/run/skin.glb" --set L2.flex=60 --set index.pip.flex=90 --out "$work/posed.glb" >/dev/null
 printf 'time,L2.flex,I2.flex\n0,0,0\n1,60,0\n2,60,60\n' > "$work/keys.csv"
-"$BIN" -q animate --model "$work/run/skin.glb" --keys "$work/keys.csv" --inputs-only --fps 30 --out "$work/anim.glb" >/dev/null
+"$BIN" -q animate --skin "$work/run/skin.glb" --keys "$work/keys.csv" --inputs-only --fps 30 --out "$work/anim.glb" >/dev/null
 node web/validate-gltf.js "$work/run/skin.glb" "$work/posed.glb" "$work/anim.glb"
 node web/tests/three-skin.js "$work/run/skin.glb" "$ART/three_skin.png"
 blender --background --factory-startup --python scripts/blender_import.py -- "$work/run/skin.glb" 2>&1 | grep "^blender_import:"

@@ -28,7 +28,10 @@ this page is stale).
   (nothing written); 4 an internal error (a bug). Test
   `Cli.EveryUsageErrorExitsTwoInOneLineNamingItsFlag`.
 - **Global flags**, before or after the command: `-q`/`--quiet` (no progress lines on
-  stderr), `--threads N` (the parallel steps on at most N threads; the same bytes with any N),
+  stderr; warnings and errors still), `-v`/`--verbose` (each progress line with the process's
+  peak memory, and a last line with the command's time and peak memory), `--log-json` (every
+  stderr line one JSON object — `{"t", "level": "info"|"warning"|"error", "stage", "message",
+  "peak_mb"}`, and `"exit"` on an error — for scripts and GUIs), `--threads N` (the parallel steps on at most N threads; the same bytes with any N),
   `--version`, `-h`/`--help`.
 - **Output folders** (`run`, `register`, `skin`, `patches`, `synth …`): checked and locked
   before any work; anything of yours under an output's name is refused (`--force` moves it
@@ -37,11 +40,12 @@ this page is stale).
   (`inputs_absolute`), so `patches --skin-dir` works from any working directory, on a moved
   copy too.
 
-Known inconsistencies, still to be made one (issue 40): `--model` is a posture model in
-`solve`/`calibrate`/`model` but a `skin.glb` in `pose`/`animate`/`studio` (`run` names the
-posture model `--posture-model`); `--markers` is a count in `synth scan` but a marker file in
-`run`/`register`; `solve --picture` against `pose --png`; `--size` 800 in `render`, 1024 in
-`pose`.
+- **One name, one meaning** in every command: `--model` is a posture model (hand-posture/1 or
+  `builtin:…`; `run` calls the one it puts in skin.glb `--posture-model`), `--skin` a
+  `skin.glb` (`pose`, `animate`, `studio`), `--markers` a marker file (`run`, `register`;
+  `synth scan --marker-count` is how many), `--png` a picture (`pose`, `solve`), `--size` a
+  picture's width in px (1024 by default; `pose`'s pictures are square, `render`'s 4:3), a
+  flag `--no-…` turns off what is on by default.
 """
 
 OPTION = re.compile(r"^  (\S.*?)(?:\s{2,}(.*))?$")

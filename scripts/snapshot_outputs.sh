@@ -63,17 +63,17 @@ cp -r "$SNAP/register" "$SCRATCH/reg"
 shot skin "$BIN" -q skin --merged "$SCRATCH/reg/merged.ply" --rig $FX/rig.json --out "$O"
 shot skin-auto "$BIN" -q skin --merged "$SCRATCH/reg/merged.ply" --out "$O" --baseline
 shot patches "$BIN" -q patches --skin-dir "$SCRATCH/run" --out "$O"
-FILES=1 shot pose "$BIN" -q pose --model "$SCRATCH/run/skin.glb" --set index.pip.flex=60 --set thumb.mcp.flex=30 \
+FILES=1 shot pose "$BIN" -q pose --skin "$SCRATCH/run/skin.glb" --set index.pip.flex=60 --set thumb.mcp.flex=30 \
   --out "$O/posed.ply" --png "$O/posed.png" --size 256
-FILES=1 shot pose-glb "$BIN" -q pose --model "$SCRATCH/run/skin.glb" --set middle.mcp.flex=70 --blend lbs --out "$O/posed.glb"
+FILES=1 shot pose-glb "$BIN" -q pose --skin "$SCRATCH/run/skin.glb" --set middle.mcp.flex=70 --blend lbs --out "$O/posed.glb"
 mkdir -p "$SCRATCH/keys"
 printf 'time,index.mcp.flex,middle.pip.flex\n0,0,0\n0.5,40,60\n1,10,20\n' > "$SCRATCH/keys/keys.csv"
-FILES=1 shot animate "$BIN" -q animate --model "$SCRATCH/run/skin.glb" --keys "$SCRATCH/keys/keys.csv" --fps 10 \
+FILES=1 shot animate "$BIN" -q animate --skin "$SCRATCH/run/skin.glb" --keys "$SCRATCH/keys/keys.csv" --fps 10 \
   --out "$O/anim.glb" --csv "$O/anim.csv"
 FILES=1 shot render-mesh "$BIN" -q render --mesh "$SCRATCH/run/skin.ply" --rig $FX/rig.json --view palm --size 200 --out "$O/r.png"
 FILES=1 shot render-scan "$BIN" -q render --scan $FX/back --size 200 --out "$O/s.png"
 FILES=1 shot solve "$BIN" -q solve --model builtin:anatomical --set index.pip.flex=60 --rig $FX/rig.json --json \
-  --picture "$O/solve.png"
+  --png "$O/solve.png"
 printf 'index.mcp.flex,middle.pip.flex\n0,0\n40,60\n,20\n' > "$SCRATCH/keys/inputs.csv"
 FILES=1 shot solve-batch "$BIN" -q solve --model builtin:anatomical --inputs "$SCRATCH/keys/inputs.csv" --out "$O/batch.csv"
 shot synth-hand "$BIN" -q synth hand --out "$O" --side left --hand-length 170 --facet-size 3

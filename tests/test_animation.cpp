@@ -97,7 +97,7 @@ TEST(Animation, TheCommandWritesAGlbWithAnAnimationAndItsFrames) {
   const std::string dir = test::temp_dir("animate");
   test::write_text(dir + "/keys.csv", "time,L2.flex,I2.flex\n0,0,0\n1,60,0\n2,60,60\n");
   std::string out;
-  const std::string cmd = kBin + " -q animate --model " + run + "/skin.glb --keys " + dir + "/keys.csv --inputs-only --fps 20 --out " +
+  const std::string cmd = kBin + " -q animate --skin " + run + "/skin.glb --keys " + dir + "/keys.csv --inputs-only --fps 20 --out " +
                           dir + "/anim.glb --csv " + dir + "/anim.csv";
   ASSERT_EQ(test::run(cmd, &out), 0) << out;
   // The glb is still the rigged skin (it reads back), and it now carries the animation.
@@ -116,9 +116,9 @@ TEST(Animation, TheCommandWritesAGlbWithAnAnimationAndItsFrames) {
   EXPECT_TRUE(first == read_file(dir + "/anim.glb"));
   // Bad input: one line, nothing written.
   test::write_text(dir + "/bad.csv", "time,L2.flex\n0,0\n0,10\n");
-  EXPECT_EQ(test::run(kBin + " -q animate --model " + run + "/skin.glb --keys " + dir + "/bad.csv --out " + dir + "/bad.glb", &out), 1);
+  EXPECT_EQ(test::run(kBin + " -q animate --skin " + run + "/skin.glb --keys " + dir + "/bad.csv --out " + dir + "/bad.glb", &out), 1);
   EXPECT_NE(out.find("bad.csv:3"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(dir + "/bad.glb"));
-  EXPECT_EQ(test::run(kBin + " -q animate --model " + run + "/skin.glb --keys " + dir + "/keys.csv --out " + dir + "/a.gltf", &out), 2);
+  EXPECT_EQ(test::run(kBin + " -q animate --skin " + run + "/skin.glb --keys " + dir + "/keys.csv --out " + dir + "/a.gltf", &out), 2);
   EXPECT_NE(out.find("written as a .glb"), std::string::npos) << out;
 }

@@ -1,6 +1,9 @@
 // The handskin command as users and scripts drive it.
 #include <gtest/gtest.h>
 
+#include <regex>
+#include <sstream>
+
 #include <algorithm>
 #include <filesystem>
 
@@ -45,7 +48,7 @@ TEST(Cli, EveryUsageErrorExitsTwoInOneLineNamingItsFlag) {
       {"render --out " + dir + "/x.png", "give exactly one of --mesh or --scan"},
       {"render --mesh " + skin + " --scan " + kFix + "back --out " + dir + "/x.png", "give exactly one of --mesh or --scan"},
       {"render --mesh " + skin + " --view top --out " + dir + "/x.png", "--view: unknown view 'top'"},
-      {"pose --model " + glb, "nothing to write"},
+      {"pose --skin " + glb, "nothing to write"},
       {"synth hand --side middle --out " + dir, "--side: 'middle'"},
       {"calibrate --angles " + kFix + "rig.json --weights foo --out " + dir + "/m.json", "weights must be 'thesis' or 'inverse'"},
       {"solve --model builtin:anatomical --set X=abc", "--set: unknown DOF 'X'"},
@@ -457,4 +460,44 @@ TEST(Cli, MocapCalibrateModel) {
   // Built-in sets write out and read back.
   ASSERT_EQ(test::run(kBin + " -q model --model builtin:thesis --out " + dir + "/t.json", &out), 0) << out;
   ASSERT_EQ(test::run(kBin + " -q solve --model " + dir + "/t.json --set L2.flex=60", &out), 0) << out;
+}
+
+// --log-json: every stderr line one JSON object (progress and errors); -v: peak memory and a
+// last line; -q: no progress lines, warnings still.
+TEST(Cli, LogJsonVerboseAndQuietShapeStderr) {
+  const std::string dir = test::temp_dir("logjson");
+  std::string out;
+  auto stderr_of = [](const std::string& cmd) { return "{ " + cmd + " 2>&1 >/dev/null; }"; };
+  auto lines_of = [](const std::string& text) {
+    std::vector<std::string> v;
+    std::istringstream in(text);
+    for (std::string l; std::getline(in, l);) v.push_back(l);
+    return v;
+  };
+  ASSERT_EQ(test::run(stderr_of(kBin + " --log-json register --back " + kFix + "back --palm " + kFix + "palm --out " + dir + "/r"), &out), 0) << out;
+  const auto lines = lines_of(out);
+  ASSERT_GE(lines.size(), 3u) << out;
+  double t = 0;
+  for (const auto& l : lines) {
+    const Json j = Json::parse(l);  // throws (fails the test) on a line that is not JSON
+    EXPECT_EQ(j["level"], "info") << l;
+    EXPECT_EQ(j["stage"], "register") << l;
+    EXPECT_GE(j["t"].get<double>(), t);
+    EXPECT_GT(j["peak_mb"].get<double>(), 0);
+    t = j["t"].get<double>();
+  }
+  ASSERT_EQ(test::run(stderr_of(kBin + " --log-json solve --model builtin:nope"), &out), 2);
+  ASSERT_EQ(lines_of(out).size(), 1u) << out;
+  const Json e = Json::parse(lines_of(out)[0]);
+  EXPECT_EQ(e["level"], "error");
+  EXPECT_EQ(e["exit"], 2);
+  EXPECT_NE(e["message"].get<std::string>().find("--model: unknown built-in model 'nope'"), std::string::npos);
+
+  ASSERT_EQ(test::run(stderr_of(kBin + " -v solve --model builtin:anatomical --set index.pip.flex=30"), &out), 0) << out;
+  EXPECT_TRUE(std::regex_search(lines_of(out).back(), std::regex(R"(solve: done in [0-9.]+ s, peak memory [0-9]+ MB$)"))) << out;
+
+  const std::string glb = test::default_fixture_run() + "/skin.glb";
+  ASSERT_EQ(test::run(stderr_of(kBin + " -q pose --skin " + glb + " --set index.pip.flex=400 --out " + dir + "/p.ply"), &out), 0) << out;
+  EXPECT_EQ(lines_of(out).size(), 1u) << out;
+  EXPECT_EQ(out.rfind("warning: ", 0), 0u) << out;  // the clamped input, with -q too
 }

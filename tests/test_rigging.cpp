@@ -141,12 +141,12 @@ TEST(Rigging, PoseWritesMeshesPicturesAndGlbsThatPoseTheSame) {
   const std::string glb = fixture_run() + "/skin.glb";
   std::string out;
   const std::string inputs = " --set L2.flex=60 --set index.pip.flex=90";
-  ASSERT_EQ(test::run(kBin + " -q pose --model " + glb + inputs + " --out " + dir + "/a.ply --png " + dir + "/a.png --view side", &out), 0) << out;
+  ASSERT_EQ(test::run(kBin + " -q pose --skin " + glb + inputs + " --out " + dir + "/a.ply --png " + dir + "/a.png --view side", &out), 0) << out;
   EXPECT_EQ(load_mesh(dir + "/a.ply").n_vertices(), read_skin_glb(glb).mesh.vertices.size());
   EXPECT_GT(fs::file_size(dir + "/a.png"), 10000u);
   // Round trip: the posed glb, posed again at the same inputs, gives the same vertices.
-  ASSERT_EQ(test::run(kBin + " -q pose --model " + glb + inputs + " --out " + dir + "/a.glb", &out), 0) << out;
-  ASSERT_EQ(test::run(kBin + " -q pose --model " + dir + "/a.glb" + inputs + " --out " + dir + "/b.ply", &out), 0) << out;
+  ASSERT_EQ(test::run(kBin + " -q pose --skin " + glb + inputs + " --out " + dir + "/a.glb", &out), 0) << out;
+  ASSERT_EQ(test::run(kBin + " -q pose --skin " + dir + "/a.glb" + inputs + " --out " + dir + "/b.ply", &out), 0) << out;
   const Mesh a = load_mesh(dir + "/a.ply"), b = load_mesh(dir + "/b.ply");
   double most = 0;
   ASSERT_EQ(a.n_vertices(), b.n_vertices());
@@ -154,9 +154,9 @@ TEST(Rigging, PoseWritesMeshesPicturesAndGlbsThatPoseTheSame) {
   EXPECT_LE(most, 1e-4);
   // A posture CSV and dual quaternions.
   test::write_text(dir + "/p.csv", "index.mcp.flex,middle.mcp.flex\n45,50\n");
-  ASSERT_EQ(test::run(kBin + " -q pose --model " + glb + " --posture " + dir + "/p.csv --blend dqs --out " + dir + "/c.obj", &out), 0) << out;
+  ASSERT_EQ(test::run(kBin + " -q pose --skin " + glb + " --posture " + dir + "/p.csv --blend dqs --out " + dir + "/c.obj", &out), 0) << out;
   // Limits: an input beyond them is clamped, with a warning.
-  ASSERT_EQ(test::run(kBin + " pose --model " + glb + " --set index.pip.flex=400 --out " + dir + "/d.ply", &out), 0) << out;
+  ASSERT_EQ(test::run(kBin + " pose --skin " + glb + " --set index.pip.flex=400 --out " + dir + "/d.ply", &out), 0) << out;
   EXPECT_NE(out.find("clamped"), std::string::npos) << out;
 }
 
@@ -166,7 +166,7 @@ TEST(Rigging, BadGlbsAndOptionsAreRefused) {
   std::string out;
   auto refused = [&](const std::string& bytes, const std::string& says) {
     test::write_text(dir + "/x.glb", bytes);
-    EXPECT_EQ(test::run(kBin + " -q pose --model " + dir + "/x.glb --set L2.flex=30 --out " + dir + "/x.ply", &out), 1) << says;
+    EXPECT_EQ(test::run(kBin + " -q pose --skin " + dir + "/x.glb --set L2.flex=30 --out " + dir + "/x.ply", &out), 1) << says;
     EXPECT_NE(out.find(says), std::string::npos) << out;
     EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
     EXPECT_FALSE(fs::exists(dir + "/x.ply"));
@@ -197,10 +197,10 @@ TEST(Rigging, BadGlbsAndOptionsAreRefused) {
   }
   // Usage.
   const std::string glb = fixture_run() + "/skin.glb";
-  EXPECT_EQ(test::run(kBin + " -q pose --model " + glb + " --out " + dir + "/x.stl", &out), 2);
+  EXPECT_EQ(test::run(kBin + " -q pose --skin " + glb + " --out " + dir + "/x.stl", &out), 2);
   EXPECT_NE(out.find(".ply, .obj or .glb"), std::string::npos) << out;
-  EXPECT_EQ(test::run(kBin + " -q pose --model " + glb + " --blend cubic --out " + dir + "/x.ply", &out), 2);
-  EXPECT_EQ(test::run(kBin + " -q pose --model " + glb, &out), 2);
+  EXPECT_EQ(test::run(kBin + " -q pose --skin " + glb + " --blend cubic --out " + dir + "/x.ply", &out), 2);
+  EXPECT_EQ(test::run(kBin + " -q pose --skin " + glb, &out), 2);
   EXPECT_NE(out.find("nothing to write"), std::string::npos) << out;
 }
 

@@ -234,10 +234,10 @@ TEST(Studio, AModelThatDoesNotLoadStopsTheStudioBeforeItListens) {
   std::string out;
   const std::string dir = test::temp_dir("studio-bad");
   test::write_text(dir + "/x.glb", "not a glb");
-  EXPECT_EQ(test::run(kBin + " -q studio --model " + dir + "/x.glb --port 0", &out), 1);
+  EXPECT_EQ(test::run(kBin + " -q studio --skin " + dir + "/x.glb --port 0", &out), 1);
   EXPECT_NE(out.find("not a readable glb"), std::string::npos) << out;
   EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
-  EXPECT_EQ(test::run(kBin + " -q studio --model " + test::default_fixture_run() + "/skin.glb --port 0 --web " + dir, &out), 1);
+  EXPECT_EQ(test::run(kBin + " -q studio --skin " + test::default_fixture_run() + "/skin.glb --port 0 --web " + dir, &out), 1);
   EXPECT_NE(out.find("the studio page is not built here"), std::string::npos) << out;
-  EXPECT_EQ(test::run(kBin + " -q studio --model " + test::default_fixture_run() + "/skin.glb --port 70000", &out), 2);
+  EXPECT_EQ(test::run(kBin + " -q studio --skin " + test::default_fixture_run() + "/skin.glb --port 70000", &out), 2);
 }

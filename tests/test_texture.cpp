@@ -110,7 +110,7 @@ TEST(Texture, SkinGlbCarriesTheTextureAndGivesBackTheSkinItWasMadeFrom) {
   g.replace(at, 9, "image/gif");
   test::write_text(dir + "/gif.glb", g);
   std::string out;
-  EXPECT_EQ(test::run(kBin + " -q pose --model " + dir + "/gif.glb --out " + dir + "/x.ply", &out), 1);
+  EXPECT_EQ(test::run(kBin + " -q pose --skin " + dir + "/gif.glb --out " + dir + "/x.ply", &out), 1);
   EXPECT_NE(out.find("must be a PNG"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(dir + "/x.ply"));
 }

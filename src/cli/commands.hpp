@@ -5,10 +5,15 @@
 #include <CLI/CLI.hpp>
 
 #include "core/errors.hpp"
+#include "core/json_util.hpp"
 #include "core/output_set.hpp"
 #include "pipeline/gates.hpp"
 
+#include <sys/resource.h>
+
 #include <chrono>
+#include <cmath>
+#include <cstring>
 #include <cstdio>
 #include <functional>
 #include <string>
@@ -16,15 +21,57 @@
 
 namespace handskin::cli {
 
-/// Progress lines on stderr ("[  1.23s] stage: message"), off with -q.
-struct Progress {
-  bool quiet = false;
+/// What goes to stderr, and how (global flags, docs/cli.md): progress lines unless `quiet`;
+/// warnings and errors always; with `verbose` each line also gives the process's peak memory;
+/// with `json` every stderr line is one JSON object (JSON lines, for scripts and GUIs):
+/// {"t": seconds since start, "level": "info"|"warning"|"error", "stage": …, "message": …,
+/// "peak_mb": …} (and "exit" on an error).
+struct LogOptions {
+  bool quiet = false, verbose = false, json = false;
   std::chrono::steady_clock::time_point t0 = std::chrono::steady_clock::now();
-  void operator()(const std::string& tag, const std::string& msg) const {
-    if (quiet) return;
-    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    std::fprintf(stderr, "[%6.2fs] %s: %s\n", s, tag.c_str(), msg.c_str());
+};
+inline LogOptions& log_options() {
+  static LogOptions o;
+  return o;
+}
+/// The process's peak resident memory so far, MB.
+inline double peak_memory_mb() {
+  struct rusage u {};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<double>(u.ru_maxrss) / 1024.0;
+}
+/// One stderr line at `level` ("info": a progress line; "warning"; "error", with its exit code).
+inline void log_line(const char* level, const std::string& stage, const std::string& message, int exit_code = 0) {
+  const LogOptions& o = log_options();
+  const bool info = std::strcmp(level, "info") == 0;
+  if (info && o.quiet) return;
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - o.t0).count();
+  if (o.json) {
+    Json j{{"t", std::round(s * 1000) / 1000}, {"level", level}, {"stage", stage}, {"message", message},
+           {"peak_mb", std::round(peak_memory_mb())}};
+    if (!info && std::strcmp(level, "warning") != 0) j["exit"] = exit_code;
+    std::fprintf(stderr, "%s\n", j.dump().c_str());
+  } else if (info) {
+    if (o.verbose)
+      std::fprintf(stderr, "[%6.2fs %5.0f MB] %s: %s\n", s, peak_memory_mb(), stage.c_str(), message.c_str());
+    else
+      std::fprintf(stderr, "[%6.2fs] %s: %s\n", s, stage.c_str(), message.c_str());
+  } else {
+    std::fprintf(stderr, "%s: %s\n", level, message.c_str());
   }
+  std::fflush(stderr);
+}
+
+/// Progress lines on stderr ("[  1.23s] stage: message"; log_line's forms). A message that
+/// starts with "warning: " is a warning: shown with -q too.
+struct Progress {
+  void operator()(const std::string& tag, const std::string& msg) const {
+    if (msg.rfind("warning: ", 0) == 0)
+      log_line("warning", tag, msg.substr(9));
+    else
+      log_line("info", tag, msg);
+  }
+  bool quiet() const { return log_options().quiet; }
 };
 
 /// How a command's OutputSet treats things in the way (--force) and says what it moved aside
@@ -32,7 +79,7 @@ struct Progress {
 inline OutputSetOptions output_options(bool force) {
   OutputSetOptions o;
   o.force = force;
-  o.say = [](const std::string& m) { std::fprintf(stderr, "warning: %s\n", m.c_str()); };
+  o.say = [](const std::string& m) { log_line("warning", "output", m); };
   return o;
 }
 
@@ -40,7 +87,7 @@ inline OutputSetOptions output_options(bool force) {
 /// failed gate, a GateFailure naming them (the caller has not committed: nothing is written).
 inline void settle_gates(const QualityGates& g, bool strict, const std::string& out_dir) {
   for (const auto& q : g.gates)
-    if (!q.pass) std::fprintf(stderr, "warning: %s\n", gate_warning(q).c_str());
+    if (!q.pass) log_line("warning", "gates", gate_warning(q));
   if (strict && !g.all_pass())
     throw GateFailure(out_dir + ": " + std::to_string(g.failed().size()) + " quality gate(s) failed (" +
                       g.failed_list() + "); --strict: nothing was written");

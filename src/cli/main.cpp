@@ -49,6 +49,14 @@ std::string unknown_command(const CLI::App& app, int argc, char** argv) {
   }
   return "";
 }
+/// The one line an error gets ("error: …", or its JSON line with --log-json); returns `code`.
+int fail(const std::string& command, const std::string& message, int code) {
+  if (cli::log_options().json)
+    cli::log_line("error", command, message, code);
+  else
+    std::fprintf(stderr, "error: %s\n", message.c_str());
+  return code;
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -59,7 +67,13 @@ int main(int argc, char** argv) {
   app.fallthrough();  // -q is accepted after the subcommand too (subcommands inherit this)
   app.set_version_flag("--version", "handskin 0.1.0");
   cli::Progress progress;
-  app.add_flag("-q,--quiet", progress.quiet, "No progress lines on stderr");
+  cli::LogOptions& log = cli::log_options();
+  app.add_flag("-q,--quiet", log.quiet, "No progress lines on stderr (warnings and errors still)");
+  app.add_flag("-v,--verbose", log.verbose,
+               "Progress lines with the process's peak memory, and a last line with the command's time and memory");
+  app.add_flag("--log-json", log.json,
+               "Every stderr line as one JSON object (JSON lines: t, level, stage, message, peak_mb; exit on an error), "
+               "for scripts and GUIs");
   int threads = 0;
   app.add_option("--threads", threads,
                  "Threads for the parallel steps (default: every core); the outputs are the same bytes with any number")
@@ -82,35 +96,37 @@ int main(int argc, char** argv) {
         names += (names.empty() ? "" : ", ") + sub->get_name();
         if (const size_t d = edit_distance(typed, sub->get_name()); d < best) best = d, nearest = sub->get_name();
       }
-      std::fprintf(stderr, "error: unknown command '%s'%s (commands: %s; see --help)\n", typed.c_str(),
-                   nearest.empty() ? "" : (" (did you mean " + nearest + "?)").c_str(), names.c_str());
-      return 2;
+      return fail("", "unknown command '" + typed + "'" + (nearest.empty() ? "" : " (did you mean " + nearest + "?)") +
+                          " (commands: " + names + "; see --help)",
+                  2);
     }
     // Usage errors: one line, exit 2 (CLI11's own codes are 100+ and its text two lines).
     std::string what = e.what();
     for (char& c : what)
       if (c == '\n') c = ' ';
     while (!what.empty() && what.back() == ' ') what.pop_back();
-    std::fprintf(stderr, "error: %s (see --help)\n", what.c_str());
-    return 2;
+    return fail("", what + " (see --help)", 2);
   }
 
   if (threads > 0) set_thread_count(threads);
+  std::string command;
+  for (const auto& c : commands)
+    if (c.app->parsed()) command = c.app->get_name();
   try {
     for (const auto& c : commands)
       if (c.app->parsed()) c.run();
   } catch (const UsageError& e) {
-    std::fprintf(stderr, "error: %s (see --help)\n", e.what());
-    return 2;
+    return fail(command, std::string(e.what()) + " (see --help)", 2);
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
-    return 1;
+    return fail(command, e.what(), 1);
   } catch (const GateFailure& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
-    return 3;
+    return fail(command, e.what(), 3);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "error: internal: %s\n", e.what());
-    return 4;
+    return fail(command, std::string("internal: ") + e.what(), 4);
   }
+  if (log.verbose && !log.json)
+    cli::log_line("info", command, "done in " + std::to_string(std::chrono::duration<double>(
+                                                      std::chrono::steady_clock::now() - log.t0).count()).substr(0, 5) +
+                                       " s, peak memory " + std::to_string(static_cast<int>(cli::peak_memory_mb())) + " MB");
   return 0;
 }

@@ -50,7 +50,7 @@ void solve_command(const SolveArgs& a, const Progress& progress) {
   }
   const PostureInputs in = parse_inputs(a);
   // The rig (and the skeleton built from it, once) are checked before any solving.
-  if (!a.picture.empty() && a.rig.empty()) throw UsageError("--picture", "needs --rig (the skeleton to draw)");
+  if (!a.picture.empty() && a.rig.empty()) throw UsageError("--png", "needs --rig (the skeleton to draw)");
   std::optional<Rig> rig;
   std::optional<Skeleton> skeleton;
   if (!a.rig.empty()) {
@@ -211,7 +211,7 @@ void add_posture_commands(CLI::App& app, const Progress& progress, Commands* out
   solvec->add_option("--target", sv->targets, "Soft target: name=degrees[@weight] (repeatable, weight in (0, 1e6])");
   solvec->add_option("--rig", sv->rig, "hand-rig/1: also print joint positions of the posture");
   solvec->add_flag("--json", sv->json, "Print JSON (handskin-posture-solution/1)");
-  solvec->add_option("--picture", sv->picture, "With --rig: draw the relaxed (grey) and solved (red) skeleton to a PNG");
+  solvec->add_option("--png", sv->picture, "With --rig: draw the relaxed (grey) and solved (red) skeleton to a PNG");
   solvec->add_option("--view", sv->view, "Picture view: side, back or palm")->capture_default_str();
   solvec->add_flag("--linear", sv->linear, "Ignore the model's non-linear grids or mixture (the linear model alone)");
   solvec->add_option("--inputs", sv->inputs, "Batch: CSV of partial postures (given cells are pinned)");

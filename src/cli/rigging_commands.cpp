@@ -23,7 +23,7 @@ struct PoseArgs {
   std::vector<std::string> sets, torques, targets;
   int size = 1024;
   double texture_weight = 0.7;
-  bool crease_guard = true;
+  bool no_crease_guard = false;
 };
 
 void pose_command(const PoseArgs& a, const Progress& progress) {
@@ -55,8 +55,8 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
     progress("pose", "warning: " + std::to_string(sol.clamped_inputs) + " input(s) outside the model's limits were clamped onto them");
   Untangled u;
   const std::vector<Eigen::Vector3d> posed =
-      SkinPoser(skin.mesh.vertices, skin.mesh.faces, skin.binding, skin.rig, a.crease_guard, a.model).pose(sol.angles, blend, &u);
-  if (a.crease_guard) {
+      SkinPoser(skin.mesh.vertices, skin.mesh.faces, skin.binding, skin.rig, !a.no_crease_guard, a.model).pose(sol.angles, blend, &u);
+  if (!a.no_crease_guard) {
     if (u.folding_before)
       progress("pose", "crease guard: " + std::to_string(u.folding_before) + " folding triangle pair(s) smoothed out over " +
                            std::to_string(u.moved) + " vertices in " + std::to_string(u.rounds) + " round(s)" +
@@ -125,7 +125,7 @@ void studio_command(const StudioOptions& o, const Progress& progress) {
 void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out) {
   auto pa = std::make_shared<PoseArgs>();
   auto* pc = app.add_subcommand("pose", "Pose a rigged skin (skin.glb from run): the solver's posture from a few inputs, the skin deformed");
-  pc->add_option("--model", pa->model, "skin.glb (its extras carry the rig and the posture model)")->required();
+  pc->add_option("--skin", pa->model, "skin.glb (its extras carry the rig and the posture model)")->required();
   pc->add_option("--set", pa->sets, "Pin a DOF: name=degrees (repeatable), e.g. L2.flex=60");
   pc->add_option("--torque", pa->torques, "Instructed input on a DOF: name=value (repeatable)");
   pc->add_option("--target", pa->targets, "Soft target: name=degrees[@weight] (repeatable)");
@@ -136,8 +136,8 @@ void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out
   pc->add_option("--out", pa->out, "Posed skin: .ply or .obj (vertex order kept), or .glb (the rigged skin with the posture on its joints)");
   pc->add_option("--png", pa->png, "Also a picture of the posed skin");
   pc->add_option("--view", pa->view, "Picture view: back, palm or side")->check(CLI::IsMember({"back", "palm", "side"}))->capture_default_str();
-  pc->add_option("--size", pa->size, "Picture size, px")->check(CLI::Range(16, 4096))->capture_default_str();
-  pc->add_flag("!--no-crease-guard", pa->crease_guard,
+  pc->add_option("--size", pa->size, "Picture width and height, px")->check(CLI::Range(16, 4096))->capture_default_str();
+  pc->add_flag("--no-crease-guard", pa->no_crease_guard,
                "Leave the blend as it is (what glTF viewers show): by default the skin on the inside of a bent joint is "
                "held to its side of the joint's bisecting plane, and what still crumples there is smoothed out, so it does not "
                "fold into itself");
@@ -151,7 +151,7 @@ void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out
   auto* ac = app.add_subcommand("animate",
                                 "Animate a rigged skin (skin.glb from run) from keyframes: a glTF animation that three.js, Blender "
                                 "and WebXR play, and the frames as a joint-angle CSV (docs/studio.md)");
-  ac->add_option("--model", aa->model, "skin.glb (its extras carry the rig and the posture model)")->required();
+  ac->add_option("--skin", aa->model, "skin.glb (its extras carry the rig and the posture model)")->required();
   ac->add_option("--keys", aa->keys,
                  "Keys: a joint-angle CSV, one key a row, with a 'time' column in seconds (without one, keys are 1 s apart); "
                  "empty cells are not given")
@@ -168,7 +168,7 @@ void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out
   auto so = std::make_shared<StudioOptions>();
   so->web_dir = HANDSKIN_STUDIO_WEB;
   auto* sc = app.add_subcommand("studio", "The hand studio: a local web page that poses the skin live with the solver (docs/studio.md)");
-  sc->add_option("--model", so->model, "skin.glb (from run)")->required();
+  sc->add_option("--skin", so->model, "skin.glb (from run)")->required();
   sc->add_option("--port", so->port, "Port to listen on (0: any free one, printed)")->check(CLI::Range(0, 65535))->capture_default_str();
   sc->add_option("--address", so->address, "Address to listen on (loopback unless given)")->capture_default_str();
   sc->add_option("--web", so->web_dir, "The built page's folder")->capture_default_str();

@@ -36,7 +36,7 @@ struct SynthHandArgs {
   std::vector<std::string> sets;
   std::optional<double> thumb_pronation, index_ring_ratio, forearm;
   HandMeshOptions mesh;
-  bool render = true;
+  bool no_render = false;
   bool force = false;
 };
 
@@ -55,7 +55,7 @@ void synth_hand(const SynthHandArgs& args, const Progress& progress) {
   check_options(a.mesh.IsValid(&err), "mesh options", err);
   {
     const std::vector<std::string> all = {"hand.ply", "hand_rig.json", "hand_back.png", "hand_side.png"};
-    out.claim(a.render ? all : std::vector<std::string>(all.begin(), all.begin() + 2), all);
+    out.claim(!a.no_render ? all : std::vector<std::string>(all.begin(), all.begin() + 2), all);
   }
   progress("synth hand", "building the skeleton and implicit surface");
   const HandModel model = build_hand_model(a.shape);
@@ -63,7 +63,7 @@ void synth_hand(const SynthHandArgs& args, const Progress& progress) {
   const HandMeshResult r = mesh_hand(model, a.mesh);
   save_mesh(out.stage("hand.ply"), r.mesh);
   save_rig(out.stage("hand_rig.json"), model.rig);
-  if (a.render) {
+  if (!a.no_render) {
     RenderOptions ro;
     ro.view = named_view("back");
     write_file_atomic(out.stage("hand_back.png"), render_mesh_png({&r.mesh}, ro));
@@ -85,7 +85,7 @@ struct SynthScanArgs {
   std::uint64_t seed = 1;
   ReplicaOptions replica;
   ScannerOptions scanner;
-  bool render = true;
+  bool no_render = false;
   bool photos = true;
   bool force = false;
 };
@@ -100,14 +100,14 @@ void synth_scan(const SynthScanArgs& a, const Progress& progress) {
                                           "truth_skin.ply", "back_preview.png", "palm_preview.png", "back.photo.png",
                                           "palm.photo.png"};
     std::vector<std::string> plan(all.begin(), all.begin() + 7);
-    if (a.render) plan.insert(plan.end(), {"back_preview.png", "palm_preview.png"});
+    if (!a.no_render) plan.insert(plan.end(), {"back_preview.png", "palm_preview.png"});
     if (a.photos) plan.insert(plan.end(), {"back.photo.png", "palm.photo.png"});
     out.claim(plan, all);
   }
   const Mesh hand = load_mesh(a.mesh);
   const Rig rig = load_rig(a.rig);
   progress("synth scan", "placing markers and scanning both sides (seed " + std::to_string(a.seed) + ")");
-  const ScanPair pair = synthesize_scan_pair(hand, rig, a.replica, a.scanner, a.seed, !progress.quiet);
+  const ScanPair pair = synthesize_scan_pair(hand, rig, a.replica, a.scanner, a.seed, !progress.quiet());
   for (const auto& [stem, sim] : {std::pair<const char*, const ScanSimulation*>{"back", &pair.back}, {"palm", &pair.palm}}) {
     const std::string png = out.stage(std::string(stem) + ".png");
     out.stage(std::string(stem) + ".json");
@@ -120,7 +120,7 @@ void synth_scan(const SynthScanArgs& a, const Progress& progress) {
   save_rig(out.stage("rig.json"), pair.rig_palm);
   save_mesh(out.stage("truth_skin.ply"), pair.skin_palm);
   save_json(out.stage("truth.json"), truth_to_json(pair, rig, a.seed, a.replica, a.scanner, "truth_skin.ply"));
-  if (a.render) {
+  if (!a.no_render) {
     write_file_atomic(out.stage("back_preview.png"), render_scan_png(pair.back.scan));
     write_file_atomic(out.stage("palm_preview.png"), render_scan_png(pair.palm.scan));
   }
@@ -223,7 +223,7 @@ void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) 
       ->capture_default_str();
   shc->add_option("--facet-distance", sh->mesh.facet_distance_mm, "Mesher facet distance bound, mm")->capture_default_str();
   shc->add_option("--seed", sh->mesh.seed, "Mesher seed")->capture_default_str();
-  shc->add_flag("!--no-render", sh->render, "Do not write preview pictures");
+  shc->add_flag("--no-render", sh->no_render, "Do not write preview pictures");
   shc->add_flag("--force", sh->force, "Move things in the way of an output aside into a dated backup folder instead of refusing");
   out->push_back({shc, [sh, &progress] { synth_hand(*sh, progress); }});
 
@@ -236,7 +236,7 @@ void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) 
       ->capture_default_str();
   ssc->add_option("--seed", ss->seed, "Random seed (markers, placements, noise)")->capture_default_str();
   ssc->add_option("--marker-radius", ss->replica.marker_radius_mm, "Marker radius, mm")->capture_default_str();
-  ssc->add_option("--markers", ss->replica.marker_count, "Number of markers")->capture_default_str();
+  ssc->add_option("--marker-count", ss->replica.marker_count, "Number of markers on the replica")->capture_default_str();
   ssc->add_option("--omit-back-marker", ss->replica.omit_marker_in_back,
                   "Hard case: leave this marker (0-based) off the back scan")->capture_default_str();
   ssc->add_flag("--extra-bump", ss->replica.extra_bump, "Hard case: a marker-sized blob on the back of the hand");
@@ -256,9 +256,9 @@ void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) 
                                                          "forearm stub needs more than the default)")
       ->capture_default_str();
   ssc->add_option("--y-extent", ss->scanner.y_extent_mm, "Table width a scanline covers, mm")->capture_default_str();
-  ssc->add_flag("!--no-render", ss->render, "Do not write preview pictures");
+  ssc->add_flag("--no-render", ss->no_render, "Do not write preview pictures");
   ssc->add_flag("--force", ss->force, "Move things in the way of an output aside into a dated backup folder instead of refusing");
-  ssc->add_flag("!--no-photos", ss->photos,
+  ssc->add_flag_callback("--no-photos", [ss] { ss->photos = false; },
                 "Do not write the scans' photos (back.photo.png, palm.photo.png: the camera's colour image on each "
                 "range image's grid, which run projects onto the skin as its texture)");
   auto sc = std::make_shared<SynthCloudArgs>();
@@ -277,9 +277,9 @@ void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) 
   scc->add_option("--noise", sc->sim.noise_mm, "Noise along the rays (sigma), mm")->capture_default_str();
   scc->add_option("--max-incidence", sc->sim.max_incidence_deg, "Steepest surface that returns, deg")->capture_default_str();
   scc->add_option("--dropout-from", sc->sim.dropout_from_deg, "Returns thin out from this incidence on, deg")->capture_default_str();
-  scc->add_flag("!--no-stand", sc->sim.stand, "No stand under the wrist end");
+  scc->add_flag_callback("--no-stand", [sc] { sc->sim.stand = false; }, "No stand under the wrist end");
   scc->add_option("--outliers", sc->sim.outlier_share, "Stray points, as a share of the points")->capture_default_str();
-  scc->add_flag("!--hand-frame", sc->sim.arbitrary_pose, "Keep the hand frame (no random pose)");
+  scc->add_flag_callback("--hand-frame", [sc] { sc->sim.arbitrary_pose = false; }, "Keep the hand frame (no random pose)");
   scc->add_option("--units", sc->units, "Units of the written coordinates: mm, cm, m or in")
       ->check(CLI::IsMember({"mm", "cm", "m", "in"}))->capture_default_str();
   scc->add_flag("--halves", sc->halves, "Also write the back views and the palm views as two clouds (a.ply, b.ply), each in a pose of its own");

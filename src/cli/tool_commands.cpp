@@ -23,7 +23,7 @@ constexpr int kMinPictureWidth = 16, kMaxPictureWidth = 4096;
 // ---------------- render ----------------
 struct RenderArgs {
   std::string mesh, scan, rig, out, view = "back";
-  int width = 800;
+  int width = 1024;
 };
 
 void render(const RenderArgs& a) {
@@ -99,7 +99,7 @@ void add_tool_commands(CLI::App& app, const Progress& progress, Commands* out) {
   rc->add_option("--scan", ra->scan, "Scan stem to draw");
   rc->add_option("--rig", ra->rig, "Rig of the mesh: views follow the hand, joints drawn as dots");
   rc->add_option("--view", ra->view, "back, palm or side")->capture_default_str();
-  rc->add_option("--size", ra->width, "Picture width in pixels (height = 3/4 of it)")
+  rc->add_option("--size", ra->width, "Picture width, px (height 3/4 of it)")
       ->capture_default_str()
       ->check(CLI::Range(kMinPictureWidth, kMaxPictureWidth));
   rc->add_option("--out", ra->out, "PNG to write")->required();

@@ -135,7 +135,7 @@ def test_pose_equals_the_clis_pose(runs, tmp_path):
     m = handskin.PostureModel()
     angles = m.solve({"index.pip.flex": 60.0})
     P = handskin.pose(glb, angles)
-    cli("pose", "--model", glb, "--set", "index.pip.flex=60", "--out", tmp_path / "posed.ply")
+    cli("pose", "--skin", glb, "--set", "index.pip.flex=60", "--out", tmp_path / "posed.ply")
     Q, _ = handskin.read_mesh(tmp_path / "posed.ply")
     assert P.shape == Q.shape
     assert np.abs(P - Q).max() < 1e-3  # the PLY holds float32

@@ -5,7 +5,7 @@ const { spawn } = require('child_process');
 // `handskin studio` on a free port; resolves with the process and the address it prints.
 function startStudio(bin, glb) {
   return new Promise((resolve, reject) => {
-    const p = spawn(bin, ['-q', 'studio', '--model', glb, '--port', '0'], { stdio: ['ignore', 'pipe', 'inherit'] });
+    const p = spawn(bin, ['-q', 'studio', '--skin', glb, '--port', '0'], { stdio: ['ignore', 'pipe', 'inherit'] });
     let out = '';
     p.stdout.on('data', (d) => {
       out += d;
