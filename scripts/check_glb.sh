@@ -5,7 +5,8 @@
 # turns (its screenshot goes to <artefacts>/three_skin.png); Blender (Debian's) must import it
 # as an armature of 25 bones whose pose moves the mesh. An animation from `handskin animate`
 # must pass the validator too, and Blender must import it with an action whose keyframes move
-# the skin.
+# the skin. skin.obj (with skin.mtl and texture.png) must import into Blender with its UVs and
+# its texture, and an STL from `convert` with the skin's faces.
 # Usage: scripts/check_glb.sh <handskin-binary> [artefacts-folder]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -31,4 +32,8 @@ node web/tests/three-skin.js "$work/run/skin.glb" "$ART/three_skin.png"
 blender --background --factory-startup --python scripts/blender_import.py -- "$work/run/skin.glb" 2>&1 | grep "^blender_import:"
 test "${PIPESTATUS[0]}" -eq 0
 blender --background --factory-startup --python scripts/blender_animation.py -- "$work/anim.glb" 2>&1 | grep "^blender_animation:"
+test "${PIPESTATUS[0]}" -eq 0
+"$BIN" -q convert --in "$work/run/skin.glb" --out "$work/skin.stl" >/dev/null
+size=$(python3 -c 'import json,sys; r=json.load(open(sys.argv[1])); print(next(s for s in r["stages"] if s["name"]=="texture")["size"])' "$work/run/report.json")
+blender --background --factory-startup --python scripts/blender_obj.py -- "$work/run/skin.obj" "$work/skin.stl" 4002 8000 "$size" 2>&1 | grep "^blender_obj:"
 test "${PIPESTATUS[0]}" -eq 0

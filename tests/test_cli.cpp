@@ -9,6 +9,8 @@
 
 #include "core/atomic_file.hpp"
 #include "core/json_util.hpp"
+#include "core/png_io.hpp"
+#include "mesh/mesh.hpp"
 #include "posture/angle_table.hpp"
 #include "core/dof.hpp"
 #include "core/rig.hpp"
@@ -500,4 +502,32 @@ TEST(Cli, LogJsonVerboseAndQuietShapeStderr) {
   ASSERT_EQ(test::run(stderr_of(kBin + " -q pose --skin " + glb + " --set index.pip.flex=400 --out " + dir + "/p.ply"), &out), 0) << out;
   EXPECT_EQ(lines_of(out).size(), 1u) << out;
   EXPECT_EQ(out.rfind("warning: ", 0), 0u) << out;  // the clamped input, with -q too
+}
+
+// render, convert and pose read every mesh the project writes and write by extension; a
+// picture is a .png or refused.
+TEST(Cli, MeshesTheProjectWritesAreReadAndWrittenByExtension) {
+  const std::string run = test::default_fixture_run(), dir = test::temp_dir("meshfiles");
+  std::string out;
+  for (const std::string in : {"skin.glb", "patches.obj", "skin.obj", "patches.ply"}) {
+    ASSERT_EQ(test::run(kBin + " -q render --mesh " + run + "/" + in + " --out " + dir + "/r.png", &out), 0) << in << out;
+    EXPECT_EQ(decode_rgb8_png(read_file(dir + "/r.png"), "r.png").width, 1024);
+  }
+  ASSERT_EQ(test::run(kBin + " -q convert --in " + run + "/skin.glb --out " + dir + "/skin.stl", &out), 0) << out;
+  const Mesh stl = load_mesh(dir + "/skin.stl");
+  EXPECT_EQ(stl.faces.size(), 8000u);
+  ASSERT_EQ(test::run(kBin + " -q convert --in " + run + "/patches.obj --out " + dir + "/patches.off", &out), 0) << out;
+  const Mesh patches = load_mesh(dir + "/patches.off");
+  EXPECT_EQ(patches.faces.size(), 98u * 2 * 12 * 12);  // 98 patches, each 12 x 12 quads
+  EXPECT_GT(mesh_health(patches).volume_mm3, 0);      // turned outward
+  ASSERT_EQ(test::run(kBin + " -q pose --skin " + run + "/skin.glb --set index.pip.flex=60 --out " + dir + "/posed.stl", &out), 0) << out;
+  EXPECT_EQ(load_mesh(dir + "/posed.stl").faces.size(), 8000u);
+  for (const std::string bad : {"render --mesh " + run + "/skin.glb --out " + dir + "/r.jpg",
+                                "pose --skin " + run + "/skin.glb --png " + dir + "/p.gif",
+                                "pose --skin " + run + "/skin.glb --out " + dir + "/p.fbx",
+                                "convert --in " + run + "/skin.glb --out " + dir + "/x.3ds"}) {
+    EXPECT_EQ(test::run(kBin + " -q " + bad, &out), 2) << bad << out;
+    EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir + "/r.jpg"));
 }

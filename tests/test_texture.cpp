@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <sstream>
 
 #include "core/atomic_file.hpp"
 #include "core/json_util.hpp"
@@ -174,4 +175,47 @@ TEST(Texture, WithoutPhotosTheRunSaysSoAndTheSkinIsPlain) {
   ASSERT_EQ(test::run(kBin + " -q synth scan --mesh " + hand + "/hand.ply --rig " + hand + "/hand_rig.json --out " + dir +
                           "/scan --no-render --no-photos", &out), 0) << out;
   EXPECT_FALSE(fs::exists(dir + "/scan/back.photo.png"));
+}
+
+// skin.obj carries the texture: vt per corner equal to the glb's (v flipped, as OBJ has it),
+// vn per vertex, and skin.mtl whose map is texture.png beside it.
+TEST(Texture, SkinObjCarriesTheTexturesCoordinatesAndMaterial) {
+  const std::string run = test::default_fixture_run();
+  const RiggedSkin skin = read_skin_glb(run + "/skin.glb");
+  ASSERT_FALSE(skin.texture.empty());
+  std::istringstream in(read_file(run + "/skin.obj"));
+  std::vector<Eigen::Vector2f> vt;
+  size_t vn = 0, f = 0, bad = 0;
+  std::string mtllib, line;
+  while (std::getline(in, line)) {
+    std::istringstream ls(line);
+    std::string key;
+    ls >> key;
+    if (key == "mtllib") ls >> mtllib;
+    if (key == "vn") ++vn;
+    if (key == "vt") {
+      float u = 0, v = 0;
+      ls >> u >> v;
+      vt.emplace_back(u, v);
+    }
+    if (key == "f") {
+      for (int k = 0; k < 3; ++k) {
+        std::string c;
+        ls >> c;
+        int a = 0, t = 0, n = 0;
+        ASSERT_EQ(std::sscanf(c.c_str(), "%d/%d/%d", &a, &t, &n), 3) << line;
+        ASSERT_EQ(a, skin.mesh.faces[f][k] + 1);
+        ASSERT_EQ(n, a);
+        const Eigen::Vector2f want = skin.texture.corner_uv[f][k];
+        if ((vt.at(t - 1) - Eigen::Vector2f(want.x(), 1.0f - want.y())).norm() > 1e-5f) ++bad;
+      }
+      ++f;
+    }
+  }
+  EXPECT_EQ(f, skin.mesh.faces.size());
+  EXPECT_EQ(vn, skin.mesh.vertices.size());
+  EXPECT_EQ(bad, 0u);
+  EXPECT_EQ(mtllib, "skin.mtl");
+  EXPECT_NE(read_file(run + "/skin.mtl").find("map_Kd texture.png"), std::string::npos);
+  EXPECT_TRUE(std::filesystem::exists(run + "/texture.png"));
 }

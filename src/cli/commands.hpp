@@ -12,6 +12,7 @@
 #include <sys/resource.h>
 
 #include <chrono>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <cstdio>
@@ -98,6 +99,14 @@ inline void print_gates(const QualityGates& g) {
   const size_t failed = g.failed().size();
   std::printf("quality gates: %zu of %zu passed%s\n", g.gates.size() - failed, g.gates.size(),
               failed == 0 ? "" : (" (failed: " + g.failed_list() + ")").c_str());
+}
+
+/// A picture is written as PNG: a path that does not end in .png is refused (UsageError
+/// naming `flag`) rather than given PNG bytes under another name.
+inline void require_png(const std::string& path, const std::string& flag) {
+  std::string ext = path.size() >= 4 ? path.substr(path.size() - 4) : "";
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (ext != ".png") throw UsageError(flag, "'" + path + "': pictures are written as PNG (.png)");
 }
 
 /// A subcommand and what to do when it was given.

@@ -51,6 +51,7 @@ void solve_command(const SolveArgs& a, const Progress& progress) {
   const PostureInputs in = parse_inputs(a);
   // The rig (and the skeleton built from it, once) are checked before any solving.
   if (!a.picture.empty() && a.rig.empty()) throw UsageError("--png", "needs --rig (the skeleton to draw)");
+  if (!a.picture.empty()) require_png(a.picture, "--png");
   std::optional<Rig> rig;
   std::optional<Skeleton> skeleton;
   if (!a.rig.empty()) {

@@ -3,6 +3,7 @@
 #include <memory>
 
 #include "cli/commands.hpp"
+#include "pipeline/mesh_files.hpp"
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
 #include "core/json_util.hpp"
@@ -32,9 +33,9 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
   std::string ext;
   if (!a.out.empty()) {
     ext = fs::path(a.out).extension().string();
-    if (ext != ".ply" && ext != ".obj" && ext != ".glb")
-      throw UsageError("--out", "'" + a.out + "': the posed skin is written as .ply, .obj or .glb");
+    if (ext != ".glb") require_mesh_extension(a.out, "--out");
   }
+  if (!a.png.empty()) require_png(a.png, "--png");
   const Blend blend = parse_blend(a.blend, "--blend");
   const RiggedSkin skin = read_skin_glb(a.model);
   PostureInputs in;
@@ -133,8 +134,8 @@ void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out
   pc->add_option("--blend", pa->blend, "dqs (dual quaternions: keeps the volume at bent joints) or lbs (linear blend, what glTF viewers do)")
       ->check(CLI::IsMember({"lbs", "dqs"}))
       ->capture_default_str();
-  pc->add_option("--out", pa->out, "Posed skin: .ply or .obj (vertex order kept), or .glb (the rigged skin with the posture on its joints)");
-  pc->add_option("--png", pa->png, "Also a picture of the posed skin");
+  pc->add_option("--out", pa->out, "Posed skin: .ply, .obj, .off or .stl (vertex order kept; .stl for printing), or .glb (the rigged skin with the posture on its joints)");
+  pc->add_option("--png", pa->png, "Also a picture of the posed skin (.png)");
   pc->add_option("--view", pa->view, "Picture view: back, palm or side")->check(CLI::IsMember({"back", "palm", "side"}))->capture_default_str();
   pc->add_option("--size", pa->size, "Picture width and height, px")->check(CLI::Range(16, 4096))->capture_default_str();
   pc->add_flag("--no-crease-guard", pa->no_crease_guard,

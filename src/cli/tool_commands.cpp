@@ -7,6 +7,7 @@
 #include "core/errors.hpp"
 #include "core/rig.hpp"
 #include "mesh/mesh.hpp"
+#include "pipeline/mesh_files.hpp"
 #include "posture/skeleton.hpp"
 #include "render/preview.hpp"
 #include "scan/cloud.hpp"
@@ -28,6 +29,7 @@ struct RenderArgs {
 
 void render(const RenderArgs& a) {
   if (a.mesh.empty() == a.scan.empty()) throw UsageError("render", "give exactly one of --mesh or --scan");
+  require_png(a.out, "--out");
   if (!a.scan.empty()) {
     if (!a.rig.empty()) throw UsageError("--rig", "draws a mesh's joints; a scan is drawn in its own frame");
     write_file_atomic(a.out, render_scan_png(load_scan(a.scan)));
@@ -41,7 +43,7 @@ void render(const RenderArgs& a) {
       rig = load_rig(a.rig);
       const Skeleton check(*rig, a.rig);  // the same checks as solve: a rig one command refuses, all do
     }
-    const Mesh mesh = load_mesh(a.mesh);
+    const Mesh mesh = read_any_mesh(a.mesh);
     if (rig) {
       // Views are defined in the hand frame: bring the mesh frame there through the rig.
       ro.view = ro.view * hand_frame_from_rig(*rig).linear();
@@ -62,8 +64,20 @@ bool is_cloud_path(const std::string& p) {
   return e == ".ply" || e == ".pcd";
 }
 
+bool is_mesh_path(const std::string& p) {
+  std::string e = fs::path(p).extension().string();
+  for (char& c : e) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return e == ".obj" || e == ".off" || e == ".stl" || e == ".glb";
+}
+
 void convert(const ConvertArgs& a, const Progress& progress) {
-  if (!is_cloud_path(a.in)) {
+  if (is_mesh_path(a.in) || is_mesh_path(a.out)) {  // a mesh: any the project writes, to .ply/.obj/.off/.stl
+    require_mesh_extension(a.out, "--out");
+    const Mesh mesh = read_any_mesh(a.in);
+    save_mesh(a.out, mesh);
+    progress("convert", std::to_string(mesh.vertices.size()) + " vertices, " + std::to_string(mesh.faces.size()) +
+                            " faces written");
+  } else if (!is_cloud_path(a.in)) {
     if (!is_cloud_path(a.out)) throw UsageError("--out", "converting a scan needs a .ply or .pcd output");
     const RangeScan scan = load_scan(a.in);
     save_cloud(a.out, *dense_copy(*scan_to_organized_cloud(scan)));
@@ -95,20 +109,21 @@ void convert(const ConvertArgs& a, const Progress& progress) {
 void add_tool_commands(CLI::App& app, const Progress& progress, Commands* out) {
   auto ra = std::make_shared<RenderArgs>();
   auto* rc = app.add_subcommand("render", "Draw a mesh (shaded) or a scan (height colours) to a PNG");
-  rc->add_option("--mesh", ra->mesh, "Mesh to draw");
+  rc->add_option("--mesh", ra->mesh, "Mesh to draw: .ply, .obj (patches.obj's Bezier patches tessellated), .off, .stl or a skin .glb");
   rc->add_option("--scan", ra->scan, "Scan stem to draw");
   rc->add_option("--rig", ra->rig, "Rig of the mesh: views follow the hand, joints drawn as dots");
   rc->add_option("--view", ra->view, "back, palm or side")->capture_default_str();
   rc->add_option("--size", ra->width, "Picture width, px (height 3/4 of it)")
       ->capture_default_str()
       ->check(CLI::Range(kMinPictureWidth, kMaxPictureWidth));
-  rc->add_option("--out", ra->out, "PNG to write")->required();
+  rc->add_option("--out", ra->out, "PNG to write (.png)")->required();
   out->push_back({rc, [ra] { render(*ra); }});
 
   auto ca = std::make_shared<ConvertArgs>();
-  auto* cc = app.add_subcommand("convert", "Convert between scans (<stem>) and point clouds (.ply/.pcd)");
-  cc->add_option("--in", ca->in, "Scan stem or .ply/.pcd cloud")->required();
-  cc->add_option("--out", ca->out, "Scan stem or .ply/.pcd cloud")->required();
+  auto* cc = app.add_subcommand("convert", "Convert between scans (<stem>) and point clouds (.ply/.pcd), or between meshes "
+                                          "(any the project writes to .ply, .obj, .off or .stl, e.g. skin.glb to an STL for printing)");
+  cc->add_option("--in", ca->in, "Scan stem, .ply/.pcd cloud, or mesh (.obj, .off, .stl, .glb; patches.obj tessellated)")->required();
+  cc->add_option("--out", ca->out, "Scan stem, .ply/.pcd cloud, or mesh (.ply, .obj, .off, .stl) by extension")->required();
   cc->add_option("--like", ca->like, "Cloud -> scan: take the grid from this scan's sidecar (default: CUBIST 512 x 512)");
   cc->add_option("--side", ca->side, "Cloud -> scan: back or palm");
   out->push_back({cc, [ca, &progress] { convert(*ca, progress); }});

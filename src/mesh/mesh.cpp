@@ -13,6 +13,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <optional>
 #include <vector>
@@ -142,6 +143,52 @@ void save_mesh(const std::string& path, const Mesh& m) {
     if (ext == ".obj" || ext == ".off") opt = OpenMesh::IO::Options::Default;
     if (!OpenMesh::IO::write_mesh(mesh, tmp, opt, 10)) throw InputError(path, "cannot write mesh");
   });
+}
+
+std::string obj_text(const Mesh& mesh, const std::vector<std::array<Eigen::Vector2f, 3>>* corner_uv,
+                     const std::string& mtllib) {
+  HS_CHECK(!corner_uv || corner_uv->size() == mesh.faces.size(), "one texture corner triple per face");
+  std::string t;
+  t.reserve(mesh.vertices.size() * 80 + mesh.faces.size() * 40);
+  char buf[128];
+  t += "# handskin: " + std::to_string(mesh.vertices.size()) + " vertices, " + std::to_string(mesh.faces.size()) +
+       " faces; mm\n";
+  if (!mtllib.empty()) t += "mtllib " + mtllib + "\n";
+  for (const auto& v : mesh.vertices) {
+    std::snprintf(buf, sizeof buf, "v %.6f %.6f %.6f\n", v.x(), v.y(), v.z());
+    t += buf;
+  }
+  for (const auto& n : vertex_normals(mesh.vertices, mesh.faces)) {
+    std::snprintf(buf, sizeof buf, "vn %.6f %.6f %.6f\n", n.x(), n.y(), n.z());
+    t += buf;
+  }
+  // One vt per distinct corner value, in order of first use.
+  std::vector<std::array<int, 3>> vt_of(mesh.faces.size());
+  if (corner_uv) {
+    std::map<std::pair<float, float>, int> index;
+    for (size_t f = 0; f < mesh.faces.size(); ++f)
+      for (int k = 0; k < 3; ++k) {
+        const Eigen::Vector2f& uv = (*corner_uv)[f][k];
+        const auto [it, added] = index.try_emplace({uv.x(), uv.y()}, static_cast<int>(index.size()) + 1);
+        if (added) {
+          std::snprintf(buf, sizeof buf, "vt %.7g %.7g\n", uv.x(), 1.0 - uv.y());
+          t += buf;
+        }
+        vt_of[f][k] = it->second;
+      }
+  }
+  if (!mtllib.empty()) t += "usemtl skin\n";
+  for (size_t f = 0; f < mesh.faces.size(); ++f) {
+    const auto& F = mesh.faces[f];
+    if (corner_uv)
+      std::snprintf(buf, sizeof buf, "f %d/%d/%d %d/%d/%d %d/%d/%d\n", F[0] + 1, vt_of[f][0], F[0] + 1, F[1] + 1,
+                    vt_of[f][1], F[1] + 1, F[2] + 1, vt_of[f][2], F[2] + 1);
+    else
+      std::snprintf(buf, sizeof buf, "f %d//%d %d//%d %d//%d\n", F[0] + 1, F[0] + 1, F[1] + 1, F[1] + 1, F[2] + 1,
+                    F[2] + 1);
+    t += buf;
+  }
+  return t;
 }
 
 Mesh manifold_faces(const Mesh& mesh, size_t* dropped) {

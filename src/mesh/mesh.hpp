@@ -32,6 +32,15 @@ std::optional<Mesh> read_mesh_file(const std::string& path);
 /// writers: a face OpenMesh cannot add (a non-manifold edge or vertex) is not written.
 void save_mesh(const std::string& path, const Mesh& mesh);
 
+/// Wavefront OBJ text of `mesh` with a normal per vertex (`vn`, area-weighted) and, when
+/// `corner_uv` is given (per face, its corners' (u, v) in glTF's convention: v down from the
+/// image's first row), texture coordinates (`vt`, v up as OBJ has it; one per distinct corner
+/// value); `mtllib` (when not empty) names a material library whose material "skin" the faces
+/// use. Written here rather than by OpenMesh: the coordinates are per corner (two charts meet
+/// at seams), which OpenMesh's writer takes only through half-edge properties.
+std::string obj_text(const Mesh& mesh, const std::vector<std::array<Eigen::Vector2f, 3>>* corner_uv = nullptr,
+                     const std::string& mtllib = "");
+
 /// The faces OpenMesh's half-edge structure can take, added in order (a face that would make
 /// an edge or a vertex non-manifold is left out and counted in `dropped`).
 Mesh manifold_faces(const Mesh& mesh, size_t* dropped);

@@ -286,7 +286,7 @@ std::vector<std::string> run_output_plan(const RunInputs& in) {
   }
   std::vector<std::string> n = {"report.json", "skin.glb"};
   if (in.scan_clouds) n.insert(n.end(), {"back.ply", "palm.ply"});
-  if (run_photo_paths(in)) n.push_back("texture.png");
+  if (run_photo_paths(in)) n.insert(n.end(), {"texture.png", "skin.mtl"});
   n.insert(n.end(), registration_output_names().begin(), registration_output_names().end());
   const auto skin = skin_output_plan(in.auto_rig || in.rig_path.empty(), in.options.skin.slices_json,
                                      in.baseline || in.options.skin.baseline);
@@ -329,7 +329,7 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
     if (r.registration_truth) reg_report["against_truth"] = *r.registration_truth;
     outputs.update(write_registration_outputs(out, r.registration, reg_report, r.merged_png));
   }
-  outputs.update(write_skin_outputs(out, r.skin, r.skin_png));
+  outputs.update(write_skin_outputs(out, r.skin, r.skin_png, r.rigged.texture.empty() ? nullptr : &r.rigged.texture));
   // The quality gates, on the skin as written (skin.ply read back) and the other outputs.
   RunWritten W;
   {

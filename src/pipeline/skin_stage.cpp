@@ -354,7 +354,7 @@ Json to_json(const SkinStageResult& r) {
 }
 
 const std::vector<std::string>& skin_output_names() {
-  static const std::vector<std::string> names = {"skin.ply", "skin.obj", "skin.png", "skin_grid.json", "rig_auto.json",
+  static const std::vector<std::string> names = {"skin.ply", "skin.obj", "skin.mtl", "skin.png", "skin_grid.json", "rig_auto.json",
                                                  "slices.json", "baseline.ply"};
   return names;
 }
@@ -377,12 +377,21 @@ std::string skin_preview_png(const SkinStageResult& r, const TextureMap* texture
   return render_mesh_png({&r.skin.mesh}, ro);
 }
 
-Json write_skin_outputs(OutputSet& out, const SkinStageResult& r, const std::string& skin_png) {
+Json write_skin_outputs(OutputSet& out, const SkinStageResult& r, const std::string& skin_png,
+                        const TextureMap* texture) {
   Json outputs;
   save_skin_ply(out.stage("skin.ply"), r.skin);
   outputs["skin_ply"] = out.final_path("skin.ply");
-  save_mesh(out.stage("skin.obj"), r.skin.mesh);
+  const bool textured = texture && !texture->empty();
+  write_file_atomic(out.stage("skin.obj"),
+                    obj_text(r.skin.mesh, textured ? &texture->corner_uv : nullptr, textured ? "skin.mtl" : ""));
   outputs["skin_obj"] = out.final_path("skin.obj");
+  if (textured) {
+    write_file_atomic(out.stage("skin.mtl"),
+                      "# handskin: the skin's material; its colour is the texture baked from the scans' photos\n"
+                      "newmtl skin\nKa 0 0 0\nKd 1 1 1\nKs 0 0 0\nd 1\nillum 1\nmap_Kd texture.png\n");
+    outputs["skin_mtl"] = out.final_path("skin.mtl");
+  }
   write_file_atomic(out.stage("skin.png"), skin_png);
   outputs["skin_png"] = out.final_path("skin.png");
   // Compact: ~5000 grid points; every number in its shortest round-trip form.

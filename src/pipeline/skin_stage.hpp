@@ -118,9 +118,11 @@ std::vector<std::string> skin_output_plan(bool automatic, bool slices, bool base
 /// r.skin.mesh) showing it, blended by `texture_weight`.
 std::string skin_preview_png(const SkinStageResult& r, const TextureMap* texture = nullptr, float texture_weight = 0.7f);
 
-/// Stage skin.ply (labels), skin.obj, skin.png (`skin_png`, rendered by the caller), and as
-/// computed rig_auto.json, slices.json, baseline.ply into `out`. Returns {key: final path}
-/// for the report's "outputs".
-Json write_skin_outputs(OutputSet& out, const SkinStageResult& r, const std::string& skin_png);
+/// Stage skin.ply (labels), skin.obj (with vertex normals; with `texture`, its coordinates
+/// and skin.mtl, whose map is texture.png, which the caller writes beside it), skin.png
+/// (`skin_png`, rendered by the caller), and as computed rig_auto.json, slices.json,
+/// baseline.ply into `out`. Returns {key: final path} for the report's "outputs".
+Json write_skin_outputs(OutputSet& out, const SkinStageResult& r, const std::string& skin_png,
+                        const TextureMap* texture = nullptr);
 
 }  // namespace handskin

@@ -19,6 +19,7 @@
 #include "core/errors.hpp"
 #include "core/rig.hpp"
 #include "mesh/mesh.hpp"
+#include "pipeline/mesh_files.hpp"
 #include "pipeline/options.hpp"
 #include "pipeline/patch_stage.hpp"
 #include "pipeline/registration_stage.hpp"
@@ -452,8 +453,7 @@ PYBIND11_MODULE(_core, m) {
         Mesh mesh;
         {
           py::gil_scoped_release nogil;
-          const std::string ext = std::filesystem::path(path).extension().string();
-          mesh = (ext == ".glb" || ext == ".GLB") ? read_skin_glb(path).mesh : load_mesh(path);
+          mesh = read_any_mesh(path);
         }
         return py::make_tuple(owned<double, 3>(std::move(mesh.vertices)), owned<int, 3>(std::move(mesh.faces)));
       },

@@ -90,6 +90,8 @@ def test_read_mesh_reads_what_the_project_writes(runs):
     assert np.abs(G - V).max() < 1e-3  # the glb stores float32 metres, skin.ply float32 mm
     P, Q = handskin.read_mesh(str(runs["py"] / "patches.ply"))
     assert len(Q) > 1000
+    P, Q = handskin.read_mesh(runs["py"] / "patches.obj")  # the Bezier patches, tessellated
+    assert len(Q) == 98 * 2 * 12 * 12
     assert V.flags.writeable  # the caller's own arrays
 
 
