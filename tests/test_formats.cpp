@@ -365,3 +365,13 @@ TEST(Formats, AMeshHeaderDeclaringMoreThanItsFileHoldsIsRefusedAtOnce) {
   write_file_atomic(dir + "/ok.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
   EXPECT_EQ(load_mesh(dir + "/ok.off").faces.size(), 1u);
 }
+
+// A PNG header's own figures in the message (libpng says only "Invalid IHDR data").
+TEST(Formats, APngHeaderOfAnEmptyOrHugeImageIsNamed) {
+  const std::string empty = test::make_png(0, 4, 16, 0, {});
+  EXPECT_NE(test::input_error_of([&] { decode_gray16_png(empty, "e.png"); }).find("declares an empty image (0 x 4 pixels)"),
+            std::string::npos);
+  const std::string huge = test::make_png(20000, 1, 16, 0, std::vector<std::uint8_t>(40000, 0));
+  EXPECT_NE(test::input_error_of([&] { decode_gray16_png(huge, "h.png", 16384); }).find("20000 x 1 pixels, larger than 16384"),
+            std::string::npos);
+}

@@ -85,6 +85,7 @@ void skin_command(const SkinArgs& a, const Progress& progress) {
   relativise_input_paths(&report["inputs"], out.out_dir(), &report["inputs_absolute"]);
   report["outputs"] = write_skin_outputs(out, r, skin_preview_png(r));
   report["outputs"]["report"] = out.final_path("skin_report.json");
+  relativise_output_paths(&report["outputs"], out.out_dir());
   GateInputs gi;
   gi.skin_file = out.staged_path("skin.ply");
   gi.skin_name = out.final_path("skin.ply");
@@ -205,6 +206,7 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
   report["outputs"] = write_patch_outputs(out, r, Json{{"gates", report["gates"]}}, {}, &step);
   report["patches_step"] = step;
   report["outputs"]["report"] = out.final_path("report.json");
+  relativise_output_paths(&report["outputs"], out.out_dir());
   save_json(out.stage("report.json"), report);
   settle_gates(gates, a.strict, out_dir);
   out.commit();

@@ -1,4 +1,5 @@
 // solve, calibrate, model, mocap: the posture commands.
+#include <cstring>
 #include <memory>
 #include <optional>
 
@@ -146,7 +147,14 @@ void calibrate_command(CalibrateArgs a, const Progress& progress) {
   }
   a.options.evaluate = !a.no_evaluate;
   std::string err;
-  if (!a.options.IsValid(&err)) throw UsageError("calibrate", err);
+  if (!a.options.IsValid(&err)) {
+    // The options' messages name their fields; the user gave flags: name the flag.
+    for (const auto& [field, flag] : std::initializer_list<std::pair<const char*, const char*>>{
+             {"weights", "--weights"}, {"method", "--method"}, {"offsets", "--offsets"}, {"shrinkage", "--shrinkage"},
+             {"components", "--components"}, {"folds", "--folds"}, {"pairs", "--pair"}})
+      if (err.rfind(std::string(field) + " ", 0) == 0) throw UsageError(flag, err.substr(std::strlen(field) + 1));
+    throw UsageError("calibrate", err);
+  }
   std::vector<AngleTable> tables;
   size_t rows = 0;
   for (const auto& f : a.angles) tables.push_back(read_angle_table(f)), rows += tables.back().rows.size();

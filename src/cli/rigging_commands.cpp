@@ -123,10 +123,19 @@ void studio_command(const StudioOptions& o, const Progress& progress) {
 
 }  // namespace
 
+/// The skin.glb a command poses (`--skin`); `--model` is a posture model in every command,
+/// so here it is refused with the name to use (hidden from --help).
+static void add_skin_option(CLI::App* c, std::string* skin, const std::string& help) {
+  c->add_option("--skin", *skin, help)->required();
+  c->add_option_function<std::string>("--model", [](const std::string&) {
+     throw CLI::ValidationError("--model", "is a posture model in every command; give the skin.glb as --skin");
+   })->group("");
+}
+
 void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out) {
   auto pa = std::make_shared<PoseArgs>();
   auto* pc = app.add_subcommand("pose", "Pose a rigged skin (skin.glb from run): the solver's posture from a few inputs, the skin deformed");
-  pc->add_option("--skin", pa->model, "skin.glb (its extras carry the rig and the posture model)")->required();
+  add_skin_option(pc, &pa->model, "skin.glb (its extras carry the rig and the posture model)");
   pc->add_option("--set", pa->sets, "Pin a DOF: name=degrees (repeatable), e.g. L2.flex=60");
   pc->add_option("--torque", pa->torques, "Instructed input on a DOF: name=value (repeatable)");
   pc->add_option("--target", pa->targets, "Soft target: name=degrees[@weight] (repeatable)");
@@ -152,7 +161,7 @@ void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out
   auto* ac = app.add_subcommand("animate",
                                 "Animate a rigged skin (skin.glb from run) from keyframes: a glTF animation that three.js, Blender "
                                 "and WebXR play, and the frames as a joint-angle CSV (docs/studio.md)");
-  ac->add_option("--skin", aa->model, "skin.glb (its extras carry the rig and the posture model)")->required();
+  add_skin_option(ac, &aa->model, "skin.glb (its extras carry the rig and the posture model)");
   ac->add_option("--keys", aa->keys,
                  "Keys: a joint-angle CSV, one key a row, with a 'time' column in seconds (without one, keys are 1 s apart); "
                  "empty cells are not given")
@@ -169,7 +178,7 @@ void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out
   auto so = std::make_shared<StudioOptions>();
   so->web_dir = HANDSKIN_STUDIO_WEB;
   auto* sc = app.add_subcommand("studio", "The hand studio: a local web page that poses the skin live with the solver (docs/studio.md)");
-  sc->add_option("--skin", so->model, "skin.glb (from run)")->required();
+  add_skin_option(sc, &so->model, "skin.glb (from run)");
   sc->add_option("--port", so->port, "Port to listen on (0: any free one, printed)")->check(CLI::Range(0, 65535))->capture_default_str();
   sc->add_option("--address", so->address, "Address to listen on (loopback unless given)")->capture_default_str();
   sc->add_option("--web", so->web_dir, "The built page's folder")->capture_default_str();

@@ -1,4 +1,8 @@
 // synth hand, synth scan, synth cloud, synth angles: synthetic data.
+#include <set>
+#include <map>
+#include <cstring>
+#include <algorithm>
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -24,8 +28,35 @@ namespace handskin::cli {
 
 namespace {
 
+/// Every flag of the synth commands (filled as they are added), to name the one at fault.
+std::set<std::string>& synth_flags() {
+  static std::set<std::string> flags;
+  return flags;
+}
+
+/// The options' messages start with a field's name ("marker_radius_mm must be in …"); the
+/// user gave a flag (--marker-radius): name it. Fields are flags with '-' for '_' and their
+/// unit dropped, but for a few named otherwise; a field that is no flag keeps `where`.
 void check_options(bool ok, const std::string& where, const std::string& err) {
-  if (!ok) throw UsageError(where, err);  // the options are the flags' values
+  if (ok) return;
+  static const std::map<std::string, std::string> renamed = {
+      {"finger_spread_deg", "--spread"}, {"noise_sigma_mm", "--noise"}, {"scanlines", "--resolution"},
+      {"outlier_share", "--outliers"},   {"omit_marker_in_back", "--omit-back-marker"}};
+  const size_t space = err.find(' ');
+  const std::string field = err.substr(0, space);
+  std::string flag;
+  if (const auto it = renamed.find(field); it != renamed.end()) {
+    flag = it->second;
+  } else {
+    std::string f = field;
+    for (const char* unit : {"_mm", "_deg", "_scale", "_share"})
+      if (f.size() > std::strlen(unit) && f.compare(f.size() - std::strlen(unit), std::string::npos, unit) == 0)
+        f.resize(f.size() - std::strlen(unit));
+    std::replace(f.begin(), f.end(), '_', '-');
+    flag = "--" + f;
+  }
+  if (space != std::string::npos && synth_flags().count(flag)) throw UsageError(flag, err.substr(space + 1));
+  throw UsageError(where, err);  // the options are the flags' values
 }
 
 // ---------------- synth hand ----------------
@@ -305,6 +336,9 @@ void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) 
                     ss->scanner.points = ss->scanner.scanlines;
                     synth_scan(*ss, progress);
                   }});
+  for (const CLI::App* sub : synth->get_subcommands([](const CLI::App*) { return true; }))
+    for (const CLI::Option* o : sub->get_options())
+      for (const std::string& name : o->get_lnames()) synth_flags().insert("--" + name);
 }
 
 }  // namespace handskin::cli

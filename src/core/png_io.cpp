@@ -3,6 +3,7 @@
 #include <png.h>
 
 #include <csetjmp>
+#include <cstdint>
 #include <cstring>
 
 #include "core/errors.hpp"
@@ -152,6 +153,22 @@ void decode_checked(const std::string& bytes, const std::string& name, int max_s
                     int* h, std::vector<Pixel>* pixels) {
   static const unsigned char kSig[8] = {137, 80, 78, 71, 13, 10, 26, 10};
   if (bytes.size() < 8 || std::memcmp(bytes.data(), kSig, 8) != 0) throw InputError(name, "not a PNG file");
+  // The header's own figures, said plainly (libpng's words for them are "Invalid IHDR data"):
+  // the first chunk is IHDR, width and height big-endian at bytes 16 and 20, depth at 24.
+  if (bytes.size() >= 25 && std::memcmp(bytes.data() + 12, "IHDR", 4) == 0) {
+    auto be32 = [&](size_t at) {
+      const auto* b = reinterpret_cast<const unsigned char*>(bytes.data()) + at;
+      return (static_cast<std::uint32_t>(b[0]) << 24) | (static_cast<std::uint32_t>(b[1]) << 16) |
+             (static_cast<std::uint32_t>(b[2]) << 8) | b[3];
+    };
+    const std::uint32_t pw = be32(16), ph = be32(20);
+    if (pw == 0 || ph == 0)
+      throw InputError(name, "PNG header declares an empty image (" + std::to_string(pw) + " x " + std::to_string(ph) +
+                                 " pixels)");
+    if (pw > static_cast<std::uint32_t>(max_side) || ph > static_cast<std::uint32_t>(max_side))
+      throw InputError(name, "PNG is " + std::to_string(pw) + " x " + std::to_string(ph) + " pixels, larger than " +
+                                 std::to_string(max_side) + " on a side");
+  }
   ReadState st{reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size(), 0, {0}, nullptr};
   int depth = 0, ctype = 0;
   switch (decode_impl(&st, max_side, w, h, &depth, &ctype, pixels)) {

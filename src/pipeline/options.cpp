@@ -121,6 +121,16 @@ bool PipelineOptions::IsValid(std::string* error) const {
   }
   if (skin.max_triangles != 0 && skin.max_triangles < 1000)
     return invalid(error, "skin.max_triangles must be 0 (no decimation) or in [1000, 1000000]");
+  // The closed layout has 98 faces and is split k × k: a count is honoured when 98 k² is
+  // within 5 % of it (the thesis's 96 gives 98); any other would quietly become another.
+  {
+    const long k = std::clamp(std::lround(std::sqrt(static_cast<double>(patches.count) / 98.0)), 1L, 8L);
+    const long made = 98 * k * k;
+    if (std::abs(static_cast<double>(made - patches.count)) > 0.05 * static_cast<double>(patches.count))
+      return invalid(error, "patches.count " + std::to_string(patches.count) +
+                                " cannot be honoured: the closed layout has 98 k^2 patches (98, 392 or 882 within the range); "
+                                "the nearest is " + std::to_string(made));
+  }
   return true;
 }
 

@@ -413,6 +413,7 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
   stages.push_back({{"name", "write"}, {"seconds", t_write.seconds()}});
   report["stages"] = stages;
   outputs["report"] = out.final_path("report.json");
+  relativise_output_paths(&outputs, out.out_dir());
   report["outputs"] = outputs;
   report["total_seconds"] = r.seconds + t_write.seconds();
   save_json(out.stage("report.json"), report);

@@ -76,6 +76,13 @@ std::string run_folder_rig(const std::string& dir, const std::string& given) {
   throw UsageError("--rig", "no rig for " + dir + " (no rig_auto.json, no rig in its report.json); give --rig");
 }
 
+void relativise_output_paths(Json* outputs, const std::string& report_dir) {
+  namespace fs = std::filesystem;
+  const fs::path base = fs::absolute(report_dir).lexically_normal();
+  for (auto& [key, v] : outputs->items())
+    if (v.is_string()) v = fs::absolute(v.get<std::string>()).lexically_normal().lexically_relative(base).string();
+}
+
 RunFolderPatches patches_for_run_folder(const std::string& dir, const Rig& rig, const std::string& rig_path,
                                         const PipelineOptions& po,
                                         const std::optional<PatchLayout>& layout, const std::string& layout_name,

@@ -27,6 +27,11 @@ std::string run_folder_rig(const std::string& dir, const std::string& given);
 /// automatically)", "builtin:…") are left as they are.
 void relativise_input_paths(Json* inputs, const std::string& report_dir, Json* absolute);
 
+/// A report's "outputs" ({key: path}) relative to `report_dir`, the folder the report is
+/// written in (the outputs lie beside it: their names), so that a moved folder's report
+/// still names them.
+void relativise_output_paths(Json* outputs, const std::string& report_dir);
+
 /// The patches of a run folder, and what they were made from.
 struct RunFolderPatches {
   std::string merged;  ///< the folder's merged.ply
