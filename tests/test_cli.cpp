@@ -513,7 +513,7 @@ TEST(Cli, LogJsonVerboseAndQuietShapeStderr) {
 TEST(Cli, MeshesTheProjectWritesAreReadAndWrittenByExtension) {
   const std::string run = test::default_fixture_run(), dir = test::temp_dir("meshfiles");
   std::string out;
-  for (const std::string in : {"skin.glb", "patches.obj", "skin.obj", "patches.ply"}) {
+  for (const char* in : {"skin.glb", "patches.obj", "skin.obj", "patches.ply"}) {
     ASSERT_EQ(test::run(kBin + " -q render --mesh " + run + "/" + in + " --out " + dir + "/r.png", &out), 0) << in << out;
     EXPECT_EQ(decode_rgb8_png(read_file(dir + "/r.png"), "r.png").width, 1024);
   }
@@ -526,7 +526,7 @@ TEST(Cli, MeshesTheProjectWritesAreReadAndWrittenByExtension) {
   EXPECT_GT(mesh_health(patches).volume_mm3, 0);      // turned outward
   ASSERT_EQ(test::run(kBin + " -q pose --skin " + run + "/skin.glb --set index.pip.flex=60 --out " + dir + "/posed.stl", &out), 0) << out;
   EXPECT_EQ(load_mesh(dir + "/posed.stl").faces.size(), 8000u);
-  for (const std::string bad : {"render --mesh " + run + "/skin.glb --out " + dir + "/r.jpg",
+  for (const std::string& bad : {"render --mesh " + run + "/skin.glb --out " + dir + "/r.jpg",
                                 "pose --skin " + run + "/skin.glb --png " + dir + "/p.gif",
                                 "pose --skin " + run + "/skin.glb --out " + dir + "/p.fbx",
                                 "convert --in " + run + "/skin.glb --out " + dir + "/x.3ds"}) {

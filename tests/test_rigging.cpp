@@ -197,8 +197,8 @@ TEST(Rigging, BadGlbsAndOptionsAreRefused) {
   }
   // Usage.
   const std::string glb = fixture_run() + "/skin.glb";
-  EXPECT_EQ(test::run(kBin + " -q pose --skin " + glb + " --out " + dir + "/x.stl", &out), 2);
-  EXPECT_NE(out.find(".ply, .obj or .glb"), std::string::npos) << out;
+  EXPECT_EQ(test::run(kBin + " -q pose --skin " + glb + " --out " + dir + "/x.fbx", &out), 2);
+  EXPECT_NE(out.find("a mesh is written as .ply, .obj, .off or .stl"), std::string::npos) << out;
   EXPECT_EQ(test::run(kBin + " -q pose --skin " + glb + " --blend cubic --out " + dir + "/x.ply", &out), 2);
   EXPECT_EQ(test::run(kBin + " -q pose --skin " + glb, &out), 2);
   EXPECT_NE(out.find("nothing to write"), std::string::npos) << out;

@@ -7,12 +7,12 @@
 #include "core/errors.hpp"
 #include "core/json_util.hpp"
 #include "core/output_set.hpp"
+#include "core/paths.hpp"
 #include "pipeline/gates.hpp"
 
 #include <sys/resource.h>
 
 #include <chrono>
-#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <cstdio>
@@ -104,9 +104,7 @@ inline void print_gates(const QualityGates& g) {
 /// A picture is written as PNG: a path that does not end in .png is refused (UsageError
 /// naming `flag`) rather than given PNG bytes under another name.
 inline void require_png(const std::string& path, const std::string& flag) {
-  std::string ext = path.size() >= 4 ? path.substr(path.size() - 4) : "";
-  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  if (ext != ".png") throw UsageError(flag, "'" + path + "': pictures are written as PNG (.png)");
+  if (lower_extension(path) != ".png") throw UsageError(flag, "'" + path + "': pictures are written as PNG (.png)");
 }
 
 /// A subcommand and what to do when it was given.

@@ -65,8 +65,7 @@ bool is_cloud_path(const std::string& p) {
 }
 
 bool is_mesh_path(const std::string& p) {
-  std::string e = fs::path(p).extension().string();
-  for (char& c : e) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  const std::string e = lower_extension(p);
   return e == ".obj" || e == ".off" || e == ".stl" || e == ".glb";
 }
 

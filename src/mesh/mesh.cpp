@@ -20,6 +20,7 @@
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
+#include "core/paths.hpp"
 
 namespace handskin {
 
@@ -43,8 +44,7 @@ void check_declared_counts(const std::string& path) {
   std::error_code ec;
   const auto size = std::filesystem::file_size(path, ec);
   if (ec) return;  // the reader says what is wrong
-  std::string ext = std::filesystem::path(path).extension().string();
-  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  const std::string ext = lower_extension(path);
   std::ifstream in(path, std::ios::binary);
   auto refuse = [&](const std::string& what, double count, double bytes) {
     if (count * bytes > static_cast<double>(size))

@@ -7,18 +7,13 @@
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
+#include "core/paths.hpp"
 #include "patches/patches.hpp"
 #include "rigging/gltf.hpp"
 
 namespace handskin {
 
 namespace {
-
-std::string lower_extension(const std::string& path) {
-  std::string e = std::filesystem::path(path).extension().string();
-  for (char& c : e) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return e;
-}
 
 /// The free-form surfaces of an OBJ (`cstype bezier`, `deg 3 3`, `surf u0 u1 v0 v1` and 16
 /// control-point indices, as patches.obj writes them) tessellated; nullopt when the file has

@@ -11,6 +11,7 @@
 #include "core/atomic_file.hpp"
 #include "core/dof.hpp"
 #include "core/errors.hpp"
+#include "core/paths.hpp"
 
 #include "posture/angle_table.hpp"
 
@@ -181,9 +182,7 @@ MarkerTrack parse_trc(const std::string& text, const std::string& file) {
 }
 
 MarkerTrack read_marker_file(const std::string& file) {
-  const size_t dot = file.rfind('.');
-  std::string ext = dot == std::string::npos ? "" : file.substr(dot);
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  const std::string ext = lower_extension(file);
   if (ext == ".tsv") return read_qualisys_tsv(file);
   if (ext == ".trc") return read_trc(file);
   throw InputError(file, "unknown marker-file extension (use .tsv for Qualisys or .trc for OpenSim)");

@@ -109,6 +109,24 @@ std::vector<Eigen::Vector3d> points_from(const py::handle& obj, const std::strin
   return out;
 }
 
+/// One label per point, 0 (palm scan) or 1 (back scan); ValueError naming `sides` otherwise.
+std::vector<std::uint32_t> sides_from(const py::handle& obj, size_t points) {
+  py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> s;
+  try {
+    s = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(obj);
+  } catch (const py::error_already_set&) {
+  }
+  if (!s || s.ndim() != 1 || static_cast<size_t>(s.shape(0)) != points)
+    throw UsageError("sides", "must be a 1-D array with one label per point (0 palm scan, 1 back scan)");
+  std::vector<std::uint32_t> out;
+  out.reserve(points);
+  for (py::ssize_t i = 0; i < s.shape(0); ++i) {
+    if (s.data()[i] != 0 && s.data()[i] != 1) throw UsageError("sides", "label " + std::to_string(i) + " is not 0 or 1");
+    out.push_back(static_cast<std::uint32_t>(s.data()[i]));
+  }
+  return out;
+}
+
 // ---------------------------------------------------------------- progress
 
 /// A Python callable that receives the stages' progress lines. Called from the thread that
@@ -610,17 +628,7 @@ PYBIND11_MODULE(_core, m) {
         in.normals = points_from(normals, "normals");
         if (in.normals.size() != in.points.size())
           throw UsageError("normals", std::to_string(in.normals.size()) + " rows for " + std::to_string(in.points.size()) + " points");
-        py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> s;
-        try {
-          s = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(sides);
-        } catch (const py::error_already_set&) {
-        }
-        if (!s || s.ndim() != 1 || static_cast<size_t>(s.shape(0)) != in.points.size())
-          throw UsageError("sides", "must be a 1-D array with one label per point (0 palm scan, 1 back scan)");
-        for (py::ssize_t i = 0; i < s.shape(0); ++i) {
-          if (s.data()[i] != 0 && s.data()[i] != 1) throw UsageError("sides", "label " + std::to_string(i) + " is not 0 or 1");
-          in.sides.push_back(static_cast<std::uint32_t>(s.data()[i]));
-        }
+        in.sides = sides_from(sides, in.points.size());
         in.cloud_name = "points";
         if (!rig.is_none()) {
           in.rig = rig_from(rig);
@@ -668,18 +676,7 @@ PYBIND11_MODULE(_core, m) {
       [](const PySkinResult& skin, const py::object& points, const py::object& sides, const py::object& pipeline,
          std::optional<double> tolerance, const py::object& progress) {
         std::vector<Eigen::Vector3d> pts = points_from(points, "points");
-        py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> s;
-        try {
-          s = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(sides);
-        } catch (const py::error_already_set&) {
-        }
-        if (!s || s.ndim() != 1 || static_cast<size_t>(s.shape(0)) != pts.size())
-          throw UsageError("sides", "must be a 1-D array with one label per point (0 palm scan, 1 back scan)");
-        std::vector<std::uint32_t> sd;
-        for (py::ssize_t i = 0; i < s.shape(0); ++i) {
-          if (s.data()[i] != 0 && s.data()[i] != 1) throw UsageError("sides", "label " + std::to_string(i) + " is not 0 or 1");
-          sd.push_back(static_cast<std::uint32_t>(s.data()[i]));
-        }
+        const std::vector<std::uint32_t> sd = sides_from(sides, pts.size());
         PipelineOptions po = pipeline_from(opt_path(pipeline));
         if (tolerance) {
           po.patches.tolerance_mm = *tolerance;

@@ -12,17 +12,11 @@
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
+#include "core/paths.hpp"
 #include "scan/cloud_file.hpp"
 
 namespace handskin {
 
-namespace {
-std::string extension_of(const std::string& path) {
-  std::string e = std::filesystem::path(path).extension().string();
-  for (char& c : e) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return e;
-}
-}  // namespace
 
 Cloud::Ptr scan_to_organized_cloud(const RangeScan& scan) {
   auto cloud = std::make_shared<Cloud>();
@@ -81,7 +75,7 @@ RangeScan cloud_to_scan(const Cloud& cloud, const ScanMeta& meta, size_t* droppe
 namespace {
 // The extension of a cloud file handskin reads or writes as PCL's own formats.
 std::string ply_or_pcd(const std::string& path) {
-  const std::string ext = extension_of(path);
+  const std::string ext = lower_extension(path);
   if (ext != ".ply" && ext != ".pcd") throw InputError(path, "unknown point-cloud extension (use .ply or .pcd)");
   return ext;
 }

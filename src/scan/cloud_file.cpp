@@ -14,6 +14,7 @@
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
+#include "core/paths.hpp"
 #include "core/json_util.hpp"
 #include "mesh/mesh.hpp"
 #include "scan/cloud.hpp"
@@ -50,9 +51,9 @@ const char* point_cloud_extensions() { return ".ply, .pcd, .obj, .stl, .off, .xy
 
 namespace {
 
-std::string lower_extension(const std::string& path) {
-  std::string e = std::filesystem::path(path).extension().string();
-  for (char& c : e) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+/// The extension without its dot ("ply"), lower case.
+std::string extension_word(const std::string& path) {
+  const std::string e = lower_extension(path);
   return e.empty() ? e : e.substr(1);
 }
 
@@ -220,7 +221,7 @@ void read_text(PointCloudFile* out, size_t max_points) {
 PointCloudFile read_point_cloud(const std::string& path, LengthUnit unit, size_t max_points) {
   PointCloudFile out;
   out.path = path;
-  out.format = lower_extension(path);
+  out.format = extension_word(path);
   const std::string& f = out.format;
   const bool pcl_format = f == "ply" || f == "pcd", mesh_format = f == "obj" || f == "stl" || f == "off",
              text_format = f == "xyz" || f == "pts" || f == "txt";
