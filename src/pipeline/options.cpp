@@ -103,6 +103,10 @@ const T& value_of(const KeySpec& k, const PipelineOptions& o) {
 
 }  // namespace
 
+int patch_subdivision(long count) {
+  return std::clamp(static_cast<int>(std::lround(std::sqrt(static_cast<double>(count) / 98.0))), 1, 8);
+}
+
 bool PipelineOptions::IsValid(std::string* error) const {
   for (const auto& k : key_table()) {
     double v = 0;
@@ -124,7 +128,7 @@ bool PipelineOptions::IsValid(std::string* error) const {
   // The closed layout has 98 faces and is split k × k: a count is honoured when 98 k² is
   // within 5 % of it (the thesis's 96 gives 98); any other would quietly become another.
   {
-    const long k = std::clamp(std::lround(std::sqrt(static_cast<double>(patches.count) / 98.0)), 1L, 8L);
+    const long k = patch_subdivision(patches.count);
     const long made = 98 * k * k;
     if (std::abs(static_cast<double>(made - patches.count)) > 0.05 * static_cast<double>(patches.count))
       return invalid(error, "patches.count " + std::to_string(patches.count) +

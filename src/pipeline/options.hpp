@@ -85,6 +85,10 @@ struct PipelineOptions {
 /// Parse a pipeline file. Unknown sections or keys are errors (a typo must not pass silently);
 /// missing keys keep their defaults. Every key, its type and its range are in one table
 /// (options.cpp), which parsing, writing and IsValid share.
+/// The closed layout's 98 faces are split k × k: the k whose 98 k² is nearest `count` (in
+/// [1, 8]). IsValid refuses a count whose 98 k² is more than 5 % off.
+int patch_subdivision(long count);
+
 PipelineOptions parse_pipeline(const Json& j, const std::string& file);
 PipelineOptions load_pipeline(const std::string& file);
 Json pipeline_to_json(const PipelineOptions& o);

@@ -45,7 +45,7 @@ SkinOptions skin_options(const PipelineOptions& o) {
 PatchOptions patch_options(const PipelineOptions& o) {
   // The hand's layout has 98 faces; split k × k it has 98 k²: the k nearest the count.
   PatchOptions p;
-  p.subdivision = std::clamp(static_cast<int>(std::lround(std::sqrt(static_cast<double>(o.patches.count) / 98.0))), 1, 8);
+  p.subdivision = patch_subdivision(o.patches.count);
   p.c1_weight = o.patches.c1_weight;
   p.fairness = o.patches.fairness;
   p.skin_weight = o.patches.skin_weight;

@@ -91,13 +91,20 @@ py::array owned(std::vector<Elem>&& v) {
                         {static_cast<py::ssize_t>(N * sizeof(T)), static_cast<py::ssize_t>(sizeof(T))}, data, owner);
 }
 
+/// `obj` as a C-contiguous array of T (converted when it must be); an empty handle when it
+/// cannot be (the callers then say what they wanted).
+template <class T>
+py::array_t<T, py::array::c_style | py::array::forcecast> as_array(const py::handle& obj) {
+  try {
+    return py::array_t<T, py::array::c_style | py::array::forcecast>::ensure(obj);
+  } catch (const py::error_already_set&) {
+    return {};
+  }
+}
+
 /// An (n, 3) array of finite numbers as points; ValueError naming `what` otherwise.
 std::vector<Eigen::Vector3d> points_from(const py::handle& obj, const std::string& what) {
-  py::array_t<double, py::array::c_style | py::array::forcecast> a;
-  try {
-    a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(obj);
-  } catch (const py::error_already_set&) {
-  }
+  const auto a = as_array<double>(obj);
   if (!a || a.ndim() != 2 || a.shape(1) != 3)
     throw UsageError(what, "must be an (n, 3) array of numbers");
   std::vector<Eigen::Vector3d> out(static_cast<size_t>(a.shape(0)));
@@ -111,11 +118,7 @@ std::vector<Eigen::Vector3d> points_from(const py::handle& obj, const std::strin
 
 /// One label per point, 0 (palm scan) or 1 (back scan); ValueError naming `sides` otherwise.
 std::vector<std::uint32_t> sides_from(const py::handle& obj, size_t points) {
-  py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> s;
-  try {
-    s = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(obj);
-  } catch (const py::error_already_set&) {
-  }
+  const auto s = as_array<std::int64_t>(obj);
   if (!s || s.ndim() != 1 || static_cast<size_t>(s.shape(0)) != points)
     throw UsageError("sides", "must be a 1-D array with one label per point (0 palm scan, 1 back scan)");
   std::vector<std::uint32_t> out;
@@ -255,11 +258,7 @@ py::array model_solve_batch(PyModel& m, const std::vector<std::string>& columns,
       if (e == d) throw UsageError("columns", "'" + c + "' is given twice");
     col.push_back(d);
   }
-  py::array_t<double, py::array::c_style | py::array::forcecast> x;
-  try {
-    x = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(values);
-  } catch (const py::error_already_set&) {
-  }
+  const auto x = as_array<double>(values);
   if (!x || x.ndim() != 2 || x.shape(1) != static_cast<py::ssize_t>(col.size()))
     throw UsageError("values", "must be an (n, " + std::to_string(col.size()) + ") array: one column per name in columns");
   const size_t n = static_cast<size_t>(x.shape(0)), k = col.size();
@@ -299,11 +298,7 @@ std::optional<Angles> full_angles(const py::object& angles, PostureInputs* pins)
       if (!s) return std::nullopt;
     return a;
   }
-  py::array_t<double, py::array::c_style | py::array::forcecast> x;
-  try {
-    x = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(angles);
-  } catch (const py::error_already_set&) {
-  }
+  const auto x = as_array<double>(angles);
   if (!x || x.ndim() != 1 || x.shape(0) != kDofCount)
     throw UsageError("angles", "must be a dict {DOF name: degrees} or a sequence of " + std::to_string(kDofCount) +
                                    " angles in dofs() order");
@@ -605,12 +600,8 @@ PYBIND11_MODULE(_core, m) {
           py::gil_scoped_release nogil;
           a = read_merged(path);
         }
-        std::vector<std::uint32_t> sides = std::move(a.sides);
-        auto* s = new std::vector<std::uint32_t>(std::move(sides));
-        py::capsule owner(s, [](void* q) { delete static_cast<std::vector<std::uint32_t>*>(q); });
-        py::array_t<std::uint32_t> side_arr({static_cast<py::ssize_t>(s->size())}, {static_cast<py::ssize_t>(4)},
-                                           s->data(), owner);
-        return py::make_tuple(owned<double, 3>(std::move(a.points)), owned<double, 3>(std::move(a.normals)), side_arr);
+        return py::make_tuple(owned<double, 3>(std::move(a.points)), owned<double, 3>(std::move(a.normals)),
+                              owned<std::uint32_t, 1>(std::move(a.sides)).attr("reshape")(-1));
       },
       py::arg("path"));
 
