@@ -7,6 +7,7 @@
 #include <cmath>
 #include <functional>
 #include <future>
+#include <optional>
 #include <map>
 #include <limits>
 #include <memory>
@@ -599,16 +600,24 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
     };
     std::vector<std::pair<int, double>> tries = {{0, stray(s)}};
     if (tries[0].second > kStrayP95Mm) {
-      double best = tries[0].second;
-      for (int shift : {-2, 2}) {
-        PatchSkin t;
+      // The two other layouts are fitted at once, each on a thread of its own (a fit's
+      // factorisations leave most of the second core idle), and compared in a fixed order:
+      // the same choice with any number of threads.
+      auto other = [&](int shift) -> std::optional<PatchSkin> {
         try {
-          t = fit(shift);
+          return fit(shift);
         } catch (const InputError&) {
-          continue;  // a corner that cannot be placed there: the layout stays as it was
+          return std::nullopt;  // a corner that cannot be placed there: the layout stays as it was
         }
-        tries.push_back({shift, stray(t)});
-        if (tries.back().second < best) best = tries.back().second, s = std::move(t), s.thumb_ring_shift = shift;
+      };
+      std::future<std::optional<PatchSkin>> toward_webs = std::async(side_launch(), other, 2);
+      std::optional<PatchSkin> toward_wrist = other(-2);
+      std::optional<PatchSkin> webs = toward_webs.get();
+      double best = tries[0].second;
+      for (auto& [shift, t] : {std::pair<int, std::optional<PatchSkin>*>{-2, &toward_wrist}, {2, &webs}}) {
+        if (!*t) continue;
+        tries.push_back({shift, stray(**t)});
+        if (tries.back().second < best) best = tries.back().second, s = std::move(**t), s.thumb_ring_shift = shift;
       }
     }
     s.layout_tries = std::move(tries);

@@ -253,25 +253,32 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
   // when its votes are many and concentrated: most of those in a 3.5 mm cube lie in the
   // central 1.5 mm one.
   const double cell = r / 6.0;
-  struct Cell {
-    long votes = 0;
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  };
   auto key = [](long a, long b, long c) {
     return ((a + (1L << 20)) << 42) | ((b + (1L << 20)) << 21) | (c + (1L << 20));
   };
-  // An open-addressing table (linear probing): the votes are looked up ~30 times each, and
-  // std::unordered_map's node per cell made this the costliest step of registration. The
-  // peaks are sorted below, so the table's order does not reach the result.
+  // An open-addressing table (linear probing) of the occupied cells: the votes are looked up
+  // ~30 times each, and std::unordered_map's node per cell made this the costliest step of
+  // registration. A slot holds the key and the votes (16 bytes: the neighbour tests read
+  // nothing else); the cells' vote sums are kept densely, in the order the cells were first
+  // voted for. The table is the thread's own and kept from search to search: a radius
+  // estimate runs ~20 searches, and a fresh 10 MB table each time went to page faults. The
+  // peaks are sorted below, so neither order reaches the result.
+  struct Slot {
+    long key;  // -1: empty (keys are >= 0)
+    int votes;
+    int index;  // into the dense arrays
+  };
   struct CellTable {
-    std::vector<long> keys;  // -1: empty (keys are >= 0)
-    std::vector<Cell> cells;
+    std::vector<Slot> slots;
+    std::vector<long> keys;               // dense, a cell's key
+    std::vector<Eigen::Vector3d> sums;    // dense, the sum of a cell's votes
     size_t mask = 0;
-    explicit CellTable(size_t n) {
+    void reset(size_t n) {
       size_t cap = 16;
       while (cap < 2 * n + 16) cap <<= 1;
-      keys.assign(cap, -1);
-      cells.resize(cap);
+      slots.assign(cap, Slot{-1, 0, -1});
+      keys.clear();
+      sums.clear();
       mask = cap - 1;
     }
     static size_t slot_of(long k) {
@@ -281,33 +288,39 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
       x ^= x >> 33;
       return static_cast<size_t>(x);
     }
-    Cell& at(long k) {
+    void vote(long k, const Eigen::Vector3d& v) {
       size_t i = slot_of(k) & mask;
-      while (keys[i] != -1 && keys[i] != k) i = (i + 1) & mask;
-      keys[i] = k;
-      return cells[i];
+      while (slots[i].key != -1 && slots[i].key != k) i = (i + 1) & mask;
+      Slot& sl = slots[i];
+      if (sl.key == -1) {
+        sl = Slot{k, 0, static_cast<int>(keys.size())};
+        keys.push_back(k);
+        sums.push_back(Eigen::Vector3d::Zero());
+      }
+      ++sl.votes;
+      sums[static_cast<size_t>(sl.index)] += v;
     }
-    const Cell* find(long k) const {
-      for (size_t i = slot_of(k) & mask; keys[i] != -1; i = (i + 1) & mask)
-        if (keys[i] == k) return &cells[i];
+    const Slot* find(long k) const {
+      for (size_t i = slot_of(k) & mask; slots[i].key != -1; i = (i + 1) & mask)
+        if (slots[i].key == k) return &slots[i];
       return nullptr;
     }
   };
-  CellTable grid(s.points.size());
+  thread_local CellTable grid;
+  grid.reset(s.points.size());
   for (size_t k = 0; k < s.points.size(); ++k) {
     if (!s.has_normal(k)) continue;
     const Eigen::Vector3d v = s.points[k] - r * s.normals[k];
-    Cell& g = grid.at(key(std::lround(std::floor(v.x() / cell)), std::lround(std::floor(v.y() / cell)),
-                          std::lround(std::floor(v.z() / cell))));
-    ++g.votes;
-    g.sum += v;
+    grid.vote(key(std::lround(std::floor(v.x() / cell)), std::lround(std::floor(v.y() / cell)),
+                  std::lround(std::floor(v.z() / cell))),
+              v);
   }
   auto votes_in = [&](long a, long b, long c, long half) {
     long total = 0;
     for (long da = -half; da <= half; ++da)
       for (long db = -half; db <= half; ++db)
         for (long dc = -half; dc <= half; ++dc)
-          if (const Cell* g = grid.find(key(a + da, b + db, c + dc))) total += g->votes;
+          if (const Slot* g = grid.find(key(a + da, b + db, c + dc))) total += g->votes;
     return total;
   };
   struct Peak {
@@ -316,34 +329,36 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
     Eigen::Vector3d centre;
   };
   std::vector<Peak> peaks;
-  for (size_t slot = 0; slot < grid.keys.size(); ++slot) {
-    if (grid.keys[slot] == -1) continue;
-    const long k = grid.keys[slot];
-    const Cell& g = grid.cells[slot];
+  for (size_t cell_index = 0; cell_index < grid.keys.size(); ++cell_index) {
+    const long k = grid.keys[cell_index];
+    const long votes = grid.find(k)->votes;
     const long a = (k >> 42) - (1L << 20), b = ((k >> 21) & ((1L << 21) - 1)) - (1L << 20),
                c = (k & ((1L << 21) - 1)) - (1L << 20);
-    // A local maximum of the votes, and its central cube's votes and their sum, in one pass
-    // over its 27 cells.
+    // A local maximum of the votes (a tie goes to the smaller key), and its central cube's
+    // votes; their sum only for a maximum.
     bool is_max = true;
     long central = 0;
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     for (long da = -1; da <= 1 && is_max; ++da)
       for (long db = -1; db <= 1 && is_max; ++db)
         for (long dc = -1; dc <= 1; ++dc) {
           const long nk = key(a + da, b + db, c + dc);
-          const Cell* n = grid.find(nk);
+          const Slot* n = grid.find(nk);
           if (!n) continue;
-          if (n->votes > g.votes || (n->votes == g.votes && nk < k)) {
+          if (n->votes > votes || (n->votes == votes && nk < k)) {
             is_max = false;
             break;
           }
           central += n->votes;
-          sum += n->sum;
         }
     if (!is_max) continue;
     if (central < o.min_votes) continue;
     const long wide = votes_in(a, b, c, 3);
     if (static_cast<double>(central) < o.min_vote_concentration * static_cast<double>(wide)) continue;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();  // in the same order as before: da, db, dc
+    for (long da = -1; da <= 1; ++da)
+      for (long db = -1; db <= 1; ++db)
+        for (long dc = -1; dc <= 1; ++dc)
+          if (const Slot* n = grid.find(key(a + da, b + db, c + dc))) sum += grid.sums[static_cast<size_t>(n->index)];
     peaks.push_back({central, k, sum / static_cast<double>(central)});
   }
   std::sort(peaks.begin(), peaks.end(), [](const Peak& x, const Peak& y) {

@@ -302,10 +302,33 @@ void Baker::fill(SkinTexture* out) {
   while (!pending.empty() && grow(pending)) {
   }
   for (size_t i : pending) colour[i] = mean, state[i] = 2;  // a chart island no photo reached
-  std::vector<size_t> outside;  // every texel not coloured now: grow takes, each pass, those beside a coloured one
+  // The padding: kPadTexels passes, each colouring every texel beside a coloured one from the
+  // colours at the pass's start (as grow). A texel can first qualify in the pass after one of
+  // its neighbours was coloured, so each pass visits only the neighbours of the texels the
+  // last one coloured, not the whole texture's uncoloured texels (97 ms → a few ms at 1024²).
+  std::vector<char> queued(state.size(), 0);
+  std::vector<size_t> frontier;
+  const auto queue_neighbours = [&](size_t i) {
+    const int x = static_cast<int>(i % S), y = static_cast<int>(i / S);
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int xx = x + dx, yy = y + dy;
+        if (!(dx || dy) || xx < 0 || yy < 0 || xx >= S || yy >= S) continue;
+        const size_t j = static_cast<size_t>(yy) * S + xx;
+        if (state[j] != 2 && !queued[j]) queued[j] = 1, frontier.push_back(j);
+      }
+  };
   for (size_t i = 0; i < state.size(); ++i)
-    if (state[i] != 2) outside.push_back(i);
-  for (int pass = 0; pass < kPadTexels && grow(outside); ++pass) {
+    if (state[i] == 2) queue_neighbours(i);
+  for (int pass = 0; pass < kPadTexels && !frontier.empty(); ++pass) {
+    std::sort(frontier.begin(), frontier.end());
+    std::vector<size_t> todo;
+    todo.swap(frontier);
+    for (size_t i : todo) queued[i] = 0;
+    std::vector<size_t> left = todo;  // every one has a coloured neighbour: grow colours them all
+    grow(left);
+    for (size_t i : todo)
+      if (state[i] == 2) queue_neighbours(i);
   }
   out->map.size = S;
   out->map.rgb.resize(static_cast<size_t>(S) * S * 3);
