@@ -305,7 +305,7 @@ void Baker::fill(SkinTexture* out) {
   // The padding: kPadTexels passes, each colouring every texel beside a coloured one from the
   // colours at the pass's start (as grow). A texel can first qualify in the pass after one of
   // its neighbours was coloured, so each pass visits only the neighbours of the texels the
-  // last one coloured, not the whole texture's uncoloured texels (97 ms → a few ms at 1024²).
+  // last one coloured, not the whole texture's uncoloured texels (the bake 0.09 → 0.05 s at 1024²).
   std::vector<char> queued(state.size(), 0);
   std::vector<size_t> frontier;
   const auto queue_neighbours = [&](size_t i) {
