@@ -129,12 +129,9 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   RunResult R;
   R.inputs = in;
   const bool clouds = !in.clouds.empty();
-  // The pictures' OpenGL (Mesa with LLVM, ~0.1 s to load) loads beside the first stages.
-  // So do Open CASCADE's, for patches.step.
-  if (thread_count() > 1) {
-    preload_gl();
-    if (in.options.patches.enabled) preload_step();
-  }
+  // Open CASCADE (for patches.step) loads beside the first stages. (The run's pictures are
+  // drawn on the CPU: it loads no OpenGL.)
+  if (thread_count() > 1 && in.options.patches.enabled) preload_step();
 
   // --- ingest: read and check every input before any work ---
   const StageTimer t_ingest;

@@ -1,7 +1,7 @@
 #pragma once
-/// Preview pictures (PNG) for people who would rather look than read: shaded meshes, lit
-/// point splats and skeletons drawn by Mesa's off-screen OpenGL (gl_render.cpp; no display
-/// or GPU needed), and a colour-coded range image.
+/// Preview pictures (PNG) for people who would rather look than read: shaded meshes and lit
+/// point splats drawn on the CPU (mesh_raster.cpp, splats.cpp), skeletons drawn by Mesa's
+/// off-screen OpenGL (gl_render.cpp; no display or GPU needed), and a colour-coded range image.
 #include <Eigen/Geometry>
 #include <string>
 #include <vector>
@@ -26,14 +26,9 @@ struct RenderOptions {
   float texture_weight = 0.7f;
 };
 
-/// Loads Mesa's off-screen OpenGL on a thread of its own, ahead of the first picture (it is
-/// loaded at the first picture otherwise). For commands that will draw: the loading (~0.1 s,
-/// LLVM with it) then overlaps their other work.
-void preload_gl();
-
-/// Shaded orthographic render of one or more meshes (fit to the picture), by Mesa's
-/// off-screen OpenGL (gl_render.cpp): depth-tested, smooth-shaded, 2x supersampled. Returns
-/// PNG bytes.
+/// Shaded orthographic render of one or more meshes (fit to the picture), on the CPU
+/// (mesh_raster.cpp): depth-tested, lit per vertex as OpenGL's fixed function and smooth-shaded,
+/// both sides lit, 2x supersampled. Returns PNG bytes.
 std::string render_mesh_png(const std::vector<const Mesh*>& meshes, const RenderOptions& options);
 
 /// Shaded splats of a point cloud with normals, one colour per point (fit to the picture):

@@ -1,7 +1,10 @@
 #pragma once
-// What the OpenGL pictures (gl_render.cpp) and the CPU splats (splats.cpp) share: the
-// orthographic framing of a picture and its supersampled buffer filtered down to PNG.
+// What the pictures drawn on the CPU (splats.cpp, mesh_raster.cpp) and by OpenGL
+// (gl_render.cpp) share: the orthographic framing of a picture, the lights, and the
+// supersampled buffer filtered down to PNG.
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -23,6 +26,40 @@ constexpr double kKeyColour = 0.63, kFillColour = 0.3, kAmbient = 0.22, kSpecula
 constexpr std::uint8_t kBackground[3] = {246, 246, 248};  ///< the pictures' background
 constexpr std::uint8_t kDotColour[3] = {200, 30, 40};     ///< joints and markers, over everything
 constexpr double kDotPx = 7;                               ///< their diameter, output pixels
+
+/// OpenGL's fixed-function lighting (the viewer at infinity) of the lights above, for a
+/// view-space unit normal facing the viewer's side and a material whose ambient and diffuse
+/// colour is `c`: the colour, clamped to 1 as OpenGL clamps a vertex's.
+struct Lights {
+  Eigen::Vector3d key = Eigen::Vector3d(light::kKey).normalized();
+  Eigen::Vector3d fill = Eigen::Vector3d(light::kFill).normalized();
+  Eigen::Vector3d half = (key + Eigen::Vector3d::UnitZ()).normalized();
+  Eigen::Vector3d shade(const Eigen::Vector3d& n, const Eigen::Vector3f& c) const {
+    const double k = n.dot(key), f = std::max(0.0, n.dot(fill));
+    const double diffuse = light::kAmbient + light::kKeyColour * std::max(0.0, k) + light::kFillColour * f;
+    const double spec = k > 0 ? light::kKeyColour * light::kSpecular * std::pow(std::max(0.0, n.dot(half)), light::kShininess) : 0.0;
+    return (diffuse * c.cast<double>().array() + spec).min(1.0).matrix();
+  }
+};
+
+/// A colour in [0, 1] as a byte, rounded as OpenGL stores it.
+inline std::uint8_t byte_of(double v) { return static_cast<std::uint8_t>(std::lround(std::clamp(v, 0.0, 1.0) * 255)); }
+
+/// A disc of `diameter` supersampled pixels at window position (x, y) (pixels from the top
+/// left): `put` is called with the index of every pixel whose centre lies inside it.
+template <typename Put>
+void disc(double x, double y, double diameter, int W, int H, Put put) {
+  const double r = 0.5 * diameter, r2 = r * r;
+  const int y0 = std::max(0, static_cast<int>(std::ceil(y - r - 0.5))), y1 = std::min(H - 1, static_cast<int>(std::floor(y + r - 0.5)));
+  const int x0 = std::max(0, static_cast<int>(std::ceil(x - r - 0.5))), x1 = std::min(W - 1, static_cast<int>(std::floor(x + r - 0.5)));
+  for (int j = y0; j <= y1; ++j) {
+    const double dy = j + 0.5 - y;
+    for (int i = x0; i <= x1; ++i) {
+      const double dx = i + 0.5 - x;
+      if (dx * dx + dy * dy <= r2) put(static_cast<size_t>(j) * W + i);
+    }
+  }
+}
 
 /// The view-space box of the points (o.view applied), fitted to 92 % of the frame.
 struct Framing {

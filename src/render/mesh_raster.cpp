@@ -1,0 +1,139 @@
+// Meshes drawn on the CPU: triangles rasterised with a depth test, lit per vertex with OpenGL's
+// fixed-function formula and interpolated (Gouraud), both sides lit, an optional texture
+// blended with the lit surface as the thesis blended photo and shading, 2 × supersampled and
+// box-filtered as every picture (raster.hpp).
+//
+// Written here rather than drawn by Mesa (gl_render.cpp, which still draws the skeletons): a
+// run draws seven mesh pictures of ~8 000 triangles, and Mesa's llvmpipe cost more around them
+// than in them — loading Mesa and LLVM (~0.1 s of CPU and ~90 000 symbol relocations a
+// process), an OpenGL context per thread with its shaders compiled (~20 ms), the texture
+// uploaded per picture — ~0.39 s of CPU for skin.png and the six posed pictures. Scan
+// conversion of a triangle with a depth test is a few dozen lines: the same pictures take a few
+// milliseconds each, and the same bytes on any machine (no driver in between).
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+
+#include "core/errors.hpp"
+#include "render/preview.hpp"
+#include "render/raster.hpp"
+
+namespace handskin {
+
+namespace {
+
+// The texture's colour at (u, v), bilinear between texel centres and clamped to the edge (as
+// OpenGL's GL_LINEAR with GL_CLAMP_TO_EDGE); row 0 of the image is v = 0.
+Eigen::Vector3d sample_bilinear(const TextureMap& t, double u, double v) {
+  const int S = t.size;
+  const double x = u * S - 0.5, y = v * S - 0.5;
+  const double fx = std::floor(x), fy = std::floor(y);
+  const double ax = x - fx, ay = y - fy;
+  const auto at = [&](double i, double j) -> Eigen::Vector3d {
+    const size_t c = static_cast<size_t>(std::clamp(static_cast<int>(i), 0, S - 1)),
+                 r = static_cast<size_t>(std::clamp(static_cast<int>(j), 0, S - 1));
+    const std::uint8_t* p = &t.rgb[(r * static_cast<size_t>(S) + c) * 3];
+    return Eigen::Vector3d(p[0], p[1], p[2]) / 255.0;
+  };
+  return (1 - ay) * ((1 - ax) * at(fx, fy) + ax * at(fx + 1, fy)) + ay * ((1 - ax) * at(fx, fy + 1) + ax * at(fx + 1, fy + 1));
+}
+
+}  // namespace
+
+std::string render_mesh_png(const std::vector<const Mesh*>& meshes, const RenderOptions& o) {
+  std::vector<Eigen::Vector3d> all;
+  for (const Mesh* m : meshes) all.insert(all.end(), m->vertices.begin(), m->vertices.end());
+  const raster::Framing f = raster::frame(o, all);
+  constexpr int S = raster::kSupersample;
+  const int W = o.width * S, H = o.height * S;
+  // The buffers are the thread's own, kept from picture to picture: first touching a fresh
+  // 2048² picture's ~34 MB cost more than drawing it (page faults). Depth as float: view-space
+  // millimetres to ~1e-5 mm, finer than OpenGL's 24-bit depth buffer over a hand.
+  thread_local std::vector<std::uint8_t> rgba;
+  thread_local std::vector<float> depth;
+  const size_t n = static_cast<size_t>(W) * H;
+  rgba.resize(4 * n);
+  for (size_t k = 0; k < rgba.size(); k += 4)
+    rgba[k] = raster::kBackground[0], rgba[k + 1] = raster::kBackground[1], rgba[k + 2] = raster::kBackground[2], rgba[k + 3] = 255;
+  depth.assign(n, -std::numeric_limits<float>::infinity());
+  const double px = W / (2 * f.half_w);  // supersampled pixels per mm
+  const raster::Lights lights;
+
+  for (size_t m = 0; m < meshes.size(); ++m) {
+    const Mesh& mesh = *meshes[m];
+    const TextureMap* tex = m == 0 && o.texture && !o.texture->empty() ? o.texture : nullptr;
+    HS_CHECK(!tex || tex->corner_uv.size() == mesh.n_faces(), "the texture's faces disagree with the mesh's");
+    HS_CHECK(!tex || tex->rgb.size() == static_cast<size_t>(tex->size) * tex->size * 3, "the texture's image is not size x size RGB");
+    // A textured surface is lit white (0.92) and blended with the texture by its weight.
+    const Eigen::Vector3f material = tex ? Eigen::Vector3f::Constant(0.92f) : o.colour;
+    const double w_tex = tex ? o.texture_weight : 0.0;
+    // Per vertex: window position (x right, y down, supersampled pixels), view depth (larger
+    // is nearer), and the lit colour of either side (two-sided lighting: the back of a face is
+    // lit with the normal turned around).
+    const std::vector<Eigen::Vector3d> normal = shading_normals(mesh);
+    const size_t nv = mesh.vertices.size();
+    std::vector<Eigen::Vector3d> win(nv);
+    std::vector<std::array<Eigen::Vector3d, 2>> lit(nv);
+    for (size_t v = 0; v < nv; ++v) {
+      const Eigen::Vector3d q = o.view * mesh.vertices[v];
+      win[v].x() = (q.x() - (f.centre.x() - f.half_w)) * px;
+      win[v].y() = ((f.centre.y() + f.half_h) - q.y()) * px;
+      win[v].z() = q.z();
+      Eigen::Vector3d n = o.view * normal[v];
+      if (n.squaredNorm() > 0) n.normalize();
+      else n = Eigen::Vector3d::UnitZ();
+      lit[v][0] = lights.shade(n, material);
+      lit[v][1] = lights.shade(-n, material);
+    }
+    for (size_t fi = 0; fi < mesh.faces.size(); ++fi) {
+      const auto& t = mesh.faces[fi];
+      const Eigen::Vector3d &a = win[t[0]], &b = win[t[1]], &c = win[t[2]];
+      // Twice the signed area with y down: negative for a face counter-clockwise as seen (its
+      // front, as OpenGL's default, whose window y runs up).
+      const double area = (b.x() - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (b.y() - a.y());
+      if (!(std::abs(area) > 1e-12)) continue;
+      const double inv_area = 1 / area;
+      const int side = area < 0 ? 0 : 1;
+      const Eigen::Vector3d &ca = lit[t[0]][side], &cb = lit[t[1]][side], &cc = lit[t[2]][side];
+      const int x0 = std::max(0, static_cast<int>(std::ceil(std::min({a.x(), b.x(), c.x()}) - 0.5)));
+      const int x1 = std::min(W - 1, static_cast<int>(std::floor(std::max({a.x(), b.x(), c.x()}) - 0.5)));
+      const int y0 = std::max(0, static_cast<int>(std::ceil(std::min({a.y(), b.y(), c.y()}) - 0.5)));
+      const int y1 = std::min(H - 1, static_cast<int>(std::floor(std::max({a.y(), b.y(), c.y()}) - 0.5)));
+      for (int y = y0; y <= y1; ++y) {
+        const double py = y + 0.5;
+        for (int x = x0; x <= x1; ++x) {
+          const double pxc = x + 0.5;
+          // Barycentric weights of the pixel's centre; inside when none is negative.
+          const double l0 = ((b.x() - pxc) * (c.y() - py) - (c.x() - pxc) * (b.y() - py)) * inv_area;
+          const double l1 = ((c.x() - pxc) * (a.y() - py) - (a.x() - pxc) * (c.y() - py)) * inv_area;
+          const double l2 = 1 - l0 - l1;
+          if (l0 < 0 || l1 < 0 || l2 < 0) continue;
+          const size_t at = static_cast<size_t>(y) * W + x;
+          const float z = static_cast<float>(l0 * a.z() + l1 * b.z() + l2 * c.z());
+          if (!(z > depth[at])) continue;  // nearer only: the first drawn keeps a tie
+          depth[at] = z;
+          Eigen::Vector3d col = l0 * ca + l1 * cb + l2 * cc;
+          if (tex) {
+            const auto& uv = tex->corner_uv[fi];
+            const double u = l0 * uv[0].x() + l1 * uv[1].x() + l2 * uv[2].x();
+            const double v = l0 * uv[0].y() + l1 * uv[1].y() + l2 * uv[2].y();
+            col = w_tex * sample_bilinear(*tex, u, v) + (1 - w_tex) * col;
+          }
+          for (int ch = 0; ch < 3; ++ch) rgba[4 * at + ch] = raster::byte_of(col[ch]);
+        }
+      }
+    }
+  }
+  // Joints or markers: red dots over everything.
+  for (const auto& p : o.points) {
+    const Eigen::Vector3d q = o.view * p;
+    raster::disc((q.x() - (f.centre.x() - f.half_w)) * px, ((f.centre.y() + f.half_h) - q.y()) * px, raster::kDotPx * S, W, H,
+                 [&](size_t at) {
+                   for (int c = 0; c < 3; ++c) rgba[4 * at + c] = raster::kDotColour[c];
+                 });
+  }
+  return raster::downsample_png(rgba, o.width, o.height);
+}
+
+}  // namespace handskin
