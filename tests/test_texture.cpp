@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <sstream>
 
@@ -11,6 +12,7 @@
 #include "core/png_io.hpp"
 #include "core/rig.hpp"
 #include "render/preview.hpp"
+#include "render/raster.hpp"
 #include "rigging/gltf.hpp"
 #include "synth/albedo.hpp"
 #include "test_util.hpp"
@@ -218,4 +220,58 @@ TEST(Texture, SkinObjCarriesTheTexturesCoordinatesAndMaterial) {
   EXPECT_EQ(mtllib, "skin.mtl");
   EXPECT_NE(read_file(run + "/skin.mtl").find("map_Kd texture.png"), std::string::npos);
   EXPECT_TRUE(std::filesystem::exists(run + "/texture.png"));
+}
+
+// The mesh pictures (render/mesh_raster.cpp): what any renderer of them must give — the
+// silhouette where the projection puts it, the nearer surface in front, both sides lit alike,
+// OpenGL's lighting formula for a face toward the viewer, and the joints' dots on top.
+TEST(Texture, MeshPicturesCoverOccludeAndLightAsOpenGL) {
+  const auto square = [](double z, bool flipped) {
+    Mesh m{{{0, 0, z}, {10, 0, z}, {10, 10, z}, {0, 10, z}}, {{{0, 1, 2}}, {{0, 2, 3}}}};
+    if (flipped)
+      for (auto& f : m.faces) std::swap(f[1], f[2]);
+    return m;
+  };
+  RenderOptions ro;
+  ro.width = ro.height = 100;
+  const auto picture = [&](const std::vector<const Mesh*>& meshes) { return decode_rgb8_png(render_mesh_png(meshes, ro), "picture"); };
+  const auto pixel = [](const Rgb8Image& img, int x, int y) {
+    const std::uint8_t* c = &img.rgb[(static_cast<size_t>(y) * img.width + x) * 3];
+    return Eigen::Vector3i(c[0], c[1], c[2]);
+  };
+  const Eigen::Vector3i background(raster::kBackground[0], raster::kBackground[1], raster::kBackground[2]);
+  // A 10 mm square facing the viewer fills 92 % of the frame, centred: the corners' 4 % are
+  // background, its middle the skin tone lit as OpenGL lights a normal along +Z.
+  const Mesh front = square(0, false), back = square(0, true);
+  const Rgb8Image a = picture({&front});
+  EXPECT_EQ(pixel(a, 1, 1), background);
+  EXPECT_EQ(pixel(a, 98, 98), background);
+  const Eigen::Vector3d lit = raster::Lights().shade(Eigen::Vector3d::UnitZ(), ro.colour);
+  for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(pixel(a, 50, 50)[ch], std::lround(lit[ch] * 255), 1) << ch;
+  size_t covered = 0;
+  for (int y = 0; y < 100; ++y)
+    for (int x = 0; x < 100; ++x) covered += pixel(a, x, y) != background;
+  EXPECT_NEAR(static_cast<double>(covered), 92.0 * 92.0, 2 * 92.0) << "the square's silhouette";
+  // One flat colour inside: no crack where the two triangles meet along the diagonal.
+  for (int y = 6; y < 94; ++y)
+    for (int x = 6; x < 94; ++x) ASSERT_EQ(pixel(a, x, y), pixel(a, 50, 50)) << x << " " << y;
+  // Its back (the faces wound the other way) is lit alike: two-sided lighting.
+  EXPECT_EQ(picture({&back}).rgb, a.rgb);
+  // A smaller square tilted 40° toward the key light, nearer everywhere, covers the larger
+  // one's middle in either drawing order (the depth test), lit as its own normal says.
+  const double t = 40 * M_PI / 180;
+  const Mesh tilted{{{2.5, 2.5, 1}, {7.5, 2.5, 1}, {7.5, 2.5 + 5 * std::cos(t), 1 + 5 * std::sin(t)}, {2.5, 2.5 + 5 * std::cos(t), 1 + 5 * std::sin(t)}},
+                    {{{0, 1, 2}}, {{0, 2, 3}}}};
+  const Rgb8Image near_last = picture({&front, &tilted}), near_first = picture({&tilted, &front});
+  EXPECT_EQ(near_last.rgb, near_first.rgb);
+  const Eigen::Vector3d tilted_lit = raster::Lights().shade(Eigen::Vector3d(0, -std::sin(t), std::cos(t)), ro.colour);
+  for (int ch = 0; ch < 3; ++ch) {
+    EXPECT_NEAR(pixel(near_last, 50, 45)[ch], std::lround(tilted_lit[ch] * 255), 1) << ch;
+    EXPECT_NEAR(pixel(near_last, 15, 85)[ch], std::lround(lit[ch] * 255), 1) << ch;
+  }
+  EXPECT_NE(pixel(near_last, 50, 45), pixel(near_last, 15, 85));
+  // Joints drawn as red dots over the surface.
+  ro.points = {{5, 5, -100}};
+  const Rgb8Image dotted = picture({&front});
+  EXPECT_EQ(pixel(dotted, 50, 50), Eigen::Vector3i(raster::kDotColour[0], raster::kDotColour[1], raster::kDotColour[2]));
 }

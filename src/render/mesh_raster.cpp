@@ -39,6 +39,17 @@ Eigen::Vector3d sample_bilinear(const TextureMap& t, double u, double v) {
   return (1 - ay) * ((1 - ax) * at(fx, fy) + ax * at(fx + 1, fy)) + ay * ((1 - ax) * at(fx, fy + 1) + ax * at(fx + 1, fy + 1));
 }
 
+// (q − p) × (x − p, y − p): positive on one side of the line p → q. The same number, negated,
+// for q → p (computed from the lower endpoint), so that two faces sharing an edge agree
+// exactly on which side of it a pixel centre lies.
+double edge_function(const Eigen::Vector3d& p, const Eigen::Vector3d& q, double x, double y) {
+  const bool swap = q.x() < p.x() || (q.x() == p.x() && q.y() < p.y());
+  const Eigen::Vector3d& u = swap ? q : p;
+  const Eigen::Vector3d& v = swap ? p : q;
+  const double e = (v.x() - u.x()) * (y - u.y()) - (v.y() - u.y()) * (x - u.x());
+  return swap ? -e : e;
+}
+
 }  // namespace
 
 std::string render_mesh_png(const std::vector<const Mesh*>& meshes, const RenderOptions& o) {
@@ -93,22 +104,34 @@ std::string render_mesh_png(const std::vector<const Mesh*>& meshes, const Render
       // front, as OpenGL's default, whose window y runs up).
       const double area = (b.x() - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (b.y() - a.y());
       if (!(std::abs(area) > 1e-12)) continue;
-      const double inv_area = 1 / area;
       const int side = area < 0 ? 0 : 1;
       const Eigen::Vector3d &ca = lit[t[0]][side], &cb = lit[t[1]][side], &cc = lit[t[2]][side];
       const int x0 = std::max(0, static_cast<int>(std::ceil(std::min({a.x(), b.x(), c.x()}) - 0.5)));
       const int x1 = std::min(W - 1, static_cast<int>(std::floor(std::max({a.x(), b.x(), c.x()}) - 0.5)));
       const int y0 = std::max(0, static_cast<int>(std::ceil(std::min({a.y(), b.y(), c.y()}) - 0.5)));
       const int y1 = std::min(H - 1, static_cast<int>(std::floor(std::max({a.y(), b.y(), c.y()}) - 0.5)));
+      // Each edge owns the pixel centres exactly on it only if it is a "top" or "left" edge of
+      // the face wound one fixed way (as Direct3D's and OpenGL implementations' fill rule): two
+      // faces sharing an edge then draw each such pixel once, never both, never neither.
+      const double s = area < 0 ? -1.0 : 1.0;  // makes every face's weights positive inside
+      const auto owns = [&](const Eigen::Vector3d& p, const Eigen::Vector3d& q) {
+        const double dx = s * (q.x() - p.x()), dy = s * (q.y() - p.y());
+        return dy < 0 || (dy == 0 && dx > 0);
+      };
+      const bool own0 = owns(b, c), own1 = owns(c, a), own2 = owns(a, b);
       for (int y = y0; y <= y1; ++y) {
         const double py = y + 0.5;
         for (int x = x0; x <= x1; ++x) {
           const double pxc = x + 0.5;
-          // Barycentric weights of the pixel's centre; inside when none is negative.
-          const double l0 = ((b.x() - pxc) * (c.y() - py) - (c.x() - pxc) * (b.y() - py)) * inv_area;
-          const double l1 = ((c.x() - pxc) * (a.y() - py) - (a.x() - pxc) * (c.y() - py)) * inv_area;
-          const double l2 = 1 - l0 - l1;
-          if (l0 < 0 || l1 < 0 || l2 < 0) continue;
+          // The edge functions (a pixel's weights before dividing by the area), inside when
+          // none is negative (for the sign of the face's winding).
+          const double e0 = s * edge_function(b, c, pxc, py), e1 = s * edge_function(c, a, pxc, py),
+                       e2 = s * edge_function(a, b, pxc, py);
+          if (e0 < 0 || e1 < 0 || e2 < 0) continue;
+          if ((e0 == 0 && !own0) || (e1 == 0 && !own1) || (e2 == 0 && !own2)) continue;
+          const double sum = e0 + e1 + e2;
+          if (!(sum > 0)) continue;
+          const double l0 = e0 / sum, l1 = e1 / sum, l2 = e2 / sum;
           const size_t at = static_cast<size_t>(y) * W + x;
           const float z = static_cast<float>(l0 * a.z() + l1 * b.z() + l2 * c.z());
           if (!(z > depth[at])) continue;  // nearer only: the first drawn keeps a tie
