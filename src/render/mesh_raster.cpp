@@ -30,25 +30,31 @@ Eigen::Vector3d sample_bilinear(const TextureMap& t, double u, double v) {
   const double x = u * S - 0.5, y = v * S - 0.5;
   const double fx = std::floor(x), fy = std::floor(y);
   const double ax = x - fx, ay = y - fy;
-  const auto at = [&](double i, double j) -> Eigen::Vector3d {
-    const size_t c = static_cast<size_t>(std::clamp(static_cast<int>(i), 0, S - 1)),
-                 r = static_cast<size_t>(std::clamp(static_cast<int>(j), 0, S - 1));
-    const std::uint8_t* p = &t.rgb[(r * static_cast<size_t>(S) + c) * 3];
-    return Eigen::Vector3d(p[0], p[1], p[2]) / 255.0;
-  };
-  return (1 - ay) * ((1 - ax) * at(fx, fy) + ax * at(fx + 1, fy)) + ay * ((1 - ax) * at(fx, fy + 1) + ax * at(fx + 1, fy + 1));
+  const int x0 = std::clamp(static_cast<int>(fx), 0, S - 1), x1 = std::clamp(static_cast<int>(fx) + 1, 0, S - 1);
+  const int y0 = std::clamp(static_cast<int>(fy), 0, S - 1), y1 = std::clamp(static_cast<int>(fy) + 1, 0, S - 1);
+  const std::uint8_t* r0 = &t.rgb[static_cast<size_t>(y0) * S * 3];
+  const std::uint8_t* r1 = &t.rgb[static_cast<size_t>(y1) * S * 3];
+  Eigen::Vector3d c;
+  for (int ch = 0; ch < 3; ++ch)
+    c[ch] = ((1 - ay) * ((1 - ax) * r0[3 * x0 + ch] + ax * r0[3 * x1 + ch]) + ay * ((1 - ax) * r1[3 * x0 + ch] + ax * r1[3 * x1 + ch])) /
+            255.0;
+  return c;
 }
 
-// (q − p) × (x − p, y − p): positive on one side of the line p → q. The same number, negated,
-// for q → p (computed from the lower endpoint), so that two faces sharing an edge agree
-// exactly on which side of it a pixel centre lies.
-double edge_function(const Eigen::Vector3d& p, const Eigen::Vector3d& q, double x, double y) {
-  const bool swap = q.x() < p.x() || (q.x() == p.x() && q.y() < p.y());
-  const Eigen::Vector3d& u = swap ? q : p;
-  const Eigen::Vector3d& v = swap ? p : q;
-  const double e = (v.x() - u.x()) * (y - u.y()) - (v.y() - u.y()) * (x - u.x());
-  return swap ? -e : e;
-}
+// The line p → q as (q − p) × (x − p, y − p), positive on one side of it. Made from the
+// lower endpoint and negated for the other direction, so that two faces sharing an edge get
+// the same number, negated, at every pixel centre: they agree exactly on which side of it a
+// centre lies.
+struct Edge {
+  double ux, uy, dx, dy, sign;
+  Edge(const Eigen::Vector3d& p, const Eigen::Vector3d& q) {
+    const bool swap = q.x() < p.x() || (q.x() == p.x() && q.y() < p.y());
+    const Eigen::Vector3d& u = swap ? q : p;
+    const Eigen::Vector3d& v = swap ? p : q;
+    ux = u.x(), uy = u.y(), dx = v.x() - u.x(), dy = v.y() - u.y(), sign = swap ? -1.0 : 1.0;
+  }
+  double operator()(double x, double y) const { return sign * (dx * (y - uy) - dy * (x - ux)); }
+};
 
 }  // namespace
 
@@ -119,14 +125,14 @@ std::string render_mesh_png(const std::vector<const Mesh*>& meshes, const Render
         return dy < 0 || (dy == 0 && dx > 0);
       };
       const bool own0 = owns(b, c), own1 = owns(c, a), own2 = owns(a, b);
+      const Edge E0(b, c), E1(c, a), E2(a, b);
       for (int y = y0; y <= y1; ++y) {
         const double py = y + 0.5;
         for (int x = x0; x <= x1; ++x) {
           const double pxc = x + 0.5;
           // The edge functions (a pixel's weights before dividing by the area), inside when
           // none is negative (for the sign of the face's winding).
-          const double e0 = s * edge_function(b, c, pxc, py), e1 = s * edge_function(c, a, pxc, py),
-                       e2 = s * edge_function(a, b, pxc, py);
+          const double e0 = s * E0(pxc, py), e1 = s * E1(pxc, py), e2 = s * E2(pxc, py);
           if (e0 < 0 || e1 < 0 || e2 < 0) continue;
           if ((e0 == 0 && !own0) || (e1 == 0 && !own1) || (e2 == 0 && !own2)) continue;
           const double sum = e0 + e1 + e2;
