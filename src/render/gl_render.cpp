@@ -74,6 +74,7 @@ Framing frame(const RenderOptions& o, const std::vector<Eigen::Vector3d>& model_
   f.scale = 0.92 * std::min(o.width / std::max(f.hi.x() - f.lo.x(), 1e-9), o.height / std::max(f.hi.y() - f.lo.y(), 1e-9));
   f.centre = 0.5 * (f.lo + f.hi);
   f.half_w = 0.5 * o.width / f.scale, f.half_h = 0.5 * o.height / f.scale;
+  f.px = (o.width * kSupersample) / (2 * f.half_w);
   return f;
 }
 

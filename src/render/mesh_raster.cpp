@@ -70,11 +70,8 @@ std::string render_mesh_png(const std::vector<const Mesh*>& meshes, const Render
   thread_local std::vector<std::uint8_t> rgba;
   thread_local std::vector<float> depth;
   const size_t n = static_cast<size_t>(W) * H;
-  rgba.resize(4 * n);
-  for (size_t k = 0; k < rgba.size(); k += 4)
-    rgba[k] = raster::kBackground[0], rgba[k + 1] = raster::kBackground[1], rgba[k + 2] = raster::kBackground[2], rgba[k + 3] = 255;
+  raster::clear_to_background(&rgba, n);
   depth.assign(n, -std::numeric_limits<float>::infinity());
-  const double px = W / (2 * f.half_w);  // supersampled pixels per mm
   const raster::Lights lights;
 
   for (size_t m = 0; m < meshes.size(); ++m) {
@@ -94,9 +91,7 @@ std::string render_mesh_png(const std::vector<const Mesh*>& meshes, const Render
     std::vector<std::array<Eigen::Vector3d, 2>> lit(nv);
     for (size_t v = 0; v < nv; ++v) {
       const Eigen::Vector3d q = o.view * mesh.vertices[v];
-      win[v].x() = (q.x() - (f.centre.x() - f.half_w)) * px;
-      win[v].y() = ((f.centre.y() + f.half_h) - q.y()) * px;
-      win[v].z() = q.z();
+      win[v] << f.window(q), q.z();
       Eigen::Vector3d n = o.view * normal[v];
       if (n.squaredNorm() > 0) n.normalize();
       else n = Eigen::Vector3d::UnitZ();
@@ -154,14 +149,7 @@ std::string render_mesh_png(const std::vector<const Mesh*>& meshes, const Render
       }
     }
   }
-  // Joints or markers: red dots over everything.
-  for (const auto& p : o.points) {
-    const Eigen::Vector3d q = o.view * p;
-    raster::disc((q.x() - (f.centre.x() - f.half_w)) * px, ((f.centre.y() + f.half_h) - q.y()) * px, raster::kDotPx * S, W, H,
-                 [&](size_t at) {
-                   for (int c = 0; c < 3; ++c) rgba[4 * at + c] = raster::kDotColour[c];
-                 });
-  }
+  raster::draw_dots(o, f, W, H, &rgba);
   return raster::downsample_png(rgba, o.width, o.height);
 }
 

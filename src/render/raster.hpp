@@ -66,8 +66,30 @@ struct Framing {
   Eigen::Vector3d lo, hi, centre;  ///< view-space bounds and their middle
   double scale = 1;                ///< output pixels per mm
   double half_w = 1, half_h = 1;   ///< the frame's half extents, mm
+  double px = 1;                   ///< supersampled pixels per mm
+  /// A view-space point's window position in the supersampled buffer: x right, y down, pixels.
+  Eigen::Vector2d window(const Eigen::Vector3d& q) const {
+    return {(q.x() - (centre.x() - half_w)) * px, ((centre.y() + half_h) - q.y()) * px};
+  }
 };
 Framing frame(const RenderOptions& o, const std::vector<Eigen::Vector3d>& model_points);
+
+/// Joints or markers (`o.points`): red dots over everything in the W × H supersampled buffer.
+inline void draw_dots(const RenderOptions& o, const Framing& f, int W, int H, std::vector<std::uint8_t>* rgba) {
+  for (const auto& p : o.points) {
+    const Eigen::Vector2d w = f.window(o.view * p);
+    disc(w.x(), w.y(), kDotPx * kSupersample, W, H, [&](size_t at) {
+      for (int c = 0; c < 3; ++c) (*rgba)[4 * at + c] = kDotColour[c];
+    });
+  }
+}
+
+/// A supersampled RGBA buffer of `pixels` pixels, every one the background, opaque.
+inline void clear_to_background(std::vector<std::uint8_t>* rgba, size_t pixels) {
+  rgba->resize(4 * pixels);
+  for (size_t k = 0; k < rgba->size(); k += 4)
+    (*rgba)[k] = kBackground[0], (*rgba)[k + 1] = kBackground[1], (*rgba)[k + 2] = kBackground[2], (*rgba)[k + 3] = 255;
+}
 
 /// A kSupersample × larger RGBA buffer (row 0 at the top) box-filtered to width × height, as PNG.
 std::string downsample_png(const std::vector<std::uint8_t>& rgba, int width, int height);

@@ -21,15 +21,9 @@ std::string render_points_png(const std::vector<Eigen::Vector3d>& points, const 
   const raster::Framing f = raster::frame(o, points);
   constexpr int S = raster::kSupersample;
   const int W = o.width * S, H = o.height * S;
-  std::vector<std::uint8_t> rgba(static_cast<size_t>(W) * H * 4);
-  for (size_t k = 0; k < rgba.size(); k += 4)
-    rgba[k] = raster::kBackground[0], rgba[k + 1] = raster::kBackground[1], rgba[k + 2] = raster::kBackground[2], rgba[k + 3] = 255;
+  std::vector<std::uint8_t> rgba;
+  raster::clear_to_background(&rgba, static_cast<size_t>(W) * H);
   std::vector<double> depth(static_cast<size_t>(W) * H, -std::numeric_limits<double>::infinity());
-  const double px = W / (2 * f.half_w);  // supersampled pixels per mm
-  const auto window = [&](const Eigen::Vector3d& q, double* x, double* y) {
-    *x = (q.x() - (f.centre.x() - f.half_w)) * px;
-    *y = ((f.centre.y() + f.half_h) - q.y()) * px;
-  };
   // Splats about 0.5 mm across (at least 3 px), so a scan's sampling fills the surface.
   const double diameter = std::max(1.0, std::max(3.0, 1.0 * f.scale) * S);
   const raster::Lights lights;
@@ -40,22 +34,14 @@ std::string render_points_png(const std::vector<Eigen::Vector3d>& points, const 
                                                              : Eigen::Vector3d::UnitZ();
     const Eigen::Vector3d c = lights.shade(n, colours[k]);
     const std::uint8_t r = raster::byte_of(c.x()), g = raster::byte_of(c.y()), b = raster::byte_of(c.z());
-    double x, y;
-    window(q, &x, &y);
-    raster::disc(x, y, diameter, W, H, [&](size_t at) {
+    const Eigen::Vector2d w = f.window(q);
+    raster::disc(w.x(), w.y(), diameter, W, H, [&](size_t at) {
       if (!(q.z() > depth[at])) return;  // nearer only: the first drawn keeps a tie
       depth[at] = q.z();
       rgba[4 * at] = r, rgba[4 * at + 1] = g, rgba[4 * at + 2] = b;
     });
   }
-  // Joints or markers: red dots over everything.
-  for (const auto& p : o.points) {
-    double x, y;
-    window(o.view * p, &x, &y);
-    raster::disc(x, y, raster::kDotPx * S, W, H, [&](size_t at) {
-      for (int c = 0; c < 3; ++c) rgba[4 * at + c] = raster::kDotColour[c];
-    });
-  }
+  raster::draw_dots(o, f, W, H, &rgba);
   return raster::downsample_png(rgba, o.width, o.height);
 }
 
