@@ -611,13 +611,12 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
         }
       };
       std::future<std::optional<PatchSkin>> toward_webs = std::async(side_launch(), other, 2);
-      std::optional<PatchSkin> toward_wrist = other(-2);
-      std::optional<PatchSkin> webs = toward_webs.get();
+      std::pair<int, std::optional<PatchSkin>> others[] = {{-2, other(-2)}, {2, toward_webs.get()}};
       double best = tries[0].second;
-      for (auto& [shift, t] : {std::pair<int, std::optional<PatchSkin>*>{-2, &toward_wrist}, {2, &webs}}) {
-        if (!*t) continue;
-        tries.push_back({shift, stray(**t)});
-        if (tries.back().second < best) best = tries.back().second, s = std::move(**t), s.thumb_ring_shift = shift;
+      for (auto& [shift, t] : others) {
+        if (!t) continue;
+        tries.push_back({shift, stray(*t)});
+        if (tries.back().second < best) best = tries.back().second, s = std::move(*t), s.thumb_ring_shift = shift;
       }
     }
     s.layout_tries = std::move(tries);
