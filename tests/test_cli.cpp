@@ -72,6 +72,13 @@ TEST(Cli, EveryUsageErrorExitsTwoInOneLineNamingItsFlag) {
   // Bad data stays 1: a scan stem that is no scan.
   std::string out;
   EXPECT_EQ(test::run(kBin + " -q render --scan " + kFix + "nothing --out " + dir + "/x.png", &out), 1) << out;
+  // A scan named by one of its files is its stem: the same picture as by the stem.
+  const std::string pics = test::temp_dir("scan_by_file");
+  for (const char* given : {"back", "back.json", "back.png"})
+    EXPECT_EQ(test::run(kBin + " -q render --scan " + kFix + given + " --out " + pics + "/" + given + ".png", &out), 0)
+        << given << ": " << out;
+  EXPECT_EQ(read_file(pics + "/back.json.png"), read_file(pics + "/back.png"));
+  EXPECT_EQ(read_file(pics + "/back.png.png"), read_file(pics + "/back.png"));
 }
 
 // A run folder travels (issue 40): report.json's inputs are relative to the report, and

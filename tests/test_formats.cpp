@@ -112,6 +112,18 @@ TEST(CubistRange, RoundTrip) {
   EXPECT_EQ(files, 2u);
 }
 
+TEST(CubistRange, AScanIsNamedByItsStemOrEitherFile) {
+  const std::string dir = test::temp_dir("scan_stem");
+  EXPECT_EQ(scan_stem(dir + "/a"), dir + "/a");
+  EXPECT_EQ(scan_stem(dir + "/a.json"), dir + "/a");
+  EXPECT_EQ(scan_stem(dir + "/a.png"), dir + "/a");
+  EXPECT_EQ(scan_stem(dir + "/a.photo.png"), dir + "/a.photo");  // names a stem: its error will say so
+  // A stem that itself ends in ".json" (its sidecar "x.json.json" is there) is kept.
+  save_scan(dir + "/x.json", small_scan());
+  EXPECT_EQ(scan_stem(dir + "/x.json"), dir + "/x.json");
+  EXPECT_EQ(load_scan(scan_stem(dir + "/x.json.png")).values, small_scan().values);
+}
+
 TEST(CubistRange, ReadsTheFixture) {
   const RangeScan back = load_scan(kFixture + "back");
   EXPECT_EQ(back.meta.scanlines, 512);

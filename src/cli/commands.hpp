@@ -9,6 +9,7 @@
 #include "core/output_set.hpp"
 #include "core/paths.hpp"
 #include "pipeline/gates.hpp"
+#include "scan/cubist_io.hpp"
 
 #include <sys/resource.h>
 
@@ -105,6 +106,12 @@ inline void print_gates(const QualityGates& g) {
 /// naming `flag`) rather than given PNG bytes under another name.
 inline void require_png(const std::string& path, const std::string& flag) {
   if (lower_extension(path) != ".png") throw UsageError(flag, "'" + path + "': pictures are written as PNG (.png)");
+}
+
+/// An option that names a scan takes its stem or either of its files ("back", "back.json",
+/// "back.png": scan_stem) and holds the stem.
+inline CLI::Validator scan_stem_option() {
+  return CLI::Validator([](std::string& s) { s = scan_stem(s); return std::string(); }, "STEM");
 }
 
 /// A subcommand and what to do when it was given.

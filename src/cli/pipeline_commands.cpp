@@ -232,8 +232,10 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
   RunInputs* in = &ra->in;
   auto* run = app.add_subcommand("run", "Run the pipeline on a back/palm scan pair, or on a cloud from any scanner (and a "
                                         "rig, or none)");
-  auto* back = run->add_option("--back", in->back_stem, "Back scan stem (<stem>.png + <stem>.json)");
-  auto* palm = run->add_option("--palm", in->palm_stem, "Palm scan stem");
+  auto* back = run->add_option("--back", in->back_stem, "Back scan: its stem (<stem>.png + <stem>.json) or either file")
+                   ->transform(scan_stem_option());
+  auto* palm = run->add_option("--palm", in->palm_stem, "Palm scan: its stem or either file")
+                   ->transform(scan_stem_option());
   auto* cloud = run->add_option("--cloud", in->clouds,
                                 "Instead of --back/--palm: a hand's cloud from any scanner (.ply, .pcd, .obj, .stl, .off, "
                                 ".xyz, .pts, .txt; docs/clouds.md): one merged scan, or given twice, two halves (e.g. the "
@@ -289,8 +291,10 @@ void add_pipeline_commands(CLI::App& app, const Progress& progress, Commands* ou
 
   auto rg = std::make_shared<RegisterArgs>();
   auto* regc = app.add_subcommand("register", "Register the back scan into the palm scan's frame and merge them");
-  regc->add_option("--back", rg->back, "Back scan stem (<stem>.png + <stem>.json)")->required();
-  regc->add_option("--palm", rg->palm, "Palm scan stem")->required();
+  regc->add_option("--back", rg->back, "Back scan: its stem (<stem>.png + <stem>.json) or either file")
+      ->transform(scan_stem_option())
+      ->required();
+  regc->add_option("--palm", rg->palm, "Palm scan: its stem or either file")->transform(scan_stem_option())->required();
   regc->add_option("--out", rg->out, "Output folder: registration.json, merged.ply, merged.png")->capture_default_str();
   regc->add_option("--markers", rg->markers, "Manual marker positions (handskin-markers/1), replacing detection");
   regc->add_option("--pipeline", rg->pipeline, "Pipeline parameters (markers, registration sections)");

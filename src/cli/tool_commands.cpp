@@ -109,7 +109,7 @@ void add_tool_commands(CLI::App& app, const Progress& progress, Commands* out) {
   auto ra = std::make_shared<RenderArgs>();
   auto* rc = app.add_subcommand("render", "Draw a mesh (shaded) or a scan (height colours) to a PNG");
   rc->add_option("--mesh", ra->mesh, "Mesh to draw: .ply, .obj (patches.obj's Bezier patches tessellated), .off, .stl or a skin .glb");
-  rc->add_option("--scan", ra->scan, "Scan stem to draw");
+  rc->add_option("--scan", ra->scan, "Scan to draw: its stem or either file")->transform(scan_stem_option());
   rc->add_option("--rig", ra->rig, "Rig of the mesh: views follow the hand, joints drawn as dots");
   rc->add_option("--view", ra->view, "back, palm or side")->capture_default_str();
   rc->add_option("--size", ra->width, "Picture width, px (height 3/4 of it)")

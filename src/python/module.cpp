@@ -416,8 +416,8 @@ PYBIND11_MODULE(_core, m) {
          const py::object& markers, const py::object& pipeline, const py::object& truth, const std::string& posture_model,
          std::optional<double> patch_tolerance, bool scan_clouds, bool force, bool strict, const py::object& progress) {
         RunInputs in;
-        if (!back.is_none()) in.back_stem = path_of(back);
-        if (!palm.is_none()) in.palm_stem = path_of(palm);
+        if (!back.is_none()) in.back_stem = scan_stem(path_of(back));
+        if (!palm.is_none()) in.palm_stem = scan_stem(path_of(palm));
         in.clouds = clouds;
         if (!rig.is_none()) in.rig_path = path_of(rig);
         if (out.is_none()) throw UsageError("out", "no output folder given");
@@ -568,7 +568,7 @@ PYBIND11_MODULE(_core, m) {
       "register",
       [](const py::object& back, const py::object& palm, const py::object& markers, const py::object& pipeline,
          bool refine, const py::object& progress) {
-        const std::string b = path_of(back), p = path_of(palm);
+        const std::string b = scan_stem(path_of(back)), p = scan_stem(path_of(palm));
         const PipelineOptions po = pipeline_from(opt_path(pipeline));
         RegistrationOptions ro = registration_options(po);
         if (!refine) ro.refine_enabled = false;

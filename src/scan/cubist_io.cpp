@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
@@ -87,6 +88,16 @@ RangeScan decode_scan(const std::string& png_bytes, const std::string& png_name,
   scan.values = std::move(img.pixels);
   if (scan.count_valid() == 0) throw InputError(png_name, "empty scan: every pixel is 0 (no return)");
   return scan;
+}
+
+std::string scan_stem(const std::string& given) {
+  for (const std::string suffix : {".json", ".png"}) {
+    if (given.size() <= suffix.size() || given.compare(given.size() - suffix.size(), suffix.size(), suffix) != 0) continue;
+    std::error_code ec;
+    if (std::filesystem::exists(given + ".json", ec)) return given;
+    return given.substr(0, given.size() - suffix.size());
+  }
+  return given;
 }
 
 RangeScan load_scan(const std::string& stem) {

@@ -53,6 +53,9 @@ std::string scan_meta_to_json_text(const ScanMeta& meta);
 RangeScan decode_scan(const std::string& png_bytes, const std::string& png_name, const std::string& json_text,
                       const std::string& json_name);
 
+/// The stem of a scan given by its stem or by either of its two files: "back.json" and
+/// "back.png" mean "back" (unless "back.json.json" exists, i.e. the stem really ends so).
+std::string scan_stem(const std::string& given);
 /// Read `<stem>.png` + `<stem>.json`.
 RangeScan load_scan(const std::string& stem);
 /// load_scan, and the sidecar's `side` must be `side`; `option` (e.g. "--back") names where
