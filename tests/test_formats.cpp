@@ -1,5 +1,6 @@
 // Formats: the DOF table, cubist-range/1, hand-rig/1, point clouds, pipeline files.
 #include <gtest/gtest.h>
+#include <pcl/io/ply_io.h>
 
 #include <cmath>
 #include <filesystem>
@@ -276,12 +277,25 @@ TEST(Clouds, MergedCloudReadsBackAndBadOnesAreRefused) {
     m.push_back(q);
   }
   save_merged(dir + "/m.ply", m);
-  const MergedArrays a = read_merged(dir + "/m.ply");
-  ASSERT_EQ(a.points.size(), 4u);
-  for (size_t k = 0; k < 4; ++k) {
-    EXPECT_EQ(a.points[k], m[k].getVector3fMap().cast<double>());
-    EXPECT_EQ(a.normals[k], m[k].getNormalVector3fMap().cast<double>());
-    EXPECT_EQ(a.sides[k], m[k].label);
+  save_merged(dir + "/m.pcd", m);
+  // handskin's own writer (docs/formats.md): one vertex element, x y z nx ny nz label, 28 bytes a
+  // point; PCL's writer (merged.ply before 2026-11-28: a label before the normals, a curvature
+  // and a camera element) is read alike.
+  const std::string ply = read_file(dir + "/m.ply");
+  const std::string header = "ply\nformat binary_little_endian 1.0\ncomment handskin\nelement vertex 4\n"
+                             "property float x\nproperty float y\nproperty float z\nproperty float nx\n"
+                             "property float ny\nproperty float nz\nproperty uint label\nend_header\n";
+  EXPECT_EQ(ply.substr(0, header.size()), header);
+  EXPECT_EQ(ply.size(), header.size() + 4 * 28);
+  pcl::io::savePLYFileBinary(dir + "/pcl.ply", m);
+  for (const char* f : {"m.ply", "m.pcd", "pcl.ply"}) {
+    const MergedArrays a = read_merged(dir + "/" + f);
+    ASSERT_EQ(a.points.size(), 4u) << f;
+    for (size_t k = 0; k < 4; ++k) {
+      EXPECT_EQ(a.points[k], m[k].getVector3fMap().cast<double>()) << f;
+      EXPECT_EQ(a.normals[k], m[k].getNormalVector3fMap().cast<double>()) << f;
+      EXPECT_EQ(a.sides[k], m[k].label) << f;
+    }
   }
   m[2].label = 7;
   save_merged(dir + "/bad.ply", m);

@@ -1,15 +1,14 @@
 #include "export/step.hpp"
 
-#include <dlfcn.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <future>
-#include <mutex>
 #include <sstream>
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
+#include "core/module.hpp"
 #include "export/step_module.h"
 
 namespace handskin {
@@ -22,29 +21,18 @@ struct StepModule {
   std::string failure;
 };
 
-// The module: where the build put it (HANDSKIN_STEP_MODULE), else beside the running program.
+// The module, loaded once (core/module.hpp).
 const StepModule& step_module() {
-  static StepModule m;
-  static std::once_flag once;
-  std::call_once(once, [] {
-    std::vector<std::string> places = {HANDSKIN_STEP_MODULE};
-    std::error_code ec;
-    const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
-    if (!ec) places.push_back((exe.parent_path() / "libhandskin_step.so").string());
-    void* lib = nullptr;
-    std::string errors;
-    for (const std::string& p : places) {
-      if ((lib = dlopen(p.c_str(), RTLD_NOW | RTLD_LOCAL))) break;
-      errors += (errors.empty() ? "" : "; ") + std::string(dlerror());
-    }
-    if (!lib) {
-      m.failure = errors;
-      return;
-    }
-    m.write = reinterpret_cast<decltype(m.write)>(dlsym(lib, "handskin_step_write"));
-    m.read = reinterpret_cast<decltype(m.read)>(dlsym(lib, "handskin_step_read"));
+  static const StepModule m = [] {
+    StepModule m;
+    const LoadedModule lib = open_module(HANDSKIN_STEP_MODULE, "libhandskin_step.so");
+    m.failure = lib.failure;
+    if (!lib.handle) return m;
+    m.write = reinterpret_cast<decltype(m.write)>(lib.symbol("handskin_step_write"));
+    m.read = reinterpret_cast<decltype(m.read)>(lib.symbol("handskin_step_read"));
     if (!m.write || !m.read) m.failure = "libhandskin_step.so lacks its entry points";
-  });
+    return m;
+  }();
   return m;
 }
 

@@ -183,7 +183,7 @@ struct RegistrationError {
 RegistrationError registration_error(const Eigen::Isometry3d& estimate, const Eigen::Isometry3d& truth,
                                      const std::vector<Eigen::Vector3d>& skin_palm);
 
-/// Binary PLY, atomically (x y z nx ny nz label curvature; label 0 = palm, 1 = back).
+/// Binary PLY, atomically (x y z nx ny nz as float, label as uint: 0 = palm, 1 = back).
 void save_merged(const std::string& path, const MergedCloud& cloud);
 /// Read a merged cloud written by save_merged (through read_point_cloud: PLY, or PCD) as the
 /// arrays the stages take. Throws InputError naming the file (and the point) when it cannot

@@ -2,12 +2,11 @@
 
 #include <pcl/console/print.h>
 
-#include <pcl/io/pcd_io.h>
-#include <pcl/io/ply_io.h>
-
 #include <algorithm>
+#include <array>
+#include <cstring>
+#include <type_traits>
 #include <cmath>
-#include <filesystem>
 #include <limits>
 
 #include "core/atomic_file.hpp"
@@ -87,13 +86,59 @@ Cloud cloud_of(const std::vector<Eigen::Vector3d>& points) {
   return c;  // push_back keeps width = size, height = 1, dense
 }
 
+// A cloud as a binary PLY or PCD file's bytes: x y z, and for the merged cloud's points the
+// normal and the side label. Written here rather than through pcl_io: each format is a header
+// and the points' bytes, and linking pcl_io would load ~60 more libraries into every command
+// (pcl_module.hpp). PCL's readers read both (tests/test_clouds.cpp).
+template <typename PointT>
+std::string cloud_file_bytes(const pcl::PointCloud<PointT>& cloud, bool ply) {
+  static_assert(std::numeric_limits<float>::is_iec559 && sizeof(float) == 4, "PLY and PCD store IEEE floats");
+  const std::uint16_t probe = 1;
+  HS_CHECK(*reinterpret_cast<const unsigned char*>(&probe) == 1, "the cloud writers assume a little-endian machine");
+  constexpr bool oriented = std::is_same_v<PointT, pcl::PointXYZLNormal>;
+  // (PLY name, PCD name, PCD type) per 4-byte field.
+  std::vector<std::array<const char*, 3>> fields = {{"x", "x", "F"}, {"y", "y", "F"}, {"z", "z", "F"}};
+  if (oriented)
+    fields.insert(fields.end(), {{"nx", "normal_x", "F"}, {"ny", "normal_y", "F"}, {"nz", "normal_z", "F"},
+                                 {"label", "label", "U"}});
+  const size_t n = cloud.size();
+  // An organised cloud (a scan's grid, its no-returns NaN) keeps its rows: PCD's WIDTH and
+  // HEIGHT, PLY's obj_info num_cols / num_rows as PCL's reader and writer name them.
+  const bool organised = cloud.height > 1 && static_cast<size_t>(cloud.width) * cloud.height == n;
+  std::string h;
+  if (ply) {
+    h = "ply\nformat binary_little_endian 1.0\ncomment handskin\n";
+    if (organised)
+      h += "obj_info num_cols " + std::to_string(cloud.width) + "\nobj_info num_rows " + std::to_string(cloud.height) + "\n";
+    h += "element vertex " + std::to_string(n) + "\n";
+    for (const auto& f : fields) h += std::string("property ") + (f[2][0] == 'U' ? "uint " : "float ") + f[0] + "\n";
+    h += "end_header\n";
+  } else {
+    std::string names, sizes, types, counts;
+    for (const auto& f : fields) names += std::string(" ") + f[1], sizes += " 4", types += std::string(" ") + f[2], counts += " 1";
+    h = "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS" + names + "\nSIZE" + sizes + "\nTYPE" + types +
+        "\nCOUNT" + counts + "\nWIDTH " + std::to_string(organised ? cloud.width : n) + "\nHEIGHT " +
+        std::to_string(organised ? cloud.height : 1) + "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + std::to_string(n) +
+        "\nDATA binary\n";
+  }
+  std::string out = h;
+  out.resize(h.size() + n * fields.size() * 4);
+  char* w = out.data() + h.size();
+  const auto put = [&w](auto v) {
+    static_assert(sizeof v == 4);
+    std::memcpy(w, &v, 4);
+    w += 4;
+  };
+  for (const PointT& p : cloud.points) {
+    put(p.x), put(p.y), put(p.z);
+    if constexpr (oriented) put(p.normal_x), put(p.normal_y), put(p.normal_z), put(static_cast<std::uint32_t>(p.label));
+  }
+  return out;
+}
+
 template <typename PointT>
 void save_any_cloud(const std::string& path, const pcl::PointCloud<PointT>& cloud) {
-  const std::string ext = ply_or_pcd(path);
-  write_via_temp(path, [&](const std::string& tmp) {
-    const int rc = ext == ".ply" ? pcl::io::savePLYFileBinary(tmp, cloud) : pcl::io::savePCDFileBinary(tmp, cloud);
-    if (rc < 0) throw InputError(path, "cannot write point cloud");
-  });
+  write_file_atomic(path, cloud_file_bytes(cloud, ply_or_pcd(path) == ".ply"));
 }
 }  // namespace
 

@@ -31,10 +31,11 @@ RangeScan cloud_to_scan(const Cloud& cloud, const ScanMeta& meta, size_t* droppe
 /// points, its no-returns, are dropped). Throws InputError naming the file when it cannot be
 /// read, has another extension, holds no points or a non-finite coordinate elsewhere.
 Cloud::Ptr load_cloud(const std::string& path);
-/// Save as binary PLY or PCD by extension, atomically.
+/// Save as binary PLY or PCD by extension, atomically: x y z as floats (the project's one
+/// writer of clouds; not through pcl_io, see pcl_module.hpp).
 void save_cloud(const std::string& path, const Cloud& cloud);
-/// The same for the merged cloud's points (x y z, normal, side label, curvature): the one
-/// PLY/PCD writer of the project's clouds.
+/// The same for the merged cloud's points: x y z, the normal (PLY nx ny nz, PCD normal_x …)
+/// as floats, the side label as uint.
 void save_cloud(const std::string& path, const pcl::PointCloud<pcl::PointXYZLNormal>& cloud);
 /// The same for a list of points (mm, or whatever units they are in): x y z.
 void save_cloud(const std::string& path, const std::vector<Eigen::Vector3d>& points);

@@ -1,8 +1,6 @@
 #include "scan/cloud_file.hpp"
 
 #include <pcl/PCLPointCloud2.h>
-#include <pcl/io/pcd_io.h>
-#include <pcl/io/ply_io.h>
 
 #include <cerrno>
 #include <cmath>
@@ -18,6 +16,7 @@
 #include "core/json_util.hpp"
 #include "mesh/mesh.hpp"
 #include "scan/cloud.hpp"
+#include "scan/pcl_module.hpp"
 
 namespace handskin {
 
@@ -94,22 +93,17 @@ std::vector<double> field_values(const pcl::PCLPointCloud2& c, const pcl::PCLPoi
   return v;
 }
 
-// PLY and PCD through PCL's readers (binary and ASCII; a PLY mesh's faces are skipped).
+// PLY and PCD through PCL's readers (binary and ASCII; a PLY mesh's faces are skipped), in
+// handskin's PCL module (pcl_module.hpp).
 void read_pcl(PointCloudFile* out) {
+  const PclModule& m = pcl_module();
+  if (!m.failure.empty())
+    throw InputError(out->path, "reading ." + out->format + " needs handskin's PCL module (libhandskin_pcl.so), which "
+                                "could not be loaded: " + m.failure);
   pcl::PCLPointCloud2 blob;
-  int rc = -1;
-  try {
-    if (out->format == "ply") {
-      pcl::PLYReader reader;
-      rc = reader.read(out->path, blob);
-    } else {
-      pcl::PCDReader reader;
-      rc = reader.read(out->path, blob);
-    }
-  } catch (const std::exception& e) {
-    throw InputError(out->path, std::string("unreadable ") + out->format + " file: " + e.what());
-  }
-  if (rc < 0) throw InputError(out->path, "unreadable " + out->format + " file");
+  std::string error;
+  if (m.read(out->path.c_str(), out->format == "pcd" ? 1 : 0, &blob, &error) != 0)
+    throw InputError(out->path, "unreadable " + out->format + " file" + (error.empty() ? "" : ": " + error));
   const pcl::PCLPointField *fx = field_of(blob, "x"), *fy = field_of(blob, "y"), *fz = field_of(blob, "z");
   if (!fx || !fy || !fz) throw InputError(out->path, "no x, y, z fields: not a point cloud");
   const std::vector<double> x = field_values(blob, *fx, out->path), y = field_values(blob, *fy, out->path),

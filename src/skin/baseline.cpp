@@ -3,11 +3,11 @@
 #include <pcl/PolygonMesh.h>
 #include <pcl/conversions.h>
 #include <pcl/point_types.h>
-#include <pcl/surface/poisson.h>
 
 #include <chrono>
 
 #include "core/errors.hpp"
+#include "scan/pcl_module.hpp"
 
 namespace handskin {
 
@@ -43,16 +43,17 @@ BaselineResult poisson_baseline(const std::vector<Eigen::Vector3d>& points, cons
   // Kazhdan's screened Poisson as PCL ships it, on one thread: its parallel accumulation
   // changes the last bits between runs, and so the mesh. (CGAL's Poisson meshes its function
   // with the Surface_mesher, whose maps are keyed by memory addresses: it differs from run to
-  // run too, CGAL issue #6240.) Depth 8 puts cells of ~1 mm on a hand.
-  pcl::Poisson<pcl::PointNormal> poisson;
-  poisson.setDepth(7);
-  poisson.setScale(1.5f);
-  poisson.setThreads(1);
-  poisson.setManifold(true);
-  poisson.setOutputPolygons(false);
-  poisson.setInputCloud(cloud);
+  // run too, CGAL issue #6240.) Depth 7 at scale 1.5 puts cells of ~2 mm on a hand. Through
+  // handskin's PCL module (scan/pcl_module.hpp): pcl_surface is loaded only here.
+  const PclModule& m = pcl_module();
+  if (!m.failure.empty())
+    throw InputError("skin.baseline", "the Poisson baseline needs handskin's PCL module (libhandskin_pcl.so), which "
+                                      "could not be loaded: " + m.failure);
+  PoissonSettings settings;  // depth 7, scale 1.5, one thread, manifold
   pcl::PolygonMesh pm;
-  poisson.reconstruct(pm);
+  std::string error;
+  const pcl::PointCloud<pcl::PointNormal>::ConstPtr input = cloud;
+  if (m.poisson(&input, &settings, &pm, &error) != 0) throw InputError("skin.baseline", "Poisson reconstruction: " + error);
   pcl::PointCloud<pcl::PointXYZ> v;
   pcl::fromPCLPointCloud2(pm.cloud, v);
   HS_CHECK(!pm.polygons.empty() && !v.empty(), "Poisson reconstruction gave no surface");
