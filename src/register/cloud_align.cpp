@@ -1,6 +1,5 @@
 #include "register/cloud_align.hpp"
 
-#include <pcl/filters/voxel_grid.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 
@@ -14,6 +13,7 @@
 #include "mesh/point_grid.hpp"
 #include "register/cloud_prep.hpp"
 #include "scan/cloud.hpp"
+#include "scan/pcl_module.hpp"
 
 namespace handskin {
 
@@ -51,12 +51,7 @@ PNCloud::Ptr coarse_cloud(const std::vector<Eigen::Vector3d>& p, const Eigen::Ve
   auto in = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
   for (const auto& q : p) in->push_back(pcl::PointXYZ(static_cast<float>(q.x() - origin.x()), static_cast<float>(q.y() - origin.y()),
                                                       static_cast<float>(q.z() - origin.z())));
-  pcl::VoxelGrid<pcl::PointXYZ> grid;
-  grid.setInputCloud(in);
-  const float leaf = static_cast<float>(voxel);
-  grid.setLeafSize(leaf, leaf, leaf);
-  pcl::PointCloud<pcl::PointXYZ> out;
-  grid.filter(out);
+  const pcl::PointCloud<pcl::PointXYZ> out = voxel_grid(in, static_cast<float>(voxel), "run --cloud (the halves' voxel grid)");
   std::vector<Eigen::Vector3d> pts;
   for (const auto& q : out) pts.push_back(q.getVector3fMap().cast<double>());
   const std::vector<Eigen::Vector3d> normals = neighbour_normals(pts, 3 * voxel);

@@ -1,6 +1,5 @@
 #include "register/cloud_prep.hpp"
 
-#include <pcl/filters/voxel_grid.h>
 #include <pcl/sample_consensus/sac_model_plane.h>
 #include <pcl/search/kdtree.h>
 
@@ -17,6 +16,7 @@
 #include "mesh/point_grid.hpp"
 #include "register/sac.hpp"
 #include "scan/cloud.hpp"
+#include "scan/pcl_module.hpp"
 #include "scan/cloud_file.hpp"
 
 namespace handskin {
@@ -55,17 +55,13 @@ Eigen::Vector3d centroid(const std::vector<Eigen::Vector3d>& pts) {
 }
 
 // 2. A voxel grid: every voxel's points (and normals, when there is one per point) averaged
-// into one (PCL VoxelGrid), worked in float about their centroid.
+// into one (PCL VoxelGrid, in handskin's PCL module), worked in float about their centroid.
 void voxel_downsample(std::vector<Eigen::Vector3d>* pts, std::vector<Eigen::Vector3d>* nrm, double voxel) {
   const Eigen::Vector3d c = centroid(*pts);
   const float leaf = static_cast<float>(voxel);
   if (nrm->size() != pts->size()) {  // points only: the smaller point type is the faster grid
     const PclCloud::Ptr cloud = to_pcl(*pts, c);
-    pcl::VoxelGrid<pcl::PointXYZ> grid;
-    grid.setInputCloud(cloud);
-    grid.setLeafSize(leaf, leaf, leaf);
-    PclCloud out;
-    grid.filter(out);
+    const PclCloud out = voxel_grid(cloud, leaf, "run --cloud (voxel grid)");
     pts->clear();
     for (const auto& q : out) pts->push_back(q.getVector3fMap().cast<double>() + c);
     return;
@@ -76,11 +72,7 @@ void voxel_downsample(std::vector<Eigen::Vector3d>* pts, std::vector<Eigen::Vect
     (*cloud)[k].getVector3fMap() = ((*pts)[k] - c).cast<float>();
     (*cloud)[k].getNormalVector3fMap() = (*nrm)[k].cast<float>();
   }
-  pcl::VoxelGrid<pcl::PointNormal> grid;
-  grid.setInputCloud(cloud);
-  grid.setLeafSize(leaf, leaf, leaf);
-  pcl::PointCloud<pcl::PointNormal> out;
-  grid.filter(out);
+  const pcl::PointCloud<pcl::PointNormal> out = voxel_grid(cloud, leaf, "run --cloud (voxel grid)");
   pts->clear();
   nrm->clear();
   for (const auto& q : out) {

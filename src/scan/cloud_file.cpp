@@ -96,10 +96,7 @@ std::vector<double> field_values(const pcl::PCLPointCloud2& c, const pcl::PCLPoi
 // PLY and PCD through PCL's readers (binary and ASCII; a PLY mesh's faces are skipped), in
 // handskin's PCL module (pcl_module.hpp).
 void read_pcl(PointCloudFile* out) {
-  const PclModule& m = pcl_module();
-  if (!m.failure.empty())
-    throw InputError(out->path, "reading ." + out->format + " needs handskin's PCL module (libhandskin_pcl.so), which "
-                                "could not be loaded: " + m.failure);
+  const PclModule& m = pcl_module(out->path);
   pcl::PCLPointCloud2 blob;
   std::string error;
   if (m.read(out->path.c_str(), out->format == "pcd" ? 1 : 0, &blob, &error) != 0)

@@ -3,6 +3,7 @@
 // reason.
 #include "scan/pcl_module.hpp"
 
+#include <pcl/filters/voxel_grid.h>
 #include <pcl/io/pcd_io.h>
 #include <pcl/io/ply_io.h>
 #include <pcl/surface/poisson.h>
@@ -44,4 +45,31 @@ extern "C" int handskin_pcl_poisson(const pcl::PointCloud<pcl::PointNormal>::Con
     *error = e.what();
     return 1;
   }
+}
+
+namespace {
+template <typename PointT>
+int voxel_grid(const typename pcl::PointCloud<PointT>::ConstPtr* cloud, float leaf, pcl::PointCloud<PointT>* out,
+               std::string* error) {
+  try {
+    pcl::VoxelGrid<PointT> grid;
+    grid.setInputCloud(*cloud);
+    grid.setLeafSize(leaf, leaf, leaf);
+    grid.filter(*out);
+    return 0;
+  } catch (const std::exception& e) {
+    *error = e.what();
+    return 1;
+  }
+}
+}  // namespace
+
+extern "C" int handskin_pcl_voxel_grid_xyz(const pcl::PointCloud<pcl::PointXYZ>::ConstPtr* cloud, float leaf,
+                                           pcl::PointCloud<pcl::PointXYZ>* out, std::string* error) {
+  return voxel_grid<pcl::PointXYZ>(cloud, leaf, out, error);
+}
+
+extern "C" int handskin_pcl_voxel_grid_normals(const pcl::PointCloud<pcl::PointNormal>::ConstPtr* cloud, float leaf,
+                                               pcl::PointCloud<pcl::PointNormal>* out, std::string* error) {
+  return voxel_grid<pcl::PointNormal>(cloud, leaf, out, error);
 }

@@ -1,20 +1,57 @@
+#include "core/errors.hpp"
 #include "core/module.hpp"
 #include "scan/pcl_module.hpp"
 
 namespace handskin {
 
-const PclModule& pcl_module() {
-  static const PclModule m = [] {
-    PclModule m;
+namespace {
+struct Loaded {
+  PclModule entry;
+  std::string failure;
+};
+const Loaded& loaded() {
+  static const Loaded m = [] {
+    Loaded m;
     const LoadedModule lib = open_module(HANDSKIN_PCL_MODULE, "libhandskin_pcl.so");
     m.failure = lib.failure;
     if (!lib.handle) return m;
-    m.read = reinterpret_cast<decltype(m.read)>(lib.symbol("handskin_pcl_read"));
-    m.poisson = reinterpret_cast<decltype(m.poisson)>(lib.symbol("handskin_pcl_poisson"));
-    if (!m.read || !m.poisson) m.failure = "libhandskin_pcl.so lacks its entry points";
+    PclModule& e = m.entry;
+    e.read = reinterpret_cast<decltype(e.read)>(lib.symbol("handskin_pcl_read"));
+    e.poisson = reinterpret_cast<decltype(e.poisson)>(lib.symbol("handskin_pcl_poisson"));
+    e.voxel_grid_xyz = reinterpret_cast<decltype(e.voxel_grid_xyz)>(lib.symbol("handskin_pcl_voxel_grid_xyz"));
+    e.voxel_grid_normals = reinterpret_cast<decltype(e.voxel_grid_normals)>(lib.symbol("handskin_pcl_voxel_grid_normals"));
+    if (!e.read || !e.poisson || !e.voxel_grid_xyz || !e.voxel_grid_normals)
+      m.failure = "libhandskin_pcl.so lacks its entry points";
     return m;
   }();
   return m;
+}
+}  // namespace
+
+const PclModule& pcl_module(const std::string& needed_by) {
+  const Loaded& m = loaded();
+  if (!m.failure.empty())
+    throw InputError(needed_by, "needs handskin's PCL module (libhandskin_pcl.so: PCL's readers, voxel grid and "
+                                "Poisson), which could not be loaded: " + m.failure);
+  return m.entry;
+}
+
+pcl::PointCloud<pcl::PointXYZ> voxel_grid(const pcl::PointCloud<pcl::PointXYZ>::ConstPtr& cloud, float leaf,
+                                          const std::string& needed_by) {
+  pcl::PointCloud<pcl::PointXYZ> out;
+  std::string error;
+  if (pcl_module(needed_by).voxel_grid_xyz(&cloud, leaf, &out, &error) != 0)
+    throw InputError(needed_by, "voxel grid: " + error);
+  return out;
+}
+
+pcl::PointCloud<pcl::PointNormal> voxel_grid(const pcl::PointCloud<pcl::PointNormal>::ConstPtr& cloud, float leaf,
+                                             const std::string& needed_by) {
+  pcl::PointCloud<pcl::PointNormal> out;
+  std::string error;
+  if (pcl_module(needed_by).voxel_grid_normals(&cloud, leaf, &out, &error) != 0)
+    throw InputError(needed_by, "voxel grid: " + error);
+  return out;
 }
 
 }  // namespace handskin

@@ -45,10 +45,7 @@ BaselineResult poisson_baseline(const std::vector<Eigen::Vector3d>& points, cons
   // with the Surface_mesher, whose maps are keyed by memory addresses: it differs from run to
   // run too, CGAL issue #6240.) Depth 7 at scale 1.5 puts cells of ~2 mm on a hand. Through
   // handskin's PCL module (scan/pcl_module.hpp): pcl_surface is loaded only here.
-  const PclModule& m = pcl_module();
-  if (!m.failure.empty())
-    throw InputError("skin.baseline", "the Poisson baseline needs handskin's PCL module (libhandskin_pcl.so), which "
-                                      "could not be loaded: " + m.failure);
+  const PclModule& m = pcl_module("skin.baseline");
   PoissonSettings settings;  // depth 7, scale 1.5, one thread, manifold
   pcl::PolygonMesh pm;
   std::string error;
