@@ -584,6 +584,13 @@ static void report_child(benchmark::State& st, const std::vector<std::string>& a
   st.counters["exit_code"] = r.exit_code;
 }
 
+// A command's start and end with no work (`handskin --version`): the dynamic loader's share of
+// every command (the libraries linked, their symbols relocated). PCL's io, surface and filters
+// libraries are a module loaded at first use (scan/pcl_module.hpp) for this.
+static void BM_ProcessStart(benchmark::State& st) { report_child(st, {HANDSKIN_BINARY, "--version"}); }
+BENCHMARK(BM_ProcessStart)->Unit(benchmark::kMillisecond)->UseManualTime()->Iterations(5)->Repetitions(5)
+    ->ReportAggregatesOnly(true);
+
 static void BM_RunFixture(benchmark::State& st) {
   const std::string out = "/tmp/handskin-bench-run";
   report_child(st, {HANDSKIN_BINARY, "-q", "run", "--back", kFix + "back", "--palm", kFix + "palm", "--rig",

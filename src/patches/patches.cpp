@@ -380,6 +380,7 @@ void measure_points(PatchSkin* out, const LayoutTopology& T, const std::vector<E
   }
   std::vector<double> residual[2];
   double worst[2] = {-1, -1};
+  out->samples.reserve(out->samples.size() + static_cast<size_t>(std::count_if(in_fit.begin(), in_fit.end(), [](int i) { return i != -2; })));
   for (size_t k = 0; k < points.size(); ++k) {
     if (in_fit[k] == -2) continue;
     const Datum& d = all[k];

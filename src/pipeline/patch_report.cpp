@@ -143,6 +143,9 @@ constexpr double kTop = 0.5;  // the error colours' top, mm
 std::string error_view(const PatchSkin& s, const Eigen::Matrix3d& hand, int side, const char* view) {
   std::vector<Eigen::Vector3d> p, n;
   std::vector<Eigen::Vector3f> c;
+  const size_t count = static_cast<size_t>(
+      std::count_if(s.samples.begin(), s.samples.end(), [side](const PatchSkin::Sample& q) { return q.side == side; }));
+  p.reserve(count), n.reserve(count), c.reserve(count);
   for (const auto& q : s.samples)
     if (q.side == side) p.push_back(q.p), n.push_back(Eigen::Vector3d::Zero()), c.push_back(heat(q.error, kTop));
   RenderOptions ro;
@@ -173,6 +176,8 @@ std::string layout_view(const PatchSkin& s, const Eigen::Matrix3d& hand, const c
   // Patches split by the refinement to a tolerance (their names carry "/…") in deeper colours.
   static const Eigen::Vector3f refined[5] = {{0.70f, 0.30f, 0.18f}, {0.20f, 0.38f, 0.72f}, {0.25f, 0.58f, 0.22f},
                                              {0.72f, 0.58f, 0.10f}, {0.52f, 0.25f, 0.65f}};
+  const size_t count = s.patches.size() * (kPerSpan + 1) * (kPerSpan + 1);
+  p.reserve(count), n.reserve(count), c.reserve(count);
   for (size_t f = 0; f < s.patches.size(); ++f)
     for (int i = 0; i <= kPerSpan; ++i)
       for (int j = 0; j <= kPerSpan; ++j) {

@@ -1,5 +1,6 @@
 #include "register/registration.hpp"
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -570,6 +571,8 @@ void merge_scans(const PreparedScan& back, const PreparedScan& palm, const std::
   for (const auto& c : cb) all_p.push_back(out->back_to_palm * c);
   const std::vector<char> keep_b = skin_mask(back, all_b, reach), keep_p = skin_mask(palm, all_p, reach);
   out->merged.reset(new MergedCloud);
+  out->merged->reserve(static_cast<size_t>(std::count(keep_b.begin(), keep_b.end(), 1) +
+                                           std::count(keep_p.begin(), keep_p.end(), 1)));
   auto add = [&](const PreparedScan& s, const std::vector<char>& keep, const Eigen::Isometry3d& T, std::uint32_t label) {
     size_t count = 0;
     for (size_t k = 0; k < s.points.size(); ++k) {
