@@ -5,6 +5,7 @@
 #include <pcl/sample_consensus/sac_model_perpendicular_plane.h>
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
 
 #include "core/errors.hpp"
@@ -146,6 +147,9 @@ PreparedScan prepare_scan(const RangeScan& scan, const PrepareOptions& o, const 
   }
 
   s.point_of_pixel.assign(npix, -1);
+  const size_t kept = static_cast<size_t>(std::count(keep.begin(), keep.end(), 1));
+  s.points.reserve(kept);
+  s.pixel.reserve(kept);
   for (int i = 0; i < s.rows; ++i)
     for (int j = 0; j < s.cols; ++j) {
       const size_t p = static_cast<size_t>(i) * s.cols + j;

@@ -36,22 +36,26 @@ const PclModule& pcl_module(const std::string& needed_by) {
   return m.entry;
 }
 
+namespace {
+// One of the module's voxel grids (`entry`), its failure an InputError naming `needed_by`.
+template <typename PointT, typename Entry>
+pcl::PointCloud<PointT> voxel_grid_by(Entry entry, const typename pcl::PointCloud<PointT>::ConstPtr& cloud, float leaf,
+                                      const std::string& needed_by) {
+  pcl::PointCloud<PointT> out;
+  std::string error;
+  if (entry(&cloud, leaf, &out, &error) != 0) throw InputError(needed_by, "voxel grid: " + error);
+  return out;
+}
+}  // namespace
+
 pcl::PointCloud<pcl::PointXYZ> voxel_grid(const pcl::PointCloud<pcl::PointXYZ>::ConstPtr& cloud, float leaf,
                                           const std::string& needed_by) {
-  pcl::PointCloud<pcl::PointXYZ> out;
-  std::string error;
-  if (pcl_module(needed_by).voxel_grid_xyz(&cloud, leaf, &out, &error) != 0)
-    throw InputError(needed_by, "voxel grid: " + error);
-  return out;
+  return voxel_grid_by<pcl::PointXYZ>(pcl_module(needed_by).voxel_grid_xyz, cloud, leaf, needed_by);
 }
 
 pcl::PointCloud<pcl::PointNormal> voxel_grid(const pcl::PointCloud<pcl::PointNormal>::ConstPtr& cloud, float leaf,
                                              const std::string& needed_by) {
-  pcl::PointCloud<pcl::PointNormal> out;
-  std::string error;
-  if (pcl_module(needed_by).voxel_grid_normals(&cloud, leaf, &out, &error) != 0)
-    throw InputError(needed_by, "voxel grid: " + error);
-  return out;
+  return voxel_grid_by<pcl::PointNormal>(pcl_module(needed_by).voxel_grid_normals, cloud, leaf, needed_by);
 }
 
 }  // namespace handskin
