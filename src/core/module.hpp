@@ -1,7 +1,7 @@
 #pragma once
 /// handskin's own modules: libraries the build makes as MODULEs and the program loads at their
-/// first use (libhandskin_step.so: Open CASCADE; libhandskin_pcl.so: PCL's file readers and
-/// its Poisson reconstruction), so that the ~20 and ~60 libraries behind them stay out of
+/// first use (libhandskin_step.so: Open CASCADE; libhandskin_pcl.so: PCL's file readers, its
+/// voxel grid and its Poisson reconstruction), so that the ~20 and ~60 libraries behind them stay out of
 /// every command's start.
 #include <string>
 

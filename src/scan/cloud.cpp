@@ -89,7 +89,7 @@ Cloud cloud_of(const std::vector<Eigen::Vector3d>& points) {
 // A cloud as a binary PLY or PCD file's bytes: x y z, and for the merged cloud's points the
 // normal and the side label. Written here rather than through pcl_io: each format is a header
 // and the points' bytes, and linking pcl_io would load ~60 more libraries into every command
-// (pcl_module.hpp). PCL's readers read both (tests/test_clouds.cpp).
+// (pcl_module.hpp). PCL's readers read both (tests/test_formats.cpp, Clouds.*).
 template <typename PointT>
 std::string cloud_file_bytes(const pcl::PointCloud<PointT>& cloud, bool ply) {
   static_assert(std::numeric_limits<float>::is_iec559 && sizeof(float) == 4, "PLY and PCD store IEEE floats");

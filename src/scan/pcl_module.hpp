@@ -24,7 +24,7 @@ struct PoissonSettings {
   bool manifold = true;
 };
 
-/// The module's entry points, loaded once; `failure` says why when they could not be.
+/// The module's entry points (pcl_module() loads them once).
 struct PclModule {
   /// Reads `path` (PLY when `pcd` is 0, else PCD) into `blob`; 0, or nonzero with `error`.
   int (*read)(const char* path, int pcd, pcl::PCLPointCloud2* blob, std::string* error) = nullptr;
