@@ -1,6 +1,7 @@
 #include "core/png_io.hpp"
 
 #include <png.h>
+#include <zlib.h>
 
 #include <csetjmp>
 #include <cstdint>
@@ -108,7 +109,14 @@ void write_cb(png_structp png, png_bytep data, png_size_t n) {
 }
 void flush_cb(png_structp) {}
 
-bool encode_impl(WriteBuffer* buf, int w, int h, int depth, int ctype, int level, const unsigned char* data,
+// How a PNG's rows are compressed: zlib's level with its default strategy and libpng's adaptive
+// filter choice (every row tried with all five filters), or the pictures' fast setting.
+struct Compression {
+  int level = 6;
+  bool pictures = false;
+};
+
+bool encode_impl(WriteBuffer* buf, int w, int h, int depth, int ctype, Compression c, const unsigned char* data,
                  size_t row_bytes) {
   png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
   if (!png) return false;
@@ -121,7 +129,15 @@ bool encode_impl(WriteBuffer* buf, int w, int h, int depth, int ctype, int level
     return false;
   }
   png_set_write_fn(png, buf, write_cb, flush_cb);
-  png_set_compression_level(png, level);
+  png_set_compression_level(png, c.level);
+  if (c.pictures) {
+    // Rendered pictures (flat backgrounds, smooth shading): the Paeth filter on every row and
+    // zlib's run-length strategy. Measured on a run's pictures (900×500, 1000×500, the 1024²
+    // texture): 4× faster to encode than level 6 with adaptive filters (7–14 ms against 32–56 ms),
+    // 3–14 % larger files; the pixels are the same.
+    png_set_compression_strategy(png, Z_RLE);
+    png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_PAETH);
+  }
   png_set_IHDR(png, info, static_cast<png_uint_32>(w), static_cast<png_uint_32>(h), depth, ctype,
                PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
   png_write_info(png, info);
@@ -205,7 +221,7 @@ std::string encode_gray16_png(const Gray16Image& img, int level) {
   HS_CHECK(img.width > 0 && img.height > 0, "empty image");
   HS_CHECK(img.pixels.size() == static_cast<size_t>(img.width) * img.height, "pixel count disagrees with size");
   WriteBuffer buf;
-  const bool ok = encode_impl(&buf, img.width, img.height, 16, PNG_COLOR_TYPE_GRAY, level,
+  const bool ok = encode_impl(&buf, img.width, img.height, 16, PNG_COLOR_TYPE_GRAY, Compression{level, false},
                               reinterpret_cast<const unsigned char*>(img.pixels.data()), img.width * 2u);
   HS_CHECK(ok, "libpng failed to encode");
   return buf.out;
@@ -214,7 +230,7 @@ std::string encode_gray16_png(const Gray16Image& img, int level) {
 std::string encode_rgb8_png(int width, int height, const std::vector<std::uint8_t>& rgb) {
   HS_CHECK(width > 0 && height > 0 && rgb.size() == static_cast<size_t>(width) * height * 3, "bad RGB image");
   WriteBuffer buf;
-  const bool ok = encode_impl(&buf, width, height, 8, PNG_COLOR_TYPE_RGB, 6, rgb.data(), width * 3u);
+  const bool ok = encode_impl(&buf, width, height, 8, PNG_COLOR_TYPE_RGB, Compression{6, true}, rgb.data(), width * 3u);
   HS_CHECK(ok, "libpng failed to encode");
   return buf.out;
 }

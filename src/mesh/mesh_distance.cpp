@@ -47,14 +47,23 @@ std::vector<Eigen::Vector3d> sample_surface(const Mesh& mesh, double per_mm2, st
 
 OneWayDistance one_way_distance(const std::vector<Eigen::Vector3d>& points, const MeshDistance& to,
                                 const std::vector<Eigen::Vector3d>& exclude, double exclude_radius) {
-  std::vector<double> d;
-  d.reserve(points.size());
-  for (const auto& p : points) {
-    if (std::any_of(exclude.begin(), exclude.end(),
-                    [&](const Eigen::Vector3d& e) { return (p - e).norm() < exclude_radius; }))
+  // Every point's distance on its own (the tree's queries are const: it and its k-d tree of
+  // hints were built in MeshDistance's constructor), on every thread; the kept distances are
+  // then gathered in the points' order, as a sequential loop would have them.
+  std::vector<double> all(points.size());
+  std::vector<char> kept(points.size(), 0);
+#pragma omp parallel for schedule(dynamic, 256)
+  for (long k = 0; k < static_cast<long>(points.size()); ++k) {
+    const Eigen::Vector3d& p = points[static_cast<size_t>(k)];
+    if (std::any_of(exclude.begin(), exclude.end(), [&](const Eigen::Vector3d& e) { return (p - e).norm() < exclude_radius; }))
       continue;
-    d.push_back(to.distance(p));
+    all[static_cast<size_t>(k)] = to.distance(p);
+    kept[static_cast<size_t>(k)] = 1;
   }
+  std::vector<double> d;
+  d.reserve(all.size());
+  for (size_t k = 0; k < all.size(); ++k)
+    if (kept[k]) d.push_back(all[k]);
   OneWayDistance r;
   r.samples = d.size();
   if (d.empty()) return r;
