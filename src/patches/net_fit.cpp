@@ -16,6 +16,16 @@ namespace handskin::patch_steps {
 
 namespace {
 
+// CHOLMOD's simplicial factorisation, not its supernodal one: the supernodal one hands its
+// dense blocks to whatever BLAS the machine's libblas.so.3 is (Debian's alternatives: ATLAS,
+// OpenBLAS, the reference), each rounding its sums its own way, so the patches' last bits, and
+// with them the refinement's chaotic choices, followed the BLAS installed (on the fixture at
+// 0.5 mm, ATLAS and OpenBLAS: the web's kink 64.9° against 70.3°). The simplicial one uses no
+// BLAS: the same bytes on every machine (checked with ATLAS and OpenBLAS), and on these systems
+// (3 × 884 unknowns, up to ~3 × 2500 refined) it is also faster: BM_PatchesFixture 315–323 →
+// 263–271 ms (docs/performance.md).
+using NetCholesky = Eigen::CholmodSimplicialLLT<Eigen::SparseMatrix<double>>;
+
 // A face's parameter speed across its side s (relative to the layout it was refined from):
 // halved by every halving along the cross direction (v across sides 0 and 2, u across 1 and 3).
 double cross_speed(const PatchLayout& L, int f, int s) { return std::ldexp(1.0, -L.level(f, s % 2 == 0 ? 1 : 0)); }
@@ -178,8 +188,9 @@ Eigen::Matrix<double, 48, 48> hanging_block(const PatchSkin& out, const HangingB
 // first round builds the pattern, keeps the penalties' share of the values and where each
 // patch's 48 × 48 block lands; later rounds copy the one and add the others there.
 //
-// Sparse Cholesky of the normal equations; never an inverse. CHOLMOD's supernodal Cholesky
-// (SuiteSparse, through Eigen): 6–8 times faster here than Eigen's simplicial LDLᵀ. A
+// Sparse Cholesky of the normal equations; never an inverse. CHOLMOD's simplicial Cholesky
+// (SuiteSparse, through Eigen; NetCholesky above says why not its supernodal one, which was
+// 6–8 times faster than Eigen's own simplicial LDLᵀ and is slower than this one). A
 // correction round changes the matrix only a little (the points' parameters and normals move),
 // so a round first tries conjugate gradients preconditioned by the last factor, from the last
 // round's control points (`preconditioned_cg`): iterations of one sparse product and two
@@ -208,7 +219,7 @@ constexpr double kCgRoundTolerance = 1e-4;
 // convergence needs, and when the total would pass kCgBudget it stops (the caller then
 // factors). Returns true when the relative residual reached `tolerance`.
 bool preconditioned_cg(const Eigen::SparseMatrix<double>& A,
-                       const Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>>& M, const Eigen::VectorXd& b,
+                       const NetCholesky& M, const Eigen::VectorXd& b,
                        double tolerance, Eigen::VectorXd* x, int* iterations) {
   *iterations = 0;
   const double bn = b.norm();
@@ -247,7 +258,7 @@ bool preconditioned_cg(const Eigen::SparseMatrix<double>& A,
 }  // namespace
 
 struct NetSolver {
-  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt;
+  NetCholesky llt;
   bool factored = false;  ///< llt holds a factor (of a round with normals: the first fit solves its own)
   bool stalled = false;  ///< the last round's conjugate gradients gave up early
   Eigen::SparseMatrix<double> A;  ///< the normal equations (both halves)
@@ -682,7 +693,7 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
     A1.setFromTriplets(t.begin(), t.end());
     if (solver->reduced) A1 = solver->C1.transpose() * A1 * solver->C1;
     const int m = static_cast<int>(A1.rows());
-    Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> llt1(A1);
+    NetCholesky llt1(A1);
     HS_CHECK(llt1.info() == Eigen::Success, "patch fit: the normal equations could not be factored");
     const Eigen::MatrixXd X1 = llt1.solve(Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(R.data(), m, 3));
     X.resize(3 * m);
