@@ -3,11 +3,13 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <algorithm>
 #include <random>
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
 #include "core/json_util.hpp"
+#include "mesh/mesh_check.hpp"
 #include "posture/solver.hpp"
 #include "rigging/crease.hpp"
 #include "rigging/deform.hpp"
@@ -133,6 +135,53 @@ TEST(Rigging, SmoothWeightsWithTheCreaseGuardDoNotFoldAtBentJoints) {
       EXPECT_GT(dqs.folding_pairs, 0u);  // the fist does fold without the guard
     }
     EXPECT_LT(std::abs(q.volume_mm3 / rest - 1), 0.05) << "pose " << p;
+  }
+}
+
+TEST(Rigging, CrossingFacesAfterAMoveAreThoseOfAWholeTest) {
+  // The crease guard's untangling tests again only the faces near the vertices a round moved
+  // (CrossingFaces): after every move its pairs must be the whole test's, as a set. The fixture's
+  // skin in a fist without the guard crosses itself; regions around crossing faces (and one
+  // far from any) are moved as the untangling moves them, and once by a jump that makes new
+  // crossings and undoes others.
+  const RiggedSkin s = read_skin_glb(fixture_run() + "/skin.glb");
+  const Skeleton skel(s.rig, "rig");
+  const PostureSolver solver(s.model);
+  std::vector<Eigen::Vector3d> v =
+      deform(s.mesh.vertices, s.binding, link_motions(skel, solver.solve(fist_inputs()).angles), Blend::Linear);
+  const auto& faces = s.mesh.faces;
+  const auto sorted = [](std::vector<std::array<int, 2>> p) {
+    for (auto& q : p)
+      if (q[0] > q[1]) std::swap(q[0], q[1]);
+    std::sort(p.begin(), p.end());
+    return p;
+  };
+  CrossingFaces crossing(v, faces);
+  ASSERT_GT(crossing.pairs().size(), 10u);  // a fist's linear blend crosses itself
+  EXPECT_EQ(sorted(crossing.pairs()), sorted(crossing_face_pairs(v, faces)));
+  std::mt19937 rng(7);
+  for (int round = 0; round < 5; ++round) {
+    std::vector<int> moved;
+    std::vector<char> in(v.size(), 0);
+    const auto take = [&](int c) {
+      if (!in[c]) in[c] = 1, moved.push_back(c);
+    };
+    if (round < 3) {  // the corners of some crossing pairs' faces, smoothed halfway to their centroid
+      const auto& pairs = crossing.pairs();
+      for (size_t k = 0; k < pairs.size(); k += 3)
+        for (int f : pairs[k]) for (int c : faces[f]) take(c);
+      Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+      for (int c : moved) centre += v[c];
+      centre /= static_cast<double>(std::max<size_t>(moved.size(), 1));
+      for (int c : moved) v[c] = 0.5 * (v[c] + centre);
+    } else {  // a patch of vertices anywhere, thrown 15 mm (new crossings)
+      const int at = static_cast<int>(rng() % v.size());
+      for (size_t c = 0; c < v.size(); ++c)
+        if ((v[c] - v[at]).norm() < 6) take(static_cast<int>(c));
+      for (int c : moved) v[c] += Eigen::Vector3d(15, -8, 4);
+    }
+    ASSERT_FALSE(moved.empty());
+    EXPECT_EQ(sorted(crossing.move(v, moved)), sorted(crossing_face_pairs(v, faces))) << "round " << round;
   }
 }
 

@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstddef>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -37,5 +38,26 @@ WrittenMeshCheck check_written_mesh(const std::string& path);
 /// these.
 std::vector<std::array<int, 2>> crossing_face_pairs(const std::vector<Eigen::Vector3d>& vertices,
                                                     const std::vector<std::array<int, 3>>& faces);
+
+/// crossing_face_pairs for one mesh whose vertices move: the CGAL mesh built once, and after a
+/// move of some vertices only the faces that can have changed tested again (the faces around
+/// the moved vertices and every face whose box meets one of theirs), the rest of the pairs
+/// kept. The pairs are those crossing_face_pairs gives, in another order.
+class CrossingFaces {
+ public:
+  CrossingFaces(const std::vector<Eigen::Vector3d>& vertices, const std::vector<std::array<int, 3>>& faces);
+  ~CrossingFaces();
+  CrossingFaces(const CrossingFaces&) = delete;
+  CrossingFaces& operator=(const CrossingFaces&) = delete;
+  /// Every crossing pair at the positions given at construction.
+  const std::vector<std::array<int, 2>>& pairs() const { return pairs_; }
+  /// The vertices `moved` now lie at vertices[moved[k]] (the others where they were): the pairs again.
+  const std::vector<std::array<int, 2>>& move(const std::vector<Eigen::Vector3d>& vertices, const std::vector<int>& moved);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::vector<std::array<int, 2>> pairs_;
+};
 
 }  // namespace handskin
