@@ -1,6 +1,9 @@
 // The handskin command as users and scripts drive it.
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <iterator>
+
 #include <regex>
 #include <sstream>
 
@@ -85,6 +88,31 @@ TEST(Cli, EveryUsageErrorExitsTwoInOneLineNamingItsFlag) {
 // absolute in inputs_absolute; `patches --skin-dir` works from another working directory on a
 // moved copy (finding the rig by its absolute path), and says which rig is missing when it is
 // gone.
+TEST(Cli, PipelineCommandsRunOnHugePagesWhereTheKernelGivesThemOnRequest) {
+  // Where transparent huge pages are given to memory that asks ("[madvise]"), a pipeline
+  // command runs itself again with glibc's allocator asking (docs/performance.md); its
+  // --verbose last line says so. HANDSKIN_HUGE_PAGES=0 keeps the pages as they are; other
+  // commands (here `solve`) do not run again.
+  std::ifstream thp("/sys/kernel/mm/transparent_hugepage/enabled");
+  const std::string mode((std::istreambuf_iterator<char>(thp)), std::istreambuf_iterator<char>());
+  const bool on_request = mode.find("[madvise]") != std::string::npos;
+  const std::string dir = test::temp_dir("hugepages");
+  const std::string reg = kBin + " -v register --back " + kFix + "back --palm " + kFix + "palm --out ";
+  const std::string note = "(allocator on transparent huge pages)";
+  std::string out;
+  ASSERT_EQ(test::run("env -u GLIBC_TUNABLES " + reg + dir + "/a 2>&1", &out), 0) << out;
+  EXPECT_EQ(out.find(note) != std::string::npos, on_request) << mode << out;
+  ASSERT_EQ(test::run("env -u GLIBC_TUNABLES HANDSKIN_HUGE_PAGES=0 " + reg + dir + "/b 2>&1", &out), 0) << out;
+  EXPECT_EQ(out.find(note), std::string::npos) << out;
+  ASSERT_EQ(test::run("env -u GLIBC_TUNABLES " + kBin + " -v solve --model builtin:anatomical --set index.mcp.flex=40 2>&1", &out), 0)
+      << out;
+  EXPECT_EQ(out.find(note), std::string::npos) << out;
+  // Both folders hold the same registration (the pages change no result).
+  const Json a = Json::parse(read_file(dir + "/a/registration.json")), b = Json::parse(read_file(dir + "/b/registration.json"));
+  EXPECT_EQ(a.at("back_to_palm").dump(), b.at("back_to_palm").dump());
+  EXPECT_EQ(a.at("markers_palm").dump(), b.at("markers_palm").dump());
+}
+
 TEST(Cli, ARunFolderWorksFromAnywhereAndWhenMoved) {
   const std::string base = test::temp_dir("travel");
   fs::create_directories(base + "/work");

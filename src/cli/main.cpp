@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "cli/commands.hpp"
+#include "cli/huge_pages.hpp"
 #include "core/errors.hpp"
 #include "core/threads.hpp"
 #include "scan/cloud.hpp"
@@ -49,6 +50,22 @@ std::string unknown_command(const CLI::App& app, int argc, char** argv) {
   }
   return "";
 }
+// The command word: the first that is not an option (nor --threads's value); null when none,
+// and when help is asked for (no work to make faster).
+const char* command_word(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string w = argv[i];
+    if (w == "-h" || w == "--help") return nullptr;
+  }
+  for (int i = 1; i < argc; ++i) {
+    if (std::string(argv[i]) == "--threads") {
+      ++i;
+      continue;
+    }
+    if (argv[i][0] != '-') return argv[i];
+  }
+  return nullptr;
+}
 /// The one line an error gets ("error: …", or its JSON line with --log-json); returns `code`.
 int fail(const std::string& command, const std::string& message, int code) {
   if (cli::log_options().json)
@@ -60,6 +77,7 @@ int fail(const std::string& command, const std::string& message, int code) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  cli::rerun_with_huge_pages(command_word(argc, argv), argv);
   silence_pcl_console();  // our errors name the file; PCL's own lines would only repeat them
   CLI::App app{"handskin: range scans of a hand -> a rigged, animatable skin (after Yasumuro 2000).\n"
                "Millimetres and degrees everywhere; see docs/ for frames and formats."};
@@ -127,6 +145,7 @@ int main(int argc, char** argv) {
   if (log.verbose && !log.json)
     cli::log_line("info", command, "done in " + std::to_string(std::chrono::duration<double>(
                                                       std::chrono::steady_clock::now() - log.t0).count()).substr(0, 5) +
-                                       " s, peak memory " + std::to_string(static_cast<int>(cli::peak_memory_mb())) + " MB");
+                                       " s, peak memory " + std::to_string(static_cast<int>(cli::peak_memory_mb())) + " MB" +
+                                       (cli::huge_pages_asked() ? " (allocator on transparent huge pages)" : ""));
   return 0;
 }

@@ -1,0 +1,42 @@
+#include "cli/huge_pages.hpp"
+
+#include <unistd.h>
+
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+namespace handskin::cli {
+
+void rerun_with_huge_pages(const char* command, char** argv) {
+  if (!command) return;
+  static const char* kHeavy[] = {"run", "register", "skin", "patches", "synth"};
+  bool heavy = false;
+  for (const char* c : kHeavy) heavy = heavy || std::strcmp(command, c) == 0;
+  if (!heavy) return;
+  if (const char* off = std::getenv("HANDSKIN_HUGE_PAGES"); off && std::strcmp(off, "0") == 0) return;
+  const char* tunables = std::getenv("GLIBC_TUNABLES");
+  const std::string had = tunables ? tunables : "";
+  if (had.find("glibc.malloc.hugetlb") != std::string::npos) return;  // set already (by us or the user)
+  // Only where the kernel gives huge pages to memory marked for them: with "always" every
+  // process has them already, with "never" the mark does nothing.
+  std::ifstream thp("/sys/kernel/mm/transparent_hugepage/enabled");
+  const std::string mode((std::istreambuf_iterator<char>(thp)), std::istreambuf_iterator<char>());
+  if (mode.find("[madvise]") == std::string::npos) return;
+  const std::string set = had.empty() ? "glibc.malloc.hugetlb=1" : had + ":glibc.malloc.hugetlb=1";
+  if (setenv("GLIBC_TUNABLES", set.c_str(), 1) != 0) return;
+  execv("/proc/self/exe", argv);
+  // Not run again (no /proc, say): the run goes on with the pages it has, and the
+  // environment as it was.
+  if (tunables) setenv("GLIBC_TUNABLES", had.c_str(), 1);
+  else unsetenv("GLIBC_TUNABLES");
+}
+
+bool huge_pages_asked() {
+  const char* t = std::getenv("GLIBC_TUNABLES");
+  return t && std::string(t).find("glibc.malloc.hugetlb=1") != std::string::npos;
+}
+
+}  // namespace handskin::cli

@@ -1,0 +1,20 @@
+#pragma once
+/// The allocator's pages (docs/performance.md "Page faults"): the pipeline commands ask glibc
+/// to back the memory they allocate with transparent huge pages.
+namespace handskin::cli {
+
+/// When the kernel gives transparent huge pages to the memory that asks for them
+/// (/sys/kernel/mm/transparent_hugepage/enabled is "[madvise]") and glibc's tunable
+/// glibc.malloc.hugetlb is not set yet, runs this program again from its start with it set
+/// (GLIBC_TUNABLES, read by glibc only when a process starts): glibc then marks its heaps
+/// MADV_HUGEPAGE, and the memory a run first touches faults in 2 MB at a time instead of
+/// 4 kB. Only for `command` in run, register, skin, patches and synth (the others allocate
+/// too little to gain the second start, ~0.04 s), and not when HANDSKIN_HUGE_PAGES is "0".
+/// Returns when it did not run the program again (or could not: the run goes on as it is).
+void rerun_with_huge_pages(const char* command, char** argv);
+
+/// Whether this process's allocator was asked for huge pages (GLIBC_TUNABLES holds
+/// glibc.malloc.hugetlb=1), for `--verbose`'s last line.
+bool huge_pages_asked();
+
+}  // namespace handskin::cli
