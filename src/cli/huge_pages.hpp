@@ -8,8 +8,9 @@ namespace handskin::cli {
 /// glibc.malloc.hugetlb is not set yet, runs this program again from its start with it set
 /// (GLIBC_TUNABLES, read by glibc only when a process starts): glibc then marks its heaps
 /// MADV_HUGEPAGE, and the memory a run first touches faults in 2 MB at a time instead of
-/// 4 kB. Only for `command` in run, register, skin, patches and synth (the others allocate
-/// too little to gain the second start, ~0.04 s), and not when HANDSKIN_HUGE_PAGES is "0".
+/// 4 kB. Only for `command` in run, register, skin and patches (the others allocate too little
+/// to gain the second start, ~0.04 s, or, `synth`, would not repeat their bytes), and not when
+/// HANDSKIN_HUGE_PAGES is "0".
 /// Returns when it did not run the program again (or could not: the run goes on as it is).
 void rerun_with_huge_pages(const char* command, char** argv);
 
