@@ -91,7 +91,8 @@ TEST(Cli, EveryUsageErrorExitsTwoInOneLineNamingItsFlag) {
 TEST(Cli, PipelineCommandsRunOnHugePagesWhereTheKernelGivesThemOnRequest) {
   // Where transparent huge pages are given to memory that asks ("[madvise]"), a pipeline
   // command runs itself again with glibc's allocator asking (docs/performance.md); its
-  // --verbose last line says so. HANDSKIN_HUGE_PAGES=0 keeps the pages as they are; other
+  // --verbose last line says so. HANDSKIN_HUGE_PAGES=0 keeps the pages as they are, as does a
+  // preloaded library; other
   // commands (here `solve`) do not run again.
   std::ifstream thp("/sys/kernel/mm/transparent_hugepage/enabled");
   const std::string mode((std::istreambuf_iterator<char>(thp)), std::istreambuf_iterator<char>());
@@ -100,11 +101,14 @@ TEST(Cli, PipelineCommandsRunOnHugePagesWhereTheKernelGivesThemOnRequest) {
   const std::string reg = kBin + " -v register --back " + kFix + "back --palm " + kFix + "palm --out ";
   const std::string note = "(allocator on transparent huge pages)";
   std::string out;
-  ASSERT_EQ(test::run("env -u GLIBC_TUNABLES " + reg + dir + "/a 2>&1", &out), 0) << out;
+  ASSERT_EQ(test::run("env -u GLIBC_TUNABLES -u LD_PRELOAD " + reg + dir + "/a 2>&1", &out), 0) << out;
   EXPECT_EQ(out.find(note) != std::string::npos, on_request) << mode << out;
-  ASSERT_EQ(test::run("env -u GLIBC_TUNABLES HANDSKIN_HUGE_PAGES=0 " + reg + dir + "/b 2>&1", &out), 0) << out;
+  ASSERT_EQ(test::run("env -u GLIBC_TUNABLES -u LD_PRELOAD HANDSKIN_HUGE_PAGES=0 " + reg + dir + "/b 2>&1", &out), 0) << out;
   EXPECT_EQ(out.find(note), std::string::npos) << out;
-  ASSERT_EQ(test::run("env -u GLIBC_TUNABLES " + kBin + " -v solve --model builtin:anatomical --set index.mcp.flex=40 2>&1", &out), 0)
+  // Nor under a preloaded library (a profiler's, another allocator): libm stands for one here.
+  ASSERT_EQ(test::run("env -u GLIBC_TUNABLES LD_PRELOAD=libm.so.6 " + reg + dir + "/c 2>&1", &out), 0) << out;
+  EXPECT_EQ(out.find(note), std::string::npos) << out;
+  ASSERT_EQ(test::run("env -u GLIBC_TUNABLES -u LD_PRELOAD " + kBin + " -v solve --model builtin:anatomical --set index.mcp.flex=40 2>&1", &out), 0)
       << out;
   EXPECT_EQ(out.find(note), std::string::npos) << out;
   // Both folders hold the same registration (the pages change no result).

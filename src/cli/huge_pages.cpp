@@ -20,6 +20,9 @@ void rerun_with_huge_pages(const char* command, char** argv) {
   for (const char* c : kHeavy) heavy = heavy || std::strcmp(command, c) == 0;
   if (!heavy) return;
   if (const char* off = std::getenv("HANDSKIN_HUGE_PAGES"); off && std::strcmp(off, "0") == 0) return;
+  // A preloaded library (valgrind's, heaptrack's, another allocator) is a tool watching this
+  // process or replacing its allocator: not started again under it.
+  if (const char* pre = std::getenv("LD_PRELOAD"); pre && *pre) return;
   const char* tunables = std::getenv("GLIBC_TUNABLES");
   const std::string had = tunables ? tunables : "";
   if (had.find("glibc.malloc.hugetlb") != std::string::npos) return;  // set already (by us or the user)

@@ -10,7 +10,7 @@ namespace handskin::cli {
 /// MADV_HUGEPAGE, and the memory a run first touches faults in 2 MB at a time instead of
 /// 4 kB. Only for `command` in run, register, skin and patches (the others allocate too little
 /// to gain the second start, ~0.04 s, or, `synth`, would not repeat their bytes), and not when
-/// HANDSKIN_HUGE_PAGES is "0".
+/// HANDSKIN_HUGE_PAGES is "0" or a library is preloaded (LD_PRELOAD: valgrind, heaptrack…).
 /// Returns when it did not run the program again (or could not: the run goes on as it is).
 void rerun_with_huge_pages(const char* command, char** argv);
 
