@@ -1,5 +1,5 @@
 #pragma once
-/// The allocator's pages (docs/performance.md "Page faults"): the pipeline commands ask glibc
+/// The allocator's pages (docs/performance.md, "page faults on huge pages"): the pipeline commands ask glibc
 /// to back the memory they allocate with transparent huge pages.
 namespace handskin::cli {
 
