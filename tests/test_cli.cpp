@@ -84,16 +84,11 @@ TEST(Cli, EveryUsageErrorExitsTwoInOneLineNamingItsFlag) {
   EXPECT_EQ(read_file(pics + "/back.png.png"), read_file(pics + "/back.png"));
 }
 
-// A run folder travels (issue 40): report.json's inputs are relative to the report, and
-// absolute in inputs_absolute; `patches --skin-dir` works from another working directory on a
-// moved copy (finding the rig by its absolute path), and says which rig is missing when it is
-// gone.
 TEST(Cli, PipelineCommandsRunOnHugePagesWhereTheKernelGivesThemOnRequest) {
   // Where transparent huge pages are given to memory that asks ("[madvise]"), a pipeline
   // command runs itself again with glibc's allocator asking (docs/performance.md); its
   // --verbose last line says so. HANDSKIN_HUGE_PAGES=0 keeps the pages as they are, as does a
-  // preloaded library; other
-  // commands (here `solve`) do not run again.
+  // preloaded library; other commands (here `solve`) do not run again.
   std::ifstream thp("/sys/kernel/mm/transparent_hugepage/enabled");
   const std::string mode((std::istreambuf_iterator<char>(thp)), std::istreambuf_iterator<char>());
   const bool on_request = mode.find("[madvise]") != std::string::npos;
@@ -117,6 +112,10 @@ TEST(Cli, PipelineCommandsRunOnHugePagesWhereTheKernelGivesThemOnRequest) {
   EXPECT_EQ(a.at("markers_palm").dump(), b.at("markers_palm").dump());
 }
 
+// A run folder travels (issue 40): report.json's inputs are relative to the report, and
+// absolute in inputs_absolute; `patches --skin-dir` works from another working directory on a
+// moved copy (finding the rig by its absolute path), and says which rig is missing when it is
+// gone.
 TEST(Cli, ARunFolderWorksFromAnywhereAndWhenMoved) {
   const std::string base = test::temp_dir("travel");
   fs::create_directories(base + "/work");

@@ -34,9 +34,8 @@ size_t edit_distance(const std::string& a, const std::string& b) {
   return row[b.size()];
 }
 
-// The command the user typed, when it is none of the app's: the first word that is not a
-// global option (or --threads's value). Empty when the words name a command or there is none.
-std::string unknown_command(const CLI::App& app, int argc, char** argv) {
+// The first word that is not a global option (nor --threads's value); null when there is none.
+const char* first_word(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string w = argv[i];
     if (w == "--threads") {
@@ -44,27 +43,26 @@ std::string unknown_command(const CLI::App& app, int argc, char** argv) {
       continue;
     }
     if (!w.empty() && w[0] == '-') continue;
-    for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; }))
-      if (sub->get_name() == w) return "";
-    return w;
+    return argv[i];
   }
-  return "";
+  return nullptr;
 }
-// The command word: the first that is not an option (nor --threads's value); null when none,
-// and when help is asked for (no work to make faster).
+// The command the user typed, when it is none of the app's. Empty when the words name a
+// command or there is none.
+std::string unknown_command(const CLI::App& app, int argc, char** argv) {
+  const char* w = first_word(argc, argv);
+  if (!w) return "";
+  for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; }))
+    if (sub->get_name() == w) return "";
+  return w;
+}
+// The command word (first_word); null also when help is asked for (no work to make faster).
 const char* command_word(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string w = argv[i];
     if (w == "-h" || w == "--help") return nullptr;
   }
-  for (int i = 1; i < argc; ++i) {
-    if (std::string(argv[i]) == "--threads") {
-      ++i;
-      continue;
-    }
-    if (argv[i][0] != '-') return argv[i];
-  }
-  return nullptr;
+  return first_word(argc, argv);
 }
 /// The one line an error gets ("error: …", or its JSON line with --log-json); returns `code`.
 int fail(const std::string& command, const std::string& message, int code) {
