@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
+#include <random>
 #include <sstream>
 
 #include "core/atomic_file.hpp"
@@ -274,4 +276,53 @@ TEST(Texture, MeshPicturesCoverOccludeAndLightAsOpenGL) {
   ro.points = {{5, 5, -100}};
   const Rgb8Image dotted = picture({&front});
   EXPECT_EQ(pixel(dotted, 50, 50), Eigen::Vector3i(raster::kDotColour[0], raster::kDotColour[1], raster::kDotColour[2]));
+}
+
+// The splat pictures (render/splats.cpp) are drawn a band of rows at a time to keep their
+// memory small; every pixel must be what one whole-picture buffer gives: splats and dots
+// across the bands' borders, a last band shorter than the others, ties in depth (the first
+// drawn kept). The reference below is the one-buffer drawing, written out plainly.
+TEST(Texture, SplatPicturesDrawnByBandsAreThoseOfOneBuffer) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::vector<Eigen::Vector3d> p, n;
+  std::vector<Eigen::Vector3f> c;
+  for (int k = 0; k < 4000; ++k) {
+    p.emplace_back(40 * u(rng), 30 * u(rng), k % 5 == 0 ? 0.0 : 3 * u(rng));  // every fifth at z = 0: ties
+    n.push_back(k % 7 == 0 ? Eigen::Vector3d::Zero() : Eigen::Vector3d(u(rng), u(rng), 1).normalized());
+    c.emplace_back(0.5f + 0.4f * static_cast<float>(u(rng)), 0.6f, 0.5f + 0.3f * static_cast<float>(u(rng)));
+  }
+  RenderOptions o;
+  o.view = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  for (int y = -30; y <= 30; y += 3) o.points.emplace_back(0.7 * y, y, 0);  // dots on many rows
+  for (const auto& [w, h] : std::vector<std::pair<int, int>>{{160, 101}, {90, 32}, {300, 250}}) {
+    o.width = w, o.height = h;
+    const raster::Framing f = raster::frame(o, p);
+    constexpr int S = raster::kSupersample;
+    const int W = w * S, H = h * S;
+    std::vector<std::uint8_t> rgba;
+    raster::clear_to_background(&rgba, static_cast<size_t>(W) * H);
+    std::vector<double> depth(static_cast<size_t>(W) * H, -std::numeric_limits<double>::infinity());
+    const double diameter = std::max(1.0, std::max(3.0, 1.0 * f.scale) * S);
+    const raster::Lights lights;
+    for (size_t k = 0; k < p.size(); ++k) {
+      const Eigen::Vector3d q = o.view * p[k];
+      const Eigen::Vector3d nn = n[k].squaredNorm() > 0.5 ? Eigen::Vector3d((o.view * n[k]).normalized()) : Eigen::Vector3d::UnitZ();
+      const Eigen::Vector3d col = lights.shade(nn, c[k]);
+      const Eigen::Vector2d win = f.window(q);
+      raster::disc(win.x(), win.y(), diameter, W, H, [&](size_t at) {
+        if (!(q.z() > depth[at])) return;
+        depth[at] = q.z();
+        for (int ch = 0; ch < 3; ++ch) rgba[4 * at + ch] = raster::byte_of(col[ch]);
+      });
+    }
+    raster::draw_dots(o, f, W, H, &rgba);
+    const Rgb8Image want = decode_rgb8_png(raster::downsample_png(rgba, w, h), "one buffer");
+    const Rgb8Image got = decode_rgb8_png(render_points_png(p, n, c, o), "by bands");
+    ASSERT_EQ(got.width, w);
+    ASSERT_EQ(got.height, h);
+    size_t differ = 0;
+    for (size_t k = 0; k < want.rgb.size(); ++k) differ += got.rgb[k] != want.rgb[k];
+    EXPECT_EQ(differ, 0u) << w << " x " << h;
+  }
 }

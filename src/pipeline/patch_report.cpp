@@ -178,7 +178,8 @@ std::string layout_view(const PatchSkin& s, const Eigen::Matrix3d& hand, const c
                                              {0.72f, 0.58f, 0.10f}, {0.52f, 0.25f, 0.65f}};
   const size_t count = s.patches.size() * (kPerSpan + 1) * (kPerSpan + 1);
   p.reserve(count), n.reserve(count), c.reserve(count);
-  for (size_t f = 0; f < s.patches.size(); ++f)
+  for (size_t f = 0; f < s.patches.size(); ++f) {
+    const Eigen::Vector3f& tone = (s.patches[f].name.find('/') != std::string::npos ? refined : palette)[colour[f] < 4 ? colour[f] : 4];
     for (int i = 0; i <= kPerSpan; ++i)
       for (int j = 0; j <= kPerSpan; ++j) {
         Eigen::Vector3d S, Su, Sv;
@@ -188,8 +189,9 @@ std::string layout_view(const PatchSkin& s, const Eigen::Matrix3d& hand, const c
         nn.normalize();
         if ((V * nn).z() < 0) nn = -nn;  // facing the viewer, for the shading
         p.push_back(S), n.push_back(nn);
-        c.push_back((s.patches[f].name.find('/') != std::string::npos ? refined : palette)[std::min(colour[f], 4)]);
+        c.push_back(tone);
       }
+  }
   RenderOptions ro;
   ro.width = 720;
   ro.height = 480;

@@ -78,19 +78,23 @@ Framing frame(const RenderOptions& o, const std::vector<Eigen::Vector3d>& model_
   return f;
 }
 
-std::string downsample_png(const std::vector<std::uint8_t>& rgba, int width, int height) {
+void downsample_rows(const std::uint8_t* band, int width, int row, int rows, std::vector<std::uint8_t>* rgb) {
   const int W = width * kSupersample;
-  HS_CHECK(rgba.size() == static_cast<size_t>(W) * height * kSupersample * 4, "a picture's buffer is not its size");
-  std::vector<std::uint8_t> rgb(static_cast<size_t>(width) * height * 3);
-  for (int y = 0; y < height; ++y)
+  for (int y = 0; y < rows; ++y)
     for (int x = 0; x < width; ++x)
       for (int ch = 0; ch < 3; ++ch) {
         int sum = 0;
         for (int dy = 0; dy < kSupersample; ++dy)
           for (int dx = 0; dx < kSupersample; ++dx)
-            sum += rgba[(static_cast<size_t>(y * kSupersample + dy) * W + x * kSupersample + dx) * 4 + ch];
-        rgb[(static_cast<size_t>(y) * width + x) * 3 + ch] = static_cast<std::uint8_t>(sum / (kSupersample * kSupersample));
+            sum += band[(static_cast<size_t>(y * kSupersample + dy) * W + x * kSupersample + dx) * 4 + ch];
+        (*rgb)[(static_cast<size_t>(row + y) * width + x) * 3 + ch] = static_cast<std::uint8_t>(sum / (kSupersample * kSupersample));
       }
+}
+
+std::string downsample_png(const std::vector<std::uint8_t>& rgba, int width, int height) {
+  HS_CHECK(rgba.size() == static_cast<size_t>(width) * kSupersample * height * kSupersample * 4, "a picture's buffer is not its size");
+  std::vector<std::uint8_t> rgb(static_cast<size_t>(width) * height * 3);
+  downsample_rows(rgba.data(), width, 0, height, &rgb);
   return encode_rgb8_png(width, height, rgb);
 }
 

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "render/preview.hpp"
@@ -45,12 +46,21 @@ struct Lights {
 /// A colour in [0, 1] as a byte, rounded as OpenGL stores it.
 inline std::uint8_t byte_of(double v) { return static_cast<std::uint8_t>(std::lround(std::clamp(v, 0.0, 1.0) * 255)); }
 
+/// The rows a disc of `diameter` supersampled pixels centred at window row y covers, first and
+/// last, unclipped: the pixel rows whose centres lie within its radius of y.
+inline std::pair<int, int> disc_rows(double y, double diameter) {
+  const double r = 0.5 * diameter;
+  return {static_cast<int>(std::ceil(y - r - 0.5)), static_cast<int>(std::floor(y + r - 0.5))};
+}
+
 /// A disc of `diameter` supersampled pixels at window position (x, y) (pixels from the top
-/// left): `put` is called with the index of every pixel whose centre lies inside it.
+/// left): `put` is called with the index (row × W + column) of every pixel whose centre lies
+/// inside it, in rows [row_lo, row_hi) of the H rows (a band of the picture; all by default).
 template <typename Put>
-void disc(double x, double y, double diameter, int W, int H, Put put) {
+void disc(double x, double y, double diameter, int W, int H, Put put, int row_lo = 0, int row_hi = -1) {
   const double r = 0.5 * diameter, r2 = r * r;
-  const int y0 = std::max(0, static_cast<int>(std::ceil(y - r - 0.5))), y1 = std::min(H - 1, static_cast<int>(std::floor(y + r - 0.5)));
+  const auto [top, bottom] = disc_rows(y, diameter);
+  const int y0 = std::max({0, row_lo, top}), y1 = std::min({H - 1, (row_hi < 0 ? H : row_hi) - 1, bottom});
   const int x0 = std::max(0, static_cast<int>(std::ceil(x - r - 0.5))), x1 = std::min(W - 1, static_cast<int>(std::floor(x + r - 0.5)));
   for (int j = y0; j <= y1; ++j) {
     const double dy = j + 0.5 - y;
@@ -74,13 +84,19 @@ struct Framing {
 };
 Framing frame(const RenderOptions& o, const std::vector<Eigen::Vector3d>& model_points);
 
-/// Joints or markers (`o.points`): red dots over everything in the W × H supersampled buffer.
-inline void draw_dots(const RenderOptions& o, const Framing& f, int W, int H, std::vector<std::uint8_t>* rgba) {
+/// Joints or markers (`o.points`): red dots over everything in the W × H supersampled buffer,
+/// or in its band of rows [row_lo, row_hi) when `rgba` holds only those rows.
+inline void draw_dots(const RenderOptions& o, const Framing& f, int W, int H, std::vector<std::uint8_t>* rgba, int row_lo = 0,
+                      int row_hi = -1) {
+  const size_t first = static_cast<size_t>(row_lo) * W;
   for (const auto& p : o.points) {
     const Eigen::Vector2d w = f.window(o.view * p);
-    disc(w.x(), w.y(), kDotPx * kSupersample, W, H, [&](size_t at) {
-      for (int c = 0; c < 3; ++c) (*rgba)[4 * at + c] = kDotColour[c];
-    });
+    disc(
+        w.x(), w.y(), kDotPx * kSupersample, W, H,
+        [&](size_t at) {
+          for (int c = 0; c < 3; ++c) (*rgba)[4 * (at - first) + c] = kDotColour[c];
+        },
+        row_lo, row_hi);
   }
 }
 
@@ -93,5 +109,9 @@ inline void clear_to_background(std::vector<std::uint8_t>* rgba, size_t pixels) 
 
 /// A kSupersample × larger RGBA buffer (row 0 at the top) box-filtered to width × height, as PNG.
 std::string downsample_png(const std::vector<std::uint8_t>& rgba, int width, int height);
+
+/// Rows [row, row + rows) of a width × height RGB picture box-filtered from `band`: the
+/// kSupersample × larger RGBA buffer's rows from row × kSupersample on (row 0 at the top).
+void downsample_rows(const std::uint8_t* band, int width, int row, int rows, std::vector<std::uint8_t>* rgb);
 
 }  // namespace handskin::raster
