@@ -9,6 +9,7 @@
 
 #include "core/atomic_file.hpp"
 #include "core/json_util.hpp"
+#include "core/png_io.hpp"
 #include "pipeline/layout_json.hpp"
 #include "mesh/mesh_distance.hpp"
 #include "mesh/point_grid.hpp"
@@ -603,6 +604,24 @@ TEST(Patches, FollowThePostureAndTheirLayoutComesBack) {
       }
       EXPECT_GT(thumb_moved, 3.0) << shift;  // two of the skin's rings: ~7 mm
       EXPECT_LT(wrist_moved, 1e-9) << shift;
+    }
+  }
+  // The layout pictures colour neighbouring patches differently (skin tone, blue, green…):
+  // both warm and cool patches cover much of the hand. (A release build once drew every patch
+  // in the first colour: the colour's index, std::min of it and a literal, read as garbage.)
+  {
+    const PatchReportPictures pics = patch_report_pictures(s, rig);
+    for (const std::string* png : {&pics.layout_back, &pics.layout_palm}) {
+      const Rgb8Image img = decode_rgb8_png(*png, "layout picture");
+      size_t warm = 0, cool = 0, hand = 0;
+      for (size_t k = 0; k + 2 < img.rgb.size(); k += 3) {
+        const int r = img.rgb[k], b = img.rgb[k + 2];
+        if (r > 235 && b > 235) continue;  // the background
+        ++hand;
+        warm += r > b + 25, cool += b > r + 25;
+      }
+      EXPECT_GT(warm, hand / 5) << warm << " of " << hand;
+      EXPECT_GT(cool, hand / 5) << cool << " of " << hand;
     }
   }
   // Every point's reported distance is its nearest foot point's: never more than its distance
