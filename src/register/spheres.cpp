@@ -297,13 +297,28 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
     std::vector<long> keys;               // dense, a cell's key
     std::vector<Eigen::Vector3d> sums;    // dense, the sum of a cell's votes
     size_t mask = 0;
-    void reset(size_t n) {
-      size_t cap = 16;
-      while (cap < 2 * n + 16) cap <<= 1;
+    // Sized for the cells, not the samples: a marker's or a surface's votes share cells (~2–3
+    // samples a cell at r / 6), and a table of half its slots empty that fits the caches is
+    // probed faster (the probes, cache misses each, were most of this search's time). It
+    // doubles when half full.
+    void reset(size_t expected_cells) {
+      size_t cap = 1024;
+      while (cap < 2 * expected_cells) cap <<= 1;
       slots.assign(cap, Slot{-1, 0, -1});
       keys.clear();
       sums.clear();
       mask = cap - 1;
+    }
+    void grow() {
+      std::vector<Slot> old(2 * slots.size(), Slot{-1, 0, -1});
+      old.swap(slots);
+      mask = slots.size() - 1;
+      for (const Slot& sl : old) {
+        if (sl.key == -1) continue;
+        size_t i = slot_of(sl.key) & mask;
+        while (slots[i].key != -1) i = (i + 1) & mask;
+        slots[i] = sl;
+      }
     }
     static size_t slot_of(long k) {
       std::uint64_t x = static_cast<std::uint64_t>(k);
@@ -317,6 +332,11 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
       while (slots[i].key != -1 && slots[i].key != k) i = (i + 1) & mask;
       Slot& sl = slots[i];
       if (sl.key == -1) {
+        if (2 * (keys.size() + 1) > slots.size()) {
+          grow();
+          vote(k, v);
+          return;
+        }
         sl = Slot{k, 0, static_cast<int>(keys.size())};
         keys.push_back(k);
         sums.push_back(Eigen::Vector3d::Zero());
@@ -331,7 +351,7 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
     }
   };
   CellTable grid;
-  grid.reset(s.points.size());
+  grid.reset(s.points.size() / 3);
   for (size_t k = 0; k < s.points.size(); ++k) {
     if (!s.has_normal(k)) continue;
     const Eigen::Vector3d v = s.points[k] - r * s.normals[k];
