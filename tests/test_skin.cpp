@@ -1,5 +1,6 @@
 // Skin, first steps (issue 5): slicing, nearest-bone segmentation, polar resampling.
 #include <gtest/gtest.h>
+#include <malloc.h>
 
 #include <algorithm>
 #include <array>
@@ -576,6 +577,43 @@ TEST(SkinSteps, RingsOfANoisyCylinderHaveItsRadiusAndSameCount) {
   EXPECT_GT(u.report.filled, 0);
   for (const auto& ring : u.rings)
     for (const auto& p : ring) EXPECT_NEAR(std::hypot(p.y(), p.z()), 8.0, 0.1);
+}
+
+// A fingertip's dome is made from the tube's last ring while rings are added after it: the
+// same dome whether the rings' storage has room or must move (a tube whose rings filled their
+// capacity exactly read its rim from freed memory, and a family study crashed on it once with a
+// general protection fault; AddressSanitizer names the read, a heap-use-after-free).
+TEST(SkinSteps, AFingertipsDomeIsTheSameWhenItsRingsStorageMoves) {
+  std::vector<Eigen::Vector3d> pts;
+  // 61 rings: their storage (1.4 kB) is freed past glibc's per-thread cache, where M_PERTURB
+  // below overwrites it, so that a read of it cannot pass for the rim.
+  TubeBuild t = cylinder_tube(30, 7.0, 0.5, 0.05, &pts);
+  fill_slabs(&t, pts, 0.5, false);
+  for (const auto& p : pts)
+    if (p.x() > 30) t.beyond.push_back(p);
+  SkinOptions o;
+  resample_rings(&t, 20, o, false);
+  TubeBuild exact = t, roomy = t;
+  exact.rings.shrink_to_fit();
+  ASSERT_EQ(exact.rings.capacity(), exact.rings.size());
+  roomy.rings.reserve(roomy.rings.size() + 16);
+  ASSERT_GT(exact.rings.size() * sizeof(exact.rings[0]), 1100u);  // past the per-thread cache's largest block
+  mallopt(M_PERTURB, 0x5a);  // freed memory filled with 0x5a meanwhile
+  add_dome(&exact, 20, 6, o);
+  mallopt(M_PERTURB, 0);
+  add_dome(&roomy, 20, 6, o);
+  ASSERT_EQ(exact.rings.size(), t.rings.size() + 6);
+  ASSERT_EQ(roomy.rings.size(), exact.rings.size());
+  ASSERT_TRUE(exact.pole && roomy.pole);
+  EXPECT_EQ(*exact.pole, *roomy.pole);
+  const Eigen::Vector3d tip = t.st.back().o;
+  for (size_t k = t.rings.size(); k < exact.rings.size(); ++k) {
+    ASSERT_EQ(exact.rings[k].size(), 20u) << k;
+    for (size_t j = 0; j < 20; ++j) {
+      ASSERT_EQ(exact.rings[k][j], roomy.rings[k][j]) << k << " " << j;
+      EXPECT_NEAR((exact.rings[k][j] - tip).norm(), 7.0, 1.5) << k << " " << j;  // a dome as wide as the tube
+    }
+  }
 }
 
 namespace {

@@ -247,7 +247,11 @@ void add_dome(TubeBuild* t, int M, int rings, const SkinOptions& o) {
   // A fingertip is about as wide as its last ring: the dome's radius stays within 0.3–1.3
   // times the rim's largest (the harmonic fit, unconstrained where a curled tip was not
   // seen, can otherwise throw a spike far out).
-  const auto& last = t->rings.back();
+  // A copy: the rings pushed below may move t->rings' elements (a tube whose rings filled
+  // their capacity exactly: the little finger of a family pair with the automatic skeleton, 16
+  // of 16), and a reference to the rim would then read freed memory (it crashed once in a
+  // family study, a general protection fault).
+  const std::vector<Eigen::Vector3d> last = t->rings.back();
   double rim = 0;
   for (const auto& p : last) rim = std::max(rim, (p - s.o).norm());
   auto radius = [&](const Eigen::Vector3d& d) {
