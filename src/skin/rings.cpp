@@ -222,11 +222,17 @@ void add_dome(TubeBuild* t, int M, int rings, const SkinOptions& o) {
     const Eigen::Vector3d r = q - s.o;
     return Eigen::Vector3d(r.dot(s.u), r.dot(s.v), r.dot(s.n));
   };
+  // The rim: the tube's last ring, and its largest radius. A copy: the rings pushed below may
+  // move t->rings' elements (a tube whose rings filled their capacity exactly: the little
+  // finger of a family pair with the automatic skeleton, 16 of 16), and a reference to the rim
+  // would then read freed memory (it crashed once in a family study, a general protection
+  // fault).
+  const std::vector<Eigen::Vector3d> last = t->rings.back();
+  double rim = 0;
+  for (const auto& p : last) rim = std::max(rim, (p - s.o).norm());
   // The last slab's points too: they pin the dome's rim. Points beyond 1.6 times the rim's
   // largest radius are another digit's (a curled neighbour's tip), not this dome's.
-  double rim_in = 0;
-  for (const auto& p : t->rings.back()) rim_in = std::max(rim_in, (p - s.o).norm());
-  const double reach = 1.6 * rim_in;
+  const double reach = 1.6 * rim;
   for (const auto& p2 : t->slab.back()) {
     const Eigen::Vector3d l(p2.x(), p2.y(), 0);
     if (l.norm() > 1e-6 && l.norm() <= reach) dir_pts.push_back(l.normalized()), rad.push_back(l.norm());
@@ -247,13 +253,6 @@ void add_dome(TubeBuild* t, int M, int rings, const SkinOptions& o) {
   // A fingertip is about as wide as its last ring: the dome's radius stays within 0.3–1.3
   // times the rim's largest (the harmonic fit, unconstrained where a curled tip was not
   // seen, can otherwise throw a spike far out).
-  // A copy: the rings pushed below may move t->rings' elements (a tube whose rings filled
-  // their capacity exactly: the little finger of a family pair with the automatic skeleton, 16
-  // of 16), and a reference to the rim would then read freed memory (it crashed once in a
-  // family study, a general protection fault).
-  const std::vector<Eigen::Vector3d> last = t->rings.back();
-  double rim = 0;
-  for (const auto& p : last) rim = std::max(rim, (p - s.o).norm());
   auto radius = [&](const Eigen::Vector3d& d) {
     double sum = 0;
     int n = 0;
