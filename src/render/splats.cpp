@@ -35,8 +35,9 @@ std::string render_points_png(const std::vector<Eigen::Vector3d>& points, const 
   HS_CHECK(points.size() < std::numeric_limits<std::uint32_t>::max(), "too many points to draw");
   for (size_t k = 0; k < points.size(); ++k) {
     const auto [top, bottom] = raster::disc_rows(f.window(o.view * points[k]).y(), diameter);
-    const int b0 = std::max(0, top) / kBandRows, b1 = std::min(H - 1, bottom) / kBandRows;
-    for (int b = b0; b <= b1 && top <= bottom; ++b) in_band[b].push_back(static_cast<std::uint32_t>(k));
+    if (top > bottom || bottom < 0 || top > H - 1) continue;  // no row of the picture
+    for (int b = std::max(0, top) / kBandRows; b <= std::min(H - 1, bottom) / kBandRows; ++b)
+      in_band[b].push_back(static_cast<std::uint32_t>(k));
   }
   const raster::Lights lights;
   std::vector<std::uint8_t> rgba, rgb(static_cast<size_t>(o.width) * o.height * 3);
