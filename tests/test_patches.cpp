@@ -148,6 +148,17 @@ TEST(Patches, SplitsStayLocalWithExactTJunctionsAndKeepTheSurface) {
     const LayoutSplit one = split_layout(s, cuts);
     const LayoutTopology T1 = layout_topology(one.layout, "split cube");
     EXPECT_EQ(T1.halves.size(), 2u);  // the faces across its sides 0 and 2 keep them whole
+    // The hanging vertex is told by its two faces, not by the chords: a long side that bends
+    // (or whose parameter runs unevenly) can be shorter than a half's chord. A refined fixture
+    // layout had one (chords 0.93 mm against 0.35 and 1.03) and was refused, the longest chord
+    // naming a corner of four faces as hanging.
+    for (const auto& [long_side, r] : T1.hanging) {
+      PatchLayout bent = one.layout;
+      bent.vertices[r] += 10.0 * (bent.vertices[r] - Eigen::Vector3d::Zero());
+      LayoutTopology Tb;
+      ASSERT_NO_THROW(Tb = layout_topology(bent, "bent"));
+      EXPECT_EQ(Tb.hangs_on[r], long_side);
+    }
     const PatchSkin r = fit_patches(one.layout, c.points, c.sides, {}, {}, PatchOptions{}, &one.seed);
     EXPECT_LT(r.g0_gap_mm, 1e-9);  // measured along every short side against its long side
     EXPECT_LE(r.side[0].mean, s.side[0].mean * 1.05);
