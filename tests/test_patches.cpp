@@ -230,6 +230,9 @@ TEST(Patches, SplitsStayLocalWithExactTJunctionsAndKeepTheSurface) {
     for (double u : {0.0, 0.3, 1.0})
       for (double v : {0.0, 0.7, 1.0})
         ASSERT_LT((child.eval(u, v) - parent.eval(u0 + du * u, v0 + dv * v)).norm(), 1e-12) << name;
+    // Its sides on its parent's same sides: where its piece of the parent's square touches them.
+    const std::array<bool, 4> touches = {v0 == 0, u0 + du == 1, v0 + dv == 1, u0 == 0};
+    EXPECT_EQ(split.on_parent_side[f], touches) << name;
     // The new corners lie on the surface: each face's corner is its patch's corner.
     for (int k = 0; k < 4; ++k) {
       const double cu = k == 1 || k == 2, cv = k >= 2;
@@ -387,19 +390,22 @@ TEST(Patches, ToleranceSplitsOnlyWhereThePointsMiss) {
   const int n = r["patches"].get<int>();
   EXPECT_GT(n, 98);
   EXPECT_LE(n, 300);
-  // Measured: 98 -> 208 -> 246 -> 266 patches, the worst point 0.918 -> 0.777 -> 0.464 -> 0.361 mm
-  // (the later splits for the rough patches, docs/patches.md).
+  // Measured: 98 -> 219 -> 240 -> 278 -> 287 patches, the worst point 0.918 -> 0.762 -> 0.381 ->
+  // 0.362 -> 0.363 mm (the later splits for the rough patches, docs/patches.md).
   EXPECT_TRUE(f["held"].get<bool>()) << f.dump();
-  EXPECT_LE(n, 290);
   for (const char* side : {"palm", "back"}) EXPECT_LE(r["data_to_surface_mm"][side]["max"].get<double>(), 0.5) << side;
   EXPECT_LE(r["continuity"]["g0_gap_mm"].get<double>(), 1e-6);
   // Issue 38's bars on the fixture: data -> surface mean <= 1.2 x the noise floor; against the
-  // truth mean <= 0.06, p95 <= 0.2 mm, >= 99.5 % within 1 mm (measured 0.067 / 0.066 against
-  // 0.074; 0.058 / 0.157 mm; 100.00 %).
+  // truth mean <= 0.06, p95 <= 0.2 mm, >= 99.5 % within 1 mm (measured 0.063 / 0.063 against
+  // 0.074; 0.052 / 0.143 mm; 100.00 %).
   for (const char* side : {"palm", "back"})
     EXPECT_LE(r["data_to_surface_mm"][side]["mean"].get<double>(), 1.2 * r["table_4_1"]["noise_floor_mm"][side].get<double>());
   EXPECT_LE(r["truth"]["surface_to_truth_mm"]["mean"].get<double>(), 0.06);
-  EXPECT_LE(r["continuity"]["g1_normal_jump_deg"]["p95"].get<double>(), 0.3);  // measured 0.13
+  EXPECT_LE(r["continuity"]["g1_normal_jump_deg"]["p95"].get<double>(), 0.3);  // measured 0.11
+  // No fold at the webs: a face along a web's bottom is halved across it once at most (before
+  // that rule the ring-little web folded by 65-99 deg here). Measured 1.1 deg.
+  EXPECT_LE(r["continuity"]["g1_normal_jump_deg"]["max"].get<double>(), 30.0)
+      << r["continuity"]["g1_normal_jump_deg"]["max_where"];
   EXPECT_LE(r["truth"]["surface_to_truth_mm"]["p95"].get<double>(), 0.2);
   EXPECT_GE(r["truth"]["truth_to_surface_mm"]["within_1mm"].get<double>(), 0.995);
   bool gate = false, kink = false;
@@ -408,8 +414,7 @@ TEST(Patches, ToleranceSplitsOnlyWhereThePointsMiss) {
       gate = true;
       EXPECT_TRUE(g["pass"].get<bool>());
     }
-    // The G1 gate says what the continuity figures measure (the refined fit folds at the
-    // ring-little web: 65-76 deg, docs/patches.md), and fails when they pass its limit.
+    // The G1 gate says what the continuity figures measure, and fails when they pass its limit.
     if (g["name"] == "patches.g1_kink") {
       kink = true;
       EXPECT_EQ(g["value"].get<double>(), r["continuity"]["g1_normal_jump_deg"]["max"].get<double>());

@@ -157,11 +157,13 @@ std::vector<int> balance_cuts(const PatchLayout& layout, const LayoutTopology& t
 /// split border's curve is split the same way from both faces on it, and a side left whole
 /// beside a split one is the long side of a T-junction, whose halves the split faces' sides
 /// are), its name the old one's with "/u0", "/v1", "/00"… appended, the creases split with their
-/// edges, and each new face's parent.
+/// edges, each new face's parent, and which of its sides lie on its parent's same side (a
+/// face cut at u = ½: its halves' sides 0 and 2 and the outer one of 1 and 3).
 struct LayoutSplit {
   PatchLayout layout;
   std::vector<std::array<Eigen::Vector3d, 16>> seed;
   std::vector<int> parent;
+  std::vector<std::array<bool, 4>> on_parent_side;
 };
 LayoutSplit split_layout(const PatchSkin& s, const std::vector<int>& cuts);
 /// Per patch, the q-quantile of its measured points' distances (0 with fewer than 40 points).
