@@ -115,7 +115,7 @@ def build_skin(points, normals, sides, *, rig: Union[None, PathLike, Mapping[str
 def fit_patches(skin: Skin, points, sides, *, pipeline: Optional[PathLike] = None,
                 tolerance: Optional[float] = None, progress: Progress = None) -> Patches:
     """`handskin patches` on arrays: bicubic Bézier patches fitted to `points` over `skin`'s
-    layout, with parameter correction (tolerance: split the patches that miss it, mm)."""
+    layout, with parameter correction (tolerance, mm: split the patches that miss it, or whose points stray near it; docs/patches.md)."""
     return _core.fit_patches(skin, points, sides, pipeline=_p(pipeline), tolerance=tolerance, progress=progress)
 
 
