@@ -61,9 +61,10 @@ std::pair<Net16, Net16> split_v(const Net16& P) { return split_half(P, false); }
 // tolerance of 0.5 mm (0.2 mm) such a patch misses the shape, not the noise. Splitting only the
 // patches whose worst point misses left the fixture's surface → truth mean at 0.073 mm (issue
 // 38's bar: 0.06); with half the tolerance, 0.058 mm and 0.059–0.075 on the family's 12 hands
-// (median 0.065); with 0.4, 0.051 and 0.052–0.075 (median 0.055), for ~20 % more patches (the
-// family's median 215 → 299, within patches.max_patches) and ~35 % more fitting time.
-// Patches with fewer points than kRoughMinPoints are left to the worst-point rule.
+// (median 0.065, with the web rule below); with 0.4 and the reserve below, 0.052 and
+// 0.052–0.074 (median 0.056), for more patches (the 12 hands' median 215 → 295, within
+// patches.max_patches) and more fits. Patches with fewer points than kRoughMinPoints are left
+// to the worst-point rule.
 constexpr double kRoughPercentile = 0.95, kRoughShare = 0.4;
 constexpr size_t kRoughMinPoints = 40;
 constexpr double kRoughBudget = 0.8;
