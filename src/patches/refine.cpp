@@ -231,17 +231,9 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
   R.tolerance_mm = o.tolerance_mm;
   R.seconds.push_back(s->seconds);
   // Per face, its sides that lie on a border of the first layout between two corners where
-  // other than four patches meet (the webs' bottoms between the fingers): carried through the
-  // splits (LayoutSplit::on_parent_side).
-  std::vector<std::array<bool, 4>> on_web(s->patches.size());
-  {
-    const LayoutTopology T0 = layout_topology(s->layout, "patch layout");
-    for (size_t f = 0; f < s->layout.faces.size(); ++f) {
-      const auto& c = s->layout.faces[f];
-      for (int k = 0; k < 4; ++k)
-        on_web[f][k] = !T0.regular(c[k]) && !T0.regular(c[(k + 1) % 4]) && !s->layout.is_crease(c[k], c[(k + 1) % 4]);
-    }
-  }
+  // other than four patches meet (the webs' bottoms between the fingers): found in the first
+  // round, carried through the splits (LayoutSplit::on_parent_side).
+  std::vector<std::array<bool, 4>> on_web;
   for (int round = 0;; ++round) {
     const std::vector<double> err = patch_max_error(*s);
     const std::vector<double> p95 = patch_error_percentile(*s, kRoughPercentile);
@@ -267,6 +259,14 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
     // left. One cut a round (both at once spent the fixture's budget in one round when the
     // cuts ran round their strips).
     const LayoutTopology T = layout_topology(s->layout, "patch layout");
+    if (round == 0) {
+      on_web.resize(s->patches.size());
+      for (size_t f = 0; f < s->layout.faces.size(); ++f) {
+        const auto& c = s->layout.faces[f];
+        for (int k = 0; k < 4; ++k)
+          on_web[f][k] = !T.regular(c[k]) && !T.regular(c[(k + 1) % 4]) && !s->layout.is_crease(c[k], c[(k + 1) % 4]);
+      }
+    }
     std::vector<int> cuts(s->patches.size(), 0);
     std::vector<int> todo = over;
     todo.insert(todo.end(), rough.begin(), rough.end());
