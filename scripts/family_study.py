@@ -43,12 +43,15 @@ PAIRS = [(1, "2.5"), (2, "3.0"), (3, "3.5"), (4, "4.0")]  # seed, marker radius 
 SCAN = {"H04": ["--x-extent", "300", "--y-extent", "240"]}
 
 
-def family_args(doc):
-    """The family studies' options (--bin, --work, --hands), parsed; the work folder made."""
+def family_args(doc, extra=None):
+    """The family studies' options (--bin, --work, --hands, and those `extra(parser)` adds),
+    parsed; the work folder made."""
     ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bin", default="build/handskin")
     ap.add_argument("--work", default="/tmp/family-study")
     ap.add_argument("--hands", default=",".join(HANDS))
+    if extra:
+        extra(ap)
     a = ap.parse_args()
     os.makedirs(a.work, exist_ok=True)
     return a

@@ -115,16 +115,25 @@ def measure_pair(binary, name, d, out_dir, pipeline, stats, regs):
     return row, fails
 
 
-def study_pair(binary, name, work, mesh, seed, radius, scan_extra, pipeline, stats, regs):
-    """A scan pair of the replica in `mesh` (hand.ply, hand_rig.json) in work/name (made with
-    the seed and marker radius, unless it is there already), measured by measure_pair.
-    Returns the table row and the number of failed stages."""
+def scan_pair(binary, name, work, mesh, seed, radius, scan_extra):
+    """A scan pair of the replica in `mesh` (hand.ply, hand_rig.json) in work/name, made with the
+    seed and marker radius unless it is there already: (its folder, None), or (its folder, the
+    synth command's last line) when it could not be made."""
     d = os.path.join(work, name)
     if not os.path.exists(os.path.join(d, "truth.json")):
         rc, out = run([binary, "-q", "synth", "scan", "--mesh", mesh + "/hand.ply", "--rig", mesh + "/hand_rig.json",
                        "--out", d, "--seed", str(seed), "--marker-radius", radius, "--no-render"] + scan_extra)
         if rc:
-            return [name, "-", "synth scan: " + out.strip().splitlines()[-1]], 1
+            return d, "synth scan: " + out.strip().splitlines()[-1]
+    return d, None
+
+
+def study_pair(binary, name, work, mesh, seed, radius, scan_extra, pipeline, stats, regs):
+    """A scan pair (scan_pair) measured by measure_pair. Returns the table row and the number
+    of failed stages."""
+    d, error = scan_pair(binary, name, work, mesh, seed, radius, scan_extra)
+    if error:
+        return [name, "-", error], 1
     row, failed = measure_pair(binary, name, d, os.path.join(work, "out-" + name), pipeline, stats, regs)
     print(name, "done", file=sys.stderr)
     return row, failed

@@ -13,35 +13,19 @@ truth mean, p95 and the true skin's share within 1 mm against the bars (0.06 mm,
 99.5 %), the largest G1 jump away from the irregular corners, the patch count and the runs'
 times. docs/patches.md gives its figures.
 """
-import argparse
 import json
 import os
 import statistics
 
-from family_study import HANDS, PAIRS, SCAN, family_hand
-from study_util import run, stage
-
-
-def scan_pair(binary, work, hand_dir, h, seed, radius):
-    """The pair's folder (made by `synth scan` as family_study.py makes it), or None and the error."""
-    d = os.path.join(work, f"{h}-s{seed}-r{radius}")
-    if not os.path.exists(os.path.join(d, "truth.json")):
-        rc, out = run([binary, "-q", "synth", "scan", "--mesh", hand_dir + "/hand.ply", "--rig",
-                       hand_dir + "/hand_rig.json", "--out", d, "--seed", str(seed), "--marker-radius", radius, "--no-render"]
-                      + SCAN.get(h, []))
-        if rc:
-            return None, "synth scan: " + out.strip().splitlines()[-1]
-    return d, None
+from family_study import PAIRS, SCAN, family_args, family_hand
+from study_util import run, scan_pair, stage
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--bin", default="build/handskin")
-    ap.add_argument("--work", default="/tmp/family-study")
-    ap.add_argument("--out", default="/tmp/tolerance-study")
-    ap.add_argument("--tolerance", default="0.5")
-    ap.add_argument("--hands", default=",".join(HANDS))
-    a = ap.parse_args()
+    def options(ap):
+        ap.add_argument("--out", default="/tmp/tolerance-study")
+        ap.add_argument("--tolerance", default="0.5")
+    a = family_args(__doc__, options)
     os.makedirs(a.out, exist_ok=True)
     rows = []
     for h in a.hands.split(","):
@@ -50,7 +34,7 @@ def main():
             print(f"{h}: {error}")
             continue
         for seed, radius in PAIRS:
-            d, error = scan_pair(a.bin, a.work, hand, h, seed, radius)
+            d, error = scan_pair(a.bin, f"{h}-s{seed}-r{radius}", a.work, hand, seed, radius, SCAN.get(h, []))
             if error:
                 print(f"{h}-s{seed}: {error}")
                 continue
