@@ -11,6 +11,7 @@
 #include "core/transform.hpp"
 #include "pipeline/registration_stage.hpp"
 #include "register/registration.hpp"
+#include "register/sphere_residual.hpp"
 #include "synth/replica.hpp"
 #include "synth/scanner.hpp"
 #include "test_util.hpp"
@@ -370,6 +371,54 @@ TEST(Refine, UngatedIcpWouldCollapseTheHandAndIsRefused) {
 }
 
 // ---------------------------------------------------------------- the whole stage
+
+// The sphere fits stack a cap's samples into one residual block (StackedCost): the same
+// least squares as one block per sample, the same solver, so the same centre and radius to the
+// last bits, here on a noisy cap seen from above with a free radius and its bounds.
+TEST(Register, StackedSamplesAreTheSameFitAsOneBlockEach) {
+  Rng rng(11);
+  std::vector<Eigen::Vector3d> cap;
+  const Eigen::Vector3d centre(1.3, -0.7, 2.0);
+  const double r = 3.9;
+  for (double x = -3.6; x <= 3.6; x += 0.2)
+    for (double y = -3.6; y <= 3.6; y += 0.2) {
+      const double h2 = r * r - x * x - y * y;
+      if (h2 < 0.3 * r * r) continue;
+      cap.emplace_back(centre.x() + x, centre.y() + y, centre.z() + std::sqrt(h2) + 0.05 * rng.normal());
+    }
+  ASSERT_GT(cap.size(), 300u);
+  const auto fit = [&](bool stacked, int iterations) {
+    std::array<double, 4> x = {0.9, -0.2, 1.1, 3.0};  // centre, radius
+    ceres::Problem problem;
+    std::vector<const ceres::CostFunction*> parts;
+    std::vector<std::unique_ptr<ceres::CostFunction>> owned;
+    for (const auto& p : cap) {
+      ceres::CostFunction* f = FreeRadiusResidual::Create(p, 0.2);
+      if (stacked) owned.emplace_back(f), parts.push_back(f);
+      else problem.AddResidualBlock(f, nullptr, x.data(), &x[3]);
+    }
+    if (stacked) problem.AddResidualBlock(new StackedCost(std::move(parts), std::move(owned)), nullptr, x.data(), &x[3]);
+    problem.SetParameterLowerBound(&x[3], 0, 0.5 * r);
+    problem.SetParameterUpperBound(&x[3], 0, 2.0 * r);
+    ceres::Solver::Options o;
+    o.linear_solver_type = ceres::DENSE_QR;
+    o.max_num_iterations = iterations;
+    o.logging_type = ceres::SILENT;
+    ceres::Solver::Summary summary;
+    ceres::Solve(o, &problem, &summary);
+    return std::pair{x, summary.num_successful_steps};
+  };
+  for (int iterations : {1, 3, 50}) {  // every step the same, not only the end
+    const auto [one, steps_one] = fit(false, iterations);
+    const auto [all, steps_all] = fit(true, iterations);
+    EXPECT_EQ(steps_one, steps_all);
+    for (int k = 0; k < 4; ++k) EXPECT_NEAR(one[k], all[k], 1e-12) << "parameter " << k << " after " << iterations;
+  }
+  const auto [x, steps] = fit(true, 50);
+  EXPECT_NEAR((Eigen::Vector3d(x[0], x[1], x[2]) - centre).norm(), 0.0, 0.02);
+  EXPECT_NEAR(x[3], r, 0.02);
+  EXPECT_GE(steps, 2);
+}
 
 TEST(Register, FixtureAgainstTruth) {
   const RangeScan back = load_scan(kFixture + "back"), palm = load_scan(kFixture + "palm");

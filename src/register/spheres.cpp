@@ -62,15 +62,15 @@ struct FineResiduals {
 Eigen::Vector3d fit_centre(const PreparedScan& s, const std::vector<int>& idx, const std::vector<int>& places,
                            const Eigen::Vector3d& start, double r, double floor, bool coarse, FineResiduals* fine) {
   double c[3] = {start.x(), start.y(), start.z()};
-  ceres::Problem::Options po;
-  if (!coarse) po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;  // `fine` keeps them
-  ceres::Problem problem(po);
+  std::vector<const ceres::CostFunction*> parts;
+  std::vector<std::unique_ptr<ceres::CostFunction>> owned;  // the coarse ones (`fine` keeps its own)
   for (size_t q = 0; q < idx.size(); ++q) {
     const int k = idx[q];
-    problem.AddResidualBlock(coarse ? SphereDistanceResidual::Create(s.points[k], start, r, floor)
-                                    : fine->get(s, k, places[q], r, floor),
-                             nullptr, c);
+    if (coarse) owned.emplace_back(SphereDistanceResidual::Create(s.points[k], start, r, floor));
+    parts.push_back(coarse ? owned.back().get() : fine->get(s, k, places[q], r, floor));
   }
+  ceres::Problem problem;
+  problem.AddResidualBlock(new StackedCost(std::move(parts), std::move(owned)), nullptr, c);
   ceres::Solver::Summary summary;
   ceres::Solve(small_solver(), &problem, &summary);
   return {c[0], c[1], c[2]};
@@ -80,8 +80,11 @@ double fit_free_radius(const PreparedScan& s, const std::vector<int>& idx, const
                        double floor) {
   double c[3] = {start.x(), start.y(), start.z()};
   double radius = r;
+  std::vector<const ceres::CostFunction*> parts;
+  std::vector<std::unique_ptr<ceres::CostFunction>> owned;
+  for (int k : idx) owned.emplace_back(FreeRadiusResidual::Create(s.points[k], floor)), parts.push_back(owned.back().get());
   ceres::Problem problem;
-  for (int k : idx) problem.AddResidualBlock(FreeRadiusResidual::Create(s.points[k], floor), nullptr, c, &radius);
+  problem.AddResidualBlock(new StackedCost(std::move(parts), std::move(owned)), nullptr, c, &radius);
   problem.SetParameterLowerBound(&radius, 0, 0.1 * r);
   problem.SetParameterUpperBound(&radius, 0, 10.0 * r);
   ceres::Solver::Summary summary;
