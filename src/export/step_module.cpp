@@ -6,7 +6,12 @@
 // The patches become one Bézier face each (Geom_BezierSurface, 4 × 4 poles, P[4i + j] at
 // (i, j): u along i), sewn by BRepBuilderAPI_Sewing into shells (a T-junction's long edge is
 // cut where the short ones meet it), a closed shell made a solid. Each face is named after its
-// patch (XCAF sub-shape names, written as the ADVANCED_FACE's name), in millimetres, AP214.
+// patch (its ADVANCED_FACE's name), in millimetres, AP214. The names are set on the STEP
+// entities the translator made of the faces (found through its finder process), and read back
+// from the entities the reader translated each face from: no XCAF document, whose libraries
+// (TKLCAF, TKCAF, TKXCAF, TKXDESTEP and through them TKV3d, TKService, X11, FreeImage…: 67
+// shared libraries in all against 21) took this module's loading 45 → 17 ms in a bare process
+// and more in handskin's, where each of their symbols is first looked for in the program's.
 #include "export/step_module.h"
 
 #include <APIHeaderSection_MakeHeader.hxx>
@@ -20,19 +25,28 @@
 #include <Bnd_Box.hxx>
 #include <Geom_BezierSurface.hxx>
 #include <IFSelect_ReturnStatus.hxx>
+#include <Interface_InterfaceModel.hxx>
 #include <Interface_Static.hxx>
 #include <Message.hxx>
 #include <Message_Messenger.hxx>
-#include <STEPCAFControl_Reader.hxx>
-#include <STEPCAFControl_Writer.hxx>
 #include <STEPControl_Reader.hxx>
+#include <STEPControl_Writer.hxx>
+#include <StepRepr_RepresentationItem.hxx>
+#include <StepBasic_Product.hxx>
+#include <StepData_StepModel.hxx>
+#include <StepShape_AdvancedFace.hxx>
+#include <TopTools_DataMapOfShapeInteger.hxx>
+#include <TransferBRep.hxx>
+#include <TransferBRep_ShapeMapper.hxx>
+#include <Transfer_FinderProcess.hxx>
+#include <Transfer_TransientProcess.hxx>
+#include <XSControl_TransferReader.hxx>
+#include <XSControl_TransferWriter.hxx>
+#include <XSControl_WorkSession.hxx>
 #include <ShapeAnalysis_FreeBounds.hxx>
 #include <Standard_Failure.hxx>
 #include <TColgp_Array2OfPnt.hxx>
-#include <TDF_Label.hxx>
-#include <TDataStd_Name.hxx>
 #include <TCollection_HAsciiString.hxx>
-#include <TDocStd_Document.hxx>
 #include <TopExp.hxx>
 #include <TopExp_Explorer.hxx>
 #include <TopTools_IndexedDataMapOfShapeListOfShape.hxx>
@@ -40,9 +54,6 @@
 #include <TopoDS_Compound.hxx>
 #include <TopoDS_Face.hxx>
 #include <TopoDS_Shell.hxx>
-#include <XCAFApp_Application.hxx>
-#include <XCAFDoc_DocumentTool.hxx>
-#include <XCAFDoc_ShapeTool.hxx>
 
 #include <cstdio>
 #include <cstring>
@@ -134,27 +145,31 @@ extern "C" int handskin_step_write(int n_patches, const double* poles, const cha
       BRepBuilderAPI_MakeSolid solid(TopoDS::Shell(sewn));
       if (solid.IsDone()) result = solid.Solid();
     }
-    // 4. The document: the shape, each face named after its patch.
-    Handle(XCAFApp_Application) app = XCAFApp_Application::GetApplication();
-    Handle(TDocStd_Document) doc;
-    app->NewDocument("MDTV-XCAF", doc);
-    Handle(XCAFDoc_ShapeTool) shapes = XCAFDoc_DocumentTool::ShapeTool(doc->Main());
-    const TDF_Label root = shapes->AddShape(result, Standard_False);
-    TDataStd_Name::Set(root, "handskin patches");
-    for (int p = 0; p < n_patches; ++p) {
-      const TopoDS_Shape& modified = sewing.Modified(faces[static_cast<size_t>(p)]);
-      const TDF_Label face = shapes->AddSubShape(root, modified.IsNull() ? faces[static_cast<size_t>(p)] : modified);
-      if (!face.IsNull()) TDataStd_Name::Set(face, names[p]);
-    }
-    STEPCAFControl_Writer writer;  // first: it registers the parameters set below
+    // 4. The STEP model of the shape, each face's entity named after its patch.
+    STEPControl_Writer writer;  // first: it registers the parameters set below
     Interface_Static::SetCVal("write.step.schema", "AP214IS");
     Interface_Static::SetCVal("write.step.unit", "MM");
-    Interface_Static::SetIVal("write.stepcaf.subshapes.name", 1);
-    writer.SetNameMode(Standard_True);
-    if (!writer.Transfer(doc, STEPControl_AsIs)) return say(out, "OCCT could not translate the shape to STEP"), 1;
+    if (writer.Transfer(result, STEPControl_AsIs) != IFSelect_RetDone)
+      return say(out, "OCCT could not translate the shape to STEP"), 1;
+    const Handle(Transfer_FinderProcess) made = writer.WS()->TransferWriter()->FinderProcess();
+    for (int p = 0; p < n_patches; ++p) {
+      const TopoDS_Shape& modified = sewing.Modified(faces[static_cast<size_t>(p)]);
+      const TopoDS_Shape& face = modified.IsNull() ? faces[static_cast<size_t>(p)] : modified;
+      const Handle(StepRepr_RepresentationItem) item =
+          Handle(StepRepr_RepresentationItem)::DownCast(made->FindTransient(TransferBRep::ShapeMapper(made, face)));
+      if (item.IsNull()) return say(out, "patch " + std::string(names[p]) + ": OCCT made no STEP face of it"), 1;
+      item->SetName(new TCollection_HAsciiString(names[p]));
+    }
+    // The product named as the document's root was (write.step.product.name would number it).
+    const Handle(Interface_InterfaceModel) model = writer.Model();
+    for (int i = 1; i <= model->NbEntities(); ++i)
+      if (const Handle(StepBasic_Product) product = Handle(StepBasic_Product)::DownCast(model->Value(i)); !product.IsNull()) {
+        product->SetId(new TCollection_HAsciiString("handskin patches"));
+        product->SetName(new TCollection_HAsciiString("handskin patches"));
+      }
     // The header without the wall-clock time OCCT puts there: the same patches give the same
     // bytes.
-    APIHeaderSection_MakeHeader header(writer.ChangeWriter().Model());
+    APIHeaderSection_MakeHeader header(writer.Model());
     header.SetName(new TCollection_HAsciiString("handskin patches"));
     header.SetTimeStamp(new TCollection_HAsciiString("2000-01-01T00:00:00"));
     header.SetAuthorValue(1, new TCollection_HAsciiString("handskin"));
@@ -163,7 +178,6 @@ extern "C" int handskin_step_write(int n_patches, const double* poles, const cha
     header.SetDescriptionValue(1, new TCollection_HAsciiString("bicubic Bezier patches of a hand's skin, mm"));
     if (writer.Write(path) != IFSelect_RetDone) return say(out, std::string("cannot write ") + path), 1;
     out->faces = n_patches;  // the shape's figures: read the file back (handskin_step_read)
-    app->Close(doc);
     return 0;
   } catch (const Standard_Failure& e) {
     say(out, std::string("OCCT: ") + e.GetMessageString());
@@ -181,34 +195,26 @@ extern "C" int handskin_step_read(const char* path, HsStepSummary* out, char* na
   std::lock_guard<std::mutex> lock(occt_lock());
   try {
     quiet();
-    STEPCAFControl_Reader reader;  // first: it registers the parameter set below
-    Interface_Static::SetIVal("read.stepcaf.subshapes.name", 1);
-    reader.SetNameMode(Standard_True);
+    STEPControl_Reader reader;
     if (reader.ReadFile(path) != IFSelect_RetDone) return say(out, std::string(path) + ": not a STEP file OCCT can read"), 1;
-    Handle(XCAFApp_Application) app = XCAFApp_Application::GetApplication();
-    Handle(TDocStd_Document) doc;
-    app->NewDocument("MDTV-XCAF", doc);
-    if (!reader.Transfer(doc)) return say(out, std::string(path) + ": OCCT could not translate it"), 1;
-    Handle(XCAFDoc_ShapeTool) shapes = XCAFDoc_DocumentTool::ShapeTool(doc->Main());
-    TDF_LabelSequence free;
-    shapes->GetFreeShapes(free);
-    BRep_Builder b;
-    TopoDS_Compound all;
-    b.MakeCompound(all);
-    std::string listed;
-    for (int i = 1; i <= free.Length(); ++i) {
-      b.Add(all, shapes->GetShape(free.Value(i)));
-      TDF_LabelSequence subs;
-      shapes->GetSubShapes(free.Value(i), subs);
-      for (int k = 1; k <= subs.Length(); ++k) {
-        Handle(TDataStd_Name) name;
-        if (subs.Value(k).FindAttribute(TDataStd_Name::GetID(), name))
-          listed += TCollection_AsciiString(name->Get()).ToCString() + std::string("\n");
-      }
+    if (reader.TransferRoots() == 0) return say(out, std::string(path) + ": OCCT could not translate it"), 1;
+    const TopoDS_Shape all = reader.OneShape();
+    // Each face's name: that of the entity it was translated from (faces in the shape's order).
+    const Handle(Transfer_TransientProcess) tp = reader.WS()->TransferReader()->TransientProcess();
+    const Handle(Interface_InterfaceModel) model = reader.Model();
+    TopTools_DataMapOfShapeInteger entity_of;
+    for (int i = 1; i <= model->NbEntities(); ++i) {
+      const Handle(StepShape_AdvancedFace) f = Handle(StepShape_AdvancedFace)::DownCast(model->Value(i));
+      if (f.IsNull() || f->Name().IsNull() || f->Name()->Length() == 0) continue;
+      const TopoDS_Shape face = TransferBRep::ShapeResult(tp, f);
+      if (!face.IsNull()) entity_of.Bind(face, i);
     }
+    std::string listed;
+    for (TopExp_Explorer e(all, TopAbs_FACE); e.More(); e.Next())
+      if (entity_of.IsBound(e.Current()))
+        listed += std::string(Handle(StepShape_AdvancedFace)::DownCast(model->Value(entity_of(e.Current())))->Name()->ToCString()) + "\n";
     summarise(all, out);
     if (names && names_size > 0) std::snprintf(names, static_cast<size_t>(names_size), "%s", listed.c_str());
-    app->Close(doc);
     return 0;
   } catch (const Standard_Failure& e) {
     say(out, std::string("OCCT: ") + e.GetMessageString());
