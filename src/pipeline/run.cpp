@@ -1,6 +1,7 @@
 #include "pipeline/run.hpp"
 
 #include <chrono>
+#include <exception>
 #include <filesystem>
 #include <future>
 
@@ -45,8 +46,13 @@ Json to_json(const ScanFigures& s) {
 namespace {
 // The rigged skin in the report's postures: open (the scan's), relaxed, a fist, and the
 // solver's answer to a 75° little-finger MCP alone; the last two also with the thesis's rigid
-// binding. Side views, 360 × 270.
-std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, float texture_weight) {
+// binding. Side views, 360 × 270: the captions, the posed meshes and how to draw them.
+struct PosedShots {
+  std::vector<std::string> captions;
+  std::vector<Mesh> meshes;
+  RenderOptions view;
+};
+PosedShots posed_shots(const RiggedSkin& s, float texture_weight) {
   const PostureSolver solver(s.model);
   BindingOptions rb;
   rb.mode = "rigid";
@@ -70,8 +76,8 @@ std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, float texture_wei
       {"little MCP 75° alone: the solver fills in the rest", &little, &s.binding},
       {"fist, rigid binding (the thesis)", &closed, &rigid},
       {"little MCP 75°, rigid binding (the thesis)", &little, &rigid}};
-  // The postures first, on every thread (each into its own slot; the crease guard's untangling
-  // takes ~25 ms a posture), then the pictures on this thread's OpenGL context.
+  // On every thread, each into its own slot (the crease guard's untangling takes ~25 ms a
+  // posture); the pictures are drawn with skin.png (run_pipeline).
   std::vector<Mesh> posed(shown.size());
   std::vector<std::exception_ptr> failed(shown.size());  // an exception must not leave an OpenMP loop
 #pragma omp parallel for schedule(dynamic)
@@ -87,8 +93,10 @@ std::vector<ReportPicture> posed_pictures(const RiggedSkin& s, float texture_wei
   }
   for (const auto& e : failed)
     if (e) std::rethrow_exception(e);
-  std::vector<ReportPicture> out;
-  for (size_t k = 0; k < shown.size(); ++k) out.push_back({std::get<0>(shown[k]), render_mesh_png({&posed[k]}, ro)});
+  PosedShots out;
+  for (const auto& shot : shown) out.captions.push_back(std::get<0>(shot));
+  out.meshes = std::move(posed);
+  out.view = ro;
   return out;
 }
 }  // namespace
@@ -258,9 +266,27 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
       return patch_report_pictures(patches, rig);
     });
   const float texture_weight = static_cast<float>(in.options.texture.weight);
-  R.skin_png = skin_preview_png(R.skin, R.texture ? &R.rigged.texture : nullptr, texture_weight);
-  if (R.patches)  // for report.html, which the patch stage writes
-    R.posed = posed_pictures(R.rigged, texture_weight);
+  // skin.png and, for report.html (which the patch stage writes), the posed skins: the postures
+  // first, then the seven pictures at once, each drawn into its own slot (skin.png, the
+  // largest, first): the same bytes with any number of threads.
+  PosedShots posed;
+  if (R.patches) posed = posed_shots(R.rigged, texture_weight);
+  std::vector<std::string> pictures(1 + posed.meshes.size());
+  std::vector<std::exception_ptr> picture_failed(pictures.size());
+#pragma omp parallel for schedule(dynamic)
+  for (long k = 0; k < static_cast<long>(pictures.size()); ++k) {
+    try {
+      pictures[static_cast<size_t>(k)] =
+          k == 0 ? skin_preview_png(R.skin, R.texture ? &R.rigged.texture : nullptr, texture_weight)
+                 : render_mesh_png({&posed.meshes[static_cast<size_t>(k) - 1]}, posed.view);
+    } catch (...) {
+      picture_failed[static_cast<size_t>(k)] = std::current_exception();
+    }
+  }
+  for (const auto& e : picture_failed)
+    if (e) std::rethrow_exception(e);
+  R.skin_png = std::move(pictures[0]);
+  for (size_t k = 0; k < posed.meshes.size(); ++k) R.posed.push_back({posed.captions[k], std::move(pictures[k + 1])});
   const std::vector<unsigned char> glb = skin_glb(R.rigged);
   R.glb.assign(glb.begin(), glb.end());
   if (R.patches) R.patches->pictures = patch_pictures.get(), R.patches->step = patches_step.get();
