@@ -279,7 +279,7 @@ struct NetSolver {
   /// pattern, so each of A's values adds, with fixed weights, into fixed entries of Ar's values:
   /// those of A's value p are `scatter[scatter_begin[p] .. scatter_begin[p + 1])`. One pass over
   /// A's values a round instead of two general sparse products (12–80 ms a round at 250–270
-  /// patches on the fixture; the scatter itself is made once per fit, in 50–80 ms), and Ar's
+  /// patches on the fixture; the scatter itself is made once per fit, in ~25 ms: reduction_scatter), and Ar's
   /// pattern is analysed once per fit instead of before every factorisation (10–20 ms each).
   std::vector<int> scatter_begin;
   std::vector<std::pair<int, double>> scatter;
