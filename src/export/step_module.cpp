@@ -157,8 +157,9 @@ extern "C" int handskin_step_write(int n_patches, const double* poles, const cha
       const TopoDS_Shape& face = modified.IsNull() ? faces[static_cast<size_t>(p)] : modified;
       const Handle(StepRepr_RepresentationItem) item =
           Handle(StepRepr_RepresentationItem)::DownCast(made->FindTransient(TransferBRep::ShapeMapper(made, face)));
-      if (item.IsNull()) return say(out, "patch " + std::string(names[p]) + ": OCCT made no STEP face of it"), 1;
-      item->SetName(new TCollection_HAsciiString(names[p]));
+      // A face the sewing made into something else has no entity of its own: left unnamed, as
+      // the XCAF writer did (the read-back names then count fewer than the patches).
+      if (!item.IsNull()) item->SetName(new TCollection_HAsciiString(names[p]));
     }
     // The product named as the document's root was (write.step.product.name would number it).
     const Handle(Interface_InterfaceModel) model = writer.Model();
