@@ -1,7 +1,6 @@
 #include "pipeline/run.hpp"
 
 #include <chrono>
-#include <exception>
 #include <filesystem>
 #include <future>
 
@@ -18,6 +17,7 @@
 #include "pipeline/registration_stage.hpp"
 #include "pipeline/run_folder.hpp"
 #include "pipeline/stage_options.hpp"
+#include "core/parallel_jobs.hpp"
 #include "core/threads.hpp"
 
 namespace handskin {
@@ -79,20 +79,12 @@ PosedShots posed_shots(const RiggedSkin& s, float texture_weight) {
   // On every thread, each into its own slot (the crease guard's untangling takes ~25 ms a
   // posture); the pictures are drawn with skin.png (run_pipeline).
   std::vector<Mesh> posed(shown.size());
-  std::vector<std::exception_ptr> failed(shown.size());  // an exception must not leave an OpenMP loop
-#pragma omp parallel for schedule(dynamic)
-  for (long k = 0; k < static_cast<long>(shown.size()); ++k) {
+  parallel_jobs(static_cast<long>(shown.size()), [&](long k) {
     const auto& [caption, angles, binding] = shown[static_cast<size_t>(k)];
     const bool is_rigid = binding == &rigid;
-    try {
-      posed[static_cast<size_t>(k)] = Mesh{
-          (is_rigid ? rigid_poser : smooth_poser).pose(*angles, is_rigid ? Blend::Linear : Blend::DualQuaternion), s.mesh.faces};
-    } catch (...) {
-      failed[static_cast<size_t>(k)] = std::current_exception();
-    }
-  }
-  for (const auto& e : failed)
-    if (e) std::rethrow_exception(e);
+    posed[static_cast<size_t>(k)] = Mesh{
+        (is_rigid ? rigid_poser : smooth_poser).pose(*angles, is_rigid ? Blend::Linear : Blend::DualQuaternion), s.mesh.faces};
+  });
   PosedShots out;
   for (const auto& shot : shown) out.captions.push_back(std::get<0>(shot));
   out.meshes = std::move(posed);
@@ -272,19 +264,10 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   PosedShots posed;
   if (R.patches) posed = posed_shots(R.rigged, texture_weight);
   std::vector<std::string> pictures(1 + posed.meshes.size());
-  std::vector<std::exception_ptr> picture_failed(pictures.size());
-#pragma omp parallel for schedule(dynamic)
-  for (long k = 0; k < static_cast<long>(pictures.size()); ++k) {
-    try {
-      pictures[static_cast<size_t>(k)] =
-          k == 0 ? skin_preview_png(R.skin, R.texture ? &R.rigged.texture : nullptr, texture_weight)
-                 : render_mesh_png({&posed.meshes[static_cast<size_t>(k) - 1]}, posed.view);
-    } catch (...) {
-      picture_failed[static_cast<size_t>(k)] = std::current_exception();
-    }
-  }
-  for (const auto& e : picture_failed)
-    if (e) std::rethrow_exception(e);
+  parallel_jobs(static_cast<long>(pictures.size()), [&](long k) {
+    pictures[static_cast<size_t>(k)] = k == 0 ? skin_preview_png(R.skin, R.texture ? &R.rigged.texture : nullptr, texture_weight)
+                                              : render_mesh_png({&posed.meshes[static_cast<size_t>(k) - 1]}, posed.view);
+  });
   R.skin_png = std::move(pictures[0]);
   for (size_t k = 0; k < posed.meshes.size(); ++k) R.posed.push_back({posed.captions[k], std::move(pictures[k + 1])});
   const std::vector<unsigned char> glb = skin_glb(R.rigged);

@@ -4,11 +4,11 @@
 #include <array>
 #include <chrono>
 #include <cmath>
-#include <exception>
 #include <cstdio>
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
+#include "core/parallel_jobs.hpp"
 #include "core/transform.hpp"
 #include "scan/cloud.hpp"
 #include "scan/cloud_file.hpp"
@@ -134,17 +134,7 @@ std::vector<SphereFit> caps_in_scan(const PreparedScan& s, const std::optional<s
 // job(0) and job(1) at once (independent, each into its own slot); the first one's error first.
 template <typename Job>
 void both_sides(const Job& job) {
-  std::exception_ptr failed[2];
-#pragma omp parallel for schedule(static, 1)
-  for (int side = 0; side < 2; ++side) {
-    try {
-      job(side);
-    } catch (...) {
-      failed[side] = std::current_exception();
-    }
-  }
-  for (const auto& e : failed)
-    if (e) std::rethrow_exception(e);
+  parallel_jobs(2, [&](long side) { job(static_cast<int>(side)); });
 }
 
 // The marker radius's first estimate from the scans (fills radius_mm, spread_mm,
@@ -171,20 +161,12 @@ void estimate_marker_radius(const PreparedScan& back, const PreparedScan& palm, 
   // The searches are independent: each runs into its own slot, in parallel, so the result does
   // not depend on the threads.
   auto search = [&](const std::vector<std::pair<size_t, int>>& jobs) {
-    std::vector<std::exception_ptr> failure(jobs.size());
-#pragma omp parallel for schedule(dynamic)
-    for (long j = 0; j < static_cast<long>(jobs.size()); ++j) {
+    parallel_jobs(static_cast<long>(jobs.size()), [&](long j) {
       const auto [c, side] = jobs[static_cast<size_t>(j)];
-      try {
-        const SphereOptions so = options_for(o.radius_candidates_mm[c]);
-        const std::optional<std::vector<Eigen::Vector3d>>* h = hints ? (side == 0 ? &hints->palm : &hints->back) : nullptr;
-        detected[c][side] = caps_in_scan(side == 0 ? palm : back, h, so, keep);
-      } catch (...) {
-        failure[static_cast<size_t>(j)] = std::current_exception();
-      }
-    }
-    for (const auto& e : failure)
-      if (e) std::rethrow_exception(e);
+      const SphereOptions so = options_for(o.radius_candidates_mm[c]);
+      const std::optional<std::vector<Eigen::Vector3d>>* h = hints ? (side == 0 ? &hints->palm : &hints->back) : nullptr;
+      detected[c][side] = caps_in_scan(side == 0 ? palm : back, h, so, keep);
+    });
   };
   // Matched markers between the two scans' bumps of candidate c (0 below 3 bumps a side).
   std::vector<MarkerMatch> matches(nc);
