@@ -3,7 +3,9 @@ glTF importer made to run on Debian, the glb imported into an empty scene, the s
 evaluated vertices, and the one JSON line and exit code each check ends with."""
 import json
 import os
+import shutil
 import sys
+import tempfile
 
 import bpy
 import numpy
@@ -40,7 +42,13 @@ def world_vertices(mesh):
 
 
 def finish(name, result, ok):
-    """One JSON line of figures; exit 0 when every check held (Blender's own exit is skipped)."""
+    """One JSON line of figures; exit 0 when every check held. Blender's own exit is skipped (it
+    would exit 0 whatever the check found), so its session folder (/tmp/blender_XXXXXX, which
+    its exit removes) is removed here: only that folder, the one this Blender made."""
     print(name + ": " + json.dumps(result), flush=True)
     sys.stdout.flush()
+    session = os.path.normpath(bpy.app.tempdir or "")
+    if (os.path.basename(session).startswith("blender_")
+            and os.path.dirname(session) == os.path.normpath(tempfile.gettempdir())):
+        shutil.rmtree(session, ignore_errors=True)
     os._exit(0 if ok else 1)
