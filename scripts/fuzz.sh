@@ -11,6 +11,8 @@ if [ ! -f build-fuzz/CMakeCache.txt ]; then
   CC=clang CXX=clang++ cmake -S . -B build-fuzz -DHANDSKIN_FUZZ_ONLY=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
 fi
 cmake --build build-fuzz -j "${JOBS:-2}" >/dev/null
+corpus="" log=""
+trap 'rm -rf "$corpus"; rm -f "$log"' EXIT  # the working corpus and log, also when a target fails
 for target in scan rig angles model mocap pipeline; do
   corpus=$(mktemp -d)
   cp fuzz/corpus/"$target"/* "$corpus"/ 2>/dev/null || true

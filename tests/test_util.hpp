@@ -11,7 +11,8 @@
 
 namespace handskin::test {
 
-/// A fresh empty folder under the system temp dir, removed at exit.
+/// A fresh empty folder under the system temp dir, removed after the last test when every test
+/// of the process passed (kept, and named on stderr, when one failed or HANDSKIN_KEEP_TEST_DIRS is set).
 std::string temp_dir(const std::string& tag);
 /// PNG of any depth/colour type built by hand (zlib), for inputs libpng's writer won't make.
 std::string make_png(int w, int h, int depth, int colour_type, const std::vector<std::uint8_t>& raw_rows_no_filter);
