@@ -756,6 +756,37 @@ TEST(Patches, TessellationVerticesAreTheMeshVertices) {
   }
 }
 
+TEST(Patches, ASurfacePassingThroughItselfIsFoundAndNamed) {
+  const Cloud c = ellipsoid_cloud(8000, 0.0);
+  PatchSkin s = fit_patches(cube_layout(2), c.points, c.sides, {}, {}, PatchOptions{});
+  std::vector<int> face_patch;
+  const Mesh m = tessellate(s, 8, &face_patch);
+  ASSERT_EQ(face_patch.size(), m.n_faces());
+  for (size_t f = 0; f < face_patch.size(); ++f) ASSERT_EQ(face_patch[f], static_cast<int>(f / 128)) << f;  // 8 x 8 quads a patch
+  const PatchCrossings none = tessellation_crossings(s, m, face_patch);
+  EXPECT_EQ(none.pairs, 0u);
+  EXPECT_TRUE(none.patches.empty());
+  // The top patch whose middle lies highest: its four inner control points pushed down through
+  // the body, below its bottom (the ellipsoid's half-height is 15 mm), its borders left shared.
+  size_t top = 0;
+  for (size_t f = 0; f < s.patches.size(); ++f)
+    if (s.patches[f].eval(0.5, 0.5).z() > s.patches[top].eval(0.5, 0.5).z()) top = f;
+  for (int k : {5, 6, 9, 10}) s.patches[top].P[k].z() = -40.0;
+  std::vector<int> fp;
+  const Mesh crossed = tessellate(s, 8, &fp);
+  const PatchCrossings found = tessellation_crossings(s, crossed, fp);
+  EXPECT_GT(found.pairs, 0u);
+  ASSERT_FALSE(found.patches.empty());
+  for (const auto& w : found.patches) EXPECT_NE(w.find(s.patches[top].name), std::string::npos) << w;
+  // A pair of patches is named once, as "a | b" with a < b.
+  for (const auto& w : found.patches) {
+    if (const size_t bar = w.find(" | "); bar != std::string::npos) {
+      EXPECT_LT(w.substr(0, bar), w.substr(bar + 3)) << w;
+    }
+  }
+  EXPECT_TRUE(std::is_sorted(found.patches.begin(), found.patches.end()));
+}
+
 TEST(Patches, RandomLayoutsAreRefusedInOneLineOrFitted) {
   // Malformed layouts of every kind (indices out of range, repeated corners, open or
   // non-manifold edges, faces run the same way, creases off the layout): each one is an

@@ -11,10 +11,12 @@
 #include <map>
 #include <limits>
 #include <memory>
+#include <set>
 #include <tuple>
 
 #include "core/errors.hpp"
 #include "core/threads.hpp"
+#include "mesh/mesh_check.hpp"
 #include "mesh/mesh_distance.hpp"
 #include "mesh/point_grid.hpp"
 #include "patches/patch_steps.hpp"
@@ -730,13 +732,14 @@ void tessellation_vertices(const PatchSkin& s, int n, std::vector<Eigen::Vector3
   evaluate_made(s, n, made, out);
 }
 
-Mesh tessellate(const PatchSkin& s, int n) {
+Mesh tessellate(const PatchSkin& s, int n, std::vector<int>* face_patch) {
   std::vector<std::array<int, 3>> made;
   const TessellationIndex X = tessellation_index(s, n, &made);
   std::vector<Eigen::Vector3d> points;
   evaluate_made(s, n, made, &points);
   std::vector<std::array<int, 3>> tris;
-  for (size_t f = 0; f < s.patches.size(); ++f)
+  if (face_patch) face_patch->clear();
+  for (size_t f = 0; f < s.patches.size(); ++f) {
     for (int i = 0; i < n; ++i)
       for (int j = 0; j < n; ++j) {
         const auto& index = X.index[f];
@@ -767,8 +770,23 @@ Mesh tessellate(const PatchSkin& s, int n) {
         std::rotate(poly.begin(), poly.begin() + start, poly.end());
         for (size_t k = 1; k + 1 < poly.size(); ++k) tris.push_back({poly[0], poly[k], poly[k + 1]});
       }
+    if (face_patch) face_patch->resize(tris.size(), static_cast<int>(f));
+  }
   return Mesh{std::move(points), std::move(tris)};
 }
 
-}  // namespace handskin
+PatchCrossings tessellation_crossings(const PatchSkin& s, const Mesh& tessellation, const std::vector<int>& face_patch) {
+  HS_CHECK(face_patch.size() == tessellation.faces.size(), "one patch per triangle");
+  std::vector<Eigen::Vector3d> stored(tessellation.vertices.size());
+  for (size_t k = 0; k < stored.size(); ++k) stored[k] = tessellation.vertices[k].cast<float>().cast<double>();
+  const auto pairs = crossing_face_pairs(stored, tessellation.faces);
+  std::set<std::string> where;
+  for (const auto& [f, g] : pairs) {
+    std::string a = s.patches[face_patch[f]].name, b = s.patches[face_patch[g]].name;
+    if (b < a) std::swap(a, b);
+    where.insert(a == b ? a : a + " | " + b);
+  }
+  return {pairs.size(), std::vector<std::string>(where.begin(), where.end())};
+}
 
+}  // namespace handskin

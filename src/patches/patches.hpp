@@ -198,8 +198,18 @@ PatchSkin pose_patch_skin(const PatchSkin& s, const Skeleton& skeleton, const An
 void rebuild_patches(PatchSkin* s);
 
 /// Every patch tessellated at `n` × `n` quads (two triangles each), the vertices on shared
-/// borders and corners made once: a closed mesh without cracks.
-Mesh tessellate(const PatchSkin& s, int n);
+/// borders and corners made once: a closed mesh without cracks. With `face_patch`, each
+/// triangle's patch (an index into `s.patches`).
+Mesh tessellate(const PatchSkin& s, int n, std::vector<int>* face_patch = nullptr);
+/// Where a tessellation of `s` (tessellate's mesh and face_patch) passes through itself.
+struct PatchCrossings {
+  size_t pairs = 0;                   ///< pairs of its triangles that cross
+  std::vector<std::string> patches;   ///< the patches they lie on, by name, each pair once ("a | b", sorted)
+};
+/// Measured on the coordinates patches.ply stores (floats), with CGAL's exact predicates (as
+/// the skin's check reads skin.ply back). Neighbouring fingers pressed together (the family's
+/// H04 and H12) gave tubes of patches that pass through each other at their roots.
+PatchCrossings tessellation_crossings(const PatchSkin& s, const Mesh& tessellation, const std::vector<int>& face_patch);
 /// The vertices `tessellate(s, n)` makes, in its order, without building the mesh: posed
 /// patches keep the rest posture's topology, so an animation needs only these (16 × 16 per
 /// patch: ~0.5 ms for the fixture's 92).

@@ -72,6 +72,14 @@ QualityGates check_gates(const GateInputs& in, const PipelineOptions& o) {
             p.surface_to_skin.p95, o.gates.patches_to_skin_p95_mm, "mm", "gates.patches_to_skin_p95_mm");
     at_most("patches_to_skin.max", "the patch surface to the polygon skin, largest", p.surface_to_skin.max,
             o.gates.patches_to_skin_max_mm, "mm", "gates.patches_to_skin_max_mm");
+    std::string crossing_where;
+    for (size_t k = 0; k < p.crossings.patches.size() && k < 3; ++k)
+      crossing_where += (k ? "; " : "") + p.crossings.patches[k];
+    if (p.crossings.patches.size() > 3) crossing_where += "; …";
+    at_most("patches.self_intersections",
+            "pairs of crossing triangles in patches.ply (the patch surface passing through itself; CGAL, exact predicates)" +
+                (crossing_where.empty() ? std::string() : " at " + crossing_where),
+            static_cast<double>(p.crossings.pairs), 0, "pairs", "");
     at_most("patches.g0_gap", "largest gap between neighbouring patches along their shared borders", p.patches.g0_gap_mm,
             o.gates.g0_gap_mm, "mm", "gates.g0_gap_mm");
     at_most("patches.g1_kink",

@@ -43,8 +43,10 @@ PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const s
   PatchStageResult r;
   r.options = options;
   r.patches = fit_patch_skin(skin, rig, points, sides, options);
-  r.tessellation = tessellate(r.patches, options.tessellation);
+  std::vector<int> face_patch;
+  r.tessellation = tessellate(r.patches, options.tessellation, &face_patch);
   r.surface_to_skin = one_way_distance(sample_surface(r.tessellation, 1.0), MeshDistance(skin.mesh));
+  r.crossings = tessellation_crossings(r.patches, r.tessellation, face_patch);
   if (truth) {
     const MeshDistance to_truth(truth->skin), to_surface(r.tessellation);
     r.truth_file = truth->skin_path;
@@ -70,6 +72,8 @@ Json to_json(const PatchStageResult& r) {
             {"data_to_surface_mm", {{"palm", figures_json(s.side[0])}, {"back", figures_json(s.side[1])}}},
             {"farthest_point_patch", {{"palm", s.worst_patch[0]}, {"back", s.worst_patch[1]}}},
             {"surface_to_skin_mm", to_json(r.surface_to_skin)},
+            {"self_intersections", {{"crossing_pairs", r.crossings.pairs}, {"patches", r.crossings.patches},
+                                    {"measured_on", "patches.ply's triangles (float coordinates), CGAL exact predicates"}}},
             {"layout_tries", [&] {
                Json a = Json::array();
                for (const auto& [shift, p95] : s.layout_tries) a.push_back({{"thumb_ring_shift", shift}, {"surface_to_skin_p95_mm", p95}});

@@ -57,6 +57,7 @@ struct PatchStageResult {
   /// The patches against the polygon skin they were laid on (samples every 4 mm², no truth
   /// needed): where they stray from it, a patch bridges what the skin follows.
   OneWayDistance surface_to_skin;
+  PatchCrossings crossings;  ///< patches.ply passing through itself
   std::string truth_file;
   PatchReportFigures figures;
   PatchReportPictures pictures;
