@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <future>
 
 #include "core/atomic_file.hpp"
+#include "core/threads.hpp"
 #include "pipeline/figures_json.hpp"
 #include "pipeline/layout_json.hpp"
 #include "pipeline/patch_report.hpp"
@@ -45,14 +47,17 @@ PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const s
   r.patches = fit_patch_skin(skin, rig, points, sides, options);
   std::vector<int> face_patch;
   r.tessellation = tessellate(r.patches, options.tessellation, &face_patch);
+  // The surface's own crossings (one thread, CGAL) beside its distances to the skin and the truth.
+  std::future<PatchCrossings> crossings =
+      std::async(side_launch(), [&] { return tessellation_crossings(r.patches, r.tessellation, face_patch); });
   r.surface_to_skin = one_way_distance(sample_surface(r.tessellation, 1.0), MeshDistance(skin.mesh));
-  r.crossings = tessellation_crossings(r.patches, r.tessellation, face_patch);
   if (truth) {
     const MeshDistance to_truth(truth->skin), to_surface(r.tessellation);
     r.truth_file = truth->skin_path;
     r.surface_to_truth = one_way_distance(sample_surface(r.tessellation, 4.0), to_truth, truth->markers, truth->exclude_mm);
     r.truth_to_surface = one_way_distance(sample_surface(truth->skin, 4.0), to_surface, truth->markers, truth->exclude_mm);
   }
+  r.crossings = crossings.get();
   r.figures = patch_report_figures(r.patches, error_grid);
   if (pictures) r.pictures = patch_report_pictures(r.patches, rig);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
