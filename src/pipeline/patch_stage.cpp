@@ -52,10 +52,12 @@ PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const s
       std::async(side_launch(), [&] { return tessellation_crossings(r.patches, r.tessellation, face_patch); });
   r.surface_to_skin = one_way_distance(sample_surface(r.tessellation, 1.0), MeshDistance(skin.mesh));
   if (truth) {
+    const auto t_truth = std::chrono::steady_clock::now();
     const MeshDistance to_truth(truth->skin), to_surface(r.tessellation);
     r.truth_file = truth->skin_path;
     r.surface_to_truth = one_way_distance(sample_surface(r.tessellation, 4.0), to_truth, truth->markers, truth->exclude_mm);
     r.truth_to_surface = one_way_distance(sample_surface(truth->skin, 4.0), to_surface, truth->markers, truth->exclude_mm);
+    r.truth_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_truth).count();
   }
   r.crossings = crossings.get();
   r.figures = patch_report_figures(r.patches, error_grid);
@@ -108,6 +110,7 @@ Json to_json(const PatchStageResult& r) {
   }
   if (r.surface_to_truth)
     j["truth"] = {{"file", r.truth_file},
+                  {"seconds", r.truth_seconds},
                   {"surface_to_truth_mm", to_json(*r.surface_to_truth)},
                   {"truth_to_surface_mm", to_json(*r.truth_to_surface)}};
   return j;

@@ -59,6 +59,7 @@ struct PatchStageResult {
   OneWayDistance surface_to_skin;
   PatchCrossings crossings;  ///< patches.ply passing through itself
   std::string truth_file;
+  double truth_seconds = 0;  ///< the comparison with the truth (in `seconds`; none without a truth)
   PatchReportFigures figures;
   PatchReportPictures pictures;
   /// patches.step with its shape read back; made by the writer when absent (`run` makes it

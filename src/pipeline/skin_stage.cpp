@@ -129,6 +129,7 @@ void measure_skin(const SkinStageInputs& in, const SkinOptions& so, const std::f
   if (in.truth) {
     const TruthSkin& t = *in.truth;
     progress("comparing with the true skin of " + t.path);
+    const auto t_truth = std::chrono::steady_clock::now();
     const MeshDistance to_truth(t.skin);
     const auto ours = sample_surface(skin.mesh, 4.0), theirs = sample_surface(t.skin, 4.0);
     SkinTruthFigures f;
@@ -141,6 +142,7 @@ void measure_skin(const SkinStageInputs& in, const SkinOptions& so, const std::f
           one_way_distance(sample_surface(R.baseline->result.mesh, 4.0), to_truth, t.markers, t.exclude_mm);
       f.truth_to_baseline = one_way_distance(theirs, *to_base, t.markers, t.exclude_mm);
     }
+    f.seconds = since(t_truth);
     R.truth = std::move(f);
   }
 }
@@ -343,6 +345,7 @@ Json to_json(const SkinStageResult& r) {
     const auto& t = *r.truth;
     j["truth"] = {{"file", t.skin_path},
                   {"excluded_within_mm_of_markers", t.exclude_mm},
+                  {"seconds", t.seconds},
                   {"skin_to_truth_mm", to_json(t.skin_to_truth)},
                   {"truth_to_skin_mm", to_json(t.truth_to_skin)}};
     if (t.baseline_to_truth) {

@@ -72,6 +72,7 @@ struct SkinTruthFigures {
   std::string skin_path;
   double exclude_mm = 0;
   OneWayDistance skin_to_truth, truth_to_skin;
+  double seconds = 0;  ///< the comparison's own time (in the stage's; a run without a truth has none)
   std::optional<OneWayDistance> baseline_to_truth, truth_to_baseline;
 };
 
