@@ -109,9 +109,10 @@ for spec in "right 1 3.0" "left 3 2.5" "left-curled 1 3.0" "left-arched 2 2.5"; 
   # hand: docs/patches.md), and the report's own surface -> skin p95 to 0.6 mm.
   "$BIN" -q patches --skin-dir "$d/reg" --rig "$d/rig.json" --truth "$d/truth.json" --pipeline "$pipeline" \
     --out "$d/patches" >/dev/null
-  line=$(jq_py "$d/patches/report.json" "'%.4f %.4f %.4f %.4f %d' % (d['truth']['surface_to_truth_mm']['mean'], d['truth']['surface_to_truth_mm']['p95'], d['truth']['truth_to_surface_mm']['within_1mm'], d['surface_to_skin_mm']['p95'], len(d['layout_tries']))")
-  read -r pmean pp95 pwithin pskin ptries <<< "$line"
-  echo "$side-s$seed patches: surface->truth mean $pmean p95 $pp95 mm, truth within 1 mm $pwithin; surface->skin p95 $pskin mm; layouts tried $ptries"
+  line=$(jq_py "$d/patches/report.json" "'%.4f %.4f %.4f %.4f %d %d' % (d['truth']['surface_to_truth_mm']['mean'], d['truth']['surface_to_truth_mm']['p95'], d['truth']['truth_to_surface_mm']['within_1mm'], d['surface_to_skin_mm']['p95'], len(d['layout_tries']), d['self_intersections']['crossing_pairs'])")
+  read -r pmean pp95 pwithin pskin ptries pcross <<< "$line"
+  echo "$side-s$seed patches: surface->truth mean $pmean p95 $pp95 mm, truth within 1 mm $pwithin; surface->skin p95 $pskin mm; layouts tried $ptries; crossing pairs $pcross"
+  [ "$pcross" -eq 0 ] || fail "$side-s$seed patches: the surface passes through itself ($pcross pairs of triangles)"
   "$PY" -c "import sys; sys.exit(0 if $pmean <= 0.2 and $pp95 <= 0.6 and $pwithin >= 0.985 and $pskin <= 0.6 else 1)" \
     || fail "$side-s$seed patches: surface->truth mean $pmean / p95 $pp95 mm, $pwithin within 1 mm, surface->skin p95 $pskin mm (bounds: 0.2, 0.6, 0.985, 0.6)"
   if [ "$side" = left-curled ] || [ "$side" = left-arched ]; then

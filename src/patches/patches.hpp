@@ -68,6 +68,12 @@ struct DistanceFigures {
   size_t points = 0;
 };
 
+/// Where a tessellation of a patch surface (tessellate's mesh and face_patch) passes through itself.
+struct PatchCrossings {
+  size_t pairs = 0;                   ///< pairs of its triangles that cross
+  std::vector<std::string> patches;   ///< the patches they lie on, by name, each pair once ("a | b", sorted)
+};
+
 struct PatchSkin {
   PatchLayout layout;                      ///< the faces fitted on, one patch each
   std::vector<Eigen::Vector3d> control;    ///< every control point once (shared borders shared)
@@ -109,7 +115,14 @@ struct PatchSkin {
   /// base ends at (hand_patch_layout) and the 95th percentile of the surface's distance to the
   /// polygon skin (mm); the first is the default. `thumb_ring_shift`: the one kept.
   std::vector<std::pair<int, double>> layout_tries;
+  /// Per layout tried, the pairs of its tessellation's triangles (PatchOptions::tessellation)
+  /// that cross; a try with fewer is kept before one nearer the skin.
+  std::vector<size_t> layout_try_crossings;
   int thumb_ring_shift = 0;
+  /// The kept surface tessellated at PatchOptions::tessellation passing through itself, as
+  /// fit_patch_skin measured it for the choice of layout (none after a refinement, or with a
+  /// layout given: the stage measures it then).
+  std::optional<PatchCrossings> crossings;
   double g0_gap_mm = 0;                      ///< largest gap between neighbours' shared borders
   /// G1: angle between the two patches' normals along every shared border (deg), 9 samples
   /// per border; "away" leaves out the two samples nearest a corner where 3, 5 or 6 patches
@@ -201,15 +214,12 @@ void rebuild_patches(PatchSkin* s);
 /// borders and corners made once: a closed mesh without cracks. With `face_patch`, each
 /// triangle's patch (an index into `s.patches`).
 Mesh tessellate(const PatchSkin& s, int n, std::vector<int>* face_patch = nullptr);
-/// Where a tessellation of `s` (tessellate's mesh and face_patch) passes through itself.
-struct PatchCrossings {
-  size_t pairs = 0;                   ///< pairs of its triangles that cross
-  std::vector<std::string> patches;   ///< the patches they lie on, by name, each pair once ("a | b", sorted)
-};
-/// Measured on the coordinates patches.ply stores (floats), with CGAL's exact predicates (as
-/// the skin's check reads skin.ply back). Neighbouring fingers pressed together (the family's
-/// H04 and H12) gave tubes of patches that pass through each other at their roots.
+/// Where the tessellation passes through itself, measured on the coordinates patches.ply
+/// stores (floats), with CGAL's exact predicates (as the skin's check reads skin.ply back).
+/// Neighbouring fingers pressed together (the family's H04 and H12) gave tubes of patches that
+/// pass through each other at their roots; `crossings(s, n)` tessellates `s` first.
 PatchCrossings tessellation_crossings(const PatchSkin& s, const Mesh& tessellation, const std::vector<int>& face_patch);
+PatchCrossings crossings(const PatchSkin& s, int n);
 /// The vertices `tessellate(s, n)` makes, in its order, without building the mesh: posed
 /// patches keep the rest posture's topology, so an animation needs only these (16 × 16 per
 /// patch: ~0.5 ms for the fixture's 92).

@@ -343,6 +343,7 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
       break;
     }
     t.layout_tries = std::move(s->layout_tries);
+    t.layout_try_crossings = std::move(s->layout_try_crossings);
     t.thumb_ring_shift = s->thumb_ring_shift;
     *s = std::move(t);
     std::vector<std::array<bool, 4>> next(split.parent.size());

@@ -336,12 +336,18 @@ std::string fit_sections(const PatchStageResult& r, const std::string& svg, cons
     h += "<h2>Against the polygon skin</h2>\n<p>How far the patches lie from the polygon skin they were laid on "
          "(no truth needed): where they stray from it, a patch bridges what the skin follows.";
     if (s.layout_tries.size() > 1) {
+      const auto crossed = [&](size_t k) {
+        return k < s.layout_try_crossings.size() && s.layout_try_crossings[k] > 0
+                   ? ", " + std::to_string(s.layout_try_crossings[k]) + " pairs of crossing triangles"
+                   : std::string();
+      };
       h += " The first layout's patches strayed (p95 of " + fmt("%.2f", s.layout_tries[0].second) +
-           " mm over 5 × 5 samples per patch): the palm ring the thumb's base ends at was moved";
+           " mm over 5 × 5 samples per patch" + crossed(0) +
+           "): the palm ring the thumb's base ends at was moved";
       for (size_t k = 1; k < s.layout_tries.size(); ++k)
         h += std::string(k == 1 ? " " : ", ") + signed_rings(s.layout_tries[k].first) + " rings (" +
-             fmt("%.2f", s.layout_tries[k].second) + " mm)";
-      h += "; kept: " + signed_rings(s.thumb_ring_shift) + ".";
+             fmt("%.2f", s.layout_tries[k].second) + " mm" + crossed(k) + ")";
+      h += "; kept: " + signed_rings(s.thumb_ring_shift) + " (the fewest crossings, then the nearest the skin).";
     }
     h += "</p>\n<table>\n" + row({"direction", "mean", "p95", "max", "within 1 mm"}, true);
     h += row({"surface → skin", fmt("%.3f", d.mean), fmt("%.3f", d.p95), fmt("%.3f", d.max), fmt("%.2f %%", 100 * d.within_1mm)});

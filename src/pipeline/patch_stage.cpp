@@ -21,20 +21,23 @@ Json figures_json(const DistanceFigures& f) {
 
 std::optional<std::string> layout_note(const PatchSkin& s) {
   if (s.layout_tries.size() < 2) return std::nullopt;
-  const double best = std::min_element(s.layout_tries.begin(), s.layout_tries.end(),
-                                       [](const auto& a, const auto& b) { return a.second < b.second; })
-                          ->second;
-  char buf[300];
+  const auto crossed = [&](size_t k) { return k < s.layout_try_crossings.size() ? s.layout_try_crossings[k] : size_t{0}; };
+  size_t kept = 0;
+  for (size_t k = 0; k < s.layout_tries.size(); ++k)
+    if (s.layout_tries[k].first == s.thumb_ring_shift) kept = k;
+  char first[160], buf[400];
+  if (crossed(0) > 0)
+    std::snprintf(first, sizeof first, "passed through themselves (%zu pairs of triangles; p95 %.2f mm from the skin)",
+                  crossed(0), s.layout_tries[0].second);
+  else
+    std::snprintf(first, sizeof first, "strayed from the skin (p95 %.2f mm)", s.layout_tries[0].second);
   if (s.thumb_ring_shift != 0)
     std::snprintf(buf, sizeof buf,
-                  "layout: the first one's patches strayed from the skin (p95 %.2f mm); the one with the thumb's base "
-                  "moved %+d rings (p95 %.2f mm) was kept (docs/patches.md)",
-                  s.layout_tries[0].second, s.thumb_ring_shift, best);
+                  "layout: the first one's patches %s; the one with the thumb's base moved %+d rings (%zu crossing "
+                  "pairs, p95 %.2f mm) was kept (docs/patches.md)",
+                  first, s.thumb_ring_shift, crossed(kept), s.layout_tries[kept].second);
   else
-    std::snprintf(buf, sizeof buf,
-                  "warning: the patches stray from the skin (p95 %.2f mm) and no other layout tried lay nearer "
-                  "(docs/patches.md)",
-                  s.layout_tries[0].second);
+    std::snprintf(buf, sizeof buf, "warning: the patches %s and no other layout tried did better (docs/patches.md)", first);
   return std::string(buf);
 }
 
@@ -47,9 +50,11 @@ PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const s
   r.patches = fit_patch_skin(skin, rig, points, sides, options);
   std::vector<int> face_patch;
   r.tessellation = tessellate(r.patches, options.tessellation, &face_patch);
-  // The surface's own crossings (one thread, CGAL) beside its distances to the skin and the truth.
+  // The surface's own crossings (one thread, CGAL) beside its distances to the skin and the
+  // truth, unless the fit measured them on this tessellation already (for its layout's choice).
   std::future<PatchCrossings> crossings =
-      std::async(side_launch(), [&] { return tessellation_crossings(r.patches, r.tessellation, face_patch); });
+      r.patches.crossings ? std::async(std::launch::deferred, [&] { return *r.patches.crossings; })
+          : std::async(side_launch(), [&] { return tessellation_crossings(r.patches, r.tessellation, face_patch); });
   r.surface_to_skin = one_way_distance(sample_surface(r.tessellation, 1.0), MeshDistance(skin.mesh));
   if (truth) {
     const auto t_truth = std::chrono::steady_clock::now();
@@ -83,7 +88,10 @@ Json to_json(const PatchStageResult& r) {
                                     {"measured_on", "patches.ply's triangles (float coordinates), CGAL exact predicates"}}},
             {"layout_tries", [&] {
                Json a = Json::array();
-               for (const auto& [shift, p95] : s.layout_tries) a.push_back({{"thumb_ring_shift", shift}, {"surface_to_skin_p95_mm", p95}});
+               for (size_t k = 0; k < s.layout_tries.size(); ++k) {
+                 a.push_back({{"thumb_ring_shift", s.layout_tries[k].first}, {"surface_to_skin_p95_mm", s.layout_tries[k].second}});
+                 if (k < s.layout_try_crossings.size()) a.back()["crossing_pairs"] = s.layout_try_crossings[k];
+               }
                return a;
              }()},
             {"thumb_ring_shift", s.thumb_ring_shift},
