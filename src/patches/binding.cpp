@@ -51,6 +51,7 @@ PatchSkin pose_patch_skin(const PatchSkin& s, const Skeleton& skeleton, const An
   HS_CHECK(s.bones.size() == move.size(), "patches bound to another skeleton");
   PatchSkin out = s;
   out.samples.clear();
+  out.crossings.reset();  // the rest surface's, as the samples: not this posture's
   if (!s.control_weights.empty()) {
     HS_CHECK(s.control_weights.size() == s.control.size(), "a control point without its weights");
     SkinBinding b;

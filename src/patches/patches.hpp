@@ -120,8 +120,8 @@ struct PatchSkin {
   std::vector<size_t> layout_try_crossings;
   int thumb_ring_shift = 0;
   /// The kept surface tessellated at PatchOptions::tessellation passing through itself, as
-  /// fit_patch_skin measured it for the choice of layout (none after a refinement, or with a
-  /// layout given: the stage measures it then).
+  /// fit_patch_skin measured it for the choice of layout (none after a refinement, with a
+  /// layout given, or posed: the stage measures it then).
   std::optional<PatchCrossings> crossings;
   double g0_gap_mm = 0;                      ///< largest gap between neighbours' shared borders
   /// G1: angle between the two patches' normals along every shared border (deg), 9 samples
