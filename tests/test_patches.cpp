@@ -6,6 +6,9 @@
 #include <cctype>
 #include <filesystem>
 #include <random>
+#include <set>
+
+#include <Eigen/Geometry>
 
 #include "core/atomic_file.hpp"
 #include "core/json_util.hpp"
@@ -785,6 +788,62 @@ TEST(Patches, ASurfacePassingThroughItselfIsFoundAndNamed) {
     }
   }
   EXPECT_TRUE(std::is_sorted(found.patches.begin(), found.patches.end()));
+}
+
+// Two faces held apart (Separation, as fit_patch_skin holds two fingers' tubes pressed
+// together): a plane through their shared border, turned so that the free fit lies across it;
+// fitted again from that surface with the separation, every control point of the first face
+// lies on the plane's negative side by the margin, of the second on its positive side, and the
+// border's on the plane: the two patches meet along their border only.
+TEST(Patches, SeparatedFacesKeepTheirControlPointsEachOnItsSideOfThePlane) {
+  const Cloud c = ellipsoid_cloud(8000, 0.0);
+  const PatchSkin free = fit_patches(cube_layout(2), c.points, c.sides, {}, {}, PatchOptions{});
+  // Two faces sharing a side, and that side's corners.
+  int fa = -1, fb = -1;
+  std::array<int, 2> shared{};
+  const auto& F = free.layout.faces;
+  for (size_t a = 0; a < F.size() && fa < 0; ++a)
+    for (size_t b = a + 1; b < F.size() && fa < 0; ++b)
+      for (int k = 0; k < 4 && fa < 0; ++k)
+        for (int m = 0; m < 4; ++m)
+          if (F[a][k] == F[b][(m + 1) % 4] && F[a][(k + 1) % 4] == F[b][m]) {
+            fa = static_cast<int>(a), fb = static_cast<int>(b), shared = {F[a][k], F[a][(k + 1) % 4]};
+            break;
+          }
+  ASSERT_GE(fa, 0);
+  const Eigen::Vector3d p0 = free.control[shared[0]], p1 = free.control[shared[1]];
+  Eigen::Vector3d ca = Eigen::Vector3d::Zero(), cb = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 16; ++k) ca += free.patches[fa].P[k] / 16, cb += free.patches[fb].P[k] / 16;
+  const Eigen::Vector3d along = (p1 - p0).normalized();
+  Eigen::Vector3d n = (cb - ca) - (cb - ca).dot(along) * along;
+  // Turned 50 degrees about the border: part of face a now lies on b's side.
+  n = Eigen::AngleAxisd(50 * M_PI / 180, along) * n.normalized();
+  Separation sep;
+  sep.normal = n;
+  sep.offset = n.dot(0.5 * (p0 + p1));
+  sep.faces = {std::vector<int>{fa}, std::vector<int>{fb}};
+  const auto side_of = [&](const PatchSkin& s, int id) { return n.dot(s.control[id]) - sep.offset; };
+  double crossed = -1e9;
+  for (int id : free.patch_control[fa]) crossed = std::max(crossed, side_of(free, id));
+  for (int id : free.patch_control[fb]) crossed = std::max(crossed, -side_of(free, id));
+  ASSERT_GT(crossed, 1.0) << "the free fit must lie across the plane for the test to mean anything";
+  std::vector<std::array<Eigen::Vector3d, 16>> seed;
+  for (const auto& P : free.patches) seed.push_back(P.P);
+  const PatchSkin held = fit_patches(free.layout, c.points, c.sides, {}, {}, PatchOptions{}, &seed, {sep});
+  ASSERT_EQ(held.separations.size(), 1u);
+  const std::set<int> of_a(held.patch_control[fa].begin(), held.patch_control[fa].end());
+  const std::set<int> of_b(held.patch_control[fb].begin(), held.patch_control[fb].end());
+  for (int id : of_a) {
+    if (of_b.count(id)) EXPECT_NEAR(side_of(held, id), 0.0, 1e-3) << id;
+    else EXPECT_LE(side_of(held, id), -0.9 * kSeparationMarginMm) << id;
+  }
+  for (int id : of_b)
+    if (!of_a.count(id)) EXPECT_GE(side_of(held, id), 0.9 * kSeparationMarginMm) << id;
+  // The rest of the surface still fits the ellipsoid, and the net stays closed.
+  EXPECT_LT(held.g0_gap_mm, 1e-9);
+  EXPECT_LT(held.side[0].mean + held.side[1].mean, 2 * (free.side[0].mean + free.side[1].mean) + 0.5);
+  // A separation without a seed is a bug of the caller's.
+  EXPECT_THROW(fit_patches(free.layout, c.points, c.sides, {}, {}, PatchOptions{}, nullptr, {sep}), std::logic_error);
 }
 
 TEST(Patches, RandomLayoutsAreRefusedInOneLineOrFitted) {

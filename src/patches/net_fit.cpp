@@ -59,6 +59,10 @@ constexpr double kTangentWeight = 0.005;
 // 0.1633 mm). On one of them 0.03 leaves the p95 at 1.27°, 0.3 takes it to 0.33° with the
 // surface → true skin mean 1.6 % larger than at 0.1.
 constexpr double kG1Weight = 0.1;
+// A separation's bound (NetSolver::bounds) as a penalty, relative to the data's weight per
+// control point: strong enough that the bound holds to ~1e-4 mm, well within its margin.
+constexpr double kBoundWeight = 1e3;
+constexpr int kBoundPasses = 4;
 
 // G1 along the borders that end where other than four patches meet, where C1 cannot hold (it
 // is left out next to such a corner). At samples along the border, with n the mean of the two
@@ -285,6 +289,20 @@ struct NetSolver {
   std::vector<std::pair<int, double>> scatter;
   bool analysed = false;  ///< llt holds the analysis of Ar's pattern
   const Eigen::SparseMatrix<double>& system() const { return reduced ? Ar : A; }
+  /// The separations' bounds (PatchSkin::separations), one per constrained control point and
+  /// separation: n · P <= bound, n pointing out of the point's side; a point of both sides (their
+  /// border) is held on the plane (`on_plane`). A bound's penalty is on (`active`) once the
+  /// point crossed it, and stays on for the rest of the fit (the bound then an equality: the
+  /// rounds cannot cycle), and is always on for a point on the plane.
+  struct Bound {
+    int id = -1;
+    Eigen::Vector3d n;
+    double bound = 0;
+    bool on_plane = false, active = false;
+    size_t slot_base = 0;  ///< into block_slot: a patch with the point, its 48 × 48 block
+    int local = 0;         ///< the point's index among that patch's 16
+  };
+  std::vector<Bound> bounds;
   Eigen::VectorXd x;  ///< the last solution (of the system solved)
   Eigen::VectorXd rhs;  ///< the last right-hand side (system() x = rhs)
   bool exact = false;  ///< x solves the last system directly or to kCgTolerance
@@ -324,6 +342,51 @@ void take_solution(PatchSkin* out, NetSolver* solver, Eigen::VectorXd X, bool ex
   const Eigen::VectorXd& all = solver->reduced ? full : solver->x;
   for (size_t k = 0; k < out->control.size(); ++k) out->control[k] = all.segment<3>(3 * static_cast<long>(k));
   rebuild_patches(out);
+}
+
+// The separations' bounds on the control points (NetSolver::bounds).
+std::vector<NetSolver::Bound> separation_bounds(const PatchSkin& out) {
+  std::vector<NetSolver::Bound> bounds;
+  for (const Separation& sep : out.separations) {
+    std::array<std::map<int, std::pair<size_t, int>>, 2> on;  // per side: control point → (its patch's block, index)
+    for (int side = 0; side < 2; ++side)
+      for (int f : sep.faces[side]) {
+        HS_CHECK(f >= 0 && static_cast<size_t>(f) < out.patch_control.size(), "separation: no such face");
+        for (int k = 0; k < 16; ++k) on[side].emplace(out.patch_control[f][k], std::make_pair(static_cast<size_t>(f) * 48 * 48, k));
+      }
+    for (int side = 0; side < 2; ++side)
+      for (const auto& [id, where] : on[side]) {
+        NetSolver::Bound b;
+        b.id = id, b.slot_base = where.first, b.local = where.second;
+        b.on_plane = on[1 - side].count(id) > 0;
+        if (b.on_plane && side == 1) continue;  // once
+        b.n = side == 0 ? sep.normal : Eigen::Vector3d(-sep.normal);
+        b.bound = (side == 0 ? sep.offset : -sep.offset) - (b.on_plane ? 0.0 : kSeparationMarginMm);
+        b.active = b.on_plane;
+        bounds.push_back(b);
+      }
+  }
+  return bounds;
+}
+
+// The active bounds' penalties, w (n · P - bound)², into A's values and the right-hand side.
+void add_bound_penalties(const NetSolver& solver, double w, double* values, Eigen::VectorXd* R) {
+  for (const auto& b : solver.bounds) {
+    if (!b.active) continue;
+    const int x = 3 * b.local;
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) values[solver.block_slot[b.slot_base + 48 * (x + i) + (x + j)]] += w * b.n(i) * b.n(j);
+      (*R)(3 * b.id + i) += w * b.bound * b.n(i);
+    }
+  }
+}
+
+// Switches on the bounds the control points cross now; true when one was.
+bool activate_crossed_bounds(NetSolver* solver, const PatchSkin& out) {
+  bool any = false;
+  for (auto& b : solver->bounds)
+    if (!b.active && b.n.dot(out.control[b.id]) > b.bound) b.active = any = true;
+  return any;
 }
 
 // The penalties that are the same every round, as triplets: fairness, C1 across borders, G1
@@ -717,7 +780,20 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
     add_kink_blocks<48>(solver->hanging, solver->hanging_slot, [&](const HangingBorder& b) { return hanging_block(*out, b, w); },
                         As.valuePtr());
   }
-  if (solver->reduced) {
+  // The separations' bounds (with the normals only: the first fit's system is one per
+  // coordinate, and a bound couples them): the ones crossed by the surface so far are on.
+  const bool bounded = normals && !out->separations.empty();
+  if (bounded && solver->bounds.empty()) solver->bounds = separation_bounds(*out);
+  const double bound_weight = kBoundWeight * wsum / n;
+  std::vector<double> unbounded;  // A's values without the bounds' penalties, and R
+  const Eigen::VectorXd R_unbounded = bounded ? R : Eigen::VectorXd();
+  if (bounded) {
+    activate_crossed_bounds(solver, *out);
+    unbounded.assign(As.valuePtr(), As.valuePtr() + As.nonZeros());
+    add_bound_penalties(*solver, bound_weight, As.valuePtr(), &R);
+  }
+  const auto reduce = [&](Eigen::VectorXd* rhs) {
+    if (!solver->reduced) return;
     if (normals) {
       double* ar = solver->Ar.valuePtr();
       std::fill(ar, ar + solver->Ar.nonZeros(), 0.0);
@@ -726,8 +802,9 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
         for (int q = solver->scatter_begin[p]; q < solver->scatter_begin[p + 1]; ++q)
           ar[solver->scatter[q].first] += solver->scatter[q].second * a[p];
     }
-    R = Eigen::VectorXd(solver->C.transpose() * R);
-  }
+    *rhs = Eigen::VectorXd(solver->C.transpose() * *rhs);
+  };
+  reduce(&R);
   Eigen::VectorXd X;
   bool exact = true;  // the first fit and a factored round are direct solves
   if (!normals) {
@@ -764,6 +841,18 @@ void fit_net(PatchSkin* out, const LayoutTopology& T, const std::vector<Datum>& 
   }
   solver->rhs = std::move(R);
   take_solution(out, solver, std::move(X), exact);
+  // A control point that crossed its bound in this solve: its bound on, and solved again
+  // (directly: the matrix changed), until none does (a few passes: each point's bound is
+  // switched on once).
+  for (int pass = 0; bounded && pass < kBoundPasses && activate_crossed_bounds(solver, *out); ++pass) {
+    std::copy(unbounded.begin(), unbounded.end(), As.valuePtr());
+    Eigen::VectorXd Rb = R_unbounded;
+    add_bound_penalties(*solver, bound_weight, As.valuePtr(), &Rb);
+    reduce(&Rb);
+    X = solve_directly(solver, Rb);
+    solver->rhs = std::move(Rb);
+    take_solution(out, solver, std::move(X), true);
+  }
 }
 
 // The last system solved again to kCgTolerance (the correction rounds stop theirs at

@@ -514,7 +514,8 @@ bool PatchOptions::IsValid(std::string* error) const {
 PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector3d>& points,
                       const std::vector<std::uint32_t>& sides, const std::vector<Eigen::Vector3d>& support,
                       const std::vector<Bone>& bones, const PatchOptions& o,
-                      const std::vector<std::array<Eigen::Vector3d, 16>>* seed) {
+                      const std::vector<std::array<Eigen::Vector3d, 16>>* seed,
+                      const std::vector<Separation>& separations) {
   std::string err;
   if (!o.IsValid(&err)) throw InputError("patch options", err);
   HS_CHECK(points.size() == sides.size(), "points and sides differ in length");
@@ -522,6 +523,8 @@ PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector
   const auto t0 = std::chrono::steady_clock::now();
   PatchSkin out;
   out.layout = layout;
+  HS_CHECK(separations.empty() || seed, "separations act in the rounds along the normals: a seed is needed");
+  out.separations = separations;
   const LayoutTopology T = layout_topology(layout, "patch layout");
   for (const auto& b : bones) out.bones.push_back(b.name());
   for (int v : T.valence) out.irregular_corners += v != 4;
@@ -553,6 +556,90 @@ PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }
+
+namespace {
+
+// The finger a patch of the hand's layout belongs to ("index.0.ulnar" → "index"), or "" when
+// it is not one of the four fingers' (the thumb's tube meets the palm, not a finger).
+std::string finger_of(const std::string& name) {
+  const std::string f = name.substr(0, name.find('.'));
+  return f == "index" || f == "middle" || f == "ring" || f == "little" ? f : std::string();
+}
+
+// Where two fingers' patches that share a border (the web's, between their tubes) cross, the
+// fingers are pressed together and both patches follow the crease between them (the family's
+// H04 and H12: the true section two overlapping circles, each tube's inner wall within a
+// fraction of a millimetre of the other's). The plane they are held apart by: through that
+// border's control points, along the border and the two tubes' mean direction away from it.
+// A refined layout's faces are taken by the layout's face they were split from (their name up
+// to the first '/'), so that the two sides are every patch split from the two that crossed.
+std::vector<Separation> finger_separations(const PatchSkin& s, const PatchCrossings& c) {
+  const auto root = [&](int f) { const std::string& n = s.patches[f].name; return n.substr(0, n.find('/')); };
+  std::set<std::pair<std::string, std::string>> done;
+  std::vector<Separation> out;
+  for (const auto& [fa, fb] : c.patch_pairs) {
+    const std::string ra = root(fa), rb = root(fb);
+    const std::string a = finger_of(ra), b = finger_of(rb);
+    if (a.empty() || b.empty() || a == b || !done.insert(std::minmax(ra, rb)).second) continue;
+    std::vector<Eigen::Vector3d> lens;  // where the two tubes' patches cross: about the crease
+    for (size_t k = 0; k < c.patch_pairs.size(); ++k)
+      if (std::minmax(root(c.patch_pairs[k].first), root(c.patch_pairs[k].second)) == std::minmax(ra, rb))
+        lens.insert(lens.end(), c.where[k].begin(), c.where[k].end());
+    std::array<std::vector<int>, 2> faces;
+    std::array<std::set<int>, 2> ids;
+    std::array<Eigen::Vector3d, 2> centre = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+    for (size_t f = 0; f < s.patches.size(); ++f)
+      for (int side = 0; side < 2; ++side)
+        if (root(static_cast<int>(f)) == (side == 0 ? ra : rb)) {
+          faces[side].push_back(static_cast<int>(f));
+          ids[side].insert(s.patch_control[f].begin(), s.patch_control[f].end());
+        }
+    // The shared border's control points, and its two ends: the pair farthest apart.
+    std::vector<Eigen::Vector3d> border;
+    for (int id : ids[0])
+      if (ids[1].count(id)) border.push_back(s.control[id]);
+    if (border.size() < 2) continue;  // a corner only: no border to hold them apart along
+    for (int side = 0; side < 2; ++side) {
+      for (int id : ids[side]) centre[side] += s.control[id];
+      centre[side] /= static_cast<double>(ids[side].size());
+    }
+    Eigen::Vector3d mid = Eigen::Vector3d::Zero(), along = Eigen::Vector3d::Zero();
+    for (const auto& p : border) mid += p / static_cast<double>(border.size());
+    for (const auto& p : border)
+      for (const auto& q : border)
+        if ((q - p).norm() > along.norm()) along = q - p;
+    // The plane holds the border; turned about it to pass nearest the lens where the two
+    // crossed (the crease lies there, and the tubes' mean direction away from the border
+    // missed it by up to 1.3 mm on H04), the tubes' direction counting as one point 10 mm out.
+    const Eigen::Vector3d e = along.normalized();
+    const Eigen::Vector3d tube = (centre[0] - mid).normalized() + (centre[1] - mid).normalized();
+    Eigen::Matrix3d M = Eigen::Matrix3d::Zero();
+    const auto add = [&](const Eigen::Vector3d& x, double w) {
+      const Eigen::Vector3d q = (x - mid) - (x - mid).dot(e) * e;
+      M += w * q * q.transpose();
+    };
+    if (tube.norm() > 1e-9) add(mid + 10 * tube.normalized(), static_cast<double>(std::max<size_t>(lens.size(), 1)));
+    for (const auto& x : lens) add(x, 1.0);
+    // The normal: across the border, the direction the points spread least in.
+    Eigen::Vector3d u = e.unitOrthogonal(), v = e.cross(u);
+    Eigen::Matrix2d m;
+    m << u.dot(M * u), u.dot(M * v), v.dot(M * u), v.dot(M * v);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(m);
+    Eigen::Vector3d n = eig.eigenvectors()(0, 0) * u + eig.eigenvectors()(1, 0) * v;
+    if (!(n.norm() > 1e-9) || !n.allFinite()) continue;
+    n.normalize();
+    if (n.dot(centre[1] - centre[0]) < 0) n = -n;
+    Separation sep;
+    sep.normal = n;
+    sep.offset = n.dot(mid);
+    sep.faces = std::move(faces);
+    sep.between = std::min(ra, rb) + " | " + std::max(ra, rb);
+    out.push_back(std::move(sep));
+  }
+  return out;
+}
+
+}  // namespace
 
 PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
                          const std::vector<std::uint32_t>& sides, const PatchOptions& o) {
@@ -641,11 +728,61 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
     s.layout_tries = std::move(tries);
     s.layout_try_crossings = std::move(crossed);
   }
+  // Neighbouring fingers pressed together: their tubes' patches either side of the web can
+  // pass through each other (finger_separations). The net is fitted again from this surface
+  // with them held apart, and kept when it crosses itself less (on the family's H04 and H12,
+  // whose fingers touch at their roots: ~0.3 s more).
+  // Held apart, the two tubes can push a third finger's into its neighbour (H12 of the
+  // family, second pair: index–middle and middle–ring held, ring–little then crossed in 4
+  // pairs): the crossings left are looked at again, up to kSeparationFits fits. A refined
+  // surface is looked at too (its splits can bring two tubes that did not cross together).
+  const auto hold_fingers_apart = [&](PatchSkin* s) {
+    if (!s->crossings) s->crossings = crossings(*s, o.tessellation);
+    constexpr int kSeparationFits = 3;
+    const size_t crossed_first = s->crossings_before_separation > 0 ? s->crossings_before_separation : s->crossings->pairs;
+    for (int fit_count = 0; fit_count < kSeparationFits && s->crossings->pairs > 0; ++fit_count) {
+      std::vector<Separation> seps = s->separations;
+      for (Separation& sep : finger_separations(*s, *s->crossings))
+        if (std::none_of(seps.begin(), seps.end(), [&](const Separation& x) { return x.between == sep.between; }))
+          seps.push_back(std::move(sep));
+      if (seps.size() == s->separations.size()) break;  // none new: the crossings left are not between two fingers' tubes
+      std::vector<std::array<Eigen::Vector3d, 16>> seed(s->patches.size());
+      for (size_t f = 0; f < seed.size(); ++f) seed[f] = s->patches[f].P;
+      PatchSkin t = fit_patches(s->layout, points, sides, support, skin.bones, o, &seed, seps);
+      t.crossings = crossings(t, o.tessellation);
+      if (t.crossings->pairs >= s->crossings->pairs) break;
+      t.crossings_before_separation = crossed_first;
+      t.layout_tries = std::move(s->layout_tries);
+      t.layout_try_crossings = std::move(s->layout_try_crossings);
+      t.thumb_ring_shift = s->thumb_ring_shift;
+      if ((t.refinement = std::move(s->refinement))) {  // after a refinement: its figures of the surface kept
+        const std::vector<double> err = patch_max_error(t);
+        PatchSkin::Refinement& R = *t.refinement;
+        R.patches.push_back(static_cast<int>(t.patches.size()));
+        R.over.push_back(static_cast<int>(std::count_if(err.begin(), err.end(), [&](double e) { return e > o.tolerance_mm; })));
+        R.worst_mm.push_back(err.empty() ? 0.0 : *std::max_element(err.begin(), err.end()));
+        R.seconds.push_back(t.seconds);
+        R.held = R.over.back() == 0;
+      }
+      *s = std::move(t);
+    }
+  };
+  hold_fingers_apart(&s);
   if (o.tolerance_mm > 0) {
     s.crossings.reset();  // of the surface before the refinement
     refine_to_tolerance(&s, o, [&](const LayoutSplit& split) {
-      return fit_patches(split.layout, points, sides, support, skin.bones, o, &split.seed);
+      // The separations carried to the split faces (s: the fit being refined).
+      std::vector<Separation> seps = s.separations;
+      for (Separation& sep : seps)
+        for (auto& faces : sep.faces) {
+          const std::set<int> was(faces.begin(), faces.end());
+          faces.clear();
+          for (size_t k = 0; k < split.parent.size(); ++k)
+            if (was.count(split.parent[k])) faces.push_back(static_cast<int>(k));
+        }
+      return fit_patches(split.layout, points, sides, support, skin.bones, o, &split.seed, seps);
     });
+    hold_fingers_apart(&s);
   }
   s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return s;
@@ -799,13 +936,23 @@ PatchCrossings tessellation_crossings(const PatchSkin& s, const Mesh& tessellati
   std::vector<Eigen::Vector3d> stored(tessellation.vertices.size());
   for (size_t k = 0; k < stored.size(); ++k) stored[k] = tessellation.vertices[k].cast<float>().cast<double>();
   const auto pairs = crossing_face_pairs(stored, tessellation.faces);
-  std::set<std::string> where;
+  std::set<std::string> names;
+  std::map<std::pair<int, int>, std::vector<Eigen::Vector3d>> which;
+  const auto centroid = [&](int f) {
+    const auto& t = tessellation.faces[f];
+    return ((stored[t[0]] + stored[t[1]] + stored[t[2]]) / 3).eval();
+  };
   for (const auto& [f, g] : pairs) {
     std::string a = s.patches[face_patch[f]].name, b = s.patches[face_patch[g]].name;
     if (b < a) std::swap(a, b);
-    where.insert(a == b ? a : a + " | " + b);
+    names.insert(a == b ? a : a + " | " + b);
+    auto& at = which[std::minmax(face_patch[f], face_patch[g])];
+    at.push_back(centroid(f));
+    at.push_back(centroid(g));
   }
-  return {pairs.size(), std::vector<std::string>(where.begin(), where.end())};
+  PatchCrossings c{pairs.size(), std::vector<std::string>(names.begin(), names.end()), {}, {}};
+  for (auto& [pair, at] : which) c.patch_pairs.push_back(pair), c.where.push_back(std::move(at));
+  return c;
 }
 
 PatchCrossings crossings(const PatchSkin& s, int n) {

@@ -72,7 +72,25 @@ struct DistanceFigures {
 struct PatchCrossings {
   size_t pairs = 0;                   ///< pairs of its triangles that cross
   std::vector<std::string> patches;   ///< the patches they lie on, by name, each pair once ("a | b", sorted)
+  std::vector<std::pair<int, int>> patch_pairs;  ///< the same pairs by patch index (a <= b), each once, sorted
+  /// Per entry of patch_pairs, where its triangles cross: the centroids of each crossing pair's two.
+  std::vector<std::vector<Eigen::Vector3d>> where;
 };
+
+/// Two neighbouring fingers' tubes of patches held apart (fit_patch_skin): where the fingers
+/// are pressed together, the two patches either side of their web's border follow the same
+/// crease and can pass through each other. Every control point of the patches `faces[0]` is
+/// kept at least kSeparationMarginMm on the plane's negative side (normal · x <= offset - margin),
+/// of `faces[1]` on its positive side, and those of both (their shared border) on the plane:
+/// a Bézier patch lies within its control points' convex hull, so the two then meet along
+/// their border only.
+struct Separation {
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitX();  ///< unit, from faces[0]'s side to faces[1]'s
+  double offset = 0;                                  ///< the plane: normal · x = offset
+  std::array<std::vector<int>, 2> faces;              ///< indices into the layout's faces
+  std::string between;                                ///< "a | b": the two patches that crossed (for the report)
+};
+inline constexpr double kSeparationMarginMm = 0.02;
 
 struct PatchSkin {
   PatchLayout layout;                      ///< the faces fitted on, one patch each
@@ -123,6 +141,10 @@ struct PatchSkin {
   /// fit_patch_skin measured it for the choice of layout (none after a refinement, with a
   /// layout given, or posed: the stage measures it then).
   std::optional<PatchCrossings> crossings;
+  /// The fingers' tubes held apart (Separation), and the crossing pairs of the fit before
+  /// they were (`crossings_before_separation`); both empty when none crossed.
+  std::vector<Separation> separations;
+  size_t crossings_before_separation = 0;
   double g0_gap_mm = 0;                      ///< largest gap between neighbours' shared borders
   /// G1: angle between the two patches' normals along every shared border (deg), 9 samples
   /// per border; "away" leaves out the two samples nearest a corner where 3, 5 or 6 patches
@@ -150,11 +172,13 @@ struct PatchSkin {
 /// Fit one patch per face of `layout` to the measured `points` (palm frame, with their scan
 /// `sides`), with `support` (the polygon skin's vertices) as weak data; `bones` bind the
 /// control points. The net starts on the layout's bilinear faces, or on `seed` (per face its
-/// 16 control points, P00…P33) when given.
+/// 16 control points, P00…P33) when given; `separations` hold pairs of faces apart (with a seed
+/// only: they act in the rounds that fit along the foot points' normals).
 PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector3d>& points,
                       const std::vector<std::uint32_t>& sides, const std::vector<Eigen::Vector3d>& support,
                       const std::vector<Bone>& bones, const PatchOptions& options,
-                      const std::vector<std::array<Eigen::Vector3d, 16>>* seed = nullptr);
+                      const std::vector<std::array<Eigen::Vector3d, 16>>* seed = nullptr,
+                      const std::vector<Separation>& separations = {});
 
 /// Cuts of a face (refine.cpp): kCutU splits it at u = 1/2 (its sides 0 and 2 at their
 /// midpoints), kCutV at v = 1/2 (sides 1 and 3); both: four faces.

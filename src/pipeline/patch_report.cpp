@@ -349,6 +349,13 @@ std::string fit_sections(const PatchStageResult& r, const std::string& svg, cons
              fmt("%.2f", s.layout_tries[k].second) + " mm" + crossed(k) + ")";
       h += "; kept: " + signed_rings(s.thumb_ring_shift) + " (the fewest crossings, then the nearest the skin).";
     }
+    if (!s.separations.empty()) {
+      h += " Two fingers' tubes passed through each other (" + std::to_string(s.crossings_before_separation) +
+           " pairs of crossing triangles, at";
+      for (size_t k = 0; k < s.separations.size(); ++k) h += (k ? ", " : " ") + s.separations[k].between;
+      h += ": fingers pressed together); the net was fitted again with each pair held apart by the plane through "
+           "their shared border.";
+    }
     h += "</p>\n<table>\n" + row({"direction", "mean", "p95", "max", "within 1 mm"}, true);
     h += row({"surface → skin", fmt("%.3f", d.mean), fmt("%.3f", d.p95), fmt("%.3f", d.max), fmt("%.2f %%", 100 * d.within_1mm)});
     h += "</table>\n";

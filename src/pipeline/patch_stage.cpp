@@ -41,6 +41,15 @@ std::optional<std::string> layout_note(const PatchSkin& s) {
   return std::string(buf);
 }
 
+std::optional<std::string> separation_note(const PatchSkin& s) {
+  if (s.separations.empty()) return std::nullopt;
+  std::string between;
+  for (const Separation& sep : s.separations) between += (between.empty() ? "" : ", ") + sep.between;
+  return "the fingers' tubes passed through each other at " + between + " (" +
+         std::to_string(s.crossings_before_separation) +
+         " pairs of triangles: fingers pressed together); fitted again held apart by the plane between them (docs/patches.md)";
+}
+
 PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
                                  const std::vector<std::uint32_t>& sides, const PatchOptions& options,
                                  const TruthSkin* truth, int error_grid, bool pictures) {
@@ -95,6 +104,14 @@ Json to_json(const PatchStageResult& r) {
                return a;
              }()},
             {"thumb_ring_shift", s.thumb_ring_shift},
+            {"separations", [&] {
+               Json a = Json::array();
+               for (const Separation& sep : s.separations)
+                 a.push_back({{"between", sep.between}, {"normal", to_json(sep.normal)}, {"offset_mm", sep.offset},
+                              {"margin_mm", kSeparationMarginMm}});
+               return a;
+             }()},
+            {"crossing_pairs_before_separation", s.crossings_before_separation},
             {"correction", {{"rounds", s.max_update_per_round.size()},
                             {"max_update_mm", s.max_update_per_round},
                             {"update_p999_mm", s.update_p999_per_round},

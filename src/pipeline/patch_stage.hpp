@@ -48,6 +48,8 @@ Json to_json(const PatchReportFigures& f);
 /// What the command and the run say when the hand's layout was fitted more than once (its
 /// patches strayed from the polygon skin: PatchSkin::layout_tries), else nothing.
 std::optional<std::string> layout_note(const PatchSkin& s);
+/// What the fit did when two fingers' tubes passed through each other (PatchSkin::separations), or nothing.
+std::optional<std::string> separation_note(const PatchSkin& s);
 
 struct PatchStageResult {
   PatchSkin patches;
