@@ -846,6 +846,56 @@ TEST(Patches, SeparatedFacesKeepTheirControlPointsEachOnItsSideOfThePlane) {
   EXPECT_THROW(fit_patches(free.layout, c.points, c.sides, {}, {}, PatchOptions{}, nullptr, {sep}), std::logic_error);
 }
 
+// The refinement does not split a face held apart (its control points are bound to its side
+// of the plane: the points it misses lie across it, where no split reaches them, and split, the
+// bound walls of two pressed fingers folded); the other faces are split as before, and the
+// separation follows the faces through the refits.
+TEST(Patches, TheRefinementLeavesFacesHeldApartWhole) {
+  const Cloud c = ellipsoid_cloud(8000, 0.0);
+  const PatchSkin free = fit_patches(cube_layout(2), c.points, c.sides, {}, {}, PatchOptions{});
+  const auto& F = free.layout.faces;
+  int fa = -1, fb = -1;
+  for (size_t a = 0; a < F.size() && fa < 0; ++a)
+    for (size_t b = a + 1; b < F.size() && fa < 0; ++b)
+      for (int k = 0; k < 4 && fa < 0; ++k)
+        for (int m = 0; m < 4; ++m)
+          if (F[a][k] == F[b][(m + 1) % 4] && F[a][(k + 1) % 4] == F[b][m]) fa = static_cast<int>(a), fb = static_cast<int>(b);
+  ASSERT_GE(fa, 0);
+  Eigen::Vector3d ca = Eigen::Vector3d::Zero(), cb = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 16; ++k) ca += free.patches[fa].P[k] / 16, cb += free.patches[fb].P[k] / 16;
+  Separation sep;
+  sep.normal = (cb - ca).normalized();
+  sep.offset = sep.normal.dot(0.5 * (ca + cb));
+  sep.faces = {std::vector<int>{fa}, std::vector<int>{fb}};
+  std::vector<std::array<Eigen::Vector3d, 16>> seed;
+  for (const auto& P : free.patches) seed.push_back(P.P);
+  PatchOptions o;
+  PatchSkin s = fit_patches(free.layout, c.points, c.sides, {}, {}, o, &seed, {sep});
+  // A tolerance every patch misses (the 24 patches' worst points lie farther).
+  const std::vector<double> worst = patch_max_error(s);
+  o.tolerance_mm = 0.5 * *std::min_element(worst.begin(), worst.end());
+  o.refine_rounds = 2;
+  const std::string name_a = s.patches[fa].name, name_b = s.patches[fb].name;
+  patch_steps::refine_to_tolerance(&s, o, [&](const LayoutSplit& split) {
+    return fit_patches(split.layout, c.points, c.sides, {}, {}, o, &split.seed, separations_after_split(s.separations, split));
+  });
+  ASSERT_TRUE(s.refinement.has_value());
+  EXPECT_GT(s.patches.size(), free.patches.size()) << "the other faces are split";
+  std::set<std::string> names;
+  for (const auto& p : s.patches) names.insert(p.name);
+  for (const std::string& n : {name_a, name_b}) {
+    EXPECT_TRUE(names.count(n)) << n << " was split";
+    for (const auto& m : names) EXPECT_NE(m.rfind(n + "/", 0), 0u) << m;
+  }
+  ASSERT_EQ(s.separations.size(), 1u);
+  ASSERT_EQ(s.separations[0].faces[0].size(), 1u);
+  ASSERT_EQ(s.separations[0].faces[1].size(), 1u);
+  EXPECT_EQ(s.patches[s.separations[0].faces[0][0]].name, name_a);
+  EXPECT_EQ(s.patches[s.separations[0].faces[1][0]].name, name_b);
+  EXPECT_FALSE(s.refinement->held);
+  EXPECT_LT(s.g0_gap_mm, 1e-6);
+}
+
 TEST(Patches, RandomLayoutsAreRefusedInOneLineOrFitted) {
   // Malformed layouts of every kind (indices out of range, repeated corners, open or
   // non-manifold edges, faces run the same way, creases off the layout): each one is an

@@ -771,16 +771,9 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
   if (o.tolerance_mm > 0) {
     s.crossings.reset();  // of the surface before the refinement
     refine_to_tolerance(&s, o, [&](const LayoutSplit& split) {
-      // The separations carried to the split faces (s: the fit being refined).
-      std::vector<Separation> seps = s.separations;
-      for (Separation& sep : seps)
-        for (auto& faces : sep.faces) {
-          const std::set<int> was(faces.begin(), faces.end());
-          faces.clear();
-          for (size_t k = 0; k < split.parent.size(); ++k)
-            if (was.count(split.parent[k])) faces.push_back(static_cast<int>(k));
-        }
-      return fit_patches(split.layout, points, sides, support, skin.bones, o, &split.seed, seps);
+      // s: the fit being refined.
+      return fit_patches(split.layout, points, sides, support, skin.bones, o, &split.seed,
+                         separations_after_split(s.separations, split));
     });
     hold_fingers_apart(&s);
   }

@@ -203,6 +203,8 @@ struct LayoutSplit {
   std::vector<std::array<bool, 4>> on_parent_side;
 };
 LayoutSplit split_layout(const PatchSkin& s, const std::vector<int>& cuts);
+/// Separations carried to a split layout: each side's faces are those split from its faces.
+std::vector<Separation> separations_after_split(const std::vector<Separation>& separations, const LayoutSplit& split);
 /// Per patch, the q-quantile of its measured points' distances (0 with fewer than 40 points).
 std::vector<double> patch_error_percentile(const PatchSkin& s, double q);
 /// The largest distance of a measured point (PatchSkin::samples) with its foot point on each patch.

@@ -203,6 +203,18 @@ LayoutSplit split_layout(const PatchSkin& s, const std::vector<int>& cuts) {
 }
 
 
+std::vector<Separation> separations_after_split(const std::vector<Separation>& separations, const LayoutSplit& split) {
+  std::vector<Separation> out = separations;
+  for (Separation& sep : out)
+    for (auto& faces : sep.faces) {
+      const std::set<int> was(faces.begin(), faces.end());
+      faces.clear();
+      for (size_t k = 0; k < split.parent.size(); ++k)
+        if (was.count(split.parent[k])) faces.push_back(static_cast<int>(k));
+    }
+  return out;
+}
+
 std::vector<double> patch_error_percentile(const PatchSkin& s, double q) {
   std::vector<std::vector<float>> on(s.patches.size());
   for (const auto& x : s.samples)
