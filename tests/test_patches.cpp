@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <random>
 #include <set>
+#include <tuple>
 
 #include <Eigen/Geometry>
 
@@ -790,6 +791,18 @@ TEST(Patches, ASurfacePassingThroughItselfIsFoundAndNamed) {
   EXPECT_TRUE(std::is_sorted(found.patches.begin(), found.patches.end()));
 }
 
+// The first two faces of a layout that share a side, and that side's two corners ({-1, -1, ..} when none do).
+std::tuple<int, int, std::array<int, 2>> two_faces_sharing_a_side(const PatchLayout& L) {
+  const auto& F = L.faces;
+  for (size_t a = 0; a < F.size(); ++a)
+    for (size_t b = a + 1; b < F.size(); ++b)
+      for (int k = 0; k < 4; ++k)
+        for (int m = 0; m < 4; ++m)
+          if (F[a][k] == F[b][(m + 1) % 4] && F[a][(k + 1) % 4] == F[b][m])
+            return {static_cast<int>(a), static_cast<int>(b), std::array<int, 2>{F[a][k], F[a][(k + 1) % 4]}};
+  return {-1, -1, std::array<int, 2>{-1, -1}};
+}
+
 // Two faces held apart (Separation, as fit_patch_skin holds two fingers' tubes pressed
 // together): a plane through their shared border, turned so that the free fit lies across it;
 // fitted again from that surface with the separation, every control point of the first face
@@ -799,17 +812,7 @@ TEST(Patches, SeparatedFacesKeepTheirControlPointsEachOnItsSideOfThePlane) {
   const Cloud c = ellipsoid_cloud(8000, 0.0);
   const PatchSkin free = fit_patches(cube_layout(2), c.points, c.sides, {}, {}, PatchOptions{});
   // Two faces sharing a side, and that side's corners.
-  int fa = -1, fb = -1;
-  std::array<int, 2> shared{};
-  const auto& F = free.layout.faces;
-  for (size_t a = 0; a < F.size() && fa < 0; ++a)
-    for (size_t b = a + 1; b < F.size() && fa < 0; ++b)
-      for (int k = 0; k < 4 && fa < 0; ++k)
-        for (int m = 0; m < 4; ++m)
-          if (F[a][k] == F[b][(m + 1) % 4] && F[a][(k + 1) % 4] == F[b][m]) {
-            fa = static_cast<int>(a), fb = static_cast<int>(b), shared = {F[a][k], F[a][(k + 1) % 4]};
-            break;
-          }
+  const auto [fa, fb, shared] = two_faces_sharing_a_side(free.layout);
   ASSERT_GE(fa, 0);
   const Eigen::Vector3d p0 = free.control[shared[0]], p1 = free.control[shared[1]];
   Eigen::Vector3d ca = Eigen::Vector3d::Zero(), cb = Eigen::Vector3d::Zero();
@@ -834,11 +837,17 @@ TEST(Patches, SeparatedFacesKeepTheirControlPointsEachOnItsSideOfThePlane) {
   const std::set<int> of_a(held.patch_control[fa].begin(), held.patch_control[fa].end());
   const std::set<int> of_b(held.patch_control[fb].begin(), held.patch_control[fb].end());
   for (int id : of_a) {
-    if (of_b.count(id)) EXPECT_NEAR(side_of(held, id), 0.0, 1e-3) << id;
-    else EXPECT_LE(side_of(held, id), -0.9 * kSeparationMarginMm) << id;
+    if (of_b.count(id)) {
+      EXPECT_NEAR(side_of(held, id), 0.0, 1e-3) << id;
+    } else {
+      EXPECT_LE(side_of(held, id), -0.9 * kSeparationMarginMm) << id;
+    }
   }
-  for (int id : of_b)
-    if (!of_a.count(id)) EXPECT_GE(side_of(held, id), 0.9 * kSeparationMarginMm) << id;
+  for (int id : of_b) {
+    if (!of_a.count(id)) {
+      EXPECT_GE(side_of(held, id), 0.9 * kSeparationMarginMm) << id;
+    }
+  }
   // The rest of the surface still fits the ellipsoid, and the net stays closed.
   EXPECT_LT(held.g0_gap_mm, 1e-9);
   EXPECT_LT(held.side[0].mean + held.side[1].mean, 2 * (free.side[0].mean + free.side[1].mean) + 0.5);
@@ -853,13 +862,7 @@ TEST(Patches, SeparatedFacesKeepTheirControlPointsEachOnItsSideOfThePlane) {
 TEST(Patches, TheRefinementLeavesFacesHeldApartWhole) {
   const Cloud c = ellipsoid_cloud(8000, 0.0);
   const PatchSkin free = fit_patches(cube_layout(2), c.points, c.sides, {}, {}, PatchOptions{});
-  const auto& F = free.layout.faces;
-  int fa = -1, fb = -1;
-  for (size_t a = 0; a < F.size() && fa < 0; ++a)
-    for (size_t b = a + 1; b < F.size() && fa < 0; ++b)
-      for (int k = 0; k < 4 && fa < 0; ++k)
-        for (int m = 0; m < 4; ++m)
-          if (F[a][k] == F[b][(m + 1) % 4] && F[a][(k + 1) % 4] == F[b][m]) fa = static_cast<int>(a), fb = static_cast<int>(b);
+  const auto [fa, fb, shared] = two_faces_sharing_a_side(free.layout);
   ASSERT_GE(fa, 0);
   Eigen::Vector3d ca = Eigen::Vector3d::Zero(), cb = Eigen::Vector3d::Zero();
   for (int k = 0; k < 16; ++k) ca += free.patches[fa].P[k] / 16, cb += free.patches[fb].P[k] / 16;
