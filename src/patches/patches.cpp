@@ -569,9 +569,9 @@ std::string finger_of(const std::string& name) {
 // Where two fingers' patches that share a border (the web's, between their tubes) cross, the
 // fingers are pressed together and both patches follow the crease between them (the family's
 // H04 and H12: the true section two overlapping circles, each tube's inner wall within a
-// fraction of a millimetre of the other's). The plane they are held apart by: through that
-// border's control points, along the border and the two tubes' mean direction away from it.
-// A refined layout's faces are taken by the layout's face they were split from (their name up
+// fraction of a millimetre of the other's). The plane they are held apart by holds that
+// border (through its control points' mean, along it) and is turned about it to pass nearest
+// where the two crossed (below). A refined layout's faces are taken by the layout's face they were split from (their name up
 // to the first '/'), so that the two sides are every patch split from the two that crossed.
 std::vector<Separation> finger_separations(const PatchSkin& s, const PatchCrossings& c) {
   const auto root = [&](int f) { const std::string& n = s.patches[f].name; return n.substr(0, n.find('/')); };
@@ -731,11 +731,11 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
   // Neighbouring fingers pressed together: their tubes' patches either side of the web can
   // pass through each other (finger_separations). The net is fitted again from this surface
   // with them held apart, and kept when it crosses itself less (on the family's H04 and H12,
-  // whose fingers touch at their roots: ~0.3 s more).
-  // Held apart, the two tubes can push a third finger's into its neighbour (H12 of the
-  // family, second pair: index–middle and middle–ring held, ring–little then crossed in 4
-  // pairs): the crossings left are looked at again, up to kSeparationFits fits. A refined
-  // surface is looked at too (its splits can bring two tubes that did not cross together).
+  // whose fingers touch at their roots: 0.2-0.35 s more). Held apart, two tubes can push a
+  // third finger's into its neighbour (H12's second pair: index–middle and middle–ring held,
+  // ring–little then crossed in 4 pairs): the crossings left are looked at again, up to
+  // kSeparationFits fits. A refined surface is looked at too (its splits can bring together
+  // two tubes that did not cross).
   const auto hold_fingers_apart = [&](PatchSkin* s) {
     if (!s->crossings) s->crossings = crossings(*s, o.tessellation);
     constexpr int kSeparationFits = 3;
