@@ -330,8 +330,11 @@ TEST(Family, FingersPressedTogetherGiveAPatchSurfaceThatDoesNotPassThroughItself
     EXPECT_GE(st["separations"].size(), 1u);
     EXPECT_GT(st["crossing_pairs_before_separation"].get<int>(), 0);
     EXPECT_EQ(st["self_intersections"]["crossing_pairs"].get<int>(), 0) << st["self_intersections"]["patches"];
-    for (const auto& g : r["gates"])
-      if (g["name"] == "patches.self_intersections") EXPECT_TRUE(g["pass"].get<bool>());
+    for (const auto& g : r["gates"]) {
+      if (g["name"] == "patches.self_intersections") {
+        EXPECT_TRUE(g["pass"].get<bool>());
+      }
+    }
     EXPECT_GE(st["truth"]["truth_to_surface_mm"]["within_1mm"].get<double>(), 0.99);
     EXPECT_LE(st["continuity"]["g0_gap_mm"].get<double>(), 1e-9);
   }

@@ -138,8 +138,8 @@ struct PatchSkin {
   std::vector<size_t> layout_try_crossings;
   int thumb_ring_shift = 0;
   /// The kept surface tessellated at PatchOptions::tessellation passing through itself, as
-  /// fit_patch_skin measured it for the choice of layout (none after a refinement, with a
-  /// layout given, or posed: the stage measures it then).
+  /// fit_patch_skin measured it for the choice of layout and the fingers held apart (on every
+  /// path; none once posed).
   std::optional<PatchCrossings> crossings;
   /// The fingers' tubes held apart (Separation), and the crossing pairs of the fit before
   /// they were (`crossings_before_separation`); both empty when none crossed.

@@ -3,10 +3,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <future>
 
 #include "core/atomic_file.hpp"
-#include "core/threads.hpp"
+#include "core/errors.hpp"
 #include "pipeline/figures_json.hpp"
 #include "pipeline/layout_json.hpp"
 #include "pipeline/patch_report.hpp"
@@ -57,13 +56,7 @@ PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const s
   PatchStageResult r;
   r.options = options;
   r.patches = fit_patch_skin(skin, rig, points, sides, options);
-  std::vector<int> face_patch;
-  r.tessellation = tessellate(r.patches, options.tessellation, &face_patch);
-  // The surface's own crossings: the fit's, which it measured on this tessellation for its
-  // layout's choice, else measured here (one thread, CGAL) beside the distances below.
-  std::future<PatchCrossings> crossings;
-  if (!r.patches.crossings)
-    crossings = std::async(side_launch(), [&] { return tessellation_crossings(r.patches, r.tessellation, face_patch); });
+  r.tessellation = tessellate(r.patches, options.tessellation);
   r.surface_to_skin = one_way_distance(sample_surface(r.tessellation, 1.0), MeshDistance(skin.mesh));
   if (truth) {
     const auto t_truth = std::chrono::steady_clock::now();
@@ -73,7 +66,10 @@ PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const s
     r.truth_to_surface = one_way_distance(sample_surface(truth->skin, 4.0), to_surface, truth->markers, truth->exclude_mm);
     r.truth_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_truth).count();
   }
-  r.crossings = r.patches.crossings ? *r.patches.crossings : crossings.get();
+  // The surface's own crossings: fit_patch_skin measured them on this tessellation (for the
+  // layout's choice and the fingers held apart) on every path.
+  HS_CHECK(r.patches.crossings.has_value(), "the fit measures its surface's crossings");
+  r.crossings = *r.patches.crossings;
   r.figures = patch_report_figures(r.patches, error_grid);
   if (pictures) r.pictures = patch_report_pictures(r.patches, rig);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
