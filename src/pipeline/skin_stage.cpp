@@ -114,7 +114,7 @@ void measure_skin(const SkinStageInputs& in, const SkinOptions& so, const std::f
   const MeshDistance to_skin(skin.mesh);
   const auto cloud = thinned_points(in.points, kCloudToSkinPoints);
   R.cloud_to_skin = one_way_distance(cloud, to_skin);
-  if (in.slices) R.slices = slice_cloud(in.points, R.rig, so.slicing);
+  if (in.slices && !R.slices) R.slices = slice_cloud(in.points, R.rig, so.slicing);
 
   std::optional<MeshDistance> to_base;
   if (in.baseline) {
@@ -245,10 +245,18 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
       R.rig_orientation = *note;
       progress(in.rig_name + ": " + *note);
     }
+    // The placement, then the thesis's sections (they need the cloud and the rig only), beside
+    // the build (one thread: the build takes ~3 × as long as the two).
 #pragma omp parallel sections
     {
 #pragma omp section
-      place();  // a given rig: the placement records its failure, never throws
+      {
+        place();  // a given rig: the placement records its failure, never throws
+        try {
+          if (in.slices) R.slices = slice_cloud(in.points, R.rig, so.slicing);
+        } catch (...) {  // made again after the build (measure_skin), which reports the error in turn
+        }
+      }
 #pragma omp section
       build(R.rig);
     }
