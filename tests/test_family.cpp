@@ -340,6 +340,31 @@ TEST(Family, FingersPressedTogetherGiveAPatchSurfaceThatDoesNotPassThroughItself
   }
 }
 
+// A hand with its fingers curled (PIPs bent 55-60 deg, left; not one of the study's hands):
+// the intermediate and distal phalanges are seen from the back only (~100 deg of each
+// section). Their rings copied the last full ring, at the bent PIP, whose palmar side lies in
+// the joint's crease, and the fairing of unseen creases started at that fold and flattened
+// the palmar halves further: the skin lay 3-6 mm inside the true skin there (mean 0.191 mm,
+// within 1 mm 94.3 %). The rings now take the finger's median section shape across the
+// unseen arc, and a fold between two of a finger's rings starts no fairing.
+TEST(Family, CurledFingersKeepTheRoundnessOfTheirUnseenPalmarSide) {
+  const std::string dir = study_pair("family-curled", "--set index.pip.flex=55 --set middle.pip.flex=60 --set "
+                                     "ring.pip.flex=60 --set little.pip.flex=55 --side left", 7, 3.5);
+  std::string out;
+  const std::string args = "skin --merged " + dir + "/reg/merged.ply --rig " + dir + "/pair/rig.json --truth " + dir +
+                           "/pair/truth.json --out " + dir + "/skin";
+  ASSERT_EQ(test::run(std::string(HANDSKIN_BINARY) + " -q " + args, &out), 0) << out;
+  std::ifstream in(dir + "/skin/skin_report.json");
+  const auto r = nlohmann::json::parse(in);
+  const auto& t = r["truth"];
+  std::printf("[family] curled: skin -> truth mean %.4f p95 %.3f mm, truth within 1 mm %.2f %%\n",
+              t["skin_to_truth_mm"]["mean"].get<double>(), t["skin_to_truth_mm"]["p95"].get<double>(),
+              100 * t["truth_to_skin_mm"]["within_1mm"].get<double>());
+  EXPECT_LE(t["skin_to_truth_mm"]["mean"].get<double>(), 0.14);         // measured 0.115 (run); 0.191 before
+  EXPECT_LE(t["skin_to_truth_mm"]["p95"].get<double>(), 0.55);          // measured 0.432; 0.861 before
+  EXPECT_GE(t["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.985);  // measured 99.09 %; 94.28 % before
+}
+
 // A broad hand with its fingers 3 deg apart (the family study's H12, second pair): the
 // morphological opening left a sliver along the ring finger's boundary below the little
 // finger, of a finger's width but beside it, and its middles turned the little finger's line

@@ -697,11 +697,21 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
     // nowhere and lay nearer the skin.
     s.crossings = crossings(s, o.tessellation);
     std::vector<size_t> crossed = {s.crossings->pairs};
-    const bool crossed_at_base = std::any_of(s.crossings->patches.begin(), s.crossings->patches.end(), [](const std::string& w) {
+    std::vector<std::pair<double, std::string>> folds = {{s.g1_max_deg, s.g1_max_where}};
+    const auto at_base = [](const std::string& w) {
       return w.find("thumb.") != std::string::npos || w.find("palm.") != std::string::npos ||
              w.find("wrist.") != std::string::npos;
-    });
-    if (tries[0].second > kStrayP95Mm || crossed_at_base) {
+    };
+    const bool crossed_at_base = std::any_of(s.crossings->patches.begin(), s.crossings->patches.end(), at_base);
+    // And one that folds there: a jump between two patches' normals over the gate's 30 deg
+    // (gates.g1_kink_deg) at a border of the thumb's, the palm's or the wrist's patches. On
+    // the WebXR hand with its thumb bent (left, second pair) the first layout crossed itself
+    // at the thumb's base in 53 pairs, or, its skin a few micrometres otherwise, in none but
+    // folded there by 42 deg with its patches 3.1 mm from the skin; the layout with that ring
+    // 2 rings toward the wrist did neither.
+    constexpr double kFoldDeg = 30;
+    const auto folded_at_base = [&](const PatchSkin& p) { return p.g1_max_deg > kFoldDeg && at_base(p.g1_max_where); };
+    if (tries[0].second > kStrayP95Mm || crossed_at_base || folded_at_base(s)) {
       // The two other layouts are fitted at once, each on a thread of its own (a fit's
       // factorisations leave most of the second core idle), and compared in a fixed order:
       // the same choice with any number of threads.
@@ -714,19 +724,21 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
       };
       std::future<std::optional<PatchSkin>> toward_webs = std::async(side_launch(), other, 2);
       std::pair<int, std::optional<PatchSkin>> others[] = {{-2, other(-2)}, {2, toward_webs.get()}};
-      // Kept: the fewest crossings, then the nearest the skin.
-      std::pair<size_t, double> best = {crossed[0], tries[0].second};
+      // Kept: the fewest crossings, then one not folded at the base, then the nearest the skin.
+      std::tuple<size_t, bool, double> best = {crossed[0], folded_at_base(s), tries[0].second};
       for (auto& [shift, t] : others) {
         if (!t) continue;
         tries.push_back({shift, stray(*t)});
         t->crossings = crossings(*t, o.tessellation);
         crossed.push_back(t->crossings->pairs);
-        const std::pair<size_t, double> mine = {crossed.back(), tries.back().second};
+        folds.push_back({t->g1_max_deg, t->g1_max_where});
+        const std::tuple<size_t, bool, double> mine = {crossed.back(), folded_at_base(*t), tries.back().second};
         if (mine < best) best = mine, s = std::move(*t), s.thumb_ring_shift = shift;
       }
     }
     s.layout_tries = std::move(tries);
     s.layout_try_crossings = std::move(crossed);
+    s.layout_try_folds = std::move(folds);
   }
   // Neighbouring fingers pressed together: their tubes' patches either side of the web can
   // pass through each other (finger_separations). The net is fitted again from this surface
@@ -754,6 +766,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
       t.crossings_before_separation = crossed_first;
       t.layout_tries = std::move(s->layout_tries);
       t.layout_try_crossings = std::move(s->layout_try_crossings);
+      t.layout_try_folds = std::move(s->layout_try_folds);
       t.thumb_ring_shift = s->thumb_ring_shift;
       if ((t.refinement = std::move(s->refinement))) {  // after a refinement: its figures of the surface kept
         const std::vector<double> err = patch_max_error(t);

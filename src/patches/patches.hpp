@@ -136,6 +136,10 @@ struct PatchSkin {
   /// Per layout tried, the pairs of its tessellation's triangles (PatchOptions::tessellation)
   /// that cross; a try with fewer is kept before one nearer the skin.
   std::vector<size_t> layout_try_crossings;
+  /// Per layout tried, its largest G1 jump away from the irregular corners (deg) and the
+  /// border it is at; one folded over 30 deg at the thumb's, the palm's or the wrist's patches
+  /// is kept after one that is not.
+  std::vector<std::pair<double, std::string>> layout_try_folds;
   int thumb_ring_shift = 0;
   /// The kept surface tessellated at PatchOptions::tessellation passing through itself, as
   /// fit_patch_skin measured it for the choice of layout and the fingers held apart (on every

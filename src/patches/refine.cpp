@@ -373,6 +373,7 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
     }
     t.layout_tries = std::move(s->layout_tries);
     t.layout_try_crossings = std::move(s->layout_try_crossings);
+    t.layout_try_folds = std::move(s->layout_try_folds);
     t.thumb_ring_shift = s->thumb_ring_shift;
     t.crossings_before_separation = s->crossings_before_separation;
     *s = std::move(t);

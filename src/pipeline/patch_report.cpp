@@ -341,13 +341,17 @@ std::string fit_sections(const PatchStageResult& r, const std::string& svg, cons
                    ? ", " + std::to_string(s.layout_try_crossings[k]) + " pairs of crossing triangles"
                    : std::string();
       };
+      const bool folded = !s.layout_try_folds.empty() && s.layout_try_folds[0].first > 30;
       h += " The first layout's patches strayed (p95 of " + fmt("%.2f", s.layout_tries[0].second) +
            " mm over 5 × 5 samples per patch" + crossed(0) +
+           (folded ? ", folded by " + fmt("%.0f", s.layout_try_folds[0].first) + "° at " + s.layout_try_folds[0].second
+                   : std::string()) +
            "): the palm ring the thumb's base ends at was moved";
       for (size_t k = 1; k < s.layout_tries.size(); ++k)
         h += std::string(k == 1 ? " " : ", ") + signed_rings(s.layout_tries[k].first) + " rings (" +
              fmt("%.2f", s.layout_tries[k].second) + " mm" + crossed(k) + ")";
-      h += "; kept: " + signed_rings(s.thumb_ring_shift) + " (the fewest crossings, then the nearest the skin).";
+      h += "; kept: " + signed_rings(s.thumb_ring_shift) +
+           " (the fewest crossings, then one not folded over 30° at the thumb's base, then the nearest the skin).";
     }
     if (!s.separations.empty()) {
       h += " Two fingers' tubes passed through each other (" + std::to_string(s.crossings_before_separation) +

@@ -25,9 +25,13 @@ std::optional<std::string> layout_note(const PatchSkin& s) {
   for (size_t k = 0; k < s.layout_tries.size(); ++k)
     if (s.layout_tries[k].first == s.thumb_ring_shift) kept = k;
   char first[160], buf[400];
+  const double fold = s.layout_try_folds.empty() ? 0.0 : s.layout_try_folds[0].first;
   if (crossed(0) > 0)
     std::snprintf(first, sizeof first, "passed through themselves (%zu pairs of triangles; p95 %.2f mm from the skin)",
                   crossed(0), s.layout_tries[0].second);
+  else if (fold > 30)
+    std::snprintf(first, sizeof first, "folded by %.0f deg at %s (p95 %.2f mm from the skin)", fold,
+                  s.layout_try_folds[0].second.c_str(), s.layout_tries[0].second);
   else
     std::snprintf(first, sizeof first, "strayed from the skin (p95 %.2f mm)", s.layout_tries[0].second);
   if (s.thumb_ring_shift != 0)
@@ -96,6 +100,8 @@ Json to_json(const PatchStageResult& r) {
                for (size_t k = 0; k < s.layout_tries.size(); ++k) {
                  a.push_back({{"thumb_ring_shift", s.layout_tries[k].first}, {"surface_to_skin_p95_mm", s.layout_tries[k].second}});
                  if (k < s.layout_try_crossings.size()) a.back()["crossing_pairs"] = s.layout_try_crossings[k];
+                 if (k < s.layout_try_folds.size())
+                   a.back()["g1_max_deg"] = s.layout_try_folds[k].first, a.back()["g1_max_at"] = s.layout_try_folds[k].second;
                }
                return a;
              }()},

@@ -45,6 +45,8 @@ FairUnseen fair_unseen(SM* sm, const std::vector<Eigen::Vector3d>& points, const
     const Eigen::Vector3d q(p.x(), p.y(), p.z());
     seen[v.idx()] = cut_n.dot(q) - cut_d < o.cut_margin_mm || grid.any_within(q, o.seen_mm);
   }
+  // Each vertex's tube and ring, where the build kept them (skin_mesh.cpp's "v:origin").
+  const auto [origin, has_origin] = sm->property_map<SM::Vertex_index, std::pair<int, int>>("v:origin");
   auto fnormal = sm->add_property_map<SM::Face_index, K::Vector_3>("f:fair_normal", CGAL::NULL_VECTOR).first;
   PMP::compute_face_normals(*sm, fnormal);
   const double cos_crease = std::cos(o.crease_deg * kDeg);
@@ -58,6 +60,17 @@ FairUnseen fair_unseen(SM* sm, const std::vector<Eigen::Vector3d>& points, const
     // Concave: the far corner of the other face lies on the outer side of this one.
     const auto w = sm->target(sm->next(sm->opposite(h)));
     if (fnormal[f0] * (sm->point(w) - sm->point(sm->source(h))) <= 0) continue;
+    // A crease between two section rings of one finger is its bent joint's fold on the palmar
+    // side, not a seam between tubes: the rings there follow the finger's own section
+    // (rings.cpp), and fairing from it flattened a curled finger's unseen palmar side (its
+    // PIPs bent 55-60 deg: 944 vertices faired, up to 8.5 mm inward). A crease with a dome
+    // ring's vertex (ring -1: a curled fingertip's) still starts a region: left out too, the
+    // family's H05 with the automatic skeleton lost 0.016 mm of mean; and so does a fold of
+    // the thumb's (tube 1), whose fairing the WebXR hand's bent thumb keeps (0.003 mm).
+    if (has_origin) {
+      const auto a = origin[sm->source(h)], b = origin[sm->target(h)];
+      if (a.first >= 2 && a.first == b.first && a.second >= 0 && b.second >= 0) continue;
+    }
     for (const auto v : {sm->source(h), sm->target(h)})
       if (!seen[v.idx()] && depth[v.idx()] < 0) {
         depth[v.idx()] = 0;
