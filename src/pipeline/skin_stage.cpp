@@ -252,6 +252,15 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
 #pragma omp section
       {
         place();  // a given rig: the placement records its failure, never throws
+        // A placed skeleton whose joints lie outside the cloud (the placement lost this hand:
+        // a broad, thick hand with its fingers together, 240 mm long, in
+        // scripts/unusual_hands_study.py) is the placement's failure, not a check of the given
+        // rig: compared with it, it had the given rig refused as another hand's (101 mm).
+        if (R.placed)
+          if (std::string why = rig_outside_cloud(in.points, R.placed->rig); !why.empty()) {
+            R.placement_failed = "the skeleton placed in the cloud does not fit it: " + why;
+            R.placed.reset();
+          }
         try {
           if (in.slices) R.slices = slice_cloud(in.points, R.rig, so.slicing);
         } catch (...) {  // made again after the build (measure_skin), which reports the error in turn
@@ -262,6 +271,9 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
     }
   }
   if (R.placed && in.rig) check_given_rig(in, progress, &R);
+  if (in.rig && !R.automatic && !R.placement_failed.empty())
+    R.warnings.push_back("the given rig is used unchecked: the automatic placement missed this hand (" +
+                         R.placement_failed + ")");
   if (build_error) {
     try {
       std::rethrow_exception(build_error);

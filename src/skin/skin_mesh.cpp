@@ -152,6 +152,16 @@ void label_vertices(const SM& skin, const SM::Property_map<SM::Vertex_index, std
 
 }  // namespace
 
+std::string rig_outside_cloud(const std::vector<Eigen::Vector3d>& points, const Rig& rig) {
+  if (points.empty()) return "no points";
+  try {
+    to_hand_frame(points, rig, bones_from_rig(rig));
+  } catch (const InputError& e) {
+    return e.detail();
+  }
+  return {};
+}
+
 SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const SkinOptions& o,
                       const std::function<void(const std::string&)>& progress) {
   std::string err;

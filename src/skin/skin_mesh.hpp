@@ -157,6 +157,11 @@ struct SkinResult {
   bool watertight() const;
 };
 
+/// Empty when every joint of the rig's palm (the wrist, each digit's first two) lies within
+/// 15 mm of the cloud's bounding box in the rig's hand frame, as build_skin requires; else why
+/// not (build_skin's error).
+std::string rig_outside_cloud(const std::vector<Eigen::Vector3d>& points, const Rig& rig);
+
 /// Build the skin from the merged cloud `points` (rig frame, mm, markers removed) and the
 /// rig's joints. Throws InputError when the rig does not fit the cloud (joints outside it,
 /// the palm not found) or the surface cannot be closed; a missing digit is a warning.
