@@ -129,6 +129,7 @@ Json registration_to_json(const Registration& reg) {
   rep["matching"] = {{"pairs_back_palm", pairs},
                      {"tolerance_mm", o.match_tolerance_mm},
                      {"recovered", d.recovered},
+                     {"left_out", d.left_out},
                      {"hypotheses", d.match.hypotheses},
                      {"runner_up_pairs", d.match.runner_up_pairs},
                      {"runner_up_rms_mm", d.match.runner_up_rms_mm}};

@@ -113,6 +113,7 @@ struct RegistrationDetail {
   ScanRegistrationDetail back, palm;
   MarkerMatch match;                 ///< the matching, with the recovered markers' pairs
   int recovered = 0;                 ///< markers found in one scan where the pattern put them
+  int left_out = 0;                  ///< matched pairs beyond expected_markers left out (a bump that is not a marker)
   MarkerResiduals marker_only, refined;  ///< at the marker-only and at the refined transform
   RefineResult refinement;
   double change_rotation_deg = 0, change_translation_mm = 0;  ///< refined against marker-only
