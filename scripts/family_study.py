@@ -11,10 +11,9 @@ Prints a Markdown table and the summary against issue 35's bars (scripts/study_u
 writes every pair's figures to <work>/family_study.json; scan pairs already in --work are
 reused. A failing run is a row with its one-line error, not an abort.
 """
-import argparse
 import os
 
-from study_util import no_baseline_pipeline, print_table, run as sh, study_pair
+from study_util import no_baseline_pipeline, print_table, run as sh, study_args, study_pair
 
 # name: synth hand options
 HANDS = {
@@ -46,15 +45,7 @@ SCAN = {"H04": ["--x-extent", "300", "--y-extent", "240"]}
 def family_args(doc, extra=None):
     """The family studies' options (--bin, --work, --hands, and those `extra(parser)` adds),
     parsed; the work folder made."""
-    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--bin", default="build/handskin")
-    ap.add_argument("--work", default="/tmp/family-study")
-    ap.add_argument("--hands", default=",".join(HANDS))
-    if extra:
-        extra(ap)
-    a = ap.parse_args()
-    os.makedirs(a.work, exist_ok=True)
-    return a
+    return study_args(doc, "/tmp/family-study", "--hands", HANDS, extra)
 
 
 def family_hand(binary, work, h):

@@ -1,4 +1,5 @@
 """Helpers shared by the study scripts (family, WebXR, skin, patch and posture studies)."""
+import argparse
 import json
 import os
 import statistics
@@ -18,6 +19,20 @@ def run_or_exit(args):
     if code != 0:
         sys.exit(f"failed ({code}): {' '.join(args)}\n{out}")
     return out
+
+
+def study_args(doc, work, names_flag, names, extra=None):
+    """A study's options: --bin, --work (default `work`), `names_flag` (the hands or postures
+    to run, default all of `names`) and those `extra(parser)` adds; parsed, the work folder made."""
+    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--bin", default="build/handskin")
+    ap.add_argument("--work", default=work)
+    ap.add_argument(names_flag, default=",".join(names))
+    if extra:
+        extra(ap)
+    a = ap.parse_args()
+    os.makedirs(a.work, exist_ok=True)
+    return a
 
 
 def no_baseline_pipeline(work):

@@ -13,10 +13,9 @@ pair's figures to <work>/unusual_hands.json; scan pairs already in --work are re
 failing run is a row with its one-line error, not an abort. These hands are where handskin
 is known to be weakest (docs/skin.md, "Known limits"): the study says how far.
 """
-import argparse
 import os
 
-from study_util import no_baseline_pipeline, print_table, run as sh, study_pair
+from study_util import no_baseline_pipeline, print_table, run as sh, study_args, study_pair
 
 # name: synth hand options
 HANDS = {
@@ -39,12 +38,7 @@ SEED, RADIUS = 7, "3.5"
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--bin", default="build/handskin")
-    ap.add_argument("--work", default="/tmp/unusual-hands")
-    ap.add_argument("--hands", default=",".join(HANDS))
-    a = ap.parse_args()
-    os.makedirs(a.work, exist_ok=True)
+    a = study_args(__doc__, "/tmp/unusual-hands", "--hands", HANDS)
     pipeline = no_baseline_pipeline(a.work)
     rows, fails = [], 0
     stats = {"given": [], "auto": []}
