@@ -748,7 +748,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
   // ring–little then crossed in 4 pairs): the crossings left are looked at again, up to
   // kSeparationFits fits. A refined surface is looked at too (its splits can bring together
   // two tubes that did not cross).
-  const auto hold_fingers_apart = [&](PatchSkin* s) {
+  const auto hold_fingers_apart = [&](PatchSkin* s, const PatchOptions& o) {
     if (!s->crossings) s->crossings = crossings(*s, o.tessellation);
     constexpr int kSeparationFits = 3;
     const size_t crossed_first = s->crossings_before_separation > 0 ? s->crossings_before_separation : s->crossings->pairs;
@@ -780,15 +780,40 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
       *s = std::move(t);
     }
   };
-  hold_fingers_apart(&s);
-  if (o.tolerance_mm > 0) {
+  hold_fingers_apart(&s, o);
+  s.skin_weight_used = o.skin_weight;
+  // The polygon skin's samples hold the surface where the scans saw nothing (skin_weight 0.5
+  // of a measured point). Where they pull a patch into a fold of the skin that it then
+  // crosses (on the family's H12-s3 with the automatic skeleton, between two pressed fingers;
+  // on the WebXR hand's bent thumb, its base: 4 pairs of triangles each), the net is fitted
+  // again with them at kLightSkinWeight, the weight before 2026-11-29, under which neither
+  // crossed; kept when it crosses less.
+  PatchOptions used = o;
+  constexpr double kLightSkinWeight = 0.05;
+  if (s.crossings && s.crossings->pairs > 0 && o.skin_weight > kLightSkinWeight) {
+    PatchOptions light = o;
+    light.skin_weight = kLightSkinWeight;
+    PatchSkin t = fit_patches(s.layout, points, sides, support, skin.bones, light);
+    t.crossings = crossings(t, o.tessellation);
+    hold_fingers_apart(&t, light);
+    if (t.crossings->pairs < s.crossings->pairs) {
+      t.layout_tries = std::move(s.layout_tries);
+      t.layout_try_crossings = std::move(s.layout_try_crossings);
+      t.layout_try_folds = std::move(s.layout_try_folds);
+      t.thumb_ring_shift = s.thumb_ring_shift;
+      t.skin_weight_used = kLightSkinWeight;
+      s = std::move(t);
+      used = light;
+    }
+  }
+  if (used.tolerance_mm > 0) {
     s.crossings.reset();  // of the surface before the refinement
-    refine_to_tolerance(&s, o, [&](const LayoutSplit& split) {
+    refine_to_tolerance(&s, used, [&](const LayoutSplit& split) {
       // s: the fit being refined.
-      return fit_patches(split.layout, points, sides, support, skin.bones, o, &split.seed,
+      return fit_patches(split.layout, points, sides, support, skin.bones, used, &split.seed,
                          separations_after_split(s.separations, split));
     });
-    hold_fingers_apart(&s);
+    hold_fingers_apart(&s, used);
   }
   s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return s;

@@ -34,7 +34,7 @@ struct PatchOptions {
   double fairness = 1e-3;                 ///< second differences inside each patch, relative to the data's weight
   double c1_weight = 10;                  ///< C1 penalty across borders, relative to the data's weight
   double corner_weight = 0.1;             ///< one tangent plane where 3, 5 or 6 patches meet, relative to the data's weight
-  double skin_weight = 0.05;              ///< the polygon skin's vertices as data, relative to a measured point
+  double skin_weight = 0.5;               ///< the polygon skin's samples as data where the scans saw nothing, relative to a measured point
   int max_corrections = 10;               ///< parameter-correction rounds (eqs. 4.6–4.7)
   double correction_tolerance = 0.05;     ///< stop when 99.9 % of the foot points move less (mm, on the surface)
   int tessellation = 8;                   ///< patches.ply: quads per patch side
@@ -141,6 +141,9 @@ struct PatchSkin {
   /// is kept after one that is not.
   std::vector<std::pair<double, std::string>> layout_try_folds;
   int thumb_ring_shift = 0;
+  /// The polygon skin's samples' weight in the fit kept: PatchOptions::skin_weight, or 0.05
+  /// where that fit crossed itself and one with 0.05 crossed less (fit_patch_skin).
+  double skin_weight_used = 0;
   /// The kept surface tessellated at PatchOptions::tessellation passing through itself, as
   /// fit_patch_skin measured it for the choice of layout and the fingers held apart (on every
   /// path; none once posed).

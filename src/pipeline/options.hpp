@@ -55,7 +55,7 @@ struct PipelineOptions {
     long error_grid = 100;         ///< error measured against a grid of n x n surface cells
     double c1_weight = 10;         ///< C1 across the borders, relative to the data's weight (0: G0 only)
     double fairness = 1e-3;        ///< second differences inside each patch, relative to the data's weight
-    double skin_weight = 0.05;     ///< the polygon skin's samples as data where the scans saw nothing, relative to a measured point
+    double skin_weight = 0.5;      ///< the polygon skin's samples as data where the scans saw nothing, relative to a measured point
     double tolerance_mm = 0;       ///< split the patches whose measured points lie farther than this (0: none; --patch-tolerance)
     long max_patches = 300;        ///< ... up to this many patches in all
   } patches;

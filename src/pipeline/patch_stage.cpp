@@ -106,6 +106,7 @@ Json to_json(const PatchStageResult& r) {
                return a;
              }()},
             {"thumb_ring_shift", s.thumb_ring_shift},
+            {"skin_weight_used", s.skin_weight_used},
             {"separations", [&] {
                Json a = Json::array();
                for (const Separation& sep : s.separations)
