@@ -24,6 +24,16 @@
 
 namespace handskin::patch_steps {
 
+/// What a fit kept in place of `from` takes over from it: the layouts tried and the one kept,
+/// and the polygon skin's weight used (fit_patch_skin's choices, before any refit).
+inline void carry_fit_choices(PatchSkin* from, PatchSkin* to) {
+  to->layout_tries = std::move(from->layout_tries);
+  to->layout_try_crossings = std::move(from->layout_try_crossings);
+  to->layout_try_folds = std::move(from->layout_try_folds);
+  to->thumb_ring_shift = from->thumb_ring_shift;
+  to->skin_weight_used = from->skin_weight_used;
+}
+
 /// The Bernstein basis of degree 3 at t (B), and its derivatives (D, when given).
 void bernstein(double t, double B[4], double D[4]);
 /// The bone nearest p (index into bones), -1 when there is none.

@@ -764,10 +764,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
       t.crossings = crossings(t, o.tessellation);
       if (t.crossings->pairs >= s->crossings->pairs) break;
       t.crossings_before_separation = crossed_first;
-      t.layout_tries = std::move(s->layout_tries);
-      t.layout_try_crossings = std::move(s->layout_try_crossings);
-      t.layout_try_folds = std::move(s->layout_try_folds);
-      t.thumb_ring_shift = s->thumb_ring_shift;
+      carry_fit_choices(s, &t);
       if ((t.refinement = std::move(s->refinement))) {  // after a refinement: its figures of the surface kept
         const std::vector<double> err = patch_max_error(t);
         PatchSkin::Refinement& R = *t.refinement;
@@ -780,8 +777,8 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
       *s = std::move(t);
     }
   };
-  hold_fingers_apart(&s, o);
   s.skin_weight_used = o.skin_weight;
+  hold_fingers_apart(&s, o);
   // The polygon skin's samples hold the surface where the scans saw nothing (skin_weight 0.5
   // of a measured point). Where they pull a patch into a fold of the skin that it then
   // crosses (on the family's H12-s3 with the automatic skeleton, between two pressed fingers;
@@ -794,13 +791,10 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
     PatchOptions light = o;
     light.skin_weight = kLightSkinWeight;
     PatchSkin t = fit_patches(s.layout, points, sides, support, skin.bones, light);
-    t.crossings = crossings(t, o.tessellation);
-    hold_fingers_apart(&t, light);
+    t.skin_weight_used = kLightSkinWeight;
+    hold_fingers_apart(&t, light);  // measures its crossings first
     if (t.crossings->pairs < s.crossings->pairs) {
-      t.layout_tries = std::move(s.layout_tries);
-      t.layout_try_crossings = std::move(s.layout_try_crossings);
-      t.layout_try_folds = std::move(s.layout_try_folds);
-      t.thumb_ring_shift = s.thumb_ring_shift;
+      carry_fit_choices(&s, &t);
       t.skin_weight_used = kLightSkinWeight;
       s = std::move(t);
       used = light;

@@ -371,10 +371,7 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
       R.seconds.pop_back();
       break;
     }
-    t.layout_tries = std::move(s->layout_tries);
-    t.layout_try_crossings = std::move(s->layout_try_crossings);
-    t.layout_try_folds = std::move(s->layout_try_folds);
-    t.thumb_ring_shift = s->thumb_ring_shift;
+    carry_fit_choices(s, &t);
     t.crossings_before_separation = s->crossings_before_separation;
     *s = std::move(t);
     std::vector<std::array<bool, 4>> next(split.parent.size());
