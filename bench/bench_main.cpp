@@ -352,7 +352,7 @@ const RiggedFixture& rigged_fixture() {
 void pose_skin(benchmark::State& st, Blend blend, bool guarded = false) {
   const RiggedFixture& f = rigged_fixture();
   const CreaseGuard guard = crease_guard(f.rest, f.binding, f.rig);
-  const Skeleton skel(f.rig, "rig");
+  const Skeleton skel(f.rig);
   const PostureSolver solver(builtin_model("anatomical"));
   PostureInputs in;
   in.pins = {{dof_index("index.pip.flex").value(), 0.0}};
@@ -384,7 +384,7 @@ BENCHMARK(BM_PoseSkinDQSGuarded)->Unit(benchmark::kMicrosecond);
 // timing): the self-intersection tests and the smoothing of the 21 folding pairs, per call.
 static void BM_UntangleFist(benchmark::State& st) {
   const RiggedFixture& f = rigged_fixture();
-  const Skeleton skel(f.rig, "rig");
+  const Skeleton skel(f.rig);
   const auto motions = link_motions(skel, PostureSolver(builtin_model("anatomical")).solve(fist_inputs()).angles);
   const std::vector<std::array<int, 3>> faces = f.skin.mesh.faces;
   const std::vector<int> dominant = dominant_links(faces, f.binding);
@@ -407,7 +407,7 @@ BENCHMARK(BM_UntangleFist)->Unit(benchmark::kMillisecond);
 static void BM_PosePatches(benchmark::State& st) {
   const RiggedFixture& f = rigged_fixture();
   static const PatchSkin p = fit_patch_skin(f.skin, f.rig, fixture_merged().points, fixture_merged().sides, PatchOptions{});
-  const Skeleton skel(f.rig, "rig");
+  const Skeleton skel(f.rig);
   Angles a{};
   double v = 0;
   std::vector<Eigen::Vector3d> verts;

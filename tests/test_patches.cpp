@@ -664,7 +664,7 @@ TEST(Patches, FollowThePostureAndTheirLayoutComesBack) {
     }
     EXPECT_EQ(over, 0u) << "worst excess " << worst << " mm";
   }
-  const Skeleton skel(rig, "rig.json");
+  const Skeleton skel(rig);
   Angles zero{};
   const PatchSkin same = pose_patch_skin(s, skel, zero);
   for (size_t p = 0; p < s.patches.size(); ++p)

@@ -48,9 +48,33 @@ AngleTable planted(int rows, std::uint64_t seed) {
 
 TEST(Skeleton, ZeroAnglesReproduceTheRig) {
   const Rig rig = load_rig(kFixture + "rig.json");
-  const Skeleton sk(rig, "rig");
+  const Skeleton sk(rig);
   const auto p = sk.positions(zeros());
   for (int j = 0; j < kJointCount; ++j) EXPECT_LT((p[j] - rig.joints[j]).norm(), 1e-9) << joints()[j].name;
+}
+
+// A finger curled into a fist: its distal phalanx points at the palm, along the back-of-hand
+// normal, where back x link gives no flexion axis. Such a rig (the automatic placement of a
+// hand with its PIPs bent 55-60 deg put the ring's DIP -> tip link 3 deg off the normal) was
+// refused by every command that poses; the link now takes its parent's flexion axis.
+TEST(Skeleton, ALinkAlongTheBackNormalTakesItsParentsFlexionAxis) {
+  Rig rig = load_rig(kFixture + "rig.json");
+  const Eigen::Vector3d back = hand_frame_from_rig(rig).linear().row(2).transpose();
+  const int dip = Jt("ring-finger-phalanx-distal"), tip = Jt("ring-finger-tip"), pip = Jt("ring-finger-phalanx-intermediate");
+  rig.joints[tip] = rig.joints[dip] - 22.0 * back;  // straight at the palm
+  const Skeleton sk(rig);
+  const auto p = sk.positions(zeros());
+  for (int j = 0; j < kJointCount; ++j) EXPECT_LT((p[j] - rig.joints[j]).norm(), 1e-9) << joints()[j].name;
+  const Eigen::Vector3d x_dip = sk.rest_frame(dip).linear().col(0), x_pip = sk.rest_frame(pip).linear().col(0);
+  EXPECT_LT(std::abs(x_dip.dot(rig.joints[tip] - rig.joints[dip])), 1e-9);
+  EXPECT_GT(x_dip.dot(x_pip), 0.99);  // the PIP's hinge (the fixture's ring is straight: the same)
+  // Flexing the DIP swings the tip toward the wrist (further into the fist), keeping its length.
+  Angles a = zeros();
+  a[D("ring.dip.flex")] = 30;
+  const Eigen::Vector3d toward_wrist = (rig.joints[0] - rig.joints[Jt("ring-finger-phalanx-proximal")]).normalized();
+  const auto q = sk.positions(a);
+  EXPECT_NEAR((q[tip] - q[dip]).norm(), 22.0, 1e-9);
+  EXPECT_GT((q[tip] - rig.joints[tip]).dot(toward_wrist), 5.0);
 }
 
 TEST(Skeleton, AbductionPointsAwayFromTheMiddleFingerOnLeftAndRightHands) {
@@ -63,7 +87,7 @@ TEST(Skeleton, AbductionPointsAwayFromTheMiddleFingerOnLeftAndRightHands) {
   ASSERT_EQ(rig_side(right), HandSide::Right);
   ASSERT_EQ(rig_side(left), HandSide::Left);
   for (const Rig* rig : {&right, &left}) {
-    const Skeleton sk(*rig, "rig");
+    const Skeleton sk(*rig);
     EXPECT_EQ(sk.side(), rig_side(*rig));
     const int mid = joint_index("middle-finger-tip").value();
     for (const char* f : {"index", "ring", "little"}) {
@@ -86,7 +110,7 @@ TEST(Skeleton, AbductionPointsAwayFromTheMiddleFingerOnLeftAndRightHands) {
 
 TEST(Skeleton, ForwardKinematicsByHand) {
   const Rig rig = load_rig(kFixture + "rig.json");
-  const Skeleton sk(rig, "rig");
+  const Skeleton sk(rig);
   const int mcp = Jt("index-finger-phalanx-proximal"), pip = Jt("index-finger-phalanx-intermediate"),
             tip = Jt("index-finger-tip");
   const Eigen::Isometry3d F = sk.rest_frame(mcp);

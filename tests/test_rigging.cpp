@@ -50,7 +50,7 @@ TEST(Rigging, SkinGlbHoldsTheMeshTheSkinAndThePostureModel) {
 
 TEST(Rigging, TheScanPostureMovesNothingAndABentFingerMovesOnlyItself) {
   const RiggedSkin s = read_skin_glb(fixture_run() + "/skin.glb");
-  const Skeleton skel(s.rig, "rig");
+  const Skeleton skel(s.rig);
   Angles zero{};
   for (Blend b : {Blend::Linear, Blend::DualQuaternion}) {
     const auto v = deform(s.mesh.vertices, s.binding, link_motions(skel, zero), b);
@@ -79,7 +79,7 @@ TEST(Rigging, SmoothWeightsWithTheCreaseGuardDoNotFoldAtBentJoints) {
   // (the planes, then the smoothing of what still crumples) leaves none, and the volume stays
   // within 5 % (docs/rigging.md).
   const RiggedSkin s = read_skin_glb(fixture_run() + "/skin.glb");
-  const Skeleton skel(s.rig, "rig");
+  const Skeleton skel(s.rig);
   const PostureSolver solver(s.model);
   BindingOptions rb;
   rb.mode = "rigid";
@@ -145,7 +145,7 @@ TEST(Rigging, CrossingFacesAfterAMoveAreThoseOfAWholeTest) {
   // far from any) are moved as the untangling moves them, and once by a jump that makes new
   // crossings and undoes others.
   const RiggedSkin s = read_skin_glb(fixture_run() + "/skin.glb");
-  const Skeleton skel(s.rig, "rig");
+  const Skeleton skel(s.rig);
   const PostureSolver solver(s.model);
   std::vector<Eigen::Vector3d> v =
       deform(s.mesh.vertices, s.binding, link_motions(skel, solver.solve(fist_inputs()).angles), Blend::Linear);

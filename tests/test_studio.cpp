@@ -105,7 +105,7 @@ TEST(Studio, SystemGivesThePotentialThePageSolvesAndTheJointsItPoses) {
     }
     EXPECT_NEAR(e, r["energy"].get<double>(), 1e-9);
   }
-  const auto rest = joint_nodes(Skeleton(model().skin().rig, "rig"), Angles{});
+  const auto rest = joint_nodes(Skeleton(model().skin().rig), Angles{});
   for (int j = 0; j < 25; ++j) {
     const Json& J = sys["joints"][j];
     EXPECT_EQ(J["name"], joints()[j].name);

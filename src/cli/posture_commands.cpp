@@ -57,7 +57,7 @@ void solve_command(const SolveArgs& a, const Progress& progress) {
   std::optional<Skeleton> skeleton;
   if (!a.rig.empty()) {
     rig = load_rig(a.rig);
-    skeleton.emplace(*rig, a.rig);
+    skeleton.emplace(*rig);
   }
   const PostureSolution s = a.linear ? solver.solve_linear(in) : solver.solve(in);
   if (s.clamped_inputs)

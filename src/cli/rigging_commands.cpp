@@ -56,7 +56,7 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
     progress("pose", "warning: " + std::to_string(sol.clamped_inputs) + " input(s) outside the model's limits were clamped onto them");
   Untangled u;
   const std::vector<Eigen::Vector3d> posed =
-      SkinPoser(skin.mesh.vertices, skin.mesh.faces, skin.binding, skin.rig, !a.no_crease_guard, a.model).pose(sol.angles, blend, &u);
+      SkinPoser(skin.mesh.vertices, skin.mesh.faces, skin.binding, skin.rig, !a.no_crease_guard).pose(sol.angles, blend, &u);
   if (!a.no_crease_guard) {
     if (u.folding_before)
       progress("pose", "crease guard: " + std::to_string(u.folding_before) + " folding triangle pair(s) smoothed out over " +

@@ -39,10 +39,7 @@ void render(const RenderArgs& a) {
     ro.height = a.width * 3 / 4;
     ro.view = named_view(a.view);
     std::optional<Rig> rig;
-    if (!a.rig.empty()) {
-      rig = load_rig(a.rig);
-      const Skeleton check(*rig, a.rig);  // the same checks as solve: a rig one command refuses, all do
-    }
+    if (!a.rig.empty()) rig = load_rig(a.rig);  // the same checks as solve: a rig one command refuses, all do
     const Mesh mesh = read_any_mesh(a.mesh);
     if (rig) {
       // Views are defined in the hand frame: bring the mesh frame there through the rig.

@@ -64,7 +64,7 @@ Eigen::Vector3d newell(const std::array<Eigen::Vector3d, 4>& loop) {
 // The hand's digits and their frames from the rig's skeleton.
 class DigitFrames {
  public:
-  DigitFrames(const Rig& rig, const Eigen::Vector3d& radial) : skeleton_(rig, "rig"), radial_(radial) {
+  DigitFrames(const Rig& rig, const Eigen::Vector3d& radial) : skeleton_(rig), radial_(radial) {
     const Angles zero{};
     rest_ = skeleton_.positions(zero);
   }

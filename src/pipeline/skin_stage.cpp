@@ -209,7 +209,8 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
     // of it (the WebXR hand) then has its metacarpal's link cross the thenar off its sections.
     // Then the skeleton placed again with the digits parted by the sheets (a finger touching
     // its neighbour along most of its length leaves only its tip to the silhouette's parting:
-    // H12 of the family as a cloud), with either thumb base.
+    // H12 of the family as a cloud), with either thumb base. Then with curled fingers traced in
+    // their flexion planes (auto_rig.hpp, CentreLines).
     if (!rig_refused.empty()) {
       const std::string first = rig_refused;
       const std::exception_ptr refused = build_error;
@@ -236,6 +237,20 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
         const std::string sheets_note = "the digits parted by the sheets: with the silhouette's, ";
         ok = by_sheets && (attempt(*by_sheets, by_sheets->rig, sheets_note) ||
                            attempt(*by_sheets, by_sheets->thumb_base_on_line, sheets_note + "and " + base_note));
+      }
+      if (!ok) {
+        // Fingers curled past what the centre lines' quadratic height follows (PIPs at 55-60
+        // deg: their tips were put on the DIPs' knuckles): their lines traced in their
+        // flexion planes.
+        progress("trying the skeleton placed with the fingers' lines traced in their flexion planes");
+        std::optional<AutoRig> traced;
+        try {
+          traced = place_skeleton(in.points, in.sides, DigitParting::Silhouette, CentreLines::Traced);
+        } catch (const InputError&) {
+        }
+        const std::string traced_note = "the fingers' centre lines traced in their flexion planes: with their quadratic lines, ";
+        ok = traced && (attempt(*traced, traced->rig, traced_note) ||
+                        attempt(*traced, traced->thumb_base_on_line, traced_note + "and " + base_note));
       }
       if (!ok) build_error = refused;  // the first refusal is the one to report
     }

@@ -26,7 +26,7 @@ Eigen::Matrix3d Skeleton::euler321(double z_deg, double y_deg, double x_deg) {
       .toRotationMatrix();
 }
 
-Skeleton::Skeleton(const Rig& rig, const std::string& file) {
+Skeleton::Skeleton(const Rig& rig) {
   const auto& J = joints();
   // The back-of-hand normal and the hand's axes from the rig (palm_normal when given).
   const Eigen::Isometry3d T_hand_rig = hand_frame_from_rig(rig);
@@ -52,9 +52,15 @@ Skeleton::Skeleton(const Rig& rig, const std::string& file) {
       length_[j] = d.norm();
       const Eigen::Vector3d y = d / length_[j];
       Eigen::Vector3d x = back.cross(y);  // flexion axis: +flexion swings the link toward the palm
-      if (x.norm() < 0.1)
-        throw InputError(file, std::string("joint '") + J[j].name +
-                                   "': its link points along the back-of-hand normal, so it has no flexion axis");
+      if (x.norm() < 0.1) {
+        // A link within ~6 deg of the back-of-hand normal (a finger curled into a fist: its
+        // distal phalanx points at the palm) has no flexion axis of its own there: it takes
+        // its parent's, square to the link. A finger flexes about parallel axes, and the two
+        // agree wherever both are defined (no abduction between them).
+        // (The parent's X is square to the back-of-hand normal, so to this link too.)
+        x = rest_[J[j].parent].linear().col(0);
+        x -= x.dot(y) * y;
+      }
       x.normalize();
       F.linear().col(0) = x;
       F.linear().col(1) = y;

@@ -18,9 +18,9 @@ using Angles = std::array<double, kDofCount>;  ///< one value per DOF, canonical
 
 class Skeleton {
  public:
-  /// Throws InputError naming `file` if the rig cannot give frames (e.g. a link parallel
-  /// to the back-of-hand normal).
-  Skeleton(const Rig& rig, const std::string& file);
+  /// Rest frames from a loaded rig (load_rig checks it: every joint finite, no two of one
+  /// finger at the same place), which always gives them.
+  explicit Skeleton(const Rig& rig);
 
   /// World (rig-frame) pose of every joint's local frame for the given angles.
   std::array<Eigen::Isometry3d, kJointCount> frames(const Angles& angles) const;

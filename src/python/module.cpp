@@ -322,7 +322,7 @@ struct PySkin {
   }
   const SkinPoser& poser(bool guard) {
     auto& p = guard ? guarded : plain;
-    if (!p) p = std::make_unique<SkinPoser>(skin.mesh.vertices, skin.mesh.faces, skin.binding, skin.rig, guard, path);
+    if (!p) p = std::make_unique<SkinPoser>(skin.mesh.vertices, skin.mesh.faces, skin.binding, skin.rig, guard);
     return *p;
   }
 };

@@ -384,7 +384,7 @@ void add_scene(tinygltf::Model& m, const RiggedSkin& s, const Angles* pose, cons
 
 std::vector<unsigned char> skin_glb(const RiggedSkin& s, const Angles* pose, const PostureAnimation* animation) {
   HS_CHECK(s.mesh.vertices.size() == s.binding.vertices.size(), "binding and mesh differ in size");
-  const Skeleton skel(s.rig, "rig");
+  const Skeleton skel(s.rig);
   Angles zero{};
   const auto rest = skel.frames(zero);
   const auto nodes = joint_nodes(skel, pose ? *pose : zero);
@@ -456,7 +456,7 @@ void check_bind_matrices(const tinygltf::Model& m, const std::string& file, cons
   const tinygltf::Skin& sk = m.skins[0];
   const std::vector<float> ibm = accessor_floats(m, file, sk.inverseBindMatrices, TINYGLTF_TYPE_MAT4, "inverse bind matrices");
   if (ibm.size() != 16u * kJointCount) throw InputError(file, "inverse bind matrices: expected 25");
-  const Skeleton skel(rig, file + ": extras.handskin.rig");
+  const Skeleton skel(rig);
   for (int k = 0; k < kJointCount; ++k) {
     Eigen::Matrix4d M;
     for (int c = 0; c < 4; ++c)

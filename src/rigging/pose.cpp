@@ -3,8 +3,8 @@
 namespace handskin {
 
 SkinPoser::SkinPoser(const std::vector<Eigen::Vector3d>& rest, const std::vector<std::array<int, 3>>& faces,
-                     const SkinBinding& binding, const Rig& rig, bool guard, const std::string& rig_name)
-    : rest_(rest), faces_(faces), binding_(binding), skeleton_(rig, rig_name), guard_on_(guard) {
+                     const SkinBinding& binding, const Rig& rig, bool guard)
+    : rest_(rest), faces_(faces), binding_(binding), skeleton_(rig), guard_on_(guard) {
   if (!guard_on_) return;
   guard_ = crease_guard(rest, binding, rig);
   dominant_ = dominant_links(faces, binding);

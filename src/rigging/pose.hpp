@@ -16,12 +16,11 @@ namespace handskin {
 
 class SkinPoser {
  public:
-  /// A skin (`rest` vertices, `faces`) bound by `binding` to `rig`; `rig_name` names the rig
-  /// in errors. With `guard`, every posture gets the crease guard and its folds untangled;
+  /// A skin (`rest` vertices, `faces`) bound by `binding` to `rig`. With `guard`, every posture gets the crease guard and its folds untangled;
   /// what they share (the guard's planes, the faces' dominant links) is made once here, and
   /// only then.
   SkinPoser(const std::vector<Eigen::Vector3d>& rest, const std::vector<std::array<int, 3>>& faces,
-            const SkinBinding& binding, const Rig& rig, bool guard, const std::string& rig_name = "rig");
+            const SkinBinding& binding, const Rig& rig, bool guard);
 
   /// The skin at `angles`, blended by `blend`; `untangled` (when given) reports what the
   /// guard's untangling did.

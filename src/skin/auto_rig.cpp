@@ -333,7 +333,7 @@ void assemble_rig(const HandFrame& frame, const std::vector<Eigen::Vector3d>& h,
 }  // namespace auto_rig_steps
 
 AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vector<std::uint32_t>& sides,
-                       DigitParting parting) {
+                       DigitParting parting, CentreLines lines) {
   using namespace auto_rig_steps;
   if (pts.size() < 1000 || sides.size() != pts.size())
     throw InputError("merged cloud", "too few points (or no side labels) to place a skeleton in");
@@ -343,7 +343,7 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
   DigitCells cells = find_digit_cells(pts, sides, parting, &frame, &h, &out);
   std::vector<Digit> digits = collect_digits(cells, h);
   orient_digits(&frame, &h, &cells.pc, &digits, &out);
-  for (size_t k = 0; k < digits.size(); ++k) trace_centre_line(h, cells.pc, k < 4, &digits[k]);
+  for (size_t k = 0; k < digits.size(); ++k) trace_centre_line(h, cells.pc, k < 4, lines == CentreLines::Traced && k < 4, &digits[k]);
   Chains chains = place_chains(h, digits);
   centre_thumb_joints(h, digits[4], chains.s, &chains.joints[0]);
   assemble_rig(frame, h, chains, digits[4], &out);

@@ -31,13 +31,21 @@ enum class DigitParting {
   Sheets,      ///< the sheets only: each digit's points from the back's and the palm's sheets
 };
 
+/// How a finger's centre line is found (auto_rig_axes.cpp).
+enum class CentreLines {
+  Quadratic,  ///< sections at fixed distances along the hand: a lateral line, a quadratic height
+  Traced,     ///< each finger's line traced in its flexion plane, slab by slab (follows a finger
+              ///< curled past what a quadratic does; a little worse on straight ones: a fallback)
+};
+
 /// Place the 25 joints in a merged cloud (palm frame, mm) of an open hand, right or left,
 /// its digits straight or curled. `sides` labels each point 0 (palm scan) or 1 (back scan),
 /// which orients the back normal and gives the sheets; 2 marks a point of neither sheet (a
 /// cloud seen from around: its flanks, which neither a back nor a palm scan sees). Throws
 /// InputError when five digits and a wrist cannot be told apart (e.g. a digit missing).
 AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& points, const std::vector<std::uint32_t>& sides,
-                       DigitParting parting = DigitParting::Silhouette);
+                       DigitParting parting = DigitParting::Silhouette,
+                       CentreLines lines = CentreLines::Quadratic);
 
 struct JointError {
   double mean_mm = 0, max_mm = 0;

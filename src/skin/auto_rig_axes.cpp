@@ -78,13 +78,114 @@ void extend_proximally(const std::vector<Eigen::Vector3d>& h, const Eigen::Vecto
     lateral->insert(lateral->begin(), Eigen::Vector3d(t, l0 + 0.5 * (left + right + 1) * kBin, 0));
   }
 }
+// A finger flexes in one plane: the vertical plane through its lateral line (`lateral_at`,
+// the offset across the hand at t). Its centre line in that plane, as (t, z), traced from the
+// first measured centres outward. Sections at fixed t, as the line's quadratic height is
+// fitted to, cut a finger curled past ~45 deg lengthwise: its intermediate and distal
+// phalanges (30-35 mm) span ~10 mm of t, and the tip was put on the DIP's knuckle (P04, PIPs
+// at 55-60 deg: the little's tip 14 mm off, the skeleton refused). Every kTrackStep mm a slab
+// square to the direction so far, and the centre of the section's circle in it (a curled
+// finger's palmar side is seen by neither scan: the middle of a one-sided section's extent
+// is its seen sheet, a circle's centre is not); the slab turned to the direction it finds,
+// three times, at most kMaxTurn from the step before (at a sharp bend a slab square to the
+// direction before cuts the next phalanx lengthwise). Ends where a slab holds fewer than 15
+// points or the trace has turned kMaxTotalTurn; smoothed; the last entry is the skin's tip
+// (the farthest point along the last direction). Toward the back it turns kMaxDorsal at
+// most: at a straight finger's tip the slab turned up round the nail and the line ran 8-20 mm
+// off (the family's relaxed hands). On straight fingers it places the joints a little worse
+// than the quadratic (the family's pairs: 1.3-2.9 -> 1.6-3.1 mm mean), so it is the skin
+// stage's fallback when the skin refused the skeleton (CentreLines::Traced).
+template <class LateralAt>
+std::vector<Eigen::Vector2d> track_in_flexion_plane(const std::vector<Eigen::Vector3d>& h, const std::vector<size_t>& pts,
+                                                    const Eigen::Vector2d& m2, const Eigen::Vector2d& d2,
+                                                    const Eigen::Vector2d& n2, const LateralAt& lateral_at,
+                                                    const std::vector<Eigen::Vector3d>& centres, double window) {
+  constexpr double kTrackStep = 2.0, kHalfSlab = 2.5, kMaxLength = 200, kMaxTurn = 20 * M_PI / 180,
+                   kMaxTotalTurn = 150 * M_PI / 180, kMaxDorsal = 20 * M_PI / 180;
+  std::vector<Eigen::Vector3d> p;  // the digit's points: (t, z, offset beside the plane)
+  for (size_t i : pts) {
+    const Eigen::Vector2d q = h[i].head<2>() - m2;
+    const double t = q.dot(d2), off = q.dot(n2) - lateral_at(t);
+    if (std::abs(off) <= window) p.emplace_back(t, h[i].z(), off);
+  }
+  // Start: the line through the first four centres.
+  const size_t n0 = std::min<size_t>(4, centres.size());
+  double st = 0, sz = 0, stt = 0, stz = 0;
+  for (size_t k = 0; k < n0; ++k) st += centres[k].x(), sz += centres[k].z(), stt += centres[k].x() * centres[k].x(),
+                                  stz += centres[k].x() * centres[k].z();
+  const double nn = static_cast<double>(n0), den = nn * stt - st * st;
+  const double slope = std::abs(den) > 1e-9 ? (nn * stz - st * sz) / den : 0.0;
+  const double t0 = centres.front().x();
+  Eigen::Vector2d c(t0, (sz - slope * st) / nn + slope * t0), d = Eigen::Vector2d(1, slope).normalized();
+  std::vector<Eigen::Vector2d> line = {c};
+  // The section's circle in a slab square to `dir` at `at` (x across, o beside the plane; its
+  // centre on the plane, o = 0): x^2 + o^2 = 2 x x0 + k, linear least squares in x0 and k
+  // (Kasa's fit); the centre's point, or none where the slab holds fewer than 15 points.
+  const auto centre_in_slab = [&](const Eigen::Vector2d& at, const Eigen::Vector2d& dir) -> std::optional<Eigen::Vector2d> {
+    const Eigen::Vector2d across(-dir.y(), dir.x());
+    Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
+    Eigen::Vector2d rhs = Eigen::Vector2d::Zero();
+    int n = 0;
+    for (const auto& q : p) {
+      const Eigen::Vector2d r = q.head<2>() - at;
+      const double x = r.dot(across);
+      if (std::abs(r.dot(dir)) > kHalfSlab || std::abs(x) > window) continue;
+      const Eigen::Vector2d row(2 * x, 1);
+      A += row * row.transpose(), rhs += row * (x * x + q.z() * q.z());
+      ++n;
+    }
+    if (n < 15) return std::nullopt;
+    return Eigen::Vector2d(at + std::clamp(A.ldlt().solve(rhs)(0), -window, window) * across);
+  };
+  // The trace ends where it has turned by more than kMaxTotalTurn from where it started.
+  const Eigen::Vector2d d_start = d;
+  for (double walked = 0; walked < kMaxLength; walked += kTrackStep) {
+    // The slab turned to the direction it finds, three times: at a sharp bend a slab square
+    // to the direction before it cuts the next phalanx lengthwise.
+    Eigen::Vector2d dir = d, next;
+    bool found = true;
+    for (int it = 0; it < 3 && found; ++it) {
+      const auto m = centre_in_slab(c + kTrackStep * dir, dir);
+      if (!m) found = false;
+      else {
+        next = *m;
+        const Eigen::Vector2d want = (next - c).normalized();
+        const double turn = std::atan2(d.x() * want.y() - d.y() * want.x(), d.dot(want));
+        dir = Eigen::Rotation2Dd(std::clamp(turn, -kMaxTurn, kMaxTurn)) * d;
+        // A finger bends toward the palm (-z: clockwise here); toward the back, at most
+        // kMaxDorsal from where it started (the trace turned up round the nail at the tip).
+        const double bent = std::atan2(d_start.x() * dir.y() - d_start.y() * dir.x(), d_start.dot(dir));
+        if (bent > kMaxDorsal) dir = Eigen::Rotation2Dd(kMaxDorsal) * d_start;
+      }
+    }
+    if (!found) break;
+    if (std::acos(std::clamp(dir.dot(d_start), -1.0, 1.0)) > kMaxTotalTurn) break;
+    d = dir;
+    c = next;
+    line.push_back(c);
+  }
+  // Smoothed (three passes of 1-2-1 weights): one-sided sections leave a zigzag of 1-3 mm
+  // about the axis, which lengthened the line (and the hand's scale with it).
+  for (int pass = 0; pass < 3; ++pass) {
+    std::vector<Eigen::Vector2d> sm = line;
+    for (size_t k = 1; k + 1 < line.size(); ++k) sm[k] = 0.25 * (line[k - 1] + 2 * line[k] + line[k + 1]);
+    line.swap(sm);
+  }
+  if (line.size() >= 2) c = line.back(), d = (line.back() - line[line.size() - 2]).normalized();
+  double reach = -1e300;
+  for (const auto& q : p)
+    if ((q.head<2>() - c).norm() < 2 * window) reach = std::max(reach, (q.head<2>() - c).dot(d));
+  line.push_back(c + std::max(reach, 0.0) * d);
+  return line;
+}
 }  // namespace
 
 // The digit's sections every 3 mm along its principal axis; their middles (the lateral offset
 // a line, the height a quadratic where the digit curls) make its centre line, from well
 // inside the palm to the skin's tip. `finger`: not the thumb (its line is not carried on into
 // the palm between its neighbours' grooves).
-void trace_centre_line(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector2d& pc, bool finger, Digit* dg) {
+void trace_centre_line(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector2d& pc, bool finger, bool traced,
+                       Digit* dg) {
   std::vector<Eigen::Vector2d> p2;
   for (size_t i : dg->points) p2.push_back(h[i].head<2>());
   Eigen::Matrix2d ax;
@@ -193,9 +294,29 @@ void trace_centre_line(const std::vector<Eigen::Vector3d>& h, const Eigen::Vecto
   double reach = -1e300;
   for (size_t i : dg->points) reach = std::max(reach, (h[i] - end).dot(end_dir));
   dg->tip_skin = end + reach * end_dir;
-  for (double t = ta - 80; t < tb; t += 0.25) dg->curve.push_back(point(t));
-  dg->curve.push_back(end);
-  dg->curve.push_back(dg->tip_skin);
+  // Asked for (`traced`, the skin stage's fallback): the finger's centre line traced in its
+  // flexion plane, which follows a finger curled further than the quadratic does.
+  std::vector<Eigen::Vector2d> traced_line;
+  if (traced && dg->width > 0) {
+    const auto lateral_at = [&](double t) { return cl(0) + cl(1) * (t - tm); };
+    traced_line = track_in_flexion_plane(h, dg->points, m2, d2, n2, lateral_at, centres, dg->width);
+    if (traced_line.size() < 4) traced_line.clear();
+  }
+  if (!traced_line.empty()) {
+    const auto at3 = [&](const Eigen::Vector2d& q) {
+      const Eigen::Vector2d x = m2 + q.x() * d2 + (cl(0) + cl(1) * (q.x() - tm)) * n2;
+      return Eigen::Vector3d(x.x(), x.y(), q.y());
+    };
+    // Into the palm straight along the traced line's first direction.
+    const Eigen::Vector2d s0 = traced_line.front(), dir0 = (traced_line[3] - s0).normalized();
+    for (double back = 80; back > 0; back -= 0.25) dg->curve.push_back(at3(s0 - back * dir0));
+    for (const auto& q : traced_line) dg->curve.push_back(at3(q));
+    dg->tip_skin = dg->curve.back();
+  } else {
+    for (double t = ta - 80; t < tb; t += 0.25) dg->curve.push_back(point(t));
+    dg->curve.push_back(end);
+    dg->curve.push_back(dg->tip_skin);
+  }
   dg->arc.assign(1, 0.0);
   for (size_t k = 1; k < dg->curve.size(); ++k) dg->arc.push_back(dg->arc.back() + (dg->curve[k] - dg->curve[k - 1]).norm());
 }

@@ -159,7 +159,8 @@ DigitCells find_digit_cells(const std::vector<Eigen::Vector3d>& pts, const std::
 std::vector<Digit> collect_digits(const DigitCells& dc, const std::vector<Eigen::Vector3d>& h);
 void orient_digits(HandFrame* frame, std::vector<Eigen::Vector3d>* h, Eigen::Vector2d* pc, std::vector<Digit>* digits,
                    AutoRig* out);
-void trace_centre_line(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector2d& pc, bool finger, Digit* dg);
+void trace_centre_line(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector2d& pc, bool finger, bool trace_curled,
+                       Digit* dg);
 Chains place_chains(const std::vector<Eigen::Vector3d>& h, const std::vector<Digit>& digits);
 void centre_thumb_joints(const std::vector<Eigen::Vector3d>& h, const Digit& thumb, double s,
                          std::vector<Eigen::Vector3d>* js);

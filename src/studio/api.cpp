@@ -49,7 +49,7 @@ const Json* object_member(const Json& body, const char* key) {
 
 }  // namespace
 
-StudioModel::StudioModel(RiggedSkin skin) : skin_(std::move(skin)), skeleton_(skin_.rig, "skin.glb rig") {
+StudioModel::StudioModel(RiggedSkin skin) : skin_(std::move(skin)), skeleton_(skin_.rig) {
   solvers_.emplace_back("model", std::make_unique<PostureSolver>(skin_.model));
   for (const char* name : {"anatomical", "thesis"}) solvers_.emplace_back(name, std::make_unique<PostureSolver>(builtin_model(name)));
 }

@@ -228,7 +228,7 @@ HandModel build_hand_model(const HandShapeOptions& o) {
   for (auto& r : turn_of) r.setIdentity();
   m.rig = rest;
   if (!flat) {
-    const Skeleton sk(rest, "hand options");
+    const Skeleton sk(rest);
     const auto W0 = sk.frames(std::array<double, kDofCount>{});
     const auto Wp = sk.frames(o.posture);
     for (int j = 0; j < kJointCount; ++j) {
