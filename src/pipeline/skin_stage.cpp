@@ -191,7 +191,9 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
       R.skin = build_skin(in.points, rig, so, progress);
     } catch (const InputError& e) {
       build_error = std::current_exception();
-      if (e.where() == "rig") rig_refused = e.detail();
+      // A tube folded into itself says the same of a placed skeleton as a refusal does.
+      if (e.where() == "rig" || (R.automatic && e.detail().find("tube folds into itself") != std::string::npos))
+        rig_refused = e.detail();
     } catch (...) {
       build_error = std::current_exception();
     }
