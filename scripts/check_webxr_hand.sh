@@ -21,8 +21,8 @@
 #    by the sheets too, but the placement's own normal lay 21 deg off the MCPs' line in roll
 #    and the palm's last ring folded, until the rig's palm normal came from its joints.
 #    Both skins must meet the same figures.
-#  - the right hand with its thumb bent: the automatic skeleton's first placement folds the
-#    thumb tube; the skin builds on the one with the thumb's base on its centre line.
+#  - the right hand with its thumb bent: the automatic skeleton's skin builds and meets its
+#    figures (it stopped with the thumb tube folded).
 # Prints every figure. Usage: scripts/check_webxr_hand.sh <handskin-binary>
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -129,10 +129,11 @@ for spec in "right 1 3.0" "left 3 2.5" "left-curled 1 3.0" "left-arched 2 2.5" "
 done
 
 # The right hand with its thumb bent (CMC/MCP/IP 10/20/25 deg: scripts/webxr_study.py's
-# "thumb-bent", second pair): the placed skeleton's thumb tube folded into itself, and only a
-# refusal of the skeleton (a digit's links off its sections) was tried again with the thumb's
-# base on its centre line; a fold now is too, and the skin builds on that skeleton (measured
-# skin->truth 0.116 / 0.458 mm, 99.12 % within 1 mm; the hand's own rig 0.104 / 0.319 mm).
+# "thumb-bent", second pair): the placed skeleton's thumb tube folded into itself and the skin
+# stage stopped. Its MCP had stayed where the proportions put it, 6-8 mm beside the thumb (its
+# section a third of the way out ran on into the thenar); it is now centred on the section
+# half or two thirds of the way out, and the skin builds on the first placement (measured
+# skin->truth 0.115 / 0.363 mm, 99.36 % within 1 mm; the hand's own rig 0.104 / 0.319 mm).
 "$PY" scripts/webxr_hand.py --glb fixtures/webxr-hand/right.glb --side right --out "$work/right-thumb-bent" \
   --set thumb.cmc.flex=10 --set thumb.mcp.flex=20 --set thumb.ip.flex=25
 d="$work/right-thumb-bent-s2"
@@ -150,8 +151,6 @@ line=$(jq_py "$a" "'%s %.4f %.4f %.4f' % (d['mesh']['watertight'], d['truth']['s
 read -r tight smean sp95 within <<< "$line"
 echo "right-thumb-bent-s2 automatic: watertight $tight, skin->truth mean $smean p95 $sp95 mm, truth within 1 mm $within"
 [ "$tight" = True ] || fail "right-thumb-bent-s2 automatic: the skin is not watertight"
-"$PY" -c "import sys; sys.exit(0 if $smean <= 0.13 and $sp95 <= 0.5 and $within >= 0.985 else 1)" \
-  || fail "right-thumb-bent-s2 automatic: skin->truth mean $smean p95 $sp95 mm, $within within 1 mm (bounds 0.13, 0.5, 0.985)"
-notes=$(jq_py "$a" "'\n'.join(d['skeleton']['automatic']['notes'])")
-grep -q "folds into itself" <<< "$notes" || fail "right-thumb-bent-s2 automatic: the report does not say the first skeleton's tube folded"
+"$PY" -c "import sys; sys.exit(0 if $smean <= 0.13 and $sp95 <= 0.40 and $within >= 0.985 else 1)" \
+  || fail "right-thumb-bent-s2 automatic: skin->truth mean $smean p95 $sp95 mm, $within within 1 mm (bounds 0.13, 0.40, 0.985)"
 echo "check_webxr_hand: ok"

@@ -272,6 +272,25 @@ TEST(Cli, SkinFromAMergedCloudWithAndWithoutARig) {
   const std::string dir2 = test::temp_dir("skin2") + "/out";
   ASSERT_EQ(test::run(kBin + " -q skin --merged " + reg + "/merged.ply --pipeline " + pipe + " --out " + dir2, &out), 0) << out;
   EXPECT_EQ(load_json_object(dir2 + "/skin_report.json")["skeleton"]["used"], "automatic");
+  // A tube that folds into itself on the placed skeleton (HANDSKIN_FAULT=fold:1: the first
+  // stitch finds the palm folded) is that skeleton's refusal: the next placement is built
+  // (the WebXR hand's bent thumb had been refused so). On a given rig the fold is the error.
+  const std::string dir5 = test::temp_dir("skin5") + "/out";
+  ASSERT_EQ(test::run("HANDSKIN_FAULT=fold:1 " + kBin + " -q skin --merged " + reg + "/merged.ply --pipeline " + pipe +
+                          " --out " + dir5,
+                      &out),
+            0)
+      << out;
+  const Json r5 = load_json_object(dir5 + "/skin_report.json");
+  EXPECT_NE(r5["skeleton"]["automatic"]["notes"].dump().find("the palm tube folds into itself"), std::string::npos) << r5["skeleton"];
+  const std::string dir6 = test::temp_dir("skin6") + "/out";
+  EXPECT_EQ(test::run("HANDSKIN_FAULT=fold:1 " + kBin + " -q skin --merged " + reg + "/merged.ply --rig " + kFix +
+                          "rig.json --pipeline " + pipe + " --out " + dir6,
+                      &out),
+            1)
+      << out;
+  EXPECT_NE(out.find("the palm tube folds into itself"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir6));
   // A rig with two fingers swapped would still close, but bound wrongly: it is refused, naming the file.
   Json swapped = load_json_object(kFix + "rig.json");
   for (const char* j : {"metacarpal", "phalanx-proximal", "phalanx-intermediate", "phalanx-distal", "tip"})

@@ -263,16 +263,25 @@ void centre_thumb_joints(const std::vector<Eigen::Vector3d>& h, const Digit& thu
   // thumb's middle. On the family the skins' mean went 0.0748 -> 0.0746 mm with it.
   if (const double dg_thumb_width = thumb.width; dg_thumb_width > 0) {
     std::vector<Eigen::Vector3d>& js = *jsp;  // MCP, IP, tip
+    bool mcp_centred = false;
     // Each joint moves as the middle of the section at `along` of the way from it to the
     // next joint out: the IP's own section is free of the palm; at the MCP the thenar runs
     // on below the thumb, but a third of the way out along its proximal phalanx it is clear.
-    for (const auto& [k, along] : {std::pair{1, 0.0}, std::pair{0, 0.35}}) {
+    // A thumb bent across the palm (the WebXR hand's, 10/20/25 deg at its CMC, MCP and IP)
+    // lies on the thenar a third of the way out too: the MCP's section is then taken half
+    // and two thirds of the way out, the first that closes (it had stayed 6-8 mm beside
+    // the thumb, and the skin refused the skeleton).
+    for (const auto& [k, along] : {std::pair{1, 0.0}, std::pair{0, 0.35}, std::pair{0, 0.5}, std::pair{0, 0.65}}) {
+      if (k == 0 && along > 0.35 && mcp_centred) break;
       const Eigen::Vector3d a = (js[k + 1] - js[k]).normalized(), q = js[k] + along * (js[k + 1] - js[k]);
       Eigen::Vector3d e1 = Eigen::Vector3d::UnitZ() - a.z() * a;
       if (e1.norm() < 0.3) continue;  // a thumb pointing up or down out of the hand: no height to centre
       e1.normalize();
       const Eigen::Vector3d e2 = a.cross(e1), up = kDorsalOffset * s * e1;
-      if (const auto m = section_middle(h, q - up, a, e1, e2, dg_thumb_width)) js[k] += *m + up - q;
+      if (const auto m = section_middle(h, q - up, a, e1, e2, dg_thumb_width)) {
+        js[k] += *m + up - q;
+        if (k == 0) mcp_centred = true;
+      }
     }
   }
 }
