@@ -44,8 +44,7 @@ HandFrame to_hand_frame(const std::vector<Eigen::Vector3d>& points, const Rig& r
   for (int j : palm_joints)
     if (((H.J[j].array() < H.lo.array() - 15).any() || (H.J[j].array() > H.hi.array() + 15).any()))
       throw InputError("rig", std::string("joint '") + joints()[j].name +
-                                  "' lies outside the merged cloud (more than 15 mm beyond its bounding box); is the "
-                                  "rig in the palm frame of this scan?");
+                                  "' lies outside the merged cloud (more than 15 mm beyond its bounding box)");
   return H;
 }
 
