@@ -35,7 +35,7 @@ enum class DigitParting {
 enum class CentreLines {
   Quadratic,  ///< sections at fixed distances along the hand: a lateral line, a quadratic height
   Traced,     ///< each finger's line traced in its flexion plane, slab by slab (follows a finger
-              ///< curled past what a quadratic does; a little worse on straight ones: a fallback)
+              ///< curled past what a quadratic does; no better on straight ones: a fallback)
 };
 
 /// Place the 25 joints in a merged cloud (palm frame, mm) of an open hand, right or left,

@@ -92,9 +92,9 @@ void extend_proximally(const std::vector<Eigen::Vector3d>& h, const Eigen::Vecto
 // points or the trace has turned kMaxTotalTurn; smoothed; the last entry is the skin's tip
 // (the farthest point along the last direction). Toward the back it turns kMaxDorsal at
 // most: at a straight finger's tip the slab turned up round the nail and the line ran 8-20 mm
-// off (the family's relaxed hands). On straight fingers it places the joints a little worse
-// than the quadratic (the family's pairs: 1.3-2.9 -> 1.6-3.1 mm mean), so it is the skin
-// stage's fallback when the skin refused the skeleton (CentreLines::Traced).
+// off (the family's relaxed hands). On straight fingers it places the joints no better than
+// the quadratic (six of the family's pairs: 1.30-2.88 -> 1.44-2.92 mm mean), so it is the
+// skin stage's fallback when the skin refused the skeleton (CentreLines::Traced).
 template <class LateralAt>
 std::vector<Eigen::Vector2d> track_in_flexion_plane(const std::vector<Eigen::Vector3d>& h, const std::vector<size_t>& pts,
                                                     const Eigen::Vector2d& m2, const Eigen::Vector2d& d2,
