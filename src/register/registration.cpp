@@ -1,11 +1,11 @@
 #include "register/registration.hpp"
 
 #include <algorithm>
-#include <limits>
 #include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
@@ -431,6 +431,21 @@ int recover_missed(const PreparedScan& back, const PreparedScan& palm, const Reg
   return recovered;
 }
 
+// The markers' residuals (each pair's, their RMS and largest) at the transform T.
+MarkerResiduals marker_residuals(const Eigen::Isometry3d& T, const MarkerMatch& match,
+                                 const std::vector<Eigen::Vector3d>& cb, const std::vector<Eigen::Vector3d>& cp) {
+  MarkerResiduals m;
+  double ss = 0;
+  for (const auto& [b, p] : match.pairs) {
+    const double d = (T * cb[b] - cp[p]).norm();
+    m.per_pair_mm.push_back(d);
+    ss += d * d;
+    m.max_mm = std::max(m.max_mm, d);
+  }
+  m.rms_mm = std::sqrt(ss / static_cast<double>(match.pairs.size()));
+  return m;
+}
+
 // --- 5b. More matched pairs than the replica carries markers (expected_markers): one is a
 // bump of the hand that looks like a marker from both sides and keeps its place between them
 // — a round fingertip of the markers' radius (the flat, thin-fingered hand of
@@ -446,31 +461,26 @@ int drop_surplus_pairs(const RegistrationOptions& o, const std::vector<Eigen::Ve
   constexpr double kSurplusRmsShare = 0.5;
   const int n = static_cast<int>(match->pairs.size()), k = o.expected_markers;
   if (n <= k || k < 3) return 0;
-  const auto rms_of = [&](const std::vector<std::pair<int, int>>& pairs, const Eigen::Isometry3d& T) {
-    double ss = 0;
-    for (const auto& [b, p] : pairs) ss += (T * cb[b] - cp[p]).squaredNorm();
-    return std::sqrt(ss / static_cast<double>(pairs.size()));
-  };
-  const double all = rms_of(match->pairs, fit_rigid(cb, cp, match->pairs));
+  const auto rms_of = [&](const MarkerMatch& m) { return marker_residuals(fit_rigid(cb, cp, m.pairs), m, cb, cp).rms_mm; };
+  const double all = rms_of(*match);
   *rms_before = all;
   // The subsets in a fixed order (a bit mask of the pairs kept): the same choice every run.
   std::vector<char> keep(static_cast<size_t>(n), 0);
   std::fill(keep.end() - k, keep.end(), 1);
   double best = std::numeric_limits<double>::infinity();
-  std::vector<std::pair<int, int>> best_pairs;
+  MarkerMatch best_subset;
   do {
-    std::vector<std::pair<int, int>> sub;
+    MarkerMatch sub;
     for (int i = 0; i < n; ++i)
-      if (keep[static_cast<size_t>(i)]) sub.push_back(match->pairs[static_cast<size_t>(i)]);
-    const double r = rms_of(sub, fit_rigid(cb, cp, sub));
-    if (r < best) best = r, best_pairs = std::move(sub);
+      if (keep[static_cast<size_t>(i)]) sub.pairs.push_back(match->pairs[static_cast<size_t>(i)]);
+    const double r = rms_of(sub);
+    if (r < best) best = r, best_subset = std::move(sub);
   } while (std::next_permutation(keep.begin(), keep.end()));
   if (!(best < kSurplusRmsShare * all)) return 0;
-  match->pairs = std::move(best_pairs);
+  match->pairs = std::move(best_subset.pairs);
   match->back_to_palm = fit_rigid(cb, cp, match->pairs);
-  match->rms_mm = rms_of(match->pairs, match->back_to_palm);
-  match->max_mm = 0;
-  for (const auto& [b, p] : match->pairs) match->max_mm = std::max(match->max_mm, (match->back_to_palm * cb[b] - cp[p]).norm());
+  const MarkerResiduals r = marker_residuals(match->back_to_palm, *match, cb, cp);
+  match->rms_mm = r.rms_mm, match->max_mm = r.max_mm;
   return n - k;
 }
 
@@ -491,20 +501,6 @@ void pair_partners(const std::vector<Eigen::Vector3d>& cb, const std::vector<Eig
     if (d->palm.partner[k] < 0)
       warnings->push_back("palm marker " + std::to_string(k) + " at " + where(cp[k]) +
                           " has no partner in the back scan and is not used");
-}
-
-MarkerResiduals marker_residuals(const Eigen::Isometry3d& T, const MarkerMatch& match,
-                                 const std::vector<Eigen::Vector3d>& cb, const std::vector<Eigen::Vector3d>& cp) {
-  MarkerResiduals m;
-  double ss = 0;
-  for (const auto& [b, p] : match.pairs) {
-    const double d = (T * cb[b] - cp[p]).norm();
-    m.per_pair_mm.push_back(d);
-    ss += d * d;
-    m.max_mm = std::max(m.max_mm, d);
-  }
-  m.rms_mm = std::sqrt(ss / static_cast<double>(match.pairs.size()));
-  return m;
 }
 
 // --- 6. the guarded refinement from the marker-only fit (markers as anchors, gated ICP on
