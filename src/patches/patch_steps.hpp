@@ -24,14 +24,13 @@
 
 namespace handskin::patch_steps {
 
-/// What a fit kept in place of `from` takes over from it: the layouts tried and the one kept,
-/// and the polygon skin's weight used (fit_patch_skin's choices, before any refit).
+/// What a fit kept in place of `from` takes over from it: the layouts tried and the one kept
+/// (fit_patch_skin's choices, before any refit). Its skin weight is its own (fit_patches).
 inline void carry_fit_choices(PatchSkin* from, PatchSkin* to) {
   to->layout_tries = std::move(from->layout_tries);
   to->layout_try_crossings = std::move(from->layout_try_crossings);
   to->layout_try_folds = std::move(from->layout_try_folds);
   to->thumb_ring_shift = from->thumb_ring_shift;
-  to->skin_weight_used = from->skin_weight_used;
 }
 
 /// The Bernstein basis of degree 3 at t (B), and its derivatives (D, when given).

@@ -523,6 +523,7 @@ PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector
   const auto t0 = std::chrono::steady_clock::now();
   PatchSkin out;
   out.layout = layout;
+  out.skin_weight_used = o.skin_weight;
   HS_CHECK(separations.empty() || seed, "separations act in the rounds along the normals: a seed is needed");
   out.separations = separations;
   const LayoutTopology T = layout_topology(layout, "patch layout");
@@ -777,7 +778,6 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
       *s = std::move(t);
     }
   };
-  s.skin_weight_used = o.skin_weight;
   hold_fingers_apart(&s, o);
   // The polygon skin's samples hold the surface where the scans saw nothing (skin_weight 0.5
   // of a measured point). Where they pull a patch into a fold of the skin that it then
@@ -791,11 +791,9 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
     PatchOptions light = o;
     light.skin_weight = kLightSkinWeight;
     PatchSkin t = fit_patches(s.layout, points, sides, support, skin.bones, light);
-    t.skin_weight_used = kLightSkinWeight;
     hold_fingers_apart(&t, light);  // measures its crossings first
     if (t.crossings->pairs < s.crossings->pairs) {
       carry_fit_choices(&s, &t);
-      t.skin_weight_used = kLightSkinWeight;
       s = std::move(t);
       used = light;
     }

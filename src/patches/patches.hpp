@@ -141,8 +141,8 @@ struct PatchSkin {
   /// is kept after one that is not.
   std::vector<std::pair<double, std::string>> layout_try_folds;
   int thumb_ring_shift = 0;
-  /// The polygon skin's samples' weight in the fit kept: PatchOptions::skin_weight, or 0.05
-  /// where that fit crossed itself and one with 0.05 crossed less (fit_patch_skin).
+  /// The polygon skin's samples' weight it was fitted with (fit_patches): PatchOptions::skin_weight,
+  /// or 0.05 where fit_patch_skin's fit crossed itself and one with 0.05 crossed less.
   double skin_weight_used = 0;
   /// The kept surface tessellated at PatchOptions::tessellation passing through itself, as
   /// fit_patch_skin measured it for the choice of layout and the fingers held apart (on every
