@@ -189,11 +189,12 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
     rig_refused.clear();
     try {
       R.skin = build_skin(in.points, rig, so, progress);
+    } catch (const TubeFoldsError& e) {
+      build_error = std::current_exception();
+      if (R.automatic) rig_refused = e.detail();  // says the same of a placed skeleton as a refusal
     } catch (const InputError& e) {
       build_error = std::current_exception();
-      // A tube folded into itself says the same of a placed skeleton as a refusal does.
-      if (e.where() == "rig" || (R.automatic && e.detail().find("tube folds into itself") != std::string::npos))
-        rig_refused = e.detail();
+      if (e.where() == "rig") rig_refused = e.detail();
     } catch (...) {
       build_error = std::current_exception();
     }

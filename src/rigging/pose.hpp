@@ -16,9 +16,9 @@ namespace handskin {
 
 class SkinPoser {
  public:
-  /// A skin (`rest` vertices, `faces`) bound by `binding` to `rig`. With `guard`, every posture gets the crease guard and its folds untangled;
-  /// what they share (the guard's planes, the faces' dominant links) is made once here, and
-  /// only then.
+  /// A skin (`rest` vertices, `faces`) bound by `binding` to `rig`. With `guard`, every
+  /// posture gets the crease guard and its folds untangled; what they share (the guard's
+  /// planes, the faces' dominant links) is made once here, and only then.
   SkinPoser(const std::vector<Eigen::Vector3d>& rest, const std::vector<std::array<int, 3>>& faces,
             const SkinBinding& binding, const Rig& rig, bool guard);
 

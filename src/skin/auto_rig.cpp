@@ -272,7 +272,7 @@ void centre_thumb_joints(const std::vector<Eigen::Vector3d>& h, const Digit& thu
     // and two thirds of the way out, the first that closes (it had stayed 6-8 mm beside
     // the thumb, and the skin refused the skeleton).
     for (const auto& [k, along] : {std::pair{1, 0.0}, std::pair{0, 0.35}, std::pair{0, 0.5}, std::pair{0, 0.65}}) {
-      if (k == 0 && along > 0.35 && mcp_centred) break;
+      if (k == 0 && mcp_centred) break;  // centred by a section nearer the MCP
       const Eigen::Vector3d a = (js[k + 1] - js[k]).normalized(), q = js[k] + along * (js[k + 1] - js[k]);
       Eigen::Vector3d e1 = Eigen::Vector3d::UnitZ() - a.z() * a;
       if (e1.norm() < 0.3) continue;  // a thumb pointing up or down out of the hand: no height to centre

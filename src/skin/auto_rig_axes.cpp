@@ -78,10 +78,11 @@ void extend_proximally(const std::vector<Eigen::Vector3d>& h, const Eigen::Vecto
     lateral->insert(lateral->begin(), Eigen::Vector3d(t, l0 + 0.5 * (left + right + 1) * kBin, 0));
   }
 }
+
 // A finger flexes in one plane: the vertical plane through its lateral line (`lateral_at`,
-// the offset across the hand at t). Its centre line in that plane, as (t, z), traced from the
-// first measured centres outward. Sections at fixed t, as the line's quadratic height is
-// fitted to, cut a finger curled past ~45 deg lengthwise: its intermediate and distal
+// the offset across the hand at t). Its centre line in that plane, as (t, z), traced from `c`
+// along `d` (the line through its first measured centres) outward. Sections at fixed t, as
+// the line's quadratic height is fitted to, cut a finger curled past ~45 deg lengthwise: its intermediate and distal
 // phalanges (30-35 mm) span ~10 mm of t, and the tip was put on the DIP's knuckle (P04, PIPs
 // at 55-60 deg: the little's tip 14 mm off, the skeleton refused). Every kTrackStep mm a slab
 // square to the direction so far, and the centre of the section's circle in it (a curled
@@ -99,7 +100,7 @@ template <class LateralAt>
 std::vector<Eigen::Vector2d> track_in_flexion_plane(const std::vector<Eigen::Vector3d>& h, const std::vector<size_t>& pts,
                                                     const Eigen::Vector2d& m2, const Eigen::Vector2d& d2,
                                                     const Eigen::Vector2d& n2, const LateralAt& lateral_at,
-                                                    const std::vector<Eigen::Vector3d>& centres, double window) {
+                                                    Eigen::Vector2d c, Eigen::Vector2d d, double window) {
   constexpr double kTrackStep = 2.0, kHalfSlab = 2.5, kMaxLength = 200, kMaxTurn = 20 * M_PI / 180,
                    kMaxTotalTurn = 150 * M_PI / 180, kMaxDorsal = 20 * M_PI / 180;
   std::vector<Eigen::Vector3d> p;  // the digit's points: (t, z, offset beside the plane)
@@ -108,15 +109,6 @@ std::vector<Eigen::Vector2d> track_in_flexion_plane(const std::vector<Eigen::Vec
     const double t = q.dot(d2), off = q.dot(n2) - lateral_at(t);
     if (std::abs(off) <= window) p.emplace_back(t, h[i].z(), off);
   }
-  // Start: the line through the first four centres.
-  const size_t n0 = std::min<size_t>(4, centres.size());
-  double st = 0, sz = 0, stt = 0, stz = 0;
-  for (size_t k = 0; k < n0; ++k) st += centres[k].x(), sz += centres[k].z(), stt += centres[k].x() * centres[k].x(),
-                                  stz += centres[k].x() * centres[k].z();
-  const double nn = static_cast<double>(n0), den = nn * stt - st * st;
-  const double slope = std::abs(den) > 1e-9 ? (nn * stz - st * sz) / den : 0.0;
-  const double t0 = centres.front().x();
-  Eigen::Vector2d c(t0, (sz - slope * st) / nn + slope * t0), d = Eigen::Vector2d(1, slope).normalized();
   std::vector<Eigen::Vector2d> line = {c};
   // The section's circle in a slab square to `dir` at `at` (x across, o beside the plane; its
   // centre on the plane, o = 0): x^2 + o^2 = 2 x x0 + k, linear least squares in x0 and k
@@ -289,22 +281,20 @@ void trace_centre_line(const std::vector<Eigen::Vector3d>& h, const Eigen::Vecto
     const Eigen::Vector2d q = m2 + t * d2 + l * n2;
     return Eigen::Vector3d(q.x(), q.y(), z);
   };
-  // The tip: the digit's farthest point along the curve's end direction.
-  const Eigen::Vector3d end = point(tb), end_dir = (point(tb + 1) - end).normalized();
-  double reach = -1e300;
-  for (size_t i : dg->points) reach = std::max(reach, (h[i] - end).dot(end_dir));
-  dg->tip_skin = end + reach * end_dir;
   // Asked for (`traced`, the skin stage's fallback): the finger's centre line traced in its
-  // flexion plane, which follows a finger curled further than the quadratic does.
+  // flexion plane from the line through its first four centres, which follows a finger
+  // curled further than the quadratic does.
+  const auto lateral_at = [&](double t) { return cl(0) + cl(1) * (t - tm); };
   std::vector<Eigen::Vector2d> traced_line;
   if (traced && dg->width > 0) {
-    const auto lateral_at = [&](double t) { return cl(0) + cl(1) * (t - tm); };
-    traced_line = track_in_flexion_plane(h, dg->points, m2, d2, n2, lateral_at, centres, dg->width);
+    const Eigen::Vector3d c0 = fit({centres.begin(), centres.begin() + 4}, 2, false);
+    const Eigen::Vector2d start(ta, c0(0) + c0(1) * (ta - tm)), dir = Eigen::Vector2d(1, c0(1)).normalized();
+    traced_line = track_in_flexion_plane(h, dg->points, m2, d2, n2, lateral_at, start, dir, dg->width);
     if (traced_line.size() < 4) traced_line.clear();
   }
   if (!traced_line.empty()) {
     const auto at3 = [&](const Eigen::Vector2d& q) {
-      const Eigen::Vector2d x = m2 + q.x() * d2 + (cl(0) + cl(1) * (q.x() - tm)) * n2;
+      const Eigen::Vector2d x = m2 + q.x() * d2 + lateral_at(q.x()) * n2;
       return Eigen::Vector3d(x.x(), x.y(), q.y());
     };
     // Into the palm straight along the traced line's first direction.
@@ -313,6 +303,11 @@ void trace_centre_line(const std::vector<Eigen::Vector3d>& h, const Eigen::Vecto
     for (const auto& q : traced_line) dg->curve.push_back(at3(q));
     dg->tip_skin = dg->curve.back();
   } else {
+    // The tip: the digit's farthest point along the curve's end direction.
+    const Eigen::Vector3d end = point(tb), end_dir = (point(tb + 1) - end).normalized();
+    double reach = -1e300;
+    for (size_t i : dg->points) reach = std::max(reach, (h[i] - end).dot(end_dir));
+    dg->tip_skin = end + reach * end_dir;
     for (double t = ta - 80; t < tb; t += 0.25) dg->curve.push_back(point(t));
     dg->curve.push_back(end);
     dg->curve.push_back(dg->tip_skin);

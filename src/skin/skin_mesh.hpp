@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "core/errors.hpp"
 #include "core/rig.hpp"
 #include "mesh/mesh.hpp"
 #include "skin/slices.hpp"
@@ -162,9 +163,18 @@ struct SkinResult {
 /// not (build_skin's error).
 std::string rig_outside_cloud(const std::vector<Eigen::Vector3d>& points, const Rig& rig);
 
+/// build_skin's error when a tube folds into itself on the rig: the surface cannot be closed
+/// there, which says of a placed skeleton what a refusal of it does (the skin stage then
+/// tries its other placements).
+class TubeFoldsError : public InputError {
+ public:
+  using InputError::InputError;
+};
+
 /// Build the skin from the merged cloud `points` (rig frame, mm, markers removed) and the
 /// rig's joints. Throws InputError when the rig does not fit the cloud (joints outside it,
-/// the palm not found) or the surface cannot be closed; a missing digit is a warning.
+/// the palm not found) or the surface cannot be closed (TubeFoldsError where a tube folds
+/// into itself); a missing digit is a warning.
 SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const SkinOptions& options,
                       const std::function<void(const std::string&)>& progress = {});
 
