@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <functional>
 #include <cmath>
+#include <stdexcept>
 
 #include "core/random.hpp"
 #include "register/registration.hpp"
@@ -255,6 +257,30 @@ TEST(SkinMesh, RigFromAnotherScanIsAClearError) {
   bad.max_triangles = 10;
   EXPECT_NE(input_error_of([&] { build_skin(m.points, load_rig(kFixture + "rig.json"), bad); }).find("max_triangles"),
             std::string::npos);
+}
+
+TEST(SkinMesh, WorkBesideTheFirstStepsRunsOnceAndLeavesTheSkinAsItWas) {
+  // build_skin's `beside` (the skin stage's check of a given rig, its sections, the run's
+  // picture of the merged cloud) runs once on the other thread, also when the steps throw,
+  // and the skin is the same bytes as without it.
+  const MergedArrays& m = fixture_merged();
+  const Rig rig = load_rig(kFixture + "rig.json");
+  std::atomic<int> runs{0};
+  const SkinResult alone = build_skin(m.points, rig, SkinOptions{});
+  const SkinResult with = build_skin(m.points, rig, SkinOptions{}, {}, [&] { ++runs; });
+  EXPECT_EQ(runs.load(), 1);
+  EXPECT_EQ(with.mesh.vertices, alone.mesh.vertices);
+  EXPECT_EQ(with.mesh.faces, alone.mesh.faces);
+  EXPECT_EQ(with.vertex_bone, alone.vertex_bone);
+  // The steps' error is the one thrown, after the work beside them ran.
+  Rig far = rig;
+  for (auto& j : far.joints) j += Eigen::Vector3d(400, 0, 0);
+  const std::string e = input_error_of([&] { build_skin(m.points, far, SkinOptions{}, {}, [&] { ++runs; }); });
+  EXPECT_NE(e.find("outside the merged cloud"), std::string::npos) << e;
+  EXPECT_EQ(runs.load(), 2);
+  // The work's own error, when the steps succeed, is thrown too (not lost in its thread).
+  EXPECT_THROW(build_skin(m.points, rig, SkinOptions{}, {}, [] { throw std::runtime_error("beside"); }),
+               std::runtime_error);
 }
 
 TEST(SkinMesh, RigShiftedSidewaysIsRefusedAndTheErrorNamesTheDigit) {

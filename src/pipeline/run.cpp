@@ -186,13 +186,21 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
     si.cloud_name = "merged cloud of " + in.back_stem + " and " + in.palm_stem;
   }
 
-  // The merged cloud's picture is drawn on a thread of its own while the skin and the patches
-  // are made (its 143 000 splats, render/splats.cpp). Every picture starts from the same
-  // OpenGL state, whichever thread's context draws it: the same bytes on any thread.
-  std::future<std::string> merged_png = std::async(
-      side_launch(), [m = merged, markers = clouds ? std::vector<Eigen::Vector3d>{} : R.registration.markers_palm] {
-        return merged_preview_png(m, markers);
-      });
+  // The merged cloud's picture (its 143 000 splats, render/splats.cpp, ~60 ms): with a rig
+  // given, beside the skin's first steps (SkinStageInputs::beside_build); with the skeleton
+  // placed automatically, on a thread of its own beside the skin stage. Every picture starts
+  // from the same OpenGL state, whichever thread draws it: the same bytes on any thread.
+  std::string merged_picture;
+  std::future<std::string> merged_png;
+  {
+    auto draw = [m = merged, markers = clouds ? std::vector<Eigen::Vector3d>{} : R.registration.markers_palm] {
+      return merged_preview_png(m, markers);
+    };
+    if (si.rig && !in.auto_rig)
+      si.beside_build = [&merged_picture, draw = std::move(draw)] { merged_picture = draw(); };
+    else
+      merged_png = std::async(side_launch(), std::move(draw));
+  }
 
   // --- skin: strips from the merged cloud, closed into one mesh (docs/skin.md) ---
   si.points = std::move(merged.points);
@@ -274,7 +282,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   const std::vector<unsigned char> glb = skin_glb(R.rigged);
   R.glb.assign(glb.begin(), glb.end());
   if (R.patches) R.patches->pictures = patch_pictures.get(), R.patches->step = patches_step.get();
-  R.merged_png = merged_png.get();
+  R.merged_png = merged_png.valid() ? merged_png.get() : std::move(merged_picture);
   R.seconds = total.seconds();
   return R;
 }

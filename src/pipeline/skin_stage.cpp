@@ -183,12 +183,12 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
   };
   std::exception_ptr build_error;
   std::string rig_refused;  // the build's error, when it refused the rig
-  auto build = [&](const Rig& rig) {
+  auto build = [&](const Rig& rig, const std::function<void()>& beside = {}) {
     const auto tb = std::chrono::steady_clock::now();
     build_error = nullptr;
     rig_refused.clear();
     try {
-      R.skin = build_skin(in.points, rig, so, progress);
+      R.skin = build_skin(in.points, rig, so, progress, beside);
     } catch (const TubeFoldsError& e) {
       build_error = std::current_exception();
       if (R.automatic) rig_refused = e.detail();  // says the same of a placed skeleton as a refusal
@@ -263,30 +263,28 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
       R.rig_orientation = *note;
       progress(in.rig_name + ": " + *note);
     }
-    // The placement, then the thesis's sections (they need the cloud and the rig only), beside
-    // the build (one thread: the build takes ~3 × as long as the two).
-#pragma omp parallel sections
-    {
-#pragma omp section
-      {
-        place();  // a given rig: the placement records its failure, never throws
-        // A placed skeleton whose joints lie outside the cloud (the placement lost this hand:
-        // a broad, thick hand with its fingers together, 240 mm long, in
-        // scripts/unusual_hands_study.py) is the placement's failure, not a check of the given
-        // rig: compared with it, it had the given rig refused as another hand's (101 mm).
-        if (R.placed)
-          if (std::string why = rig_outside_cloud(in.points, R.placed->rig); !why.empty()) {
-            R.placement_failed = "the skeleton placed in the cloud does not fit it: " + why;
-            R.placed.reset();
-          }
-        try {
-          if (in.slices) R.slices = slice_cloud(in.points, R.rig, so.slicing);
-        } catch (...) {  // made again after the build (measure_skin), which reports the error in turn
+    // The placement (the given rig's check), the thesis's sections (they need the cloud and
+    // the rig only) and the caller's work beside the build's first steps (build_skin's
+    // `beside`: ~125 ms of steps that two threads make hardly faster, against ~20 + ~30 ms for
+    // the two and ~60 ms for the run's picture of the merged cloud); the build's later steps
+    // then have both threads.
+    build(R.rig, [&] {
+      place();  // a given rig: the placement records its failure, never throws
+      // A placed skeleton whose joints lie outside the cloud (the placement lost this hand:
+      // a broad, thick hand with its fingers together, 240 mm long, in
+      // scripts/unusual_hands_study.py) is the placement's failure, not a check of the given
+      // rig: compared with it, it had the given rig refused as another hand's (101 mm).
+      if (R.placed)
+        if (std::string why = rig_outside_cloud(in.points, R.placed->rig); !why.empty()) {
+          R.placement_failed = "the skeleton placed in the cloud does not fit it: " + why;
+          R.placed.reset();
         }
+      try {
+        if (in.slices) R.slices = slice_cloud(in.points, R.rig, so.slicing);
+      } catch (...) {  // made again after the build (measure_skin), which reports the error in turn
       }
-#pragma omp section
-      build(R.rig);
-    }
+      if (in.beside_build) in.beside_build();
+    });
   }
   if (R.placed && in.rig) check_given_rig(in, progress, &R);
   if (in.rig && !R.automatic && !R.placement_failed.empty())

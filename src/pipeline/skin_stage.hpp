@@ -55,6 +55,11 @@ struct SkinStageInputs {
   bool baseline = false;                          ///< also the CGAL Poisson baseline, for comparison
   bool slices = true;                             ///< also the thesis's sections (slices.json)
   std::optional<TruthSkin> truth;                 ///< a synthetic pair's true skin: figures against it
+  /// With a rig given (and no --auto-rig), the caller's work run beside the build's first
+  /// steps with the stage's own (build_skin's `beside`): run once, on the stage's second
+  /// thread, before the stage returns or throws. Ignored (not run) when the skeleton is
+  /// placed automatically: the caller runs it itself then.
+  std::function<void()> beside_build;
 };
 
 /// The cloud → skin figures take at most this many of the cloud's points, every k-th
