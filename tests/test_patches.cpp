@@ -607,6 +607,28 @@ TEST(Patches, FollowThePostureAndTheirLayoutComesBack) {
   ASSERT_EQ(s.layout_tries.size(), 1u);
   EXPECT_EQ(s.thumb_ring_shift, 0);
   EXPECT_LT(s.layout_tries[0].second, 0.75);
+  // fit_patch_skin measures only the fit it keeps: what it returns is measured, and a fit
+  // measured later (patch_steps::measure_pending) has the same distances as one measured at once.
+  EXPECT_FALSE(s.pending_measure);
+  ASSERT_EQ(s.samples.size(), m.points.size() - static_cast<size_t>(std::count(m.sides.begin(), m.sides.end(), 2u)));
+  {
+    const PatchLayout L0 = subdivide_layout(hand_patch_layout(skin, rig, m.points, m.sides), 1);
+    const std::vector<Eigen::Vector3d> support = sample_surface(skin.mesh, 0.5);
+    const PatchOptions o = patch_options(PipelineOptions{});
+    PatchSkin later = patch_steps::fit_patches_unmeasured(L0, m.points, m.sides, support, skin.bones, o);
+    ASSERT_TRUE(later.pending_measure);
+    EXPECT_TRUE(later.samples.empty());
+    patch_steps::measure_pending(&later, m.points, m.sides);
+    EXPECT_FALSE(later.pending_measure);
+    ASSERT_EQ(later.samples.size(), s.samples.size());
+    for (size_t k = 0; k < s.samples.size(); k += 97) {
+      EXPECT_EQ(later.samples[k].error, s.samples[k].error) << k;
+      EXPECT_EQ(later.samples[k].patch, s.samples[k].patch) << k;
+    }
+    EXPECT_EQ(later.side[0].mean, s.side[0].mean);
+    EXPECT_EQ(later.side[1].max, s.side[1].max);
+    EXPECT_EQ(later.worst_patch, s.worst_patch);
+  }
   {
     const PatchLayout L0 = hand_patch_layout(skin, rig, m.points, m.sides);
     auto corner = [](const PatchLayout& L, const std::string& face, int k) {

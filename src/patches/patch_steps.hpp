@@ -74,6 +74,33 @@ struct Datum {
   Eigen::Vector3d n = Eigen::Vector3d::Zero();  ///< the surface's unit normal at the foot point (after the first fit)
 };
 
+}  // namespace handskin::patch_steps
+
+namespace handskin {
+/// What measuring every point on a fitted surface needs: the layout's topology, which point
+/// was fitted as which datum (-1 not fitted, -2 left out), and the data with their last foot
+/// points (the measurement's starts).
+struct PendingMeasure {
+  LayoutTopology topology;
+  std::vector<int> in_fit;
+  std::vector<patch_steps::Datum> data;
+};
+}  // namespace handskin
+
+namespace handskin::patch_steps {
+
+/// fit_patches without its last step: the measured points' distances are left to
+/// measure_pending (PatchSkin::pending_measure holds what it needs).
+PatchSkin fit_patches_unmeasured(const PatchLayout& layout, const std::vector<Eigen::Vector3d>& points,
+                                 const std::vector<std::uint32_t>& sides, const std::vector<Eigen::Vector3d>& support,
+                                 const std::vector<Bone>& bones, const PatchOptions& options,
+                                 const std::vector<std::array<Eigen::Vector3d, 16>>* seed = nullptr,
+                                 const std::vector<Separation>& separations = {});
+/// The distances of every measured point (the same `points` and `sides` the fit had) on the
+/// surface of a fit made by fit_patches_unmeasured; its time is added to the fit's. Nothing
+/// to do when it is measured already.
+void measure_pending(PatchSkin* s, const std::vector<Eigen::Vector3d>& points, const std::vector<std::uint32_t>& sides);
+
 /// Newton (Gauss–Newton) foot point of d.p on the surface from (d.patch, d.s, d.t), at most
 /// `iterations` steps; true when it ends pushing out of its patch still (foot_points.cpp).
 bool foot_point(const std::vector<BezierPatch>& P, const LayoutTopology& T, Datum* d, int iterations,

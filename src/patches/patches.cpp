@@ -511,11 +511,11 @@ bool PatchOptions::IsValid(std::string* error) const {
   return true;
 }
 
-PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector3d>& points,
-                      const std::vector<std::uint32_t>& sides, const std::vector<Eigen::Vector3d>& support,
-                      const std::vector<Bone>& bones, const PatchOptions& o,
-                      const std::vector<std::array<Eigen::Vector3d, 16>>* seed,
-                      const std::vector<Separation>& separations) {
+PatchSkin patch_steps::fit_patches_unmeasured(const PatchLayout& layout, const std::vector<Eigen::Vector3d>& points,
+                                 const std::vector<std::uint32_t>& sides, const std::vector<Eigen::Vector3d>& support,
+                                 const std::vector<Bone>& bones, const PatchOptions& o,
+                                 const std::vector<std::array<Eigen::Vector3d, 16>>* seed,
+                                 const std::vector<Separation>& separations) {
   std::string err;
   if (!o.IsValid(&err)) throw InputError("patch options", err);
   HS_CHECK(points.size() == sides.size(), "points and sides differ in length");
@@ -526,13 +526,16 @@ PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector
   out.skin_weight_used = o.skin_weight;
   HS_CHECK(separations.empty() || seed, "separations act in the rounds along the normals: a seed is needed");
   out.separations = separations;
-  const LayoutTopology T = layout_topology(layout, "patch layout");
+  auto pending = std::make_shared<PendingMeasure>();
+  pending->topology = layout_topology(layout, "patch layout");
+  const LayoutTopology& T = pending->topology;
   for (const auto& b : bones) out.bones.push_back(b.name());
   for (int v : T.valence) out.irregular_corners += v != 4;
 
   const Net net = start_net(layout, T, &out, seed);
-  std::vector<int> in_fit;
-  std::vector<Datum> data = gather_data(points, sides, support, net.count, o, &in_fit);
+  std::vector<int>& in_fit = pending->in_fit;
+  std::vector<Datum>& data = pending->data;
+  data = gather_data(points, sides, support, net.count, o, &in_fit);
   if (data.size() < 16 * out.patches.size())
     throw InputError("patches", "too few points (" + std::to_string(data.size()) + ") for " +
                                     std::to_string(out.patches.size()) + " patches");
@@ -549,12 +552,32 @@ PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector
   NetFit net_fit;  // --- 4. the least squares ---
   net_fit.fit(&out, T, data, o);
   correct_parameters(&out, T, layout, &data, o, &net_fit);
-  measure_points(&out, T, points, sides, in_fit, data);
   for (const auto& c : out.control)
     if (!c.allFinite())
       throw InputError("patches", "the fit gave non-finite control points; the layout does not fit these points");
   bind_and_check(&out, T, layout, bones);
+  out.pending_measure = std::move(pending);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+void patch_steps::measure_pending(PatchSkin* s, const std::vector<Eigen::Vector3d>& points,
+                                  const std::vector<std::uint32_t>& sides) {
+  if (!s->pending_measure) return;
+  const auto t0 = std::chrono::steady_clock::now();
+  const PendingMeasure& m = *s->pending_measure;
+  measure_points(s, m.topology, points, sides, m.in_fit, m.data);
+  s->pending_measure.reset();
+  s->seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector3d>& points,
+                      const std::vector<std::uint32_t>& sides, const std::vector<Eigen::Vector3d>& support,
+                      const std::vector<Bone>& bones, const PatchOptions& o,
+                      const std::vector<std::array<Eigen::Vector3d, 16>>* seed,
+                      const std::vector<Separation>& separations) {
+  PatchSkin out = fit_patches_unmeasured(layout, points, sides, support, bones, o, seed, separations);
+  measure_pending(&out, points, sides);  // --- 6. every measured point's distance ---
   return out;
 }
 
@@ -659,7 +682,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
   const std::vector<Eigen::Vector3d> support = sample_surface(skin.mesh, 0.5);
   auto fit = [&](int shift) {
     const PatchLayout layout = o.layout ? *o.layout : subdivide_layout(hand_patch_layout(skin, rig, points, sides, shift), o.subdivision);
-    return fit_patches(layout, points, sides, support, skin.bones, o);
+    return fit_patches_unmeasured(layout, points, sides, support, skin.bones, o);
   };
   // The skin's distance tree for the check below, built beside the first fit (~2 ms, which
   // the fit's single-threaded factorisations leave room for).
@@ -761,12 +784,13 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
       if (seps.size() == s->separations.size()) break;  // none new: the crossings left are not between two fingers' tubes
       std::vector<std::array<Eigen::Vector3d, 16>> seed(s->patches.size());
       for (size_t f = 0; f < seed.size(); ++f) seed[f] = s->patches[f].P;
-      PatchSkin t = fit_patches(s->layout, points, sides, support, skin.bones, o, &seed, seps);
+      PatchSkin t = fit_patches_unmeasured(s->layout, points, sides, support, skin.bones, o, &seed, seps);
       t.crossings = crossings(t, o.tessellation);
       if (t.crossings->pairs >= s->crossings->pairs) break;
       t.crossings_before_separation = crossed_first;
       carry_fit_choices(s, &t);
       if ((t.refinement = std::move(s->refinement))) {  // after a refinement: its figures of the surface kept
+        measure_pending(&t, points, sides);
         const std::vector<double> err = patch_max_error(t);
         PatchSkin::Refinement& R = *t.refinement;
         R.patches.push_back(static_cast<int>(t.patches.size()));
@@ -790,7 +814,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
   if (s.crossings && s.crossings->pairs > 0 && o.skin_weight > kLightSkinWeight) {
     PatchOptions light = o;
     light.skin_weight = kLightSkinWeight;
-    PatchSkin t = fit_patches(s.layout, points, sides, support, skin.bones, light);
+    PatchSkin t = fit_patches_unmeasured(s.layout, points, sides, support, skin.bones, light);
     hold_fingers_apart(&t, light);  // measures its crossings first
     if (t.crossings->pairs < s.crossings->pairs) {
       carry_fit_choices(&s, &t);
@@ -798,6 +822,8 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
       used = light;
     }
   }
+  // Only the fit kept is measured (every measured point's foot point: ~65-100 ms).
+  measure_pending(&s, points, sides);
   if (used.tolerance_mm > 0) {
     s.crossings.reset();  // of the surface before the refinement
     refine_to_tolerance(&s, used, [&](const LayoutSplit& split) {
@@ -806,6 +832,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
                          separations_after_split(s.separations, split));
     });
     hold_fingers_apart(&s, used);
+    measure_pending(&s, points, sides);
   }
   s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return s;

@@ -15,6 +15,7 @@
 #include <array>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -91,6 +92,9 @@ struct Separation {
   std::string between;                                ///< "a | b": the two patches that crossed (for the report)
 };
 inline constexpr double kSeparationMarginMm = 0.02;
+
+/// A fit's state for measuring every point on its surface later (patch_steps.hpp).
+struct PendingMeasure;
 
 struct PatchSkin {
   PatchLayout layout;                      ///< the faces fitted on, one patch each
@@ -174,6 +178,10 @@ struct PatchSkin {
   std::optional<Refinement> refinement;
   size_t control_points = 0;
   double seconds = 0;
+  /// Set while the measured points' distances (`side`, `samples`, `worst_patch`) are not
+  /// made yet: fit_patch_skin fits candidates (other layouts, the fingers held apart, a lighter
+  /// skin weight) without them and measures the one it keeps. Null on every fit it returns.
+  std::shared_ptr<const PendingMeasure> pending_measure;
 };
 
 /// Fit one patch per face of `layout` to the measured `points` (palm frame, with their scan
