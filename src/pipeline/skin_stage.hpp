@@ -57,8 +57,9 @@ struct SkinStageInputs {
   std::optional<TruthSkin> truth;                 ///< a synthetic pair's true skin: figures against it
   /// With a rig given (and no --auto-rig), the caller's work run beside the build's first
   /// steps with the stage's own (build_skin's `beside`): run once, on the stage's second
-  /// thread, before the stage returns or throws. Ignored (not run) when the skeleton is
-  /// placed automatically: the caller runs it itself then.
+  /// thread, also when the build fails (not when the stage stops before the build: the rig's
+  /// orientation refused). Ignored (not run) when the skeleton is placed automatically: the
+  /// caller runs it itself then.
   std::function<void()> beside_build;
 };
 
