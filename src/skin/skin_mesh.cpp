@@ -1,7 +1,5 @@
 #include "skin/skin_mesh.hpp"
 
-#include <exception>
-
 #include <cstdlib>
 
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
