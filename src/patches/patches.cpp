@@ -822,9 +822,8 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
       used = light;
     }
   }
-  // Only the fit kept is measured (every measured point's foot point: ~65-100 ms).
-  measure_pending(&s, points, sides);
   if (used.tolerance_mm > 0) {
+    measure_pending(&s, points, sides);  // the refinement cuts by the points' distances
     s.crossings.reset();  // of the surface before the refinement
     refine_to_tolerance(&s, used, [&](const LayoutSplit& split) {
       // s: the fit being refined.
@@ -832,8 +831,9 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
                          separations_after_split(s.separations, split));
     });
     hold_fingers_apart(&s, used);
-    measure_pending(&s, points, sides);
   }
+  // Only the fit kept is measured (every measured point's foot point: ~65-100 ms).
+  measure_pending(&s, points, sides);
   s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return s;
 }
