@@ -278,6 +278,172 @@ TEST(Texture, MeshPicturesCoverOccludeAndLightAsOpenGL) {
   EXPECT_EQ(pixel(dotted, 50, 50), Eigen::Vector3i(raster::kDotColour[0], raster::kDotColour[1], raster::kDotColour[2]));
 }
 
+// A colour's byte (raster::byte_of, inline) is std::lround's of it × 255 for every value,
+// the halves and the doubles just below them among them.
+TEST(Texture, ColourBytesAreRoundedAsLround) {
+  std::vector<double> v = {0, 1, -0.5, 2, std::nan(""), 0.5 / 255, 254.5 / 255, 1e-300};
+  for (int k = 0; k <= 255; ++k)
+    for (const double x : {k + 0.5, std::nextafter(k + 0.5, 0.0), std::nextafter(k + 0.5, 1e9), k + 0.0,
+                           std::nextafter(k + 0.0, 0.0)})
+      v.push_back(x / 255), v.push_back(std::nextafter(x / 255, 0.0)), v.push_back(std::nextafter(x / 255, 2.0));
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-0.1, 1.1);
+  for (int k = 0; k < 200000; ++k) v.push_back(u(rng));
+  for (const double x : v)
+    ASSERT_EQ(raster::byte_of(x), static_cast<std::uint8_t>(std::lround(std::clamp(x, 0.0, 1.0) * 255))) << x;
+}
+
+// The mesh pictures are drawn in two passes (the nearest face of each pixel, then its colour)
+// over each row's span of each face (render/mesh_raster.cpp); every byte must be what drawing
+// every fragment in turn gives: the reference below, written out plainly (the renderer before
+// 2026-11-30). Random soups of overlapping triangles, some facing away, some at equal depths
+// (ties: the first drawn kept), edges shared, slivers, a texture, two meshes.
+TEST(Texture, MeshPicturesInTwoPassesAreThoseOfEveryFragmentInTurn) {
+  struct Edge {  // as mesh_raster.cpp's
+    double ux, uy, dx, dy, sign;
+    Edge(const Eigen::Vector3d& p, const Eigen::Vector3d& q) {
+      const bool swap = q.x() < p.x() || (q.x() == p.x() && q.y() < p.y());
+      const Eigen::Vector3d& a = swap ? q : p;
+      const Eigen::Vector3d& b = swap ? p : q;
+      ux = a.x(), uy = a.y(), dx = b.x() - a.x(), dy = b.y() - a.y(), sign = swap ? -1.0 : 1.0;
+    }
+    double operator()(double x, double y) const { return sign * (dx * (y - uy) - dy * (x - ux)); }
+  };
+  const auto bilinear = [](const TextureMap& t, double u, double v) {
+    const int S = t.size;
+    const double x = u * S - 0.5, y = v * S - 0.5, fx = std::floor(x), fy = std::floor(y), ax = x - fx, ay = y - fy;
+    const int x0 = std::clamp(static_cast<int>(fx), 0, S - 1), x1 = std::clamp(static_cast<int>(fx) + 1, 0, S - 1);
+    const int y0 = std::clamp(static_cast<int>(fy), 0, S - 1), y1 = std::clamp(static_cast<int>(fy) + 1, 0, S - 1);
+    const std::uint8_t* r0 = &t.rgb[static_cast<size_t>(y0) * S * 3];
+    const std::uint8_t* r1 = &t.rgb[static_cast<size_t>(y1) * S * 3];
+    Eigen::Vector3d c;
+    for (int ch = 0; ch < 3; ++ch)
+      c[ch] = ((1 - ay) * ((1 - ax) * r0[3 * x0 + ch] + ax * r0[3 * x1 + ch]) + ay * ((1 - ax) * r1[3 * x0 + ch] + ax * r1[3 * x1 + ch])) / 255.0;
+    return c;
+  };
+  const auto reference = [&](const std::vector<const Mesh*>& meshes, const RenderOptions& o) {
+    const std::vector<Eigen::Vector3d> all = [&] {
+      std::vector<Eigen::Vector3d> a;
+      for (const Mesh* m : meshes) a.insert(a.end(), m->vertices.begin(), m->vertices.end());
+      return a;
+    }();
+    const raster::Framing f = raster::frame(o, all);
+    constexpr int S = raster::kSupersample;
+    const int W = o.width * S, H = o.height * S;
+    std::vector<std::uint8_t> rgba;
+    raster::clear_to_background(&rgba, static_cast<size_t>(W) * H);
+    std::vector<float> depth(static_cast<size_t>(W) * H, -std::numeric_limits<float>::infinity());
+    const raster::Lights lights;
+    for (size_t m = 0; m < meshes.size(); ++m) {
+      const Mesh& mesh = *meshes[m];
+      const TextureMap* tex = m == 0 && o.texture && !o.texture->empty() ? o.texture : nullptr;
+      const Eigen::Vector3f material = tex ? Eigen::Vector3f::Constant(0.92f) : o.colour;
+      const double w_tex = tex ? o.texture_weight : 0.0;
+      const std::vector<Eigen::Vector3d> normal = shading_normals(mesh);
+      std::vector<Eigen::Vector3d> win(mesh.vertices.size());
+      std::vector<std::array<Eigen::Vector3d, 2>> lit(mesh.vertices.size());
+      for (size_t v = 0; v < win.size(); ++v) {
+        const Eigen::Vector3d q = o.view * mesh.vertices[v];
+        win[v] << f.window(q), q.z();
+        Eigen::Vector3d n = o.view * normal[v];
+        if (n.squaredNorm() > 0) n.normalize();
+        else n = Eigen::Vector3d::UnitZ();
+        lit[v][0] = lights.shade(n, material), lit[v][1] = lights.shade(-n, material);
+      }
+      for (size_t fi = 0; fi < mesh.faces.size(); ++fi) {
+        const auto& t = mesh.faces[fi];
+        const Eigen::Vector3d &a = win[t[0]], &b = win[t[1]], &c = win[t[2]];
+        const double area = (b.x() - a.x()) * (c.y() - a.y()) - (c.x() - a.x()) * (b.y() - a.y());
+        if (!(std::abs(area) > 1e-12)) continue;
+        const int side = area < 0 ? 0 : 1;
+        const double s = area < 0 ? -1.0 : 1.0;
+        const auto owns = [&](const Eigen::Vector3d& p, const Eigen::Vector3d& q) {
+          const double dx = s * (q.x() - p.x()), dy = s * (q.y() - p.y());
+          return dy < 0 || (dy == 0 && dx > 0);
+        };
+        const bool own0 = owns(b, c), own1 = owns(c, a), own2 = owns(a, b);
+        const Edge E0(b, c), E1(c, a), E2(a, b);
+        for (int y = 0; y < H; ++y)  // every pixel of the picture: no bounding box to trust
+          for (int x = 0; x < W; ++x) {
+            const double px = x + 0.5, py = y + 0.5;
+            const double e0 = s * E0(px, py), e1 = s * E1(px, py), e2 = s * E2(px, py);
+            if (e0 < 0 || e1 < 0 || e2 < 0) continue;
+            if ((e0 == 0 && !own0) || (e1 == 0 && !own1) || (e2 == 0 && !own2)) continue;
+            const double sum = e0 + e1 + e2;
+            if (!(sum > 0)) continue;
+            const double l0 = e0 / sum, l1 = e1 / sum, l2 = e2 / sum;
+            const size_t at = static_cast<size_t>(y) * W + x;
+            const float z = static_cast<float>(l0 * a.z() + l1 * b.z() + l2 * c.z());
+            if (!(z > depth[at])) continue;
+            depth[at] = z;
+            Eigen::Vector3d col = l0 * lit[t[0]][side] + l1 * lit[t[1]][side] + l2 * lit[t[2]][side];
+            if (tex) {
+              const auto& uv = tex->corner_uv[fi];
+              col = w_tex * bilinear(*tex, l0 * uv[0].x() + l1 * uv[1].x() + l2 * uv[2].x(),
+                                     l0 * uv[0].y() + l1 * uv[1].y() + l2 * uv[2].y()) +
+                    (1 - w_tex) * col;
+            }
+            for (int ch = 0; ch < 3; ++ch) rgba[4 * at + ch] = raster::byte_of(col[ch]);
+          }
+      }
+    }
+    raster::draw_dots(o, f, W, H, &rgba);
+    return raster::downsample_png(rgba, o.width, o.height);
+  };
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-20, 20), z(-5, 5);
+  const auto soup = [&](int triangles, bool snap) {
+    Mesh m;
+    for (int k = 0; k < triangles; ++k) {
+      const int base = static_cast<int>(m.vertices.size());
+      // Snapped to a coarse grid, corners land on pixel centres and edges pass through them,
+      // and many triangles lie at one depth (ties).
+      const auto corner = [&] {
+        Eigen::Vector3d p(u(rng), u(rng), z(rng));
+        if (snap) p = (p * 0.5).array().round() * 2.0, p.z() = std::round(p.z() / 5) * 5;
+        return p;
+      };
+      const Eigen::Vector3d a = corner(), b = corner();
+      m.vertices.push_back(a), m.vertices.push_back(b);
+      m.vertices.push_back(k % 9 == 0 ? Eigen::Vector3d(a + 1e-3 * (b - a)) : corner());  // a sliver now and then
+      m.faces.push_back({base, base + 1, base + 2});
+      if (k % 4 == 0) {  // a neighbour across its first edge, wound the other way round it
+        m.vertices.push_back(corner());
+        m.faces.push_back({base + 1, base, base + 3});
+      }
+    }
+    return m;
+  };
+  TextureMap tex;
+  tex.size = 16;
+  for (int k = 0; k < 16 * 16 * 3; ++k) tex.rgb.push_back(static_cast<std::uint8_t>((k * 37) % 256));
+  int compared = 0;
+  for (const bool snap : {false, true})
+    for (const bool textured : {false, true}) {
+      const Mesh one = soup(60, snap), two = soup(25, !snap);
+      for (size_t f = 0; f < one.faces.size(); ++f)
+        tex.corner_uv.push_back({Eigen::Vector2f(0.1f, 0.2f), Eigen::Vector2f(0.9f, 0.3f * (f % 3)), Eigen::Vector2f(0.5f, 0.95f)});
+      RenderOptions o;
+      o.width = 61, o.height = 47;  // odd sizes: a last row and column of their own
+      o.view = Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 1, 0).normalized()).toRotationMatrix();
+      o.points = {{0, 0, 0}};
+      if (textured) o.texture = &tex, o.texture_weight = 0.6;
+      for (const std::vector<const Mesh*>& meshes : {std::vector<const Mesh*>{&one}, std::vector<const Mesh*>{&one, &two}}) {
+        const Rgb8Image want = decode_rgb8_png(reference(meshes, o), "every fragment");
+        const Rgb8Image got = decode_rgb8_png(render_mesh_png(meshes, o), "two passes");
+        ASSERT_EQ(got.rgb.size(), want.rgb.size());
+        size_t differ = 0, drawn = 0;
+        for (size_t k = 0; k < want.rgb.size(); ++k) differ += got.rgb[k] != want.rgb[k];
+        for (size_t k = 0; k < want.rgb.size(); k += 3) drawn += want.rgb[k] != raster::kBackground[0];
+        EXPECT_EQ(differ, 0u) << "snapped " << snap << ", textured " << textured << ", meshes " << meshes.size();
+        EXPECT_GT(drawn, want.rgb.size() / 3 / 4) << "the soup covers a good part of the picture";
+        ++compared;
+      }
+      tex.corner_uv.clear();
+    }
+  EXPECT_EQ(compared, 8);
+}
+
 // The splat pictures (render/splats.cpp) are drawn a band of rows at a time to keep their
 // memory small; every pixel must be what one whole-picture buffer gives: splats and dots
 // across the bands' borders, a last band shorter than the others, ties in depth (the first

@@ -43,8 +43,15 @@ struct Lights {
   }
 };
 
-/// A colour in [0, 1] as a byte, rounded as OpenGL stores it.
-inline std::uint8_t byte_of(double v) { return static_cast<std::uint8_t>(std::lround(std::clamp(v, 0.0, 1.0) * 255)); }
+/// A colour in [0, 1] as a byte, rounded as OpenGL stores it: to nearest, halves up, as
+/// std::lround, inline (libm's lround was ~5 % of a picture's time, called for every channel
+/// of every fragment). x − ⌊x⌋ is exact for x in [0, 255] (Sterbenz), so the bytes are lround's.
+inline std::uint8_t byte_of(double v) {
+  const double x = std::clamp(v, 0.0, 1.0) * 255;
+  if (!(x >= 0 && x <= 255)) return static_cast<std::uint8_t>(std::lround(x));  // NaN: as lround has it
+  const int r = static_cast<int>(x);
+  return static_cast<std::uint8_t>(r + (x - r >= 0.5 ? 1 : 0));
+}
 
 /// The rows a disc of `diameter` supersampled pixels centred at window row y covers, first and
 /// last, unclipped: the pixel rows whose centres lie within its radius of y.

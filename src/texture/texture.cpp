@@ -96,6 +96,15 @@ ScanPhoto load_scan_photo(const std::string& file, const RangeScan& scan) {
 
 namespace {
 
+// x in [0, 255] rounded to the nearest byte, halves up: std::lround's bytes, inline (libm's
+// lroundf for each of a 1024² atlas's 3 M channels took about a tenth of the bake's samples in
+// perf). x − ⌊x⌋ is exact there (Sterbenz).
+inline std::uint8_t byte_of(float x) {
+  if (!(x >= 0.f && x <= 255.f)) return static_cast<std::uint8_t>(std::lround(x));  // NaN: as lround has it
+  const int r = static_cast<int>(x);
+  return static_cast<std::uint8_t>(r + (x - static_cast<float>(r) >= 0.5f ? 1 : 0));
+}
+
 // One bake: the skin, the two views, and the texture growing texel by texel.
 struct Baker {
   Baker(const std::vector<Eigen::Vector3d>& V, const std::vector<std::array<int, 3>>& F, const ScanPhoto& back,
@@ -336,7 +345,7 @@ void Baker::fill(SkinTexture* out) {
     const int x = static_cast<int>(i % S), y = static_cast<int>(i / S);
     const bool block = x < kUnseenBlock && y >= S - kUnseenBlock;
     const Eigen::Vector3f c = state[i] == 2 && !block ? colour[i] : mean;
-    for (int ch = 0; ch < 3; ++ch) out->map.rgb[i * 3 + ch] = static_cast<std::uint8_t>(std::lround(std::clamp(c[ch], 0.f, 255.f)));
+    for (int ch = 0; ch < 3; ++ch) out->map.rgb[i * 3 + ch] = byte_of(std::clamp(c[ch], 0.f, 255.f));
   }
 }
 
