@@ -394,20 +394,20 @@ TEST(Patches, ToleranceSplitsOnlyWhereThePointsMiss) {
   const int n = r["patches"].get<int>();
   EXPECT_GT(n, 98);
   EXPECT_LE(n, 300);
-  // Measured: 98 -> 219 -> 240 -> 278 -> 287 patches, the worst point 0.918 -> 0.762 -> 0.381 ->
-  // 0.362 -> 0.363 mm (the later splits for the rough patches, docs/patches.md).
+  // Measured (2026-11-30): 98 -> 219 -> 240 -> 277 -> 285 patches, the worst point 0.904 ->
+  // 0.676 -> 0.381 -> 0.361 -> 0.362 mm (the later splits for the rough patches, docs/patches.md).
   EXPECT_TRUE(f["held"].get<bool>()) << f.dump();
   for (const char* side : {"palm", "back"}) EXPECT_LE(r["data_to_surface_mm"][side]["max"].get<double>(), 0.5) << side;
   EXPECT_LE(r["continuity"]["g0_gap_mm"].get<double>(), 1e-6);
   // Issue 38's bars on the fixture: data -> surface mean <= 1.2 x the noise floor; against the
   // truth mean <= 0.06, p95 <= 0.2 mm, >= 99.5 % within 1 mm (measured 0.063 / 0.063 against
-  // 0.074; 0.052 / 0.143 mm; 100.00 %).
+  // 0.074; 0.055 / 0.160 mm; 100.00 %).
   for (const char* side : {"palm", "back"})
     EXPECT_LE(r["data_to_surface_mm"][side]["mean"].get<double>(), 1.2 * r["table_4_1"]["noise_floor_mm"][side].get<double>());
   EXPECT_LE(r["truth"]["surface_to_truth_mm"]["mean"].get<double>(), 0.06);
-  EXPECT_LE(r["continuity"]["g1_normal_jump_deg"]["p95"].get<double>(), 0.3);  // measured 0.11
+  EXPECT_LE(r["continuity"]["g1_normal_jump_deg"]["p95"].get<double>(), 0.3);  // measured 0.106
   // No fold at the webs: a face along a web's bottom is halved across it once at most (before
-  // that rule the ring-little web folded by 65-99 deg here). Measured 1.1 deg.
+  // that rule the ring-little web folded by 65-99 deg here). Measured 1.25 deg.
   EXPECT_LE(r["continuity"]["g1_normal_jump_deg"]["max"].get<double>(), 30.0)
       << r["continuity"]["g1_normal_jump_deg"]["max_where"];
   EXPECT_LE(r["truth"]["surface_to_truth_mm"]["p95"].get<double>(), 0.2);
@@ -918,6 +918,54 @@ TEST(Patches, TheRefinementLeavesFacesHeldApartWhole) {
   EXPECT_EQ(s.patches[s.separations[0].faces[0][0]].name, name_a);
   EXPECT_EQ(s.patches[s.separations[0].faces[1][0]].name, name_b);
   EXPECT_FALSE(s.refinement->held);
+  EXPECT_LT(s.g0_gap_mm, 1e-6);
+}
+
+// A split after whose refit the surface passes through itself (on the family's H10-s1 the
+// thumb's base: 0 → 31 → 144 pairs of triangles over three rounds) is taken back: the faces
+// whose children cross are left whole and the round is fitted again without them. Here the
+// refit of one face's children is made to fold through the ellipsoid's far side.
+TEST(Patches, TheRefinementLeavesWholeTheFacesWhoseSplitMadeTheSurfaceCrossItself) {
+  const Cloud c = ellipsoid_cloud(8000, 0.0);
+  PatchOptions o;
+  PatchSkin s = fit_patches(cube_layout(2), c.points, c.sides, {}, {}, o);
+  ASSERT_EQ(crossings(s, o.tessellation).pairs, 0u);
+  const std::vector<double> worst = patch_max_error(s);
+  o.tolerance_mm = 0.5 * *std::min_element(worst.begin(), worst.end());  // every patch misses
+  o.refine_rounds = 1;
+  const std::string folded = s.patches[0].name;
+  int refits = 0, folds = 0;
+  const auto refit = [&](const LayoutSplit& split) {
+    ++refits;
+    PatchSkin t = fit_patches(split.layout, c.points, c.sides, {}, {}, o, &split.seed);
+    for (auto& P : t.patches)
+      if (P.name.rfind(folded + "/", 0) == 0) {  // its inner control points through the centre
+        ++folds;
+        for (int k : {5, 6, 9, 10}) P.P[k] *= -1.5;
+      }
+    return t;
+  };
+  PatchSkin plain = s;
+  patch_steps::refine_to_tolerance(&plain, o, [&](const LayoutSplit& split) {
+    return fit_patches(split.layout, c.points, c.sides, {}, {}, o, &split.seed);
+  });
+  ASSERT_TRUE(plain.refinement.has_value());
+  EXPECT_EQ(plain.refinement->frozen, 0) << "no crossing, nothing left whole";
+  patch_steps::refine_to_tolerance(&s, o, refit);
+  ASSERT_TRUE(s.refinement.has_value());
+  EXPECT_GT(folds, 0) << "the first refit split the face and folded its children";
+  EXPECT_EQ(refits, 2) << "the round fitted again";
+  EXPECT_GE(s.refinement->frozen, 1);
+  std::set<std::string> names;
+  for (const auto& p : s.patches) names.insert(p.name);
+  EXPECT_TRUE(names.count(folded)) << folded << " was left whole";
+  EXPECT_GT(s.patches.size(), 24u) << "the other faces split";
+  EXPECT_LT(s.patches.size(), plain.patches.size());
+  EXPECT_EQ(crossings(s, o.tessellation).pairs, 0u);
+  ASSERT_TRUE(s.crossings.has_value());
+  EXPECT_EQ(s.crossings->pairs, 0u) << "the kept fit's own crossings, carried";
+  EXPECT_EQ(s.refinement->patches.size(), 2u) << "one entry per fit kept: the layout's and the round's";
+  EXPECT_EQ(s.refinement->patches.back(), static_cast<int>(s.patches.size()));
   EXPECT_LT(s.g0_gap_mm, 1e-6);
 }
 

@@ -508,6 +508,7 @@ bool PatchOptions::IsValid(std::string* error) const {
   if (!(tolerance_mm >= 0 && tolerance_mm <= 100)) return invalid(error, "tolerance_mm must be in [0, 100] (0: none)");
   if (max_patches < 1 || max_patches > 20000) return invalid(error, "max_patches must be in [1, 20000]");
   if (refine_rounds < 0 || refine_rounds > 20) return invalid(error, "refine_rounds must be in [0, 20]");
+  if (rough_rounds < 0 || rough_rounds > 20) return invalid(error, "rough_rounds must be in [0, 20]");
   return true;
 }
 
@@ -824,7 +825,6 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
   }
   if (used.tolerance_mm > 0) {
     measure_pending(&s, points, sides);  // the refinement cuts by the points' distances
-    s.crossings.reset();  // of the surface before the refinement
     refine_to_tolerance(&s, used, [&](const LayoutSplit& split) {
       // s: the fit being refined.
       return fit_patches(split.layout, points, sides, support, skin.bones, used, &split.seed,

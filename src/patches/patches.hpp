@@ -46,10 +46,12 @@ struct PatchOptions {
   /// it is split at its midpoints (de Casteljau: the surface unchanged), leaving T-junctions
   /// whose short sides are held to the long side's halves exactly (balance_cuts, build_net), and
   /// the net refitted from that surface; until every patch holds it, `refine_rounds` rounds
-  /// were made, or a further split would exceed `max_patches` (refine.cpp).
+  /// were made, or a further split would exceed `max_patches` (refine.cpp). Patches that hold
+  /// it but are rough (refine.cpp) are split too in the first `rough_rounds` rounds only.
   double tolerance_mm = 0;
   int max_patches = 300;
-  int refine_rounds = 4;
+  int refine_rounds = 6;
+  int rough_rounds = 4;
   bool IsValid(std::string* error) const;
 };
 
@@ -174,6 +176,7 @@ struct PatchSkin {
     std::vector<double> seconds;         ///< per fit: its time
     bool held = false;                   ///< every patch of the kept fit holds the tolerance
     std::string stopped;                 ///< why it stopped short of that (rounds, patches, no gain)
+    int frozen = 0;                      ///< faces left whole: their split made the surface pass through itself
   };
   std::optional<Refinement> refinement;
   size_t control_points = 0;

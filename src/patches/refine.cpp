@@ -236,6 +236,34 @@ std::vector<double> patch_max_error(const PatchSkin& s) {
   return worst;
 }
 
+namespace {
+
+// Whether a pair of crossing patches lies on two different fingers' tubes (their names' first
+// part, "index.0.ulnar/v1" → "index"): fit_patch_skin holds such tubes apart, the refinement
+// leaves them to it.
+std::string finger_of_name(const std::string& n) {
+  const std::string f = n.substr(0, n.find('.'));
+  return f == "index" || f == "middle" || f == "ring" || f == "little" ? f : std::string();
+}
+bool on_finger(const std::string& n) { return !finger_of_name(n).empty(); }
+bool between_two_fingers(const std::string& a, const std::string& b) {
+  const std::string fa = finger_of_name(a), fb = finger_of_name(b);
+  return !fa.empty() && !fb.empty() && fa != fb;
+}
+
+// The crossing pairs the refinement answers for (not those between two fingers' tubes).
+size_t own_crossings(const PatchSkin& s, const PatchCrossings& c, std::set<int>* patches) {
+  size_t n = 0;
+  for (const auto& [a, b] : c.patch_pairs) {
+    if (between_two_fingers(s.patches[a].name, s.patches[b].name)) continue;
+    ++n;
+    if (patches) patches->insert(a), patches->insert(b);
+  }
+  return n;
+}
+
+}  // namespace
+
 namespace patch_steps {
 
 void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::function<PatchSkin(const LayoutSplit&)>& refit) {
@@ -246,13 +274,21 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
   // other than four patches meet (the webs' bottoms between the fingers): found in the first
   // round, carried through the splits (LayoutSplit::on_parent_side).
   std::vector<std::array<bool, 4>> on_web;
+  // Faces whose split made the refitted surface pass through itself: left whole from then on
+  // (their children's crossings are the split's doing: the fit of the net before it did not
+  // cross there). Crossings between two fingers' tubes are fit_patch_skin's to hold apart.
+  if (!s->crossings) s->crossings = crossings(*s, o.tessellation);
+  std::set<int> frozen;
+  bool frozen_blocked = false;  // a split left out because it would cut such a face
+  constexpr int kRedoRounds = 2;  // a round made again at most this often (each time a whole refit)
+  int redone = 0;
   for (int round = 0;; ++round) {
     const std::vector<double> err = patch_max_error(*s);
     const std::vector<double> p95 = patch_error_percentile(*s, kRoughPercentile);
     std::vector<int> over, rough;
     for (size_t f = 0; f < err.size(); ++f) {
       if (err[f] > o.tolerance_mm) over.push_back(static_cast<int>(f));
-      else if (p95[f] > kRoughShare * o.tolerance_mm) rough.push_back(static_cast<int>(f));
+      else if (p95[f] > kRoughShare * o.tolerance_mm && round < o.rough_rounds) rough.push_back(static_cast<int>(f));
     }
     std::sort(over.begin(), over.end(), [&](int a, int b) { return err[a] > err[b] || (err[a] == err[b] && a < b); });
     std::sort(rough.begin(), rough.end(), [&](int a, int b) { return p95[a] > p95[b] || (p95[a] == p95[b] && a < b); });
@@ -343,6 +379,10 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
           held_blocked = true;
           continue;
         }
+        if (std::any_of(frozen.begin(), frozen.end(), [&](int g) { return trial[g] != 0; })) {
+          frozen_blocked = true;
+          continue;
+        }
         cuts = std::move(trial);
         break;
       }
@@ -351,12 +391,46 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
       if (!over.empty())
         R.stopped = held_blocked ? "the patches that miss lie on, or would split, two fingers' tubes held apart where the "
                                    "fingers are pressed together, which are not split (docs/patches.md)"
-                                 : "no split of a patch that misses fits within " + std::to_string(o.max_patches) +
-                                       " patches (patches.max_patches)";
+                    : frozen_blocked ? "the patches that miss lie on, or would split, faces whose split made the surface "
+                                       "pass through itself, which are left whole (docs/patches.md)"
+                                     : "no split of a patch that misses fits within " + std::to_string(o.max_patches) +
+                                           " patches (patches.max_patches)";
       break;
     }
     const LayoutSplit split = split_layout(*s, cuts);
     PatchSkin t = refit(split);
+    // A surface that passes through itself more than the fit before (on the family's H10-s1
+    // with its rig, the thumb's base: 0 → 31 → 144 pairs of triangles over three rounds): the
+    // faces split this round whose children cross are left whole, and the round is made again
+    // without them, at most kRedoRounds times; when none of the crossing patches was split
+    // this round, or after that, the round is taken back and the refinement ends with the fit
+    // before it.
+    t.crossings = crossings(t, o.tessellation);
+    std::set<int> crossing;
+    if (own_crossings(t, *t.crossings, &crossing) > own_crossings(*s, *s->crossings, nullptr)) {
+      std::set<int> culprits;
+      for (int k : crossing)
+        if (cuts[split.parent[k]] != 0) culprits.insert(split.parent[k]);
+      if (!culprits.empty() && redone < kRedoRounds) {
+        ++redone;
+        frozen.insert(culprits.begin(), culprits.end());
+        R.frozen += static_cast<int>(culprits.size());
+        R.patches.pop_back(), R.over.pop_back(), R.worst_mm.pop_back();  // entered again at the loop's head
+        --round;  // the same round again, those faces whole
+        continue;
+      }
+      // Crossings on the four fingers' tubes alone, none of them split this round: fingers
+      // pressed together (the family's H12), whose walls fit_patch_skin holds apart after the
+      // refinement; the round stands. Any other: the fit before it is kept.
+      const bool on_fingers = std::all_of(crossing.begin(), crossing.end(), [&](int k) { return on_finger(t.patches[k].name); });
+      if (!on_fingers || !culprits.empty()) {
+        char b[200];
+        std::snprintf(b, sizeof b, "a split to %zu patches made the surface pass through itself (%zu pairs of triangles): the fit before it kept",
+                      t.patches.size(), t.crossings->pairs);
+        R.stopped = b;
+        break;
+      }
+    }
     R.seconds.push_back(t.seconds);
     const std::vector<double> terr = patch_max_error(t);
     const double worst_now = terr.empty() ? 0.0 : *std::max_element(terr.begin(), terr.end());
@@ -374,6 +448,11 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
     carry_fit_choices(s, &t);
     t.crossings_before_separation = s->crossings_before_separation;
     *s = std::move(t);
+    std::set<int> frozen_next;  // a frozen face was not split: its one face of the new layout
+    for (size_t k = 0; k < split.parent.size(); ++k)
+      if (frozen.count(split.parent[k])) frozen_next.insert(static_cast<int>(k));
+    frozen = std::move(frozen_next);
+    redone = 0;
     std::vector<std::array<bool, 4>> next(split.parent.size());
     for (size_t k = 0; k < next.size(); ++k)
       for (int side = 0; side < 4; ++side) next[k][side] = on_web[split.parent[k]][side] && split.on_parent_side[k][side];

@@ -134,7 +134,7 @@ Json to_json(const PatchStageResult& r) {
       rounds.push_back({{"patches", f->patches[k]}, {"over_tolerance", f->over[k]}, {"worst_mm", f->worst_mm[k]},
                         {"fit_seconds", k < f->seconds.size() ? f->seconds[k] : 0.0}});
     j["refinement"] = {{"tolerance_mm", f->tolerance_mm}, {"max_patches", r.options.max_patches},
-                       {"fits", rounds}, {"held", f->held}, {"stopped", f->stopped}};
+                       {"fits", rounds}, {"held", f->held}, {"stopped", f->stopped}, {"frozen_faces", f->frozen}};
   }
   if (r.surface_to_truth)
     j["truth"] = {{"file", r.truth_file},
