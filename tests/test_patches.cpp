@@ -921,10 +921,11 @@ TEST(Patches, TheRefinementLeavesFacesHeldApartWhole) {
   EXPECT_LT(s.g0_gap_mm, 1e-6);
 }
 
-// A split after whose refit the surface passes through itself (on the family's H10-s1 the
-// thumb's base: 0 → 31 → 144 pairs of triangles over three rounds) is taken back: the faces
-// whose children cross are left whole and the round is fitted again without them. Here the
-// refit of one face's children is made to fold through the ellipsoid's far side.
+// A refinement that ends on a surface passing through itself (on the family's H10-s1 the
+// thumb's base: 0 → 31 → 144 pairs of triangles over three rounds) is taken back to the round
+// that made it cross: the faces whose children cross are left whole and the refinement is made
+// again from there. Here the refit of one face's children is made to fold through the
+// ellipsoid's far side.
 TEST(Patches, TheRefinementLeavesWholeTheFacesWhoseSplitMadeTheSurfaceCrossItself) {
   const Cloud c = ellipsoid_cloud(8000, 0.0);
   PatchOptions o;
@@ -967,6 +968,39 @@ TEST(Patches, TheRefinementLeavesWholeTheFacesWhoseSplitMadeTheSurfaceCrossItsel
   EXPECT_EQ(s.refinement->patches.size(), 2u) << "one entry per fit kept: the layout's and the round's";
   EXPECT_EQ(s.refinement->patches.back(), static_cast<int>(s.patches.size()));
   EXPECT_LT(s.g0_gap_mm, 1e-6);
+}
+
+// When every restart of the refinement crosses again, the last fit that did not cross is
+// kept, and the report says why the tolerance was not reached.
+TEST(Patches, TheRefinementKeepsItsLastUncrossedFitWhenEveryRestartCrosses) {
+  const Cloud c = ellipsoid_cloud(8000, 0.0);
+  PatchOptions o;
+  const PatchSkin start = fit_patches(cube_layout(2), c.points, c.sides, {}, {}, o);
+  const std::vector<double> worst = patch_max_error(start);
+  o.tolerance_mm = 0.5 * *std::min_element(worst.begin(), worst.end());  // every patch misses
+  o.refine_rounds = 1;
+  // Every refit folds the children of the first face it finds split, whichever that is: the
+  // first refinement and each restart (with the last folded face left whole) cross.
+  PatchSkin s = start;
+  int refits = 0;
+  patch_steps::refine_to_tolerance(&s, o, [&](const LayoutSplit& split) {
+    PatchSkin t = fit_patches(split.layout, c.points, c.sides, {}, {}, o, &split.seed);
+    ++refits;
+    std::string under;
+    for (const auto& P : t.patches)
+      if (under.empty() && P.name.find('/') != std::string::npos) under = P.name.substr(0, P.name.find('/'));
+    for (auto& P : t.patches)
+      if (!under.empty() && P.name.rfind(under + "/", 0) == 0)
+        for (int k : {5, 6, 9, 10}) P.P[k] *= -1.5;
+    return t;
+  });
+  ASSERT_TRUE(s.refinement.has_value());
+  EXPECT_EQ(refits, 3) << "the refinement and two restarts";
+  EXPECT_EQ(s.patches.size(), start.patches.size()) << "the fit before the first crossing: the unrefined one";
+  EXPECT_EQ(crossings(s, o.tessellation).pairs, 0u);
+  EXPECT_NE(s.refinement->stopped.find("taken back"), std::string::npos) << s.refinement->stopped;
+  EXPECT_FALSE(s.refinement->held);
+  EXPECT_EQ(s.refinement->patches.size(), 1u);
 }
 
 TEST(Patches, RandomLayoutsAreRefusedInOneLineOrFitted) {

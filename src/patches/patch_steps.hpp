@@ -147,7 +147,9 @@ class NetFit {
 /// Refinement to a tolerance (refine.cpp): while a patch's measured points lie farther than
 /// o.tolerance_mm, the patches that miss are split (balance_cuts, split_layout) and `refit`
 /// fits the split layout from its seed; the result and its figures replace *s
-/// (PatchSkin::refinement).
-void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::function<PatchSkin(const LayoutSplit&)>& refit);
+/// (PatchSkin::refinement). `finish`, when given, is applied to the refined surface before its
+/// crossings are judged (fit_patch_skin: the fingers' tubes held apart).
+void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::function<PatchSkin(const LayoutSplit&)>& refit,
+                         const std::function<void(PatchSkin*)>& finish = {});
 
 }  // namespace handskin::patch_steps

@@ -825,12 +825,14 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
   }
   if (used.tolerance_mm > 0) {
     measure_pending(&s, points, sides);  // the refinement cuts by the points' distances
-    refine_to_tolerance(&s, used, [&](const LayoutSplit& split) {
-      // s: the fit being refined.
-      return fit_patches(split.layout, points, sides, support, skin.bones, used, &split.seed,
-                         separations_after_split(s.separations, split));
-    });
-    hold_fingers_apart(&s, used);
+    refine_to_tolerance(
+        &s, used,
+        [&](const LayoutSplit& split) {
+          // s: the fit being refined.
+          return fit_patches(split.layout, points, sides, support, skin.bones, used, &split.seed,
+                             separations_after_split(s.separations, split));
+        },
+        [&](PatchSkin* refined) { hold_fingers_apart(refined, used); });
   }
   // Only the fit kept is measured (every measured point's foot point: ~65-100 ms).
   measure_pending(&s, points, sides);

@@ -20,6 +20,7 @@
 #include <cstdio>
 #include <functional>
 #include <map>
+#include <optional>
 #include <set>
 
 #include "core/errors.hpp"
@@ -245,17 +246,15 @@ std::string finger_of_name(const std::string& n) {
   const std::string f = n.substr(0, n.find('.'));
   return f == "index" || f == "middle" || f == "ring" || f == "little" ? f : std::string();
 }
-bool on_finger(const std::string& n) { return !finger_of_name(n).empty(); }
-bool between_two_fingers(const std::string& a, const std::string& b) {
-  const std::string fa = finger_of_name(a), fb = finger_of_name(b);
-  return !fa.empty() && !fb.empty() && fa != fb;
-}
 
-// The crossing pairs the refinement answers for (not those between two fingers' tubes).
-size_t own_crossings(const PatchSkin& s, const PatchCrossings& c, std::set<int>* patches) {
+// The crossing pairs the refinement answers for: all but those between two fingers' tubes
+// (fingers pressed together cross there, and fit_patch_skin holds their walls apart after the
+// refinement). Their patches into `patches`.
+size_t crossings_not_between_fingers(const PatchSkin& s, const PatchCrossings& c, std::set<int>* patches) {
   size_t n = 0;
   for (const auto& [a, b] : c.patch_pairs) {
-    if (between_two_fingers(s.patches[a].name, s.patches[b].name)) continue;
+    const std::string fa = finger_of_name(s.patches[a].name), fb = finger_of_name(s.patches[b].name);
+    if (!fa.empty() && !fb.empty() && fa != fb) continue;
     ++n;
     if (patches) patches->insert(a), patches->insert(b);
   }
@@ -266,7 +265,8 @@ size_t own_crossings(const PatchSkin& s, const PatchCrossings& c, std::set<int>*
 
 namespace patch_steps {
 
-void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::function<PatchSkin(const LayoutSplit&)>& refit) {
+void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::function<PatchSkin(const LayoutSplit&)>& refit,
+                         const std::function<void(PatchSkin*)>& finish) {
   PatchSkin::Refinement R;
   R.tolerance_mm = o.tolerance_mm;
   R.seconds.push_back(s->seconds);
@@ -274,189 +274,228 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
   // other than four patches meet (the webs' bottoms between the fingers): found in the first
   // round, carried through the splits (LayoutSplit::on_parent_side).
   std::vector<std::array<bool, 4>> on_web;
-  // Faces whose split made the refitted surface pass through itself: left whole from then on
-  // (their children's crossings are the split's doing: the fit of the net before it did not
-  // cross there). Crossings between two fingers' tubes are fit_patch_skin's to hold apart.
+  // A refinement that ends on a surface passing through itself more than the fit it started
+  // from (on the family's H10 the thumb's base: 0 → 31 → 144 pairs of triangles over three
+  // rounds) is taken back to the round whose split first made it cross, and made again from
+  // there with the faces of that round whose children cross at the end left whole (`frozen`).
+  // A crossing a later round undoes is let be: on the WebXR hand a split folded a finger's
+  // wall in one round and the next round's split unfolded it.
   if (!s->crossings) s->crossings = crossings(*s, o.tessellation);
+  const size_t crossed_at_start = crossings_not_between_fingers(*s, *s->crossings, nullptr);
+  const size_t all_crossed_at_start = s->crossings->pairs;
+  // The refined surface as it will be kept: `finish` applied (the fingers held apart), its
+  // crossings found; R updated with what finish added (PatchSkin::refinement).
+  const auto finished = [&] {
+    s->refinement = R;
+    if (finish) finish(s);
+    if (!s->crossings) s->crossings = crossings(*s, o.tessellation);
+    if (s->refinement) R = *s->refinement;
+  };
   std::set<int> frozen;
   bool frozen_blocked = false;  // a split left out because it would cut such a face
-  constexpr int kRedoRounds = 2;  // a round made again at most this often (each time a whole refit)
-  int redone = 0;
-  for (int round = 0;; ++round) {
-    const std::vector<double> err = patch_max_error(*s);
-    const std::vector<double> p95 = patch_error_percentile(*s, kRoughPercentile);
-    std::vector<int> over, rough;
-    for (size_t f = 0; f < err.size(); ++f) {
-      if (err[f] > o.tolerance_mm) over.push_back(static_cast<int>(f));
-      else if (p95[f] > kRoughShare * o.tolerance_mm && round < o.rough_rounds) rough.push_back(static_cast<int>(f));
-    }
-    std::sort(over.begin(), over.end(), [&](int a, int b) { return err[a] > err[b] || (err[a] == err[b] && a < b); });
-    std::sort(rough.begin(), rough.end(), [&](int a, int b) { return p95[a] > p95[b] || (p95[a] == p95[b] && a < b); });
-    R.patches.push_back(static_cast<int>(s->patches.size()));
-    R.over.push_back(static_cast<int>(over.size()));
-    R.worst_mm.push_back(err.empty() ? 0.0 : *std::max_element(err.begin(), err.end()));
-    R.held = over.empty();
-    if (over.empty() && rough.empty()) break;
-    if (round == o.refine_rounds) {
-      R.stopped = std::to_string(o.refine_rounds) + " rounds made (patches.refine_rounds)";
-      break;
-    }
-    // The patches that miss, worst first, then the rough ones; each cut across its longer
-    // direction (its control net's mean length along u and along v), else across the other
-    // when the first, balanced, would exceed the budget; a patch neither cut of which fits is
-    // left. One cut a round (both at once spent the fixture's budget in one round when the
-    // cuts ran round their strips).
-    const LayoutTopology T = layout_topology(s->layout, "patch layout");
-    if (round == 0) {
-      on_web.resize(s->patches.size());
-      for (size_t f = 0; f < s->layout.faces.size(); ++f) {
-        const auto& c = s->layout.faces[f];
+  struct Entry {  // the state before the round whose split first made the surface cross
+    int round = 0;
+    PatchSkin before;
+    PatchSkin::Refinement R, R_headed;
+    std::vector<std::array<bool, 4>> on_web;
+    std::set<int> frozen;
+  };
+  std::optional<Entry> entry;
+  constexpr int kRestarts = 2;  // each one a refinement again from that round
+  int restarts = 0, first_round = 0, frozen_total = 0;
+  for (;;) {  // the refinement, and its restarts
+    for (int round = first_round;; ++round) {
+      const PatchSkin::Refinement R_at_head = R;
+      const std::vector<std::array<bool, 4>> on_web_at_head = on_web;
+      const std::set<int> frozen_at_head = frozen;
+      const std::vector<double> err = patch_max_error(*s);
+      const std::vector<double> p95 = patch_error_percentile(*s, kRoughPercentile);
+      std::vector<int> over, rough;
+      for (size_t f = 0; f < err.size(); ++f) {
+        if (err[f] > o.tolerance_mm) over.push_back(static_cast<int>(f));
+        else if (p95[f] > kRoughShare * o.tolerance_mm && round < o.rough_rounds) rough.push_back(static_cast<int>(f));
+      }
+      std::sort(over.begin(), over.end(), [&](int a, int b) { return err[a] > err[b] || (err[a] == err[b] && a < b); });
+      std::sort(rough.begin(), rough.end(), [&](int a, int b) { return p95[a] > p95[b] || (p95[a] == p95[b] && a < b); });
+      R.patches.push_back(static_cast<int>(s->patches.size()));
+      R.over.push_back(static_cast<int>(over.size()));
+      R.worst_mm.push_back(err.empty() ? 0.0 : *std::max_element(err.begin(), err.end()));
+      R.held = over.empty();
+      const PatchSkin::Refinement R_headed = R;  // with this round's figures: as it stands if the round is taken back
+      if (over.empty() && rough.empty()) break;
+      if (round == o.refine_rounds) {
+        R.stopped = std::to_string(o.refine_rounds) + " rounds made (patches.refine_rounds)";
+        break;
+      }
+      // The patches that miss, worst first, then the rough ones; each cut across its longer
+      // direction (its control net's mean length along u and along v), else across the other
+      // when the first, balanced, would exceed the budget; a patch neither cut of which fits is
+      // left. One cut a round (both at once spent the fixture's budget in one round when the
+      // cuts ran round their strips).
+      const LayoutTopology T = layout_topology(s->layout, "patch layout");
+      if (round == 0) {
+        on_web.resize(s->patches.size());
+        for (size_t f = 0; f < s->layout.faces.size(); ++f) {
+          const auto& c = s->layout.faces[f];
+          for (int k = 0; k < 4; ++k)
+            on_web[f][k] = !T.regular(c[k]) && !T.regular(c[(k + 1) % 4]) && !s->layout.is_crease(c[k], c[(k + 1) % 4]);
+        }
+      }
+      // A face held apart from a neighbouring finger's (PatchSkin::separations) is not split: its
+      // control points are bound to its side of the plane, and the points it misses lie in the
+      // crease across the plane, where no split reaches them. Split, the bound walls' small
+      // patches folded into themselves and kinked against each other at the web: on H04 and H12
+      // of the family (16 runs at 0.5 mm) 4 surfaces still crossed themselves and 10 kinked by
+      // 30-155 degrees, and splitting them only along the web's border was worse still; unsplit,
+      // none crosses and 2 kink (docs/patches.md).
+      std::set<int> held_apart;
+      for (const Separation& sep : s->separations)
+        for (const auto& faces : sep.faces) held_apart.insert(faces.begin(), faces.end());
+      bool held_blocked = false;  // a split left out because it would cut such a face
+      std::vector<int> cuts(s->patches.size(), 0);
+      std::vector<int> todo = over;
+      todo.insert(todo.end(), rough.begin(), rough.end());
+      // While patches miss, the rough ones are cut within kRoughBudget of the budget only: the
+      // rest is kept for what the next fit still misses (on the family's 48 pairs, both rigs,
+      // the tolerance not held on 10 of 96 runs with the whole budget open to them, 4 so).
+      const std::set<int> is_over(over.begin(), over.end());
+      for (int f : todo) {
+        const int budget = over.empty() || is_over.count(f) ? o.max_patches
+                                                            : static_cast<int>(kRoughBudget * o.max_patches);
+        const auto with_cut = [&](int c) {  // the cuts so far and c on f, balanced
+          std::vector<int> trial = cuts;
+          trial[f] |= c;
+          return balance_cuts(s->layout, T, std::move(trial));
+        };
+        const auto& P = s->patches[f].P;
+        double along_u = 0, along_v = 0;
+        for (int k = 0; k < 4; ++k) along_u += (P[12 + k] - P[k]).norm(), along_v += (P[4 * k + 3] - P[4 * k]).norm();
+        // A patch that was split already and still misses is cut both ways (the fixture's
+        // ring.0.radial/v0, the web's flank: one more cut along it left its worst point at 0.60 mm).
+        const bool again = s->patches[f].name.find('/') != std::string::npos;
+        std::vector<int> order = along_u >= along_v ? std::vector<int>{kCutU, kCutV} : std::vector<int>{kCutV, kCutU};
+        // A patch about as long as it is wide is cut the way whose balance costs fewer patches.
+        if (std::max(along_u, along_v) < kAspect * std::min(along_u, along_v) &&
+            faces_after(with_cut(order[1])) < faces_after(with_cut(order[0])))
+          std::swap(order[0], order[1]);
+        if (again) order.insert(order.begin(), kCutU | kCutV);
+        // A face along a web's bottom is halved across that border once at most. A web's border
+        // runs between two corners where six patches meet, held G1 by the normals alone; a face
+        // halved across it twice is a sliver along it (on H08 of the family: its inner control
+        // row 0.2–2.7 mm from a 10 mm border), and two such slivers folded against each other
+        // (normals 164° apart). On the family's 12 hands the largest jump away from the irregular
+        // corners went 5–164° (over the 30° gate on 3) → 1–19°; forbidding every cut across a
+        // web's border instead left the surface → truth mean at 0.062–0.087 mm (median 0.074).
+        int across_web = 0;  // the cuts that would halve f across a web border a second time
         for (int k = 0; k < 4; ++k)
-          on_web[f][k] = !T.regular(c[k]) && !T.regular(c[(k + 1) % 4]) && !s->layout.is_crease(c[k], c[(k + 1) % 4]);
+          if (on_web[f][k]) {
+            const int dir = k % 2 == 0 ? 1 : 0;  // sides 0 and 2 are crossed along v, 1 and 3 along u
+            if (s->layout.level(f, dir) >= 1) across_web |= dir == 1 ? kCutV : kCutU;
+          }
+        if (across_web) {
+          std::vector<int> allowed;
+          for (int c : order)
+            if (!(c & across_web)) allowed.push_back(c);
+          if (!allowed.empty()) order = std::move(allowed);
+        }
+        for (const int c : order) {
+          std::vector<int> trial = with_cut(c);
+          if (faces_after(trial) > budget) continue;
+          if (std::any_of(held_apart.begin(), held_apart.end(), [&](int g) { return trial[g] != 0; })) {
+            held_blocked = true;
+            continue;
+          }
+          if (std::any_of(frozen.begin(), frozen.end(), [&](int g) { return trial[g] != 0; })) {
+            frozen_blocked = true;
+            continue;
+          }
+          cuts = std::move(trial);
+          break;
+        }
       }
-    }
-    // A face held apart from a neighbouring finger's (PatchSkin::separations) is not split: its
-    // control points are bound to its side of the plane, and the points it misses lie in the
-    // crease across the plane, where no split reaches them. Split, the bound walls' small
-    // patches folded into themselves and kinked against each other at the web: on H04 and H12
-    // of the family (16 runs at 0.5 mm) 4 surfaces still crossed themselves and 10 kinked by
-    // 30-155 degrees, and splitting them only along the web's border was worse still; unsplit,
-    // none crosses and 2 kink (docs/patches.md).
-    std::set<int> held_apart;
-    for (const Separation& sep : s->separations)
-      for (const auto& faces : sep.faces) held_apart.insert(faces.begin(), faces.end());
-    bool held_blocked = false;  // a split left out because it would cut such a face
-    std::vector<int> cuts(s->patches.size(), 0);
-    std::vector<int> todo = over;
-    todo.insert(todo.end(), rough.begin(), rough.end());
-    // While patches miss, the rough ones are cut within kRoughBudget of the budget only: the
-    // rest is kept for what the next fit still misses (on the family's 48 pairs, both rigs,
-    // the tolerance not held on 10 of 96 runs with the whole budget open to them, 4 so).
-    const std::set<int> is_over(over.begin(), over.end());
-    for (int f : todo) {
-      const int budget = over.empty() || is_over.count(f) ? o.max_patches
-                                                          : static_cast<int>(kRoughBudget * o.max_patches);
-      const auto with_cut = [&](int c) {  // the cuts so far and c on f, balanced
-        std::vector<int> trial = cuts;
-        trial[f] |= c;
-        return balance_cuts(s->layout, T, std::move(trial));
-      };
-      const auto& P = s->patches[f].P;
-      double along_u = 0, along_v = 0;
-      for (int k = 0; k < 4; ++k) along_u += (P[12 + k] - P[k]).norm(), along_v += (P[4 * k + 3] - P[4 * k]).norm();
-      // A patch that was split already and still misses is cut both ways (the fixture's
-      // ring.0.radial/v0, the web's flank: one more cut along it left its worst point at 0.60 mm).
-      const bool again = s->patches[f].name.find('/') != std::string::npos;
-      std::vector<int> order = along_u >= along_v ? std::vector<int>{kCutU, kCutV} : std::vector<int>{kCutV, kCutU};
-      // A patch about as long as it is wide is cut the way whose balance costs fewer patches.
-      if (std::max(along_u, along_v) < kAspect * std::min(along_u, along_v) &&
-          faces_after(with_cut(order[1])) < faces_after(with_cut(order[0])))
-        std::swap(order[0], order[1]);
-      if (again) order.insert(order.begin(), kCutU | kCutV);
-      // A face along a web's bottom is halved across that border once at most. A web's border
-      // runs between two corners where six patches meet, held G1 by the normals alone; a face
-      // halved across it twice is a sliver along it (on H08 of the family: its inner control
-      // row 0.2–2.7 mm from a 10 mm border), and two such slivers folded against each other
-      // (normals 164° apart). On the family's 12 hands the largest jump away from the irregular
-      // corners went 5–164° (over the 30° gate on 3) → 1–19°; forbidding every cut across a
-      // web's border instead left the surface → truth mean at 0.062–0.087 mm (median 0.074).
-      int across_web = 0;  // the cuts that would halve f across a web border a second time
-      for (int k = 0; k < 4; ++k)
-        if (on_web[f][k]) {
-          const int dir = k % 2 == 0 ? 1 : 0;  // sides 0 and 2 are crossed along v, 1 and 3 along u
-          if (s->layout.level(f, dir) >= 1) across_web |= dir == 1 ? kCutV : kCutU;
-        }
-      if (across_web) {
-        std::vector<int> allowed;
-        for (int c : order)
-          if (!(c & across_web)) allowed.push_back(c);
-        if (!allowed.empty()) order = std::move(allowed);
-      }
-      for (const int c : order) {
-        std::vector<int> trial = with_cut(c);
-        if (faces_after(trial) > budget) continue;
-        if (std::any_of(held_apart.begin(), held_apart.end(), [&](int g) { return trial[g] != 0; })) {
-          held_blocked = true;
-          continue;
-        }
-        if (std::any_of(frozen.begin(), frozen.end(), [&](int g) { return trial[g] != 0; })) {
-          frozen_blocked = true;
-          continue;
-        }
-        cuts = std::move(trial);
+      if (std::all_of(cuts.begin(), cuts.end(), [](int c) { return c == 0; })) {
+        if (!over.empty())
+          R.stopped = held_blocked ? "the patches that miss lie on, or would split, two fingers' tubes held apart where the "
+                                     "fingers are pressed together, which are not split (docs/patches.md)"
+                      : frozen_blocked ? "the patches that miss lie on, or would split, faces whose split made the surface "
+                                         "pass through itself, which are left whole (docs/patches.md)"
+                                       : "no split of a patch that misses fits within " + std::to_string(o.max_patches) +
+                                             " patches (patches.max_patches)";
         break;
       }
-    }
-    if (std::all_of(cuts.begin(), cuts.end(), [](int c) { return c == 0; })) {
-      if (!over.empty())
-        R.stopped = held_blocked ? "the patches that miss lie on, or would split, two fingers' tubes held apart where the "
-                                   "fingers are pressed together, which are not split (docs/patches.md)"
-                    : frozen_blocked ? "the patches that miss lie on, or would split, faces whose split made the surface "
-                                       "pass through itself, which are left whole (docs/patches.md)"
-                                     : "no split of a patch that misses fits within " + std::to_string(o.max_patches) +
-                                           " patches (patches.max_patches)";
-      break;
-    }
-    const LayoutSplit split = split_layout(*s, cuts);
-    PatchSkin t = refit(split);
-    // A surface that passes through itself more than the fit before (on the family's H10-s1
-    // with its rig, the thumb's base: 0 → 31 → 144 pairs of triangles over three rounds): the
-    // faces split this round whose children cross are left whole, and the round is made again
-    // without them, at most kRedoRounds times; when none of the crossing patches was split
-    // this round, or after that, the round is taken back and the refinement ends with the fit
-    // before it.
-    t.crossings = crossings(t, o.tessellation);
-    std::set<int> crossing;
-    if (own_crossings(t, *t.crossings, &crossing) > own_crossings(*s, *s->crossings, nullptr)) {
-      std::set<int> culprits;
-      for (int k : crossing)
-        if (cuts[split.parent[k]] != 0) culprits.insert(split.parent[k]);
-      if (!culprits.empty() && redone < kRedoRounds) {
-        ++redone;
-        frozen.insert(culprits.begin(), culprits.end());
-        R.frozen += static_cast<int>(culprits.size());
-        R.patches.pop_back(), R.over.pop_back(), R.worst_mm.pop_back();  // entered again at the loop's head
-        --round;  // the same round again, those faces whole
-        continue;
-      }
-      // Crossings on the four fingers' tubes alone, none of them split this round: fingers
-      // pressed together (the family's H12), whose walls fit_patch_skin holds apart after the
-      // refinement; the round stands. Any other: the fit before it is kept.
-      const bool on_fingers = std::all_of(crossing.begin(), crossing.end(), [&](int k) { return on_finger(t.patches[k].name); });
-      if (!on_fingers || !culprits.empty()) {
+      const LayoutSplit split = split_layout(*s, cuts);
+      PatchSkin t = refit(split);
+      t.crossings = crossings(t, o.tessellation);
+      R.seconds.push_back(t.seconds);
+      const std::vector<double> terr = patch_max_error(t);
+      const double worst_now = terr.empty() ? 0.0 : *std::max_element(terr.begin(), terr.end());
+      const auto over_now = std::count_if(terr.begin(), terr.end(), [&](double e) { return e > o.tolerance_mm; });
+      // No gain: the split neither brought a patch within the tolerance nor the worst point nearer;
+      // or, made for the rough patches only, it lost the tolerance the fit before held.
+      if ((over.empty() && over_now > 0) || (!over.empty() && over_now >= static_cast<long>(over.size()) && worst_now >= R.worst_mm.back())) {
         char b[200];
-        std::snprintf(b, sizeof b, "a split to %zu patches made the surface pass through itself (%zu pairs of triangles): the fit before it kept",
-                      t.patches.size(), t.crossings->pairs);
+        std::snprintf(b, sizeof b, "a split to %zu patches left %ld over the tolerance, the worst point %.3f mm: the fit before it kept",
+                      t.patches.size(), static_cast<long>(over_now), worst_now);
         R.stopped = b;
+        R.seconds.pop_back();
         break;
       }
+      carry_fit_choices(s, &t);
+      t.crossings_before_separation = s->crossings_before_separation;
+      if (!entry && crossings_not_between_fingers(t, *t.crossings, nullptr) > crossed_at_start)
+        entry = Entry{round, std::move(*s), R_at_head, R_headed, on_web_at_head, frozen_at_head};
+      *s = std::move(t);
+      std::set<int> frozen_next;  // a frozen face was not split: its one face of the new layout
+      for (size_t k = 0; k < split.parent.size(); ++k)
+        if (frozen.count(split.parent[k])) frozen_next.insert(static_cast<int>(k));
+      frozen = std::move(frozen_next);
+      std::vector<std::array<bool, 4>> next(split.parent.size());
+      for (size_t k = 0; k < next.size(); ++k)
+        for (int side = 0; side < 4; ++side) next[k][side] = on_web[split.parent[k]][side] && split.on_parent_side[k][side];
+      on_web = std::move(next);
     }
-    R.seconds.push_back(t.seconds);
-    const std::vector<double> terr = patch_max_error(t);
-    const double worst_now = terr.empty() ? 0.0 : *std::max_element(terr.begin(), terr.end());
-    const auto over_now = std::count_if(terr.begin(), terr.end(), [&](double e) { return e > o.tolerance_mm; });
-    // No gain: the split neither brought a patch within the tolerance nor the worst point nearer;
-    // or, made for the rough patches only, it lost the tolerance the fit before held.
-    if ((over.empty() && over_now > 0) || (!over.empty() && over_now >= static_cast<long>(over.size()) && worst_now >= R.worst_mm.back())) {
-      char b[200];
-      std::snprintf(b, sizeof b, "a split to %zu patches left %ld over the tolerance, the worst point %.3f mm: the fit before it kept",
-                    t.patches.size(), static_cast<long>(over_now), worst_now);
+    // Ended crossing itself (finished: fingers pressed together held apart, which can undo a
+    // crossing there): back to the round that made it cross, the faces cut there whose
+    // children cross now left whole (an ancestor by name: "thumb.0.palm/01" of
+    // "thumb.0.palm/01/00/10").
+    finished();
+    std::set<int> crossing;
+    if (!entry || s->crossings->pairs <= all_crossed_at_start) break;
+    for (const auto& [a, b] : s->crossings->patch_pairs) crossing.insert(a), crossing.insert(b);
+    std::set<int> culprits;
+    const PatchSkin& before = entry->before;
+    for (size_t f = 0; f < before.patches.size(); ++f) {
+      const std::string& name = before.patches[f].name;
+      for (int k : crossing) {
+        const std::string& n = s->patches[k].name;
+        if (n.size() > name.size() && n.compare(0, name.size(), name) == 0 && n[name.size()] == '/') culprits.insert(static_cast<int>(f));
+      }
+    }
+    if (culprits.empty() || restarts == kRestarts) {
+      // No face split there lies under the crossing, or the restarts are spent: the last fit
+      // that did not cross is kept, as it stood at that round.
+      const size_t crossed_now = s->crossings->pairs;
+      *s = std::move(entry->before);
+      R = std::move(entry->R_headed);
+      R.frozen = frozen_total;
+      char b[220];
+      std::snprintf(b, sizeof b, "the refinement passed the surface through itself (%zu pairs of triangles) and was taken back to its "
+                    "last fit that did not (docs/patches.md)", crossed_now);
       R.stopped = b;
-      R.seconds.pop_back();
+      finished();
       break;
     }
-    carry_fit_choices(s, &t);
-    t.crossings_before_separation = s->crossings_before_separation;
-    *s = std::move(t);
-    std::set<int> frozen_next;  // a frozen face was not split: its one face of the new layout
-    for (size_t k = 0; k < split.parent.size(); ++k)
-      if (frozen.count(split.parent[k])) frozen_next.insert(static_cast<int>(k));
-    frozen = std::move(frozen_next);
-    redone = 0;
-    std::vector<std::array<bool, 4>> next(split.parent.size());
-    for (size_t k = 0; k < next.size(); ++k)
-      for (int side = 0; side < 4; ++side) next[k][side] = on_web[split.parent[k]][side] && split.on_parent_side[k][side];
-    on_web = std::move(next);
+    ++restarts;
+    *s = std::move(entry->before);
+    R = std::move(entry->R);
+    on_web = std::move(entry->on_web);
+    frozen = std::move(entry->frozen);
+    frozen.insert(culprits.begin(), culprits.end());
+    frozen_total += static_cast<int>(culprits.size());
+    R.frozen = frozen_total;
+    R.stopped.clear();
+    first_round = entry->round;
+    entry.reset();
   }
   s->refinement = std::move(R);
 }
