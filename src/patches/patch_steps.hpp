@@ -144,6 +144,10 @@ class NetFit {
   std::unique_ptr<NetSolver> solver_;
 };
 
+/// The finger a patch of the hand's layout belongs to ("index.0.ulnar/v1" → "index"), or ""
+/// when it is not one of the four fingers' (the thumb's tube meets the palm, not a finger).
+std::string finger_of(const std::string& name);
+
 /// Refinement to a tolerance (refine.cpp): while a patch's measured points lie farther than
 /// o.tolerance_mm, the patches that miss are split (balance_cuts, split_layout) and `refit`
 /// fits the split layout from its seed; the result and its figures replace *s

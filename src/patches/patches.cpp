@@ -582,14 +582,12 @@ PatchSkin fit_patches(const PatchLayout& layout, const std::vector<Eigen::Vector
   return out;
 }
 
-namespace {
-
-// The finger a patch of the hand's layout belongs to ("index.0.ulnar" → "index"), or "" when
-// it is not one of the four fingers' (the thumb's tube meets the palm, not a finger).
-std::string finger_of(const std::string& name) {
+std::string patch_steps::finger_of(const std::string& name) {
   const std::string f = name.substr(0, name.find('.'));
   return f == "index" || f == "middle" || f == "ring" || f == "little" ? f : std::string();
 }
+
+namespace {
 
 // Where two fingers' patches that share a border (the web's, between their tubes) cross, the
 // fingers are pressed together and both patches follow the crease between them (the family's

@@ -237,33 +237,21 @@ std::vector<double> patch_max_error(const PatchSkin& s) {
   return worst;
 }
 
+namespace patch_steps {
+
 namespace {
-
-// Whether a pair of crossing patches lies on two different fingers' tubes (their names' first
-// part, "index.0.ulnar/v1" → "index"): fit_patch_skin holds such tubes apart, the refinement
-// leaves them to it.
-std::string finger_of_name(const std::string& n) {
-  const std::string f = n.substr(0, n.find('.'));
-  return f == "index" || f == "middle" || f == "ring" || f == "little" ? f : std::string();
-}
-
-// The crossing pairs the refinement answers for: all but those between two fingers' tubes
-// (fingers pressed together cross there, and fit_patch_skin holds their walls apart after the
-// refinement). Their patches into `patches`.
-size_t crossings_not_between_fingers(const PatchSkin& s, const PatchCrossings& c, std::set<int>* patches) {
+// The crossing pairs the refinement answers for while it runs: all but those between two
+// fingers' tubes (fingers pressed together cross there until fit_patch_skin holds their walls
+// apart, after the refinement).
+size_t crossings_not_between_fingers(const PatchSkin& s, const PatchCrossings& c) {
   size_t n = 0;
   for (const auto& [a, b] : c.patch_pairs) {
-    const std::string fa = finger_of_name(s.patches[a].name), fb = finger_of_name(s.patches[b].name);
-    if (!fa.empty() && !fb.empty() && fa != fb) continue;
-    ++n;
-    if (patches) patches->insert(a), patches->insert(b);
+    const std::string fa = finger_of(s.patches[a].name), fb = finger_of(s.patches[b].name);
+    n += fa.empty() || fb.empty() || fa == fb;
   }
   return n;
 }
-
 }  // namespace
-
-namespace patch_steps {
 
 void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::function<PatchSkin(const LayoutSplit&)>& refit,
                          const std::function<void(PatchSkin*)>& finish) {
@@ -281,7 +269,7 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
   // A crossing a later round undoes is let be: on the WebXR hand a split folded a finger's
   // wall in one round and the next round's split unfolded it.
   if (!s->crossings) s->crossings = crossings(*s, o.tessellation);
-  const size_t crossed_at_start = crossings_not_between_fingers(*s, *s->crossings, nullptr);
+  const size_t crossed_at_start = crossings_not_between_fingers(*s, *s->crossings);
   const size_t all_crossed_at_start = s->crossings->pairs;
   // The refined surface as it will be kept: `finish` applied (the fingers held apart), its
   // crossings found; R updated with what finish added (PatchSkin::refinement).
@@ -442,7 +430,7 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
       }
       carry_fit_choices(s, &t);
       t.crossings_before_separation = s->crossings_before_separation;
-      if (!entry && crossings_not_between_fingers(t, *t.crossings, nullptr) > crossed_at_start)
+      if (!entry && crossings_not_between_fingers(t, *t.crossings) > crossed_at_start)
         entry = Entry{round, std::move(*s), R_at_head, R_headed, on_web_at_head, frozen_at_head};
       *s = std::move(t);
       std::set<int> frozen_next;  // a frozen face was not split: its one face of the new layout

@@ -87,6 +87,7 @@ std::string render_mesh_png(const std::vector<const Mesh*>& meshes, const Render
     Edge E0, E1, E2;
     double s;  // makes the face's edge functions positive inside
     int mesh;
+    std::uint32_t index;  // in its mesh
   };
   struct Drawn {  // per mesh: window positions and lit colours of its vertices
     std::vector<Eigen::Vector3d> win;
@@ -96,7 +97,6 @@ std::string render_mesh_png(const std::vector<const Mesh*>& meshes, const Render
   };
   std::vector<Drawn> drawn(meshes.size());
   std::vector<Face> faces;
-  std::vector<std::uint32_t> face_of;  // per face drawn: its index in its mesh
   thread_local std::vector<std::int32_t> nearest;  // per pixel: the face drawn there (into faces), or -1
   nearest.assign(n, -1);
   for (size_t m = 0; m < meshes.size(); ++m) {
@@ -147,7 +147,7 @@ std::string render_mesh_png(const std::vector<const Mesh*>& meshes, const Render
         return dy < 0 || (dy == 0 && dx > 0);
       };
       const bool own0 = owns(b, c), own1 = owns(c, a), own2 = owns(a, b);
-      const Face F{Edge(b, c), Edge(c, a), Edge(a, b), s, static_cast<int>(m)};
+      const Face F{Edge(b, c), Edge(c, a), Edge(a, b), s, static_cast<int>(m), static_cast<std::uint32_t>(fi)};
       const auto index = static_cast<std::int32_t>(faces.size());
       bool any = false;
       for (int y = y0; y <= y1; ++y) {
@@ -191,7 +191,7 @@ std::string render_mesh_png(const std::vector<const Mesh*>& meshes, const Render
           any = true;
         }
       }
-      if (any) faces.push_back(F), face_of.push_back(static_cast<std::uint32_t>(fi));
+      if (any) faces.push_back(F);
     }
   }
   // The second pass: each covered pixel's colour from its face, its weights found again
@@ -202,7 +202,7 @@ std::string render_mesh_png(const std::vector<const Mesh*>& meshes, const Render
       const size_t at = static_cast<size_t>(y) * W + x;
       if (nearest[at] < 0) continue;
       const Face& F = faces[static_cast<size_t>(nearest[at])];
-      const size_t fi = face_of[static_cast<size_t>(nearest[at])];
+      const size_t fi = F.index;
       const Drawn& d = drawn[static_cast<size_t>(F.mesh)];
       const auto& t = meshes[static_cast<size_t>(F.mesh)]->faces[fi];
       const double pxc = x + 0.5;
