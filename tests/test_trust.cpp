@@ -555,3 +555,80 @@ TEST(Trust, OutputSetsWithoutSignalCleanupOpenAtOnceAndLeaveTheHandlers) {
   sigaction(SIGINT, nullptr, &during);
   EXPECT_NE(during.sa_handler, before.sa_handler);
 }
+
+// ---------------- single output files (render --out x.png, model --out m.json, …) ----------------
+
+// Every command that writes files the user names refuses one of theirs in the way, leaves it as
+// it was, and names it; --force moves it aside; a file it wrote itself it replaces (its
+// folder's manifest lists it).
+TEST(Trust, ACommandsSingleOutputFileNeverReplacesAFileOfTheUsers) {
+  const std::string dir = test::temp_dir("single");
+  const std::string glb = test::default_fixture_run() + "/skin.glb";
+  std::string out;
+  ASSERT_EQ(test::run(kBin + " -q synth angles --rows 20 --out " + dir + "/inputs.csv", &out), 0) << out;
+  const std::vector<std::pair<std::string, std::string>> commands = {
+      {"picture.png", "render --scan " + kFix + "back --out "},
+      {"model.json", "model --model builtin:anatomical --out "},
+      {"skin.obj", "convert --in " + kFix + "truth_skin.ply --out "},
+      {"angles.csv", "synth angles --rows 20 --out "},
+      {"solved.csv", "solve --model builtin:anatomical --inputs " + dir + "/inputs.csv --out "},
+      {"posed.ply", "pose --skin " + glb + " --set index.pip.flex=60 --out "},
+  };
+  for (const auto& [name, cmd] : commands) {
+    SCOPED_TRACE(cmd);
+    const std::string f = dir + "/" + name;
+    test::write_text(f, "the user's own");
+    EXPECT_EQ(test::run(kBin + " -q " + cmd + f, &out), 1) << out;
+    EXPECT_EQ(out, "error: " + f +
+                       ": is in the way: it was not written by handskin; handskin replaces only the files it wrote there "
+                       "(listed in .handskin-manifest.json, unchanged since): move it away, choose another --out, or "
+                       "give --force to have it moved aside into a dated backup folder\n");
+    EXPECT_EQ(read_file(f), "the user's own");
+    // Moved aside with --force, the output written and listed as handskin's.
+    ASSERT_EQ(test::run(kBin + " -q " + cmd + f + " --force", &out), 0) << out;
+    EXPECT_NE(read_file(f), "the user's own");
+    const auto m = read_manifest(dir);
+    ASSERT_TRUE(m.count(name));
+    EXPECT_EQ(m.at(name), describe_file(f));
+    bool kept = false;
+    for (const auto& e : fs::directory_iterator(dir))
+      if (e.path().filename().string().rfind("handskin-backup-", 0) == 0 && fs::exists(e.path() / name))
+        kept = kept || read_file((e.path() / name).string()) == "the user's own";
+    EXPECT_TRUE(kept) << "the user's file is in a backup folder";
+    // Its own file, unchanged: replaced without a word; changed by the user: refused again.
+    EXPECT_EQ(test::run(kBin + " -q " + cmd + f, &out), 0) << out;
+    test::write_text(f, "edited");
+    EXPECT_EQ(test::run(kBin + " -q " + cmd + f, &out), 1) << out;
+    EXPECT_NE(out.find(f + ": is in the way: it was changed since handskin wrote it"), std::string::npos) << out;
+    EXPECT_EQ(read_file(f), "edited");
+  }
+  EXPECT_FALSE(fs::exists(dir + "/.handskin-lock"));  // every lock released
+  for (const auto& e : fs::directory_iterator(dir))
+    EXPECT_NE(e.path().filename().string().rfind(".handskin-staging", 0), 0u) << e.path();  // no staging left
+}
+
+TEST(Trust, OutputFilesUnit) {
+  const std::string a = test::temp_dir("files-a"), b = test::temp_dir("files-b");
+  {
+    OutputFiles files({a + "/x.txt", b + "/y.txt", a + "/z.txt"});
+    write_file_atomic(files.stage(a + "/x.txt"), "x");
+    write_file_atomic(files.stage(b + "/./y.txt"), "y");  // another spelling of the same file
+    write_file_atomic(files.stage(a + "/z.txt"), "z");
+  }  // not committed: nothing written, no lock, no staging folder left
+  EXPECT_EQ(snapshot(a), (std::map<std::string, std::string>{}));
+  EXPECT_EQ(snapshot(b), (std::map<std::string, std::string>{}));
+  {
+    OutputFiles files({a + "/x.txt", b + "/y.txt"});
+    write_file_atomic(files.stage(a + "/x.txt"), "x");
+    write_file_atomic(files.stage(b + "/y.txt"), "y");
+    files.commit();
+  }
+  EXPECT_EQ(read_manifest(a).size(), 1u);
+  EXPECT_EQ(read_manifest(b).at("y.txt"), describe_file(b + "/y.txt"));
+  // Refused: one file twice, a folder's name, handskin's bookkeeping, a missing folder.
+  EXPECT_THROW((OutputFiles({a + "/x.txt", a + "/../" + fs::path(a).filename().string() + "/x.txt"})), UsageError);
+  EXPECT_THROW((OutputFiles({a + "/"})), UsageError);
+  EXPECT_NE(test::input_error_of([&] { OutputFiles({a + "/.handskin-manifest.json"}); }).find("bookkeeping"), std::string::npos);
+  EXPECT_NE(test::input_error_of([&] { OutputFiles({a + "/none/x.txt"}); }).find("does not exist"), std::string::npos);
+  EXPECT_FALSE(fs::exists(a + "/none"));
+}

@@ -85,6 +85,13 @@ inline OutputSetOptions output_options(bool force) {
   return o;
 }
 
+/// `--force` for a command that writes files the user names (OutputFiles).
+inline void add_force_flag(CLI::App* command, bool* force) {
+  command->add_flag("--force", *force,
+                    "Move a file in the way of an output (same name, not written by handskin, or changed since) aside "
+                    "into a dated backup folder beside it instead of refusing");
+}
+
 /// Each failed gate as one warning line on stderr (always, -q or not); with `strict` and a
 /// failed gate, a GateFailure naming them (the caller has not committed: nothing is written).
 inline void settle_gates(const QualityGates& g, bool strict, const std::string& out_dir) {

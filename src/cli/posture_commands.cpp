@@ -21,7 +21,7 @@ namespace {
 struct SolveArgs {
   std::string model, rig, inputs, out, picture, view = "side";
   std::vector<std::string> sets, torques, targets;
-  bool json = false, linear = false;
+  bool json = false, linear = false, force = false;
 };
 
 PostureInputs parse_inputs(const SolveArgs& a) {
@@ -41,8 +41,10 @@ void solve_command(const SolveArgs& a, const Progress& progress) {
     if (a.inputs.empty() || a.out.empty()) throw UsageError("solve", "batch mode needs both --inputs and --out");
     if (!a.sets.empty() || !a.torques.empty() || !a.targets.empty() || !a.rig.empty())
       throw UsageError("solve", "--set/--torque/--target/--rig do not combine with --inputs (each row's cells are its inputs)");
+    OutputFiles files({a.out}, output_options(a.force));
     const BatchSolution b = solve_batch(solver, read_angle_table(a.inputs), a.linear);
-    write_angle_table(a.out, b.angles);
+    write_angle_table(files.stage(a.out), b.angles);
+    files.commit();
     if (b.clamped_rows)
       progress("solve", "warning: " + std::to_string(b.clamped_cells) + " input value(s) in " +
                             std::to_string(b.clamped_rows) + " row(s) lay outside the model's limits and were clamped onto them");
@@ -53,6 +55,11 @@ void solve_command(const SolveArgs& a, const Progress& progress) {
   // The rig (and the skeleton built from it, once) are checked before any solving.
   if (!a.picture.empty() && a.rig.empty()) throw UsageError("--png", "needs --rig (the skeleton to draw)");
   if (!a.picture.empty()) require_png(a.picture, "--png");
+  std::optional<OutputFiles> files;
+  if (!a.picture.empty()) {
+    (void)named_view(a.view);  // a usage error before the output is claimed
+    files.emplace(std::vector<std::string>{a.picture}, output_options(a.force));
+  }
   std::optional<Rig> rig;
   std::optional<Skeleton> skeleton;
   if (!a.rig.empty()) {
@@ -75,10 +82,11 @@ void solve_command(const SolveArgs& a, const Progress& progress) {
     ro.width = 900;
     ro.height = 600;
     ro.view = named_view(a.view) * hand_frame_from_rig(*rig).linear();
-    write_file_atomic(a.picture,
+    write_file_atomic(files->stage(a.picture),
                       render_skeletons_png({{{rest.begin(), rest.end()}, parents, {0.6f, 0.6f, 0.65f}},
                                             {{joint_pos.begin(), joint_pos.end()}, parents, {0.8f, 0.15f, 0.15f}}},
                                            ro));
+    files->commit();
   }
   if (a.json) {
     std::printf("%s\n", posture_solution_to_json(model, in, s, rig ? &joint_pos : nullptr).dump(2).c_str());
@@ -113,7 +121,7 @@ struct CalibrateArgs {
   std::string out, report;
   std::vector<std::string> pairs;
   CalibrationOptions options;
-  bool no_evaluate = false;
+  bool no_evaluate = false, force = false;
 };
 
 // The cross-validation as a table: per scheme and task, the model's held-out RMS beside the
@@ -155,6 +163,9 @@ void calibrate_command(CalibrateArgs a, const Progress& progress) {
       if (err.rfind(std::string(field) + " ", 0) == 0) throw UsageError(flag, err.substr(std::strlen(field) + 1));
     throw UsageError("calibrate", err);
   }
+  std::vector<std::string> written = {a.out};
+  if (!a.report.empty()) written.push_back(a.report);
+  OutputFiles files(written, output_options(a.force));
   std::vector<AngleTable> tables;
   size_t rows = 0;
   for (const auto& f : a.angles) tables.push_back(read_angle_table(f)), rows += tables.back().rows.size();
@@ -163,8 +174,9 @@ void calibrate_command(CalibrateArgs a, const Progress& progress) {
   Json rep;
   const PostureModel m = calibrate(tables, a.angles, a.options, &rep);
   const PostureSolver check(m);  // refuses a model that would not solve
-  save_model(a.out, m);
-  if (!a.report.empty()) save_json(a.report, rep);
+  save_model(files.stage(a.out), m);
+  if (!a.report.empty()) save_json(files.stage(a.report), rep);
+  files.commit();
   for (const auto& n : m.notes) progress("calibrate", "note: " + n);
   if (a.options.method == "thesis-pairs") {
     std::printf("%zu pair(s)%s -> %s\n", m.pairs.size(), m.grids.empty() ? "" : " with grids", a.out.c_str());
@@ -188,17 +200,20 @@ void calibrate_command(CalibrateArgs a, const Progress& progress) {
 struct MocapArgs {
   std::string in, out;
   int every = 1;
+  bool force = false;
 };
 
 void mocap_command(const MocapArgs& a, const Progress& progress) {
   if (a.every < 1) throw UsageError("--every", "must be >= 1");
+  OutputFiles files({a.out}, output_options(a.force));
   const MarkerTrack track = read_marker_file(a.in);
   progress("mocap", std::to_string(track.frames.size()) + " frames, " + std::to_string(track.names.size()) + " markers");
   MocapAngles ang = angles_from_markers(track, a.in);
   AngleTable out;
   out.columns = ang.table.columns;
   for (size_t r = 0; r < ang.table.rows.size(); r += a.every) out.rows.push_back(ang.table.rows[r]);
-  write_angle_table(a.out, out);
+  write_angle_table(files.stage(a.out), out);
+  files.commit();
   for (const auto& n : ang.notes) progress("mocap", n);
   std::printf("%zu rows of %zu angles -> %s (%zu frames had missing markers)\n", out.rows.size(), out.columns.size(),
               a.out.c_str(), ang.frames_with_gaps);
@@ -206,6 +221,7 @@ void mocap_command(const MocapArgs& a, const Progress& progress) {
 
 struct ModelArgs {
   std::string in, out;
+  bool force = false;
 };
 
 }  // namespace
@@ -225,6 +241,7 @@ void add_posture_commands(CLI::App& app, const Progress& progress, Commands* out
   solvec->add_flag("--linear", sv->linear, "Ignore the model's non-linear grids or mixture (the linear model alone)");
   solvec->add_option("--inputs", sv->inputs, "Batch: CSV of partial postures (given cells are pinned)");
   solvec->add_option("--out", sv->out, "Batch: CSV of full postures, rows in input order");
+  add_force_flag(solvec, &sv->force);
   out->push_back({solvec, [sv, &progress] { solve_command(*sv, progress); }});
 
   auto ca = std::make_shared<CalibrateArgs>();
@@ -255,16 +272,20 @@ void add_posture_commands(CLI::App& app, const Progress& progress, Commands* out
   calc->add_flag("--grids", ca->options.grids, "thesis-pairs: also build non-linear grid potentials (thesis §3.2.3)");
   calc->add_option("--grid-weight", ca->options.grid_weight, "thesis-pairs: weight of the grid potentials, (0, 1e3]")->capture_default_str();
   calc->add_option("--report", ca->report, "Write the calibration figures and the cross-validation as JSON");
+  add_force_flag(calc, &ca->force);
   out->push_back({calc, [ca, &progress] { calibrate_command(*ca, progress); }});
 
   auto mo = std::make_shared<ModelArgs>();
   auto* modc = app.add_subcommand("model", "Check a posture model and write it out in full (e.g. a built-in set, to edit)");
   modc->add_option("--model", mo->in, "hand-posture/1 file, or builtin:anatomical / builtin:thesis")->required();
   modc->add_option("--out", mo->out, "Where to write it (absolute-angle pairs, every DOF listed)")->required();
+  add_force_flag(modc, &mo->force);
   out->push_back({modc, [mo] {
+                    OutputFiles files({mo->out}, output_options(mo->force));
                     const PostureModel m = load_model(mo->in);
                     const PostureSolver check(m);  // refuses a model that cannot solve
-                    save_model(mo->out, m);
+                    save_model(files.stage(mo->out), m);
+                    files.commit();
                     std::printf("%s: %zu pairs, %zu grids -> %s\n", m.name.c_str(), m.pairs.size(), m.grids.size(),
                                 mo->out.c_str());
                   }});
@@ -274,6 +295,7 @@ void add_posture_commands(CLI::App& app, const Progress& progress, Commands* out
   mocc->add_option("--in", mc->in, "Marker file (.tsv or .trc)")->required();
   mocc->add_option("--out", mc->out, "Joint-angle CSV to write")->required();
   mocc->add_option("--every", mc->every, "Keep every n-th frame")->capture_default_str();
+  add_force_flag(mocc, &mc->force);
   out->push_back({mocc, [mc, &progress] { mocap_command(*mc, progress); }});
 }
 

@@ -24,7 +24,7 @@ struct PoseArgs {
   std::vector<std::string> sets, torques, targets;
   int size = 1024;
   double texture_weight = 0.7;
-  bool no_crease_guard = false;
+  bool no_crease_guard = false, force = false;
 };
 
 void pose_command(const PoseArgs& a, const Progress& progress) {
@@ -37,19 +37,29 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
   }
   if (!a.png.empty()) require_png(a.png, "--png");
   const Blend blend = parse_blend(a.blend, "--blend");
-  const RiggedSkin skin = read_skin_glb(a.model);
-  PostureInputs in;
+  PostureInputs given;  // the flags' inputs (after the --posture file's pins, below)
   int d;
   double v, w;
+  for (const auto& s : a.sets) parse_assignment(s, "--set", &d, &v), given.pins.emplace_back(d, v);
+  for (const auto& s : a.torques) parse_assignment(s, "--torque", &d, &v), given.torques.emplace_back(d, v);
+  for (const auto& s : a.targets) parse_assignment(s, "--target", &d, &v, &w), given.targets.push_back({d, v, w});
+  if (!a.png.empty()) (void)named_view(a.view);
+  // Every usage error said: the outputs claimed before any work.
+  std::vector<std::string> written;
+  for (const std::string* f : {&a.out, &a.png})
+    if (!f->empty()) written.push_back(*f);
+  OutputFiles files(written, output_options(a.force));
+  const RiggedSkin skin = read_skin_glb(a.model);
+  PostureInputs in;
   if (!a.posture.empty()) {
     const AngleTable t = read_angle_table(a.posture);
     if (t.rows.empty()) throw InputError(a.posture, "no posture row");
     for (size_t c = 0; c < t.columns.size(); ++c)
       if (std::isfinite(t.rows[0][c])) in.pins.emplace_back(t.columns[c], t.rows[0][c]);
   }
-  for (const auto& s : a.sets) parse_assignment(s, "--set", &d, &v), in.pins.emplace_back(d, v);
-  for (const auto& s : a.torques) parse_assignment(s, "--torque", &d, &v), in.torques.emplace_back(d, v);
-  for (const auto& s : a.targets) parse_assignment(s, "--target", &d, &v, &w), in.targets.push_back({d, v, w});
+  in.pins.insert(in.pins.end(), given.pins.begin(), given.pins.end());
+  in.torques = given.torques;
+  in.targets = given.targets;
   const PostureSolver solver(skin.model);
   const PostureSolution sol = solver.solve(in);
   if (sol.clamped_inputs)
@@ -67,9 +77,9 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
   if (!a.out.empty()) {
     if (ext == ".glb") {
       const std::vector<unsigned char> glb = skin_glb(skin, &sol.angles);
-      write_file_atomic(a.out, std::string(glb.begin(), glb.end()));
+      write_file_atomic(files.stage(a.out), std::string(glb.begin(), glb.end()));
     } else {
-      save_mesh(a.out, Mesh{posed, skin.mesh.faces});  // atomically
+      save_mesh(files.stage(a.out), Mesh{posed, skin.mesh.faces});
     }
   }
   if (!a.png.empty()) {
@@ -78,8 +88,9 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
     ro.width = ro.height = a.size;
     ro.view = named_view(a.view) * hand_frame_from_rig(skin.rig).linear();
     if (!skin.texture.empty()) ro.texture = &skin.texture, ro.texture_weight = static_cast<float>(a.texture_weight);
-    write_file_atomic(a.png, render_mesh_png({&mesh}, ro));
+    write_file_atomic(files.stage(a.png), render_mesh_png({&mesh}, ro));
   }
+  files.commit();
   std::printf("posed %zu vertices (%s, %s binding)%s%s\n", posed.size(), a.blend.c_str(), skin.binding.mode.c_str(),
               a.out.empty() ? "" : (" -> " + a.out).c_str(), a.png.empty() ? "" : (" -> " + a.png).c_str());
 }
@@ -87,7 +98,7 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
 struct AnimateArgs {
   std::string model, keys, out, csv;
   double fps = 30;
-  bool inputs_only = false;
+  bool inputs_only = false, force = false;
 };
 
 void animate_command(const AnimateArgs& a, const Progress& progress) {
@@ -95,6 +106,9 @@ void animate_command(const AnimateArgs& a, const Progress& progress) {
   if (fs::path(a.out).extension() != ".glb") throw UsageError("--out", "'" + a.out + "': the animation is written as a .glb");
   if (!a.csv.empty() && fs::path(a.csv).extension() != ".csv")
     throw UsageError("--csv", "'" + a.csv + "': the frames are written as a .csv");
+  std::vector<std::string> written = {a.out};
+  if (!a.csv.empty()) written.push_back(a.csv);
+  OutputFiles files(written, output_options(a.force));
   const RiggedSkin skin = read_skin_glb(a.model);
   const KeyFrames keys = read_keyframes(a.keys);
   const PostureSolver solver(skin.model);
@@ -106,8 +120,9 @@ void animate_command(const AnimateArgs& a, const Progress& progress) {
     progress("animate", "warning: " + std::to_string(anim.clamped) + " value(s) outside the model's limits were moved onto them");
   const std::vector<unsigned char> glb = skin_glb(skin, nullptr, &anim);
   // Everything computed; now the files, each atomically.
-  write_file_atomic(a.out, std::string(glb.begin(), glb.end()));
-  if (!a.csv.empty()) write_file_atomic(a.csv, animation_csv(anim));
+  write_file_atomic(files.stage(a.out), std::string(glb.begin(), glb.end()));
+  if (!a.csv.empty()) write_file_atomic(files.stage(a.csv), animation_csv(anim));
+  files.commit();
   std::printf("animated %zu frames over %s s at %s fps -> %s%s\n", anim.frames.size(), number_text(anim.times.back()).c_str(),
               number_text(a.fps).c_str(), a.out.c_str(), a.csv.empty() ? "" : (", " + a.csv).c_str());
 }
@@ -155,6 +170,7 @@ void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out
                  "Picture of a textured skin: colour = (1 - w) shading + w texture (the thesis blended 0.3 : 0.7)")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
+  add_force_flag(pc, &pa->force);
   out->push_back({pc, [pa, &progress] { pose_command(*pa, progress); }});
 
   auto aa = std::make_shared<AnimateArgs>();
@@ -173,6 +189,7 @@ void add_rigging_commands(CLI::App& app, const Progress& progress, Commands* out
   ac->add_option("--fps", aa->fps, "Frames per second, [1, 240]")->check(CLI::Range(1.0, 240.0))->capture_default_str();
   ac->add_option("--out", aa->out, "The animated skin: .glb (the rigged skin with an animation 'handskin')")->required();
   ac->add_option("--csv", aa->csv, "Also the frames: time and every DOF per row (.csv)");
+  add_force_flag(ac, &aa->force);
   out->push_back({ac, [aa, &progress] { animate_command(*aa, progress); }});
 
   auto so = std::make_shared<StudioOptions>();

@@ -206,16 +206,21 @@ void synth_cloud(SynthCloudArgs a, const Progress& progress) {
 struct SynthAnglesArgs {
   AngleRecordingOptions options;
   std::string out, truth;
+  bool force = false;
 };
 
 void synth_angles(const SynthAnglesArgs& a, const Progress& progress) {
   std::string err;
   check_options(a.options.IsValid(&err), "synth angles", err);
+  std::vector<std::string> written = {a.out};
+  if (!a.truth.empty()) written.push_back(a.truth);
+  OutputFiles files(written, output_options(a.force));
   const AngleRecording r = synth_angle_recording(a.options);
   progress("synth", std::to_string(r.table.rows.size()) + " frames of " + std::to_string(r.table.columns.size()) + " DOFs (" +
                         a.options.kind + ")");
-  if (!a.truth.empty()) save_json(a.truth, r.truth);
-  write_angle_table(a.out, r.table);
+  if (!a.truth.empty()) save_json(files.stage(a.truth), r.truth);
+  write_angle_table(files.stage(a.out), r.table);
+  files.commit();
   std::printf("%zu frames -> %s%s\n", r.table.rows.size(), a.out.c_str(), a.truth.empty() ? "" : (", truth -> " + a.truth).c_str());
 }
 
@@ -330,6 +335,7 @@ void add_synth_commands(CLI::App& app, const Progress& progress, Commands* out) 
   sac->add_option("--offset-sd", sa->options.offset_sd, "Sd of a person's offsets, deg")->capture_default_str();
   sac->add_option("--gaps", sa->options.gaps, "Fraction of cells left empty, [0, 0.5]")->check(CLI::Range(0.0, 0.5))->capture_default_str();
   sac->add_option("--noise", sa->options.noise, "curved: noise per joint, deg")->capture_default_str();
+  add_force_flag(sac, &sa->force);
   out->push_back({sac, [sa, &progress] { synth_angles(*sa, progress); }});
 
   out->push_back({ssc, [ss, &progress] {

@@ -25,19 +25,22 @@ constexpr int kMinPictureWidth = 16, kMaxPictureWidth = 4096;
 struct RenderArgs {
   std::string mesh, scan, rig, out, view = "back";
   int width = 1024;
+  bool force = false;
 };
 
 void render(const RenderArgs& a) {
   if (a.mesh.empty() == a.scan.empty()) throw UsageError("render", "give exactly one of --mesh or --scan");
   require_png(a.out, "--out");
+  if (!a.scan.empty() && !a.rig.empty()) throw UsageError("--rig", "draws a mesh's joints; a scan is drawn in its own frame");
+  const Eigen::Matrix3d view = named_view(a.view);  // a usage error before the output is claimed
+  OutputFiles files({a.out}, output_options(a.force));
   if (!a.scan.empty()) {
-    if (!a.rig.empty()) throw UsageError("--rig", "draws a mesh's joints; a scan is drawn in its own frame");
-    write_file_atomic(a.out, render_scan_png(load_scan(a.scan)));
+    write_file_atomic(files.stage(a.out), render_scan_png(load_scan(a.scan)));
   } else {
     RenderOptions ro;
     ro.width = a.width;
     ro.height = a.width * 3 / 4;
-    ro.view = named_view(a.view);
+    ro.view = view;
     std::optional<Rig> rig;
     if (!a.rig.empty()) rig = load_rig(a.rig);  // the same checks as solve: a rig one command refuses, all do
     const Mesh mesh = read_any_mesh(a.mesh);
@@ -46,14 +49,16 @@ void render(const RenderArgs& a) {
       ro.view = ro.view * hand_frame_from_rig(*rig).linear();
       for (const auto& j : rig->joints) ro.points.push_back(j);
     }
-    write_file_atomic(a.out, render_mesh_png({&mesh}, ro));
+    write_file_atomic(files.stage(a.out), render_mesh_png({&mesh}, ro));
   }
+  files.commit();
   std::printf("%s\n", a.out.c_str());
 }
 
 // ---------------- convert ----------------
 struct ConvertArgs {
   std::string in, out, like, side;
+  bool force = false;
 };
 
 bool is_cloud_path(const std::string& p) {
@@ -67,20 +72,27 @@ bool is_mesh_path(const std::string& p) {
 }
 
 void convert(const ConvertArgs& a, const Progress& progress) {
+  // The files written: a scan's two (<stem>.png, <stem>.json), else the one named.
+  const bool to_scan = !is_mesh_path(a.in) && !is_mesh_path(a.out) && is_cloud_path(a.in) && !is_cloud_path(a.out);
+  if (is_mesh_path(a.in) || is_mesh_path(a.out)) require_mesh_extension(a.out, "--out");
+  else if (!is_cloud_path(a.in) && !is_cloud_path(a.out)) throw UsageError("--out", "converting a scan needs a .ply or .pcd output");
+  if (to_scan && !a.side.empty() && a.side != "back" && a.side != "palm")
+    throw UsageError("--side", "'" + a.side + "': must be back or palm");
+  if (to_scan && a.side.empty() && a.like.empty()) throw UsageError("--side", "give --side back or --side palm (or --like <stem>)");
+  OutputFiles files(to_scan ? std::vector<std::string>{a.out + ".png", a.out + ".json"} : std::vector<std::string>{a.out},
+                    output_options(a.force));
   if (is_mesh_path(a.in) || is_mesh_path(a.out)) {  // a mesh: any the project writes, to .ply/.obj/.off/.stl
-    require_mesh_extension(a.out, "--out");
     const Mesh mesh = read_any_mesh(a.in);
-    save_mesh(a.out, mesh);
+    save_mesh(files.stage(a.out), mesh);
     progress("convert", std::to_string(mesh.vertices.size()) + " vertices, " + std::to_string(mesh.faces.size()) +
                             " faces written");
   } else if (!is_cloud_path(a.in)) {
-    if (!is_cloud_path(a.out)) throw UsageError("--out", "converting a scan needs a .ply or .pcd output");
     const RangeScan scan = load_scan(a.in);
-    save_cloud(a.out, *dense_copy(*scan_to_organized_cloud(scan)));
+    save_cloud(files.stage(a.out), *dense_copy(*scan_to_organized_cloud(scan)));
     progress("convert", std::to_string(scan.count_valid()) + " points written");
   } else {
     if (is_cloud_path(a.out)) {
-      save_cloud(a.out, *load_cloud(a.in));
+      save_cloud(files.stage(a.out), *load_cloud(a.in));
     } else {
       // The grid comes from an existing scan's sidecar (--like) or the CUBIST defaults.
       ScanMeta meta = a.like.empty() ? ScanMeta{} : parse_scan_meta(read_file(a.like + ".json"), a.like + ".json");
@@ -92,11 +104,14 @@ void convert(const ConvertArgs& a, const Progress& progress) {
       size_t dropped = 0;
       const RangeScan scan = cloud_to_scan(*load_cloud(a.in), meta, &dropped);
       if (scan.count_valid() == 0) throw InputError(a.in, "no point falls on the scan grid");
-      save_scan(a.out, scan);
+      files.stage(a.out + ".json");
+      const std::string png = files.stage(a.out + ".png");
+      save_scan(png.substr(0, png.size() - 4), scan);
       progress("convert", std::to_string(scan.count_valid()) + " samples, " + std::to_string(dropped) +
                               " points off the grid or out of range dropped");
     }
   }
+  files.commit();
   std::printf("%s\n", a.out.c_str());
 }
 
@@ -113,6 +128,7 @@ void add_tool_commands(CLI::App& app, const Progress& progress, Commands* out) {
       ->capture_default_str()
       ->check(CLI::Range(kMinPictureWidth, kMaxPictureWidth));
   rc->add_option("--out", ra->out, "PNG to write (.png)")->required();
+  add_force_flag(rc, &ra->force);
   out->push_back({rc, [ra] { render(*ra); }});
 
   auto ca = std::make_shared<ConvertArgs>();
@@ -122,6 +138,7 @@ void add_tool_commands(CLI::App& app, const Progress& progress, Commands* out) {
   cc->add_option("--out", ca->out, "Scan stem, .ply/.pcd cloud, or mesh (.ply, .obj, .off, .stl) by extension")->required();
   cc->add_option("--like", ca->like, "Cloud -> scan: take the grid from this scan's sidecar (default: CUBIST 512 x 512)");
   cc->add_option("--side", ca->side, "Cloud -> scan: back or palm");
+  add_force_flag(cc, &ca->force);
   out->push_back({cc, [ca, &progress] { convert(*ca, progress); }});
 }
 

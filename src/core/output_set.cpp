@@ -184,7 +184,8 @@ void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<
   HS_CHECK(!claimed_done_, "an output set is claimed once");
   HS_CHECK(!signals_ || !g_active, "one output set with signal cleanup at a time");
   for (const auto& n : writes)
-    HS_CHECK(n.find('/') == std::string::npos && !n.empty() && n[0] != '.', "output names are plain file names");
+    HS_CHECK(n.find('/') == std::string::npos && !n.empty() && n != "." && n != ".." && n.rfind(".handskin", 0) != 0,
+             "output names are plain file names, none of handskin's own");
   writes_ = writes;
   others_ = others;
   std::error_code ec;
@@ -213,7 +214,7 @@ void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<
     discard();
     throw InputError(out_dir_, "is not writable");
   }
-  const fs::path beside = staging_parent(out);
+  const fs::path beside = options_.stage_inside ? out : staging_parent(out);
   if (::access(beside.c_str(), W_OK | X_OK) != 0) {
     discard();
     throw InputError(out_dir_, "cannot write beside it: '" + beside.string() +
@@ -336,9 +337,10 @@ std::string OutputSet::stage(const std::string& name) {
 
 void OutputSet::ensure_staging() {
   if (!staging_.empty()) return;
-  const fs::path parent = staging_parent(out_dir_);
+  const fs::path parent = options_.stage_inside ? fs::path(out_dir_) : staging_parent(out_dir_);
   const std::string leaf = fs::absolute(out_dir_).lexically_normal().filename().string();
-  staging_ = (parent / (".handskin-staging-" + (leaf.empty() ? std::string("out") : leaf) + "-" +
+  staging_ = (parent / (".handskin-staging-" +
+                        (options_.stage_inside ? std::string() : (leaf.empty() ? std::string("out") : leaf) + "-") +
                         std::to_string(::getpid())))
                  .string();
   std::error_code ec;
@@ -511,6 +513,75 @@ void OutputSet::commit() {
     for (const auto& m : moved_aside_) options_.say("moved aside (not handskin's): " + m);
   const int pending = signals_ ? g_pending : 0;
   if (pending) std::raise(pending);  // the files are in place: now die as asked
+}
+
+// --- OutputFiles ---
+
+namespace {
+// A single output's folder as given ("." for a bare name), and its path made absolute and
+// normal: the key two spellings of one file share.
+std::string folder_of(const std::string& path) {
+  const fs::path p(path);
+  return p.has_parent_path() ? p.parent_path().string() : std::string(".");
+}
+std::string whole_path(const std::string& path) {
+  return (fs::absolute(folder_of(path)).lexically_normal() / fs::path(path).filename()).string();
+}
+}  // namespace
+
+OutputFiles::OutputFiles(const std::vector<std::string>& paths, OutputSetOptions options) {
+  std::map<std::string, size_t> folder_set;
+  std::vector<std::vector<std::string>> names;
+  std::vector<std::string> folders;
+  for (const std::string& path : paths) {
+    const fs::path p(path);
+    const std::string name = p.filename().string();
+    if (path.empty() || name.empty() || name == "." || name == "..")
+      throw UsageError(path.empty() ? "--out" : path, "names no file (a file's path is wanted)");
+    if (name.rfind(".handskin", 0) == 0) throw InputError(path, "is a name handskin keeps for its own bookkeeping");
+    const std::string folder = folder_of(path);
+    // The folder must be there (a file's folder is not made for it, as write_file_atomic says).
+    std::error_code ec;
+    if (!fs::exists(folder, ec)) throw InputError(path, "cannot write: folder '" + folder + "' does not exist");
+    if (!fs::is_directory(folder, ec)) throw InputError(path, "cannot write: '" + folder + "' is not a folder");
+    const std::string key = fs::absolute(folder).lexically_normal().string();
+    const std::string whole = whole_path(path);
+    if (where_.count(whole))
+      throw UsageError(path, "is given for two outputs");
+    auto [it, fresh] = folder_set.emplace(key, folders.size());
+    if (fresh) folders.push_back(folder), names.emplace_back();
+    names[it->second].push_back(name);
+    where_[whole] = {it->second, name};
+  }
+  for (size_t k = 0; k < folders.size(); ++k) {
+    OutputSetOptions o = options;
+    o.stage_inside = true;
+    // One set at a time holds the signal handlers: the first folder's (a second folder's staged
+    // files are left in its hidden staging folder by a signal, never in place).
+    o.signal_cleanup = options.signal_cleanup && k == 0;
+    sets_.push_back(std::make_unique<OutputSet>(folders[k], o));
+    try {
+      sets_.back()->claim(names[k]);
+    } catch (const InputError& e) {
+      // A file in the way named as the user gave it ("picture.png", not "./picture.png").
+      for (const std::string& path : paths)
+        if (where_.at(whole_path(path)).first == k && e.where() == (fs::path(folders[k]) / fs::path(path).filename()).string())
+          throw InputError(path, e.detail());
+      throw;
+    }
+  }
+}
+
+OutputFiles::~OutputFiles() = default;
+
+std::string OutputFiles::stage(const std::string& path) {
+  const auto it = where_.find(whole_path(path));
+  HS_CHECK(it != where_.end(), "output file '" + path + "' was not claimed");
+  return sets_[it->second.first]->stage(it->second.second);
+}
+
+void OutputFiles::commit() {
+  for (auto& s : sets_) s->commit();
 }
 
 }  // namespace handskin

@@ -34,6 +34,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -65,6 +66,10 @@ struct OutputSetOptions {
   /// for a host process that owns its signals (the Python module): a signal then does what the
   /// host says, and any number of sets may be open at once (one per output folder).
   bool signal_cleanup = true;
+  /// The staging folder inside the output folder (hidden, `.handskin-staging-<pid>`) instead
+  /// of beside it: for OutputFiles, whose folder (the user's, e.g. the working folder) may
+  /// sit in one the user cannot write.
+  bool stage_inside = false;
 };
 
 class OutputSet {
@@ -114,6 +119,34 @@ class OutputSet {
   int lock_fd_ = -1;
   bool claimed_done_ = false, committed_ = false;
   bool signals_;  ///< options_.signal_cleanup: this set registers with the signal handlers
+};
+
+/// Single output files that the user names (`render --out picture.png`, `model --out
+/// model.json`, a CSV, a posed mesh): owned as an output folder's files are, each file in the
+/// folder it goes to. The constructor claims every path before any work (one OutputSet per
+/// folder, staging inside it, so that only that folder need be writable): a file in the way
+/// that handskin did not write, or that was changed since it did, is refused with an InputError
+/// naming it (with `force`, moved aside into a dated backup folder at the commit). Then each
+/// file is written to `stage(path)`, and `commit()` moves them into place and records them in
+/// their folder's manifest, so that the next command may replace them. Destroyed without a
+/// commit, nothing is written.
+class OutputFiles {
+ public:
+  /// Throws UsageError for a path that names no file (empty, "dir/") or is given twice, and
+  /// InputError for one whose folder does not exist, that names handskin's own bookkeeping
+  /// (`.handskin-…`), or that is in the way.
+  explicit OutputFiles(const std::vector<std::string>& paths, OutputSetOptions options = {});
+  ~OutputFiles();
+  OutputFiles(const OutputFiles&) = delete;
+  OutputFiles& operator=(const OutputFiles&) = delete;
+  /// Where to write `path` (one of the constructor's) now.
+  std::string stage(const std::string& path);
+  /// Every staged file into place, folder by folder.
+  void commit();
+
+ private:
+  std::vector<std::unique_ptr<OutputSet>> sets_;
+  std::map<std::string, std::pair<size_t, std::string>> where_;  ///< path → (set, file name)
 };
 
 }  // namespace handskin

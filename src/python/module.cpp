@@ -615,11 +615,18 @@ PYBIND11_MODULE(_core, m) {
       .def_property_readonly("watertight", [](const PySkinResult& s) { return s.r.skin.watertight(); })
       .def_property_readonly("warnings", [](const PySkinResult& s) { return s.r.warnings; })
       .def_property_readonly("figures", [](const PySkinResult& s) { return to_py(s.figures); })
-      .def("save", [](const PySkinResult& s, const py::object& file) {
+      .def("save", [](const PySkinResult& s, const py::object& file, bool force) {
         const std::string path = path_of(file);
         py::gil_scoped_release nogil;
-        save_mesh(path, s.r.skin.mesh);
-      }, py::arg("path"));
+        // Owned as the CLI's single files are (core/output_set.hpp, OutputFiles): a file of the
+        // user's in the way is refused (with force, moved aside), never overwritten.
+        OutputSetOptions oo;
+        oo.force = force;
+        oo.signal_cleanup = false;  // Python owns the signals
+        OutputFiles files({path}, oo);
+        save_mesh(files.stage(path), s.r.skin.mesh);
+        files.commit();
+      }, py::arg("path"), py::kw_only(), py::arg("force") = false);
 
   m.def(
       "build_skin",

@@ -155,7 +155,7 @@ def test_pose_equals_the_clis_pose(runs, tmp_path):
     assert skin.rig["format"] == "hand-rig/1" and skin.has_texture
 
 
-def test_stages_on_their_own_equal_the_run(runs):
+def test_stages_on_their_own_equal_the_run(runs, tmp_path):
     reg = handskin.register(FIX / "back", FIX / "palm")
     rj = json.loads((runs["cli"] / "registration.json").read_text())
     untimed = lambda d: {k: v for k, v in d.items() if k not in ("timings_ms", "gates", "gates_passed")}
@@ -169,6 +169,17 @@ def test_stages_on_their_own_equal_the_run(runs):
     V, F = handskin.read_mesh(runs["cli"] / "skin.ply")
     assert skin.faces.shape == F.shape and np.abs(skin.vertices - V).max() < 1e-3
     assert skin.watertight and not skin.automatic_rig
+    # saved as the CLI writes files: a file of the user's in the way is refused, and with
+    # force moved aside; its own file it replaces
+    mine = tmp_path / "skin.ply"
+    mine.write_text("my own skin")
+    with pytest.raises(OSError, match="skin.ply: is in the way: it was not written by handskin"):
+        skin.save(mine)
+    assert mine.read_text() == "my own skin"
+    skin.save(mine, force=True)
+    assert np.array_equal(handskin.read_mesh(mine)[1], F)
+    assert [p.read_text() for p in tmp_path.glob("handskin-backup-*/skin.ply")] == ["my own skin"]
+    skin.save(mine)
     stages = {s["name"]: s for s in json.loads((runs["cli"] / "report.json").read_text())["stages"]}
     assert skin.figures["cloud_to_skin_mm"] == stages["skin"]["cloud_to_skin_mm"]
     patches = handskin.fit_patches(skin, reg.points, reg.sides)
