@@ -632,3 +632,31 @@ TEST(Trust, OutputFilesUnit) {
   EXPECT_NE(test::input_error_of([&] { OutputFiles({a + "/none/x.txt"}); }).find("does not exist"), std::string::npos);
   EXPECT_FALSE(fs::exists(a + "/none"));
 }
+
+// `--out ~`: the user's own folder in one they cannot write (/home is root's). The outputs are
+// staged inside it instead of beside it (refused before 2026-11-30). Needs a second user to be
+// such a user: run as root, the test runs the command as `nobody`.
+TEST(Trust, AnOutputFolderInAFolderTheUserCannotWriteIsStagedInsideIt) {
+  if (::geteuid() != 0 || std::system("command -v runuser > /dev/null 2>&1") != 0)
+    GTEST_SKIP() << "needs root and runuser to act as another user";
+  if (std::system(("runuser -u nobody -- test -x " + kBin + " -a -r " + kFix + "back.png").c_str()) != 0)
+    GTEST_SKIP() << "the user nobody cannot run " << kBin << " (a checkout in a private folder)";
+  const std::string base = test::temp_dir("home");
+  const std::string home = base + "/home", mine = home + "/user";
+  fs::create_directories(mine);
+  ASSERT_EQ(std::system(("chown nobody " + mine + " && chmod 755 " + base + " && chmod 555 " + home).c_str()), 0);
+  std::string out;
+  const int rc = test::run("runuser -u nobody -- " + register_cmd(mine), &out);
+  // A single file there too (`render --out ~/picture.png`).
+  std::string out2;
+  const int rc2 = test::run("runuser -u nobody -- " + kBin + " -q render --scan " + kFix + "back --out " + mine + "/p.png", &out2);
+  fs::permissions(home, fs::perms::owner_all);
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_EQ(rc2, 0) << out2;
+  const auto m = read_manifest(mine);
+  EXPECT_EQ(m.size(), 4u);  // registration.json, merged.ply, merged.png and p.png
+  EXPECT_TRUE(m.count("merged.ply") && m.count("p.png"));
+  for (const auto& e : fs::directory_iterator(mine))
+    EXPECT_NE(e.path().filename().string().rfind(".handskin-staging", 0), 0u) << e.path();  // none left
+  EXPECT_FALSE(fs::exists(mine + "/.handskin-lock"));
+}

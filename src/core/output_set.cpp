@@ -214,7 +214,13 @@ void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<
     discard();
     throw InputError(out_dir_, "is not writable");
   }
-  const fs::path beside = options_.stage_inside ? out : staging_parent(out);
+  fs::path beside = options_.stage_inside ? out : staging_parent(out);
+  if (!options_.stage_inside && ::access(beside.c_str(), W_OK | X_OK) != 0) {
+    // The folder beside it is not the user's to write (`--out ~`: /home is root's): the outputs
+    // are staged inside the output folder instead, which the check above found writable.
+    options_.stage_inside = true;
+    beside = out;
+  }
   if (::access(beside.c_str(), W_OK | X_OK) != 0) {
     discard();
     throw InputError(out_dir_, "cannot write beside it: '" + beside.string() +
@@ -542,8 +548,12 @@ OutputFiles::OutputFiles(const std::vector<std::string>& paths, OutputSetOptions
     const std::string folder = folder_of(path);
     // The folder must be there (a file's folder is not made for it, as write_file_atomic says).
     std::error_code ec;
-    if (!fs::exists(folder, ec)) throw InputError(path, "cannot write: folder '" + folder + "' does not exist");
-    if (!fs::is_directory(folder, ec)) throw InputError(path, "cannot write: '" + folder + "' is not a folder");
+    const fs::file_status st = fs::status(folder, ec);
+    if (!fs::exists(st))
+      throw InputError(path, "cannot write: folder '" + folder + "' " +
+                                 (ec && ec != std::errc::no_such_file_or_directory ? "cannot be reached: " + ec.message()
+                                                                                    : std::string("does not exist")));
+    if (!fs::is_directory(st)) throw InputError(path, "cannot write: '" + folder + "' is not a folder");
     const std::string key = fs::absolute(folder).lexically_normal().string();
     const std::string whole = whole_path(path);
     if (where_.count(whole))

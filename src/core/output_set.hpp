@@ -15,7 +15,8 @@
 ///    locked: a second command claiming the same folder is refused at once while the first
 ///    holds it (flock on `.handskin-lock`). A set destroyed without a commit removes the lock
 ///    and the folders it created.
-///  - Every file is then written into a staging folder beside the output folder; `commit()`
+///  - Every file is then written into a staging folder beside the output folder (inside it
+///    when the folder beside is not writable, or with `stage_inside`); `commit()`
 ///    moves them all into place, or none of them. A file it replaces is kept aside and put back
 ///    if a later move fails, so a failed commit leaves the folder as it was. The manifest is
 ///    written last. SIGINT, SIGTERM and SIGHUP are held during the moves (a few renames) and
@@ -68,7 +69,8 @@ struct OutputSetOptions {
   bool signal_cleanup = true;
   /// The staging folder inside the output folder (hidden, `.handskin-staging-<pid>`) instead
   /// of beside it: for OutputFiles, whose folder (the user's, e.g. the working folder) may
-  /// sit in one the user cannot write.
+  /// sit in one the user cannot write. A set stages inside on its own too when the folder
+  /// beside its output folder is not writable (`--out ~`).
   bool stage_inside = false;
 };
 
