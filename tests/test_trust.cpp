@@ -660,3 +660,22 @@ TEST(Trust, AnOutputFolderInAFolderTheUserCannotWriteIsStagedInsideIt) {
     EXPECT_NE(e.path().filename().string().rfind(".handskin-staging", 0), 0u) << e.path();  // none left
   EXPECT_FALSE(fs::exists(mine + "/.handskin-lock"));
 }
+
+// An --out the system cannot reach as written is refused at the claim, not after the work at
+// the commit (as it was before 2026-11-30), and nothing is left made.
+TEST(Trust, AnOutputFolderTheSystemCannotReachIsRefusedAtTheClaim) {
+  const std::string dir = test::temp_dir("reach");
+  std::string out;
+  EXPECT_EQ(test::run(register_cmd(dir + "/none/../out"), &out), 1) << out;
+  EXPECT_EQ(out, "error: " + dir + "/none/../out: cannot be reached as written: a '..' follows a folder that does not exist (give it as " +
+                     dir + "/out)\n");
+  fs::create_symlink(dir + "/nowhere", dir + "/link");
+  EXPECT_EQ(test::run(register_cmd(dir + "/link"), &out), 1) << out;
+  EXPECT_EQ(out, "error: " + dir + "/link: is a symbolic link to a folder that does not exist\n");
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);  // the link alone: nothing made
+  EXPECT_FALSE(fs::exists(dir + "/nowhere"));
+  // Through a folder that is there, '..' is fine.
+  fs::create_directories(dir + "/there");
+  EXPECT_EQ(test::run(register_cmd(dir + "/there/../out"), &out), 0) << out;
+  EXPECT_EQ(read_manifest(dir + "/out").size(), 3u);
+}

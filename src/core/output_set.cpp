@@ -210,6 +210,16 @@ void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<
     }
     created_.insert(created_.begin(), it->string());
   }
+  // The folder as the user wrote it must be the one made or found: "a/x/../b" with no a/x
+  // names a/b to the eye (and to the creation above) but nothing to the system, and every
+  // later step would fail on it, the commit last, after all the work.
+  if (!fs::is_directory(out_dir_, ec)) {
+    const bool dangling = fs::is_symlink(fs::symlink_status(out_dir_, ec));
+    discard();
+    throw InputError(out_dir_, dangling ? "is a symbolic link to a folder that does not exist"
+                                        : "cannot be reached as written: a '..' follows a folder that does not exist "
+                                          "(give it as " + out.string() + ")");
+  }
   if (::access(out.c_str(), W_OK | X_OK) != 0) {
     discard();
     throw InputError(out_dir_, "is not writable");
