@@ -679,3 +679,13 @@ TEST(Trust, AnOutputFolderTheSystemCannotReachIsRefusedAtTheClaim) {
   EXPECT_EQ(test::run(register_cmd(dir + "/there/../out"), &out), 0) << out;
   EXPECT_EQ(read_manifest(dir + "/out").size(), 3u);
 }
+
+// `patches --skin-dir` on a folder that is not there names it (it said "--rig: no rig for …",
+// a usage error, before 2026-11-30), and makes nothing.
+TEST(Trust, PatchesOnAMissingRunFolderNamesIt) {
+  const std::string dir = test::temp_dir("skindir");
+  std::string out;
+  EXPECT_EQ(test::run(kBin + " -q patches --skin-dir " + dir + "/none", &out), 1) << out;
+  EXPECT_EQ(out, "error: " + dir + "/none: no such folder (--skin-dir takes a run's output folder)\n");
+  EXPECT_FALSE(fs::exists(dir + "/none"));
+}

@@ -168,6 +168,9 @@ struct PatchesArgs {
 
 void patches_command(const PatchesArgs& a, const Progress& progress) {
   namespace fs = std::filesystem;
+  if (!fs::is_directory(a.skin_dir))
+    throw InputError(a.skin_dir, fs::exists(a.skin_dir) ? "is not a folder (--skin-dir takes a run's output folder)"
+                                                        : "no such folder (--skin-dir takes a run's output folder)");
   // Its own folder by default: report.json there is the patches' report, not the run's.
   const std::string out_dir = a.out.empty() ? (fs::path(a.skin_dir) / "patches").string() : a.out;
   OutputSet out(out_dir, output_options(a.force));
