@@ -689,3 +689,21 @@ TEST(Trust, PatchesOnAMissingRunFolderNamesIt) {
   EXPECT_EQ(out, "error: " + dir + "/none: no such folder (--skin-dir takes a run's output folder)\n");
   EXPECT_FALSE(fs::exists(dir + "/none"));
 }
+
+// The system's own folders are not output folders, through a link too (a run as root filled
+// / with its files before 2026-11-30).
+TEST(Trust, SystemFoldersAreNotOutputFolders) {
+  std::string out;
+  for (const std::string o : {"/", "/etc", "/etc/handskin-out", "/usr", "/usr/share/x", "/proc/self"}) {
+    SCOPED_TRACE(o);
+    EXPECT_EQ(test::run(register_cmd(o), &out), 1) << out;
+    EXPECT_NE(out.find("error: " + o + ": is "), std::string::npos) << out;
+    EXPECT_NE(out.find("handskin writes into a folder of yours; choose another --out"), std::string::npos) << out;
+  }
+  EXPECT_FALSE(fs::exists("/etc/handskin-out") || fs::exists("/report.json") || fs::exists("/registration.json"));
+  const std::string dir = test::temp_dir("sys");
+  fs::create_directory_symlink("/etc", dir + "/etc");
+  EXPECT_EQ(test::run(kBin + " -q render --scan " + kFix + "back --out " + dir + "/etc/x.png", &out), 1) << out;
+  EXPECT_NE(out.find("is in /etc, a system folder"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists("/etc/x.png"));
+}

@@ -191,6 +191,24 @@ void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<
   std::error_code ec;
   // --- the folder: every missing level creatable, the first existing one a folder ---
   const fs::path out = fs::absolute(out_dir_).lexically_normal();
+  // Not the system's own folders (a run as root would fill / or /etc with its files): the root
+  // and /usr themselves, and the trees of programs, libraries, configuration, devices and the
+  // kernel's views, through any link (/lib is usr/lib). /usr/local and /usr/src are left to
+  // their owners.
+  {
+    const fs::path real = fs::weakly_canonical(out, ec).lexically_normal();
+    const fs::path seen = ec ? out : real;
+    std::string folder = seen.string();
+    while (folder.size() > 1 && folder.back() == '/') folder.pop_back();
+    if (folder == "/") throw InputError(out_dir_, "is the file system's root: handskin writes into a folder of yours; choose another --out");
+    if (folder == "/usr") throw InputError(out_dir_, "is /usr, a system folder: handskin writes into a folder of yours; choose another --out");
+    for (const char* sys : {"/bin", "/boot", "/dev", "/etc", "/lib", "/lib32", "/lib64", "/libx32", "/proc", "/sbin", "/sys",
+                            "/usr/bin", "/usr/include", "/usr/lib", "/usr/lib32", "/usr/lib64", "/usr/libexec", "/usr/libx32",
+                            "/usr/sbin", "/usr/share"})
+      if (folder == sys || folder.rfind(std::string(sys) + "/", 0) == 0)
+        throw InputError(out_dir_, std::string("is in ") + sys +
+                                       ", a system folder: handskin writes into a folder of yours; choose another --out");
+  }
   std::vector<fs::path> missing;
   fs::path p = out;
   if (!p.has_filename()) p = p.parent_path();
