@@ -248,6 +248,14 @@ TEST(CloudPrep, RefusesWhatIsNotAHand) {
   for (int i = 0; i < 300; ++i)
     for (int j = 0; j < 200; ++j) plane.emplace_back(0.6 * i, 0.6 * j, 0.0);
   EXPECT_NE(err(plane).find("plane"), std::string::npos) << err(plane);
+  // A sparse scatter in a 100 mm box (points ~6 mm apart): strays, not a plane.
+  std::vector<Eigen::Vector3d> scatter;
+  std::uint32_t seed = 7;
+  const auto next = [&] { return (seed = seed * 1664525u + 1013904223u) / 4294967296.0 * 100.0; };
+  for (int i = 0; i < 5000; ++i) scatter.emplace_back(next(), next(), next());
+  const std::string sc = err(scatter);
+  EXPECT_NE(sc.find("scattered points, not a surface"), std::string::npos) << sc;
+  EXPECT_EQ(sc.find("plane"), std::string::npos) << sc;
   // Non-finite coordinates.
   std::vector<Eigen::Vector3d> nan = h.sim.points;
   nan[10].y() = std::nan("");

@@ -406,6 +406,13 @@ PreparedCloud prepare_cloud(const std::vector<Eigen::Vector3d>& points_in, const
   idx = drop_outliers(points, idx, o);
   r.outliers = points.size() - idx.size();
   lap("drop_outliers");
+  // Too few left already: the cloud is strays, not a surface (a sparse scatter of points had
+  // this said of it as of a plane before 2026-11-30).
+  if (idx.size() < static_cast<size_t>(o.min_points))
+    throw InputError(file, "only " + std::to_string(idx.size()) + " of its " + std::to_string(points.size()) +
+                               " points have " + std::to_string(o.outlier_neighbours) + " neighbours within " +
+                               mm_text(o.outlier_radius_mm) + " mm: scattered points, not a surface (a hand needs at least " +
+                               std::to_string(o.min_points) + ")");
   if (o.remove_support) idx = drop_support(points, idx, o, &r);
   lap("drop_support");
   if (idx.size() < static_cast<size_t>(o.min_points))
