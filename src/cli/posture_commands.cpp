@@ -55,11 +55,10 @@ void solve_command(const SolveArgs& a, const Progress& progress) {
   // The rig (and the skeleton built from it, once) are checked before any solving.
   if (!a.picture.empty() && a.rig.empty()) throw UsageError("--png", "needs --rig (the skeleton to draw)");
   if (!a.picture.empty()) require_png(a.picture, "--png");
+  // The picture's view (a usage error) before its file is claimed.
+  const Eigen::Matrix3d view = a.picture.empty() ? Eigen::Matrix3d::Identity() : named_view(a.view);
   std::optional<OutputFiles> files;
-  if (!a.picture.empty()) {
-    (void)named_view(a.view);  // a usage error before the output is claimed
-    files.emplace(std::vector<std::string>{a.picture}, output_options(a.force));
-  }
+  if (!a.picture.empty()) files.emplace(std::vector<std::string>{a.picture}, output_options(a.force));
   std::optional<Rig> rig;
   std::optional<Skeleton> skeleton;
   if (!a.rig.empty()) {
@@ -81,7 +80,7 @@ void solve_command(const SolveArgs& a, const Progress& progress) {
     RenderOptions ro;
     ro.width = 900;
     ro.height = 600;
-    ro.view = named_view(a.view) * hand_frame_from_rig(*rig).linear();
+    ro.view = view * hand_frame_from_rig(*rig).linear();
     write_file_atomic(files->stage(a.picture),
                       render_skeletons_png({{{rest.begin(), rest.end()}, parents, {0.6f, 0.6f, 0.65f}},
                                             {{joint_pos.begin(), joint_pos.end()}, parents, {0.8f, 0.15f, 0.15f}}},

@@ -43,7 +43,7 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
   for (const auto& s : a.sets) parse_assignment(s, "--set", &d, &v), given.pins.emplace_back(d, v);
   for (const auto& s : a.torques) parse_assignment(s, "--torque", &d, &v), given.torques.emplace_back(d, v);
   for (const auto& s : a.targets) parse_assignment(s, "--target", &d, &v, &w), given.targets.push_back({d, v, w});
-  if (!a.png.empty()) (void)named_view(a.view);
+  const Eigen::Matrix3d view = a.png.empty() ? Eigen::Matrix3d::Identity() : named_view(a.view);
   // Every usage error said: the outputs claimed before any work.
   std::vector<std::string> written;
   for (const std::string* f : {&a.out, &a.png})
@@ -86,7 +86,7 @@ void pose_command(const PoseArgs& a, const Progress& progress) {
     const Mesh mesh{posed, skin.mesh.faces};
     RenderOptions ro;
     ro.width = ro.height = a.size;
-    ro.view = named_view(a.view) * hand_frame_from_rig(skin.rig).linear();
+    ro.view = view * hand_frame_from_rig(skin.rig).linear();
     if (!skin.texture.empty()) ro.texture = &skin.texture, ro.texture_weight = static_cast<float>(a.texture_weight);
     write_file_atomic(files.stage(a.png), render_mesh_png({&mesh}, ro));
   }

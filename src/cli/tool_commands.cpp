@@ -72,44 +72,48 @@ bool is_mesh_path(const std::string& p) {
 }
 
 void convert(const ConvertArgs& a, const Progress& progress) {
+  // What is converted, decided once: its usage errors, the files it claims and its work follow.
+  enum class Kind { Mesh, ScanToCloud, CloudToCloud, CloudToScan };
+  const Kind kind = is_mesh_path(a.in) || is_mesh_path(a.out) ? Kind::Mesh  // any mesh the project writes, to .ply/.obj/.off/.stl
+                    : !is_cloud_path(a.in)                    ? Kind::ScanToCloud
+                    : is_cloud_path(a.out)                    ? Kind::CloudToCloud
+                                                              : Kind::CloudToScan;
+  if (kind == Kind::Mesh) require_mesh_extension(a.out, "--out");
+  if (kind == Kind::ScanToCloud && !is_cloud_path(a.out))
+    throw UsageError("--out", "converting a scan needs a .ply or .pcd output");
+  if (kind == Kind::CloudToScan) {
+    if (!a.side.empty() && a.side != "back" && a.side != "palm") throw UsageError("--side", "'" + a.side + "': must be back or palm");
+    if (a.side.empty() && a.like.empty()) throw UsageError("--side", "give --side back or --side palm (or --like <stem>)");
+  }
   // The files written: a scan's two (<stem>.png, <stem>.json), else the one named.
-  const bool to_scan = !is_mesh_path(a.in) && !is_mesh_path(a.out) && is_cloud_path(a.in) && !is_cloud_path(a.out);
-  if (is_mesh_path(a.in) || is_mesh_path(a.out)) require_mesh_extension(a.out, "--out");
-  else if (!is_cloud_path(a.in) && !is_cloud_path(a.out)) throw UsageError("--out", "converting a scan needs a .ply or .pcd output");
-  if (to_scan && !a.side.empty() && a.side != "back" && a.side != "palm")
-    throw UsageError("--side", "'" + a.side + "': must be back or palm");
-  if (to_scan && a.side.empty() && a.like.empty()) throw UsageError("--side", "give --side back or --side palm (or --like <stem>)");
-  OutputFiles files(to_scan ? std::vector<std::string>{a.out + ".png", a.out + ".json"} : std::vector<std::string>{a.out},
+  OutputFiles files(kind == Kind::CloudToScan ? std::vector<std::string>{a.out + ".png", a.out + ".json"}
+                                              : std::vector<std::string>{a.out},
                     output_options(a.force));
-  if (is_mesh_path(a.in) || is_mesh_path(a.out)) {  // a mesh: any the project writes, to .ply/.obj/.off/.stl
+  if (kind == Kind::Mesh) {
     const Mesh mesh = read_any_mesh(a.in);
     save_mesh(files.stage(a.out), mesh);
     progress("convert", std::to_string(mesh.vertices.size()) + " vertices, " + std::to_string(mesh.faces.size()) +
                             " faces written");
-  } else if (!is_cloud_path(a.in)) {
+  } else if (kind == Kind::ScanToCloud) {
     const RangeScan scan = load_scan(a.in);
     save_cloud(files.stage(a.out), *dense_copy(*scan_to_organized_cloud(scan)));
     progress("convert", std::to_string(scan.count_valid()) + " points written");
+  } else if (kind == Kind::CloudToCloud) {
+    save_cloud(files.stage(a.out), *load_cloud(a.in));
   } else {
-    if (is_cloud_path(a.out)) {
-      save_cloud(files.stage(a.out), *load_cloud(a.in));
-    } else {
-      // The grid comes from an existing scan's sidecar (--like) or the CUBIST defaults.
-      ScanMeta meta = a.like.empty() ? ScanMeta{} : parse_scan_meta(read_file(a.like + ".json"), a.like + ".json");
-      if (a.side == "back") meta.side = ScanSide::Back;
-      else if (a.side == "palm") meta.side = ScanSide::Palm;
-      else if (!a.side.empty()) throw UsageError("--side", "'" + a.side + "': must be back or palm");
-      else if (a.like.empty()) throw UsageError("--side", "give --side back or --side palm (or --like <stem>)");
-      meta.device = "converted from " + fs::path(a.in).filename().string();
-      size_t dropped = 0;
-      const RangeScan scan = cloud_to_scan(*load_cloud(a.in), meta, &dropped);
-      if (scan.count_valid() == 0) throw InputError(a.in, "no point falls on the scan grid");
-      files.stage(a.out + ".json");
-      const std::string png = files.stage(a.out + ".png");
-      save_scan(png.substr(0, png.size() - 4), scan);
-      progress("convert", std::to_string(scan.count_valid()) + " samples, " + std::to_string(dropped) +
-                              " points off the grid or out of range dropped");
-    }
+    // The grid comes from an existing scan's sidecar (--like) or the CUBIST defaults.
+    ScanMeta meta = a.like.empty() ? ScanMeta{} : parse_scan_meta(read_file(a.like + ".json"), a.like + ".json");
+    if (a.side == "back") meta.side = ScanSide::Back;
+    else if (a.side == "palm") meta.side = ScanSide::Palm;
+    meta.device = "converted from " + fs::path(a.in).filename().string();
+    size_t dropped = 0;
+    const RangeScan scan = cloud_to_scan(*load_cloud(a.in), meta, &dropped);
+    if (scan.count_valid() == 0) throw InputError(a.in, "no point falls on the scan grid");
+    files.stage(a.out + ".json");
+    const std::string png = files.stage(a.out + ".png");
+    save_scan(png.substr(0, png.size() - 4), scan);
+    progress("convert", std::to_string(scan.count_valid()) + " samples, " + std::to_string(dropped) +
+                            " points off the grid or out of range dropped");
   }
   files.commit();
   std::printf("%s\n", a.out.c_str());
