@@ -16,7 +16,9 @@
 #include <map>
 #include <set>
 #include <csignal>
+#include <sys/wait.h>
 #include <unistd.h>
+#include <thread>
 #include <sstream>
 #include <unordered_map>
 
@@ -605,6 +607,49 @@ TEST(Trust, ACommandsSingleOutputFileNeverReplacesAFileOfTheUsers) {
   EXPECT_FALSE(fs::exists(dir + "/.handskin-lock"));  // every lock released
   for (const auto& e : fs::directory_iterator(dir))
     EXPECT_NE(e.path().filename().string().rfind(".handskin-staging", 0), 0u) << e.path();  // no staging left
+  // A failed move names the file as given (not "./p.png"), and leaves nothing.
+  const std::string here = test::temp_dir("single-here");
+  EXPECT_EQ(test::run("cd " + here + " && HANDSKIN_FAULT=commit:1 " + kBin + " -q render --scan " + kFix + "back --out p.png", &out), 1);
+  EXPECT_EQ(out.rfind("error: p.png: cannot move into place", 0), 0u) << out;
+  EXPECT_TRUE(fs::is_empty(here));
+}
+
+// A command writing into two folders (synth angles --out a/… --truth b/…) stopped by a signal
+// before its commit leaves both folders as they were: each folder's set is cleaned up, not the
+// first one's only (until 2026-11-30 the second kept its lock file and hidden staging folder).
+TEST(Trust, ASignalLeavesEveryFolderOfAManyFolderCommandAsItWas) {
+  for (const int sig : {SIGTERM, SIGINT}) {
+    const std::string root = test::temp_dir("two-folders");
+    const std::string a = root + "/a", b = root + "/b";
+    fs::create_directories(a), fs::create_directories(b);
+    test::write_text(b + "/notes.txt", "the user's");
+    const auto before_a = snapshot(a), before_b = snapshot(b);
+    // The first file it writes stalls (its folder's staging made, both folders locked).
+    const pid_t pid = fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+      setenv("HANDSKIN_FAULT", "stall:1", 1);
+      execl(kBin.c_str(), kBin.c_str(), "-q", "synth", "angles", "--rows", "20", "--out", (a + "/angles.csv").c_str(),
+            "--truth", (b + "/truth.json").c_str(), static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    bool both = false;
+    for (int i = 0; i < 200 && !both; ++i) {  // up to 20 s
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      bool staging = false;
+      for (const std::string& d : {a, b})
+        for (const auto& e : fs::directory_iterator(d))
+          staging = staging || e.path().filename().string().rfind(".handskin-staging", 0) == 0;
+      both = staging && fs::exists(a + "/.handskin-lock") && fs::exists(b + "/.handskin-lock");
+    }
+    ASSERT_TRUE(both) << "the command never reached its first file";
+    kill(pid, sig);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == sig) << status;
+    EXPECT_EQ(snapshot(a), before_a);
+    EXPECT_EQ(snapshot(b), before_b);
+  }
 }
 
 TEST(Trust, OutputFilesUnit) {

@@ -28,17 +28,24 @@ namespace handskin {
 namespace {
 
 // --- what a signal handler may clean up: fixed storage, async-signal-safe calls only ---
+// One slot per set that holds the signal cleanup (a command writing into several folders,
+// OutputFiles, has one set per folder, each cleaned up by a signal).
 constexpr int kMaxPaths = 256;
 constexpr int kMaxCreated = 32;
 constexpr int kPathLen = 4096;
-char g_paths[kMaxPaths][kPathLen];
-char g_staging[kPathLen];
-char g_lock[kPathLen];
-char g_created[kMaxCreated][kPathLen];
-volatile std::sig_atomic_t g_path_count = 0;
-volatile std::sig_atomic_t g_created_count = 0;
-volatile std::sig_atomic_t g_active = 0;      // a set has claimed its folder and not committed
-volatile std::sig_atomic_t g_committing = 0;  // its files are being moved: hold signals
+constexpr int kMaxSlots = 8;
+struct SignalSlot {
+  char paths[kMaxPaths][kPathLen];
+  char staging[kPathLen];
+  char lock[kPathLen];
+  char created[kMaxCreated][kPathLen];
+  volatile std::sig_atomic_t path_count;
+  volatile std::sig_atomic_t created_count;
+  volatile std::sig_atomic_t active;  // the set has claimed its folder and not committed
+};
+SignalSlot g_slots[kMaxSlots];
+int g_slots_in_use = 0;                       // (the main thread's count: handlers installed while > 0)
+volatile std::sig_atomic_t g_committing = 0;  // files are being moved (a depth): hold signals
 volatile std::sig_atomic_t g_pending = 0;     // a signal that arrived during the moves
 constexpr int kSignals[] = {SIGINT, SIGTERM, SIGHUP};
 struct sigaction g_previous[3];
@@ -48,11 +55,12 @@ extern "C" void on_signal(int sig) {
     g_pending = sig;
     return;
   }
-  if (g_active) {
-    for (int i = 0; i < g_path_count; ++i) ::unlink(g_paths[i]);
-    if (g_staging[0]) ::rmdir(g_staging);
-    if (g_lock[0]) ::unlink(g_lock);
-    for (int i = 0; i < g_created_count; ++i) ::rmdir(g_created[i]);  // deepest first; only if empty
+  for (SignalSlot& s : g_slots) {
+    if (!s.active) continue;
+    for (int i = 0; i < s.path_count; ++i) ::unlink(s.paths[i]);
+    if (s.staging[0]) ::rmdir(s.staging);
+    if (s.lock[0]) ::unlink(s.lock);
+    for (int i = 0; i < s.created_count; ++i) ::rmdir(s.created[i]);  // deepest first; only if empty
   }
   std::signal(sig, SIG_DFL);
   std::raise(sig);
@@ -72,6 +80,14 @@ void install_handlers() {
 
 void restore_handlers() {
   for (int k = 0; k < 3; ++k) sigaction(kSignals[k], &g_previous[k], nullptr);
+}
+
+// Signals held while files are moved into place (nested: OutputFiles holds them across its
+// sets' commits); the one that came meanwhile is delivered when the outermost hold ends.
+void hold_signals() { g_committing = g_committing + 1; }
+void release_signals() {
+  g_committing = g_committing - 1;
+  if (g_committing == 0 && g_pending) std::raise(g_pending);
 }
 
 // HANDSKIN_FAULT=<kind>:<n> (tests only; see the header).
@@ -182,7 +198,7 @@ OutputSet::~OutputSet() {
 
 void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<std::string>& others) {
   HS_CHECK(!claimed_done_, "an output set is claimed once");
-  HS_CHECK(!signals_ || !g_active, "one output set with signal cleanup at a time");
+  HS_CHECK(!signals_ || g_slots_in_use < kMaxSlots, "too many output sets with signal cleanup at once");
   for (const auto& n : writes)
     HS_CHECK(n.find('/') == std::string::npos && !n.empty() && n != "." && n != ".." && n.rfind(".handskin", 0) != 0,
              "output names are plain file names, none of handskin's own");
@@ -257,21 +273,23 @@ void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<
   // --- the signal handlers clean up what the claim made from now on ---
   const std::string lock = (out / kLockName).string();
   if (signals_) {
-    g_path_count = 0;
-    g_staging[0] = 0;
-    g_created_count = 0;
+    while (g_slots[slot_].active) ++slot_;  // a free one: fewer than kMaxSlots are in use
+    SignalSlot& g = g_slots[slot_];
+    g.path_count = 0;
+    g.staging[0] = 0;
+    g.created_count = 0;
     for (const auto& c : created_)
-      if (g_created_count < kMaxCreated) copy_path(g_created[g_created_count], c), g_created_count = g_created_count + 1;
-    copy_path(g_lock, lock);
-    g_active = 1;
-    install_handlers();
+      if (g.created_count < kMaxCreated) copy_path(g.created[g.created_count], c), g.created_count = g.created_count + 1;
+    copy_path(g.lock, lock);
+    g.active = 1;
+    if (g_slots_in_use++ == 0) install_handlers();
   }
   // --- the lock: one command writes a folder at a time ---
   for (int attempt = 0; attempt < 8 && lock_fd_ < 0; ++attempt) {
     const int fd = ::open(lock.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (fd < 0) {
       const std::string why = std::strerror(errno);
-      if (signals_) g_lock[0] = 0;
+      if (signals_) g_slots[slot_].lock[0] = 0;
       discard();
       throw InputError(out_dir_, "cannot lock: " + why);
     }
@@ -279,7 +297,7 @@ void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<
       char pid[32] = {0};
       const ssize_t n = ::pread(fd, pid, sizeof pid - 1, 0);
       ::close(fd);
-      if (signals_) g_lock[0] = 0;  // not ours to remove
+      if (signals_) g_slots[slot_].lock[0] = 0;  // not ours to remove
       discard();
       throw InputError(out_dir_, std::string("another handskin command") +
                                      (n > 0 ? " (pid " + std::string(pid, static_cast<size_t>(n)) + ")" : "") +
@@ -299,7 +317,7 @@ void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<
     }
   }
   if (lock_fd_ < 0) {
-    if (signals_) g_lock[0] = 0;
+    if (signals_) g_slots[slot_].lock[0] = 0;
     discard();
     throw InputError(out_dir_, "cannot lock: the lock file keeps changing");
   }
@@ -362,9 +380,10 @@ std::string OutputSet::stage(const std::string& name) {
   const std::string path = (fs::path(staging_) / name).string();
   for (const std::string& q : {path, temp_name_for(path)}) {
     if (!signals_) break;
-    HS_CHECK(g_path_count < kMaxPaths, "too many outputs in one set");
-    copy_path(g_paths[g_path_count], q);
-    g_path_count = g_path_count + 1;
+    SignalSlot& g = g_slots[slot_];
+    HS_CHECK(g.path_count < kMaxPaths, "too many outputs in one set");
+    copy_path(g.paths[g.path_count], q);
+    g.path_count = g.path_count + 1;
   }
   return path;
 }
@@ -384,7 +403,7 @@ void OutputSet::ensure_staging() {
     throw InputError(out_dir_, "cannot write: cannot create a staging folder in '" + parent.string() + "'" +
                                    (ec ? ": " + ec.message() : std::string()));
   }
-  if (signals_) copy_path(g_staging, staging_);
+  if (signals_) copy_path(g_slots[slot_].staging, staging_);
 }
 
 std::string OutputSet::staged_path(const std::string& name) const {
@@ -401,13 +420,14 @@ void OutputSet::release() noexcept {
     ::close(lock_fd_);
     lock_fd_ = -1;
   }
-  if (signals_ && g_active) {
-    g_active = 0;
-    g_lock[0] = 0;
-    g_staging[0] = 0;
-    g_path_count = 0;
-    g_created_count = 0;
-    restore_handlers();
+  if (signals_ && g_slots[slot_].active) {
+    SignalSlot& g = g_slots[slot_];
+    g.active = 0;
+    g.lock[0] = 0;
+    g.staging[0] = 0;
+    g.path_count = 0;
+    g.created_count = 0;
+    if (--g_slots_in_use == 0) restore_handlers();
   }
 }
 
@@ -423,7 +443,7 @@ void OutputSet::discard() noexcept {
 void OutputSet::commit() {
   HS_CHECK(!committed_, "an output set is committed once");
   HS_CHECK(claimed_done_, "an output set is claimed before it commits");
-  if (signals_) g_committing = 1;
+  if (signals_) hold_signals();
   std::error_code ec;
   const fs::path out(out_dir_);
   // The new manifest: the old one's entries, the files staged now, less what goes.
@@ -449,11 +469,9 @@ void OutputSet::commit() {
   };
   auto fail = [&](const std::string& name, const std::string& why) {
     undo();
-    if (signals_) g_committing = 0;
     moved_aside_.clear();
     discard();
-    const int pending = signals_ ? g_pending : 0;
-    if (pending) std::raise(pending);
+    if (signals_) release_signals();
     throw InputError(final_path(name), "cannot move into place: " + why + "; " + out_dir_ + " is as it was");
   };
   if (!fs::is_directory(out, ec)) fail(".", "the output folder is gone");
@@ -542,11 +560,9 @@ void OutputSet::commit() {
   staging_.clear();
   created_.clear();
   release();
-  if (signals_) g_committing = 0;
   if (options_.say)
     for (const auto& m : moved_aside_) options_.say("moved aside (not handskin's): " + m);
-  const int pending = signals_ ? g_pending : 0;
-  if (pending) std::raise(pending);  // the files are in place: now die as asked
+  if (signals_) release_signals();  // the files are in place: now die as asked
 }
 
 // --- OutputFiles ---
@@ -563,7 +579,8 @@ std::string whole_path(const std::string& path) {
 }
 }  // namespace
 
-OutputFiles::OutputFiles(const std::vector<std::string>& paths, OutputSetOptions options) {
+OutputFiles::OutputFiles(const std::vector<std::string>& paths, OutputSetOptions options)
+    : signal_cleanup_(options.signal_cleanup) {
   std::map<std::string, size_t> folder_set;
   std::vector<std::vector<std::string>> names;
   std::vector<std::string> folders;
@@ -590,24 +607,25 @@ OutputFiles::OutputFiles(const std::vector<std::string>& paths, OutputSetOptions
     if (fresh) folders.push_back(folder), names.emplace_back();
     names[it->second].push_back(name);
     where_[whole] = {it->second, name};
+    given_.emplace_back(path, where_[whole]);
   }
   for (size_t k = 0; k < folders.size(); ++k) {
     OutputSetOptions o = options;
     o.stage_inside = true;
-    // One set at a time holds the signal handlers: the first folder's (a second folder's staged
-    // files are left in its hidden staging folder by a signal, never in place).
-    o.signal_cleanup = options.signal_cleanup && k == 0;
     sets_.push_back(std::make_unique<OutputSet>(folders[k], o));
     try {
       sets_.back()->claim(names[k]);
     } catch (const InputError& e) {
-      // A file in the way named as the user gave it ("picture.png", not "./picture.png").
-      for (const std::string& path : paths)
-        if (where_.at(whole_path(path)).first == k && e.where() == (fs::path(folders[k]) / fs::path(path).filename()).string())
-          throw InputError(path, e.detail());
-      throw;
+      rethrow_as_given(k, e);
     }
   }
+}
+
+void OutputFiles::rethrow_as_given(size_t set, const InputError& e) const {
+  // A file named as the user gave it ("picture.png", not "./picture.png").
+  for (const auto& [path, at] : given_)
+    if (at.first == set && e.where() == sets_[set]->final_path(at.second)) throw InputError(path, e.detail());
+  throw e;
 }
 
 OutputFiles::~OutputFiles() = default;
@@ -619,7 +637,21 @@ std::string OutputFiles::stage(const std::string& path) {
 }
 
 void OutputFiles::commit() {
-  for (auto& s : sets_) s->commit();
+  // A signal during the commits is held until every folder's files are in place.
+  struct Hold {
+    bool on;
+    explicit Hold(bool signals) : on(signals) {
+      if (on) hold_signals();
+    }
+    ~Hold() {
+      if (on) release_signals();
+    }
+  } hold(signal_cleanup_);
+  for (size_t k = 0; k < sets_.size(); ++k) try {
+      sets_[k]->commit();
+    } catch (const InputError& e) {
+      rethrow_as_given(k, e);
+    }
 }
 
 }  // namespace handskin

@@ -41,6 +41,8 @@
 
 namespace handskin {
 
+class InputError;
+
 /// The manifest's name in an output folder.
 inline constexpr const char* kManifestName = ".handskin-manifest.json";
 /// The lock's name in an output folder.
@@ -121,6 +123,7 @@ class OutputSet {
   int lock_fd_ = -1;
   bool claimed_done_ = false, committed_ = false;
   bool signals_;  ///< options_.signal_cleanup: this set registers with the signal handlers
+  int slot_ = 0;  ///< its place in the handlers' fixed storage (while it holds one)
 };
 
 /// Single output files that the user names (`render --out picture.png`, `model --out
@@ -148,6 +151,9 @@ class OutputFiles {
 
  private:
   std::vector<std::unique_ptr<OutputSet>> sets_;
+  [[noreturn]] void rethrow_as_given(size_t set, const InputError& e) const;
+  bool signal_cleanup_ = true;  ///< the sets' (every folder's set is cleaned up by a signal)
+  std::vector<std::pair<std::string, std::pair<size_t, std::string>>> given_;  ///< each path as given → (set, name)
   std::map<std::string, std::pair<size_t, std::string>> where_;  ///< path → (set, file name)
 };
 
