@@ -437,6 +437,43 @@ TEST(Mocap, SharedQualisysRecordingReadsAndCalibrates) {
   for (double v : sol.angles) EXPECT_TRUE(std::isfinite(v));
 }
 
+// A left hand (the shared recording's mirror image), and one whose side markers are named the
+// other way round (hand_right on the thumb's side), give the recording's own angles: the hand
+// and the thumb's side are told from the markers, not assumed (before, the mirror image's
+// flexions came out with their signs turned, index.mcp.flex up to 77° off).
+TEST(Mocap, ALeftHandOrSwappedSideMarkersGiveTheSameAngles) {
+  const MarkerTrack right = read_qualisys_tsv(kMocap);
+  const MocapAngles a = angles_from_markers(right, kMocap);
+  auto said = [](const MocapAngles& m, const std::string& what) {
+    for (const auto& n : m.notes)
+      if (n.find(what) != std::string::npos) return true;
+    return false;
+  };
+  EXPECT_TRUE(said(a, "a right hand"));
+  MarkerTrack left = right;
+  for (auto& f : left.frames)
+    for (auto& p : f) p.x() = -p.x();
+  MarkerTrack swapped = left;
+  for (auto& n : swapped.names) n = n == "hand_left" ? "hand_right" : n == "hand_right" ? "hand_left" : n;
+  MarkerTrack right_swapped = right;
+  right_swapped.names = swapped.names;
+  for (const MarkerTrack* t : {&left, &swapped, &right_swapped}) {
+    const MocapAngles b = angles_from_markers(*t, "variant");
+    EXPECT_TRUE(said(b, t == &right_swapped ? "a right hand" : "a left hand"));
+    EXPECT_EQ(said(b, "hand_right is on the thumb's side"), t != &left);
+    ASSERT_EQ(b.table.columns, a.table.columns);
+    ASSERT_EQ(b.table.rows.size(), a.table.rows.size());
+    double worst = 0;
+    for (size_t r = 0; r < a.table.rows.size(); ++r)
+      for (size_t c = 0; c < a.table.columns.size(); ++c) {
+        const double x = a.table.rows[r][c], y = b.table.rows[r][c];
+        EXPECT_EQ(std::isnan(x), std::isnan(y));
+        if (!std::isnan(x) && !std::isnan(y)) worst = std::max(worst, std::abs(x - y));
+      }
+    EXPECT_LT(worst, 1e-9);
+  }
+}
+
 TEST(Mocap, BadMarkerFilesAreErrors) {
   const std::string dir = test::temp_dir("mocapbad");
   test::write_text(dir + "/a.tsv", "NO_OF_FRAMES\t3\nMARKER_NAMES\thand_top\n1\t2\t3\n");

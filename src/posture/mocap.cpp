@@ -216,9 +216,51 @@ MocapAngles angles_from_markers(const MarkerTrack& track, const std::string& fil
     }
   }
   for (const auto& c : cols) out.table.columns.push_back(dof_index(c).value());
+  // Which back-of-hand marker is on the thumb's side, and which hand it is: from the recording
+  // itself, not assumed. The marker set's convention puts hand_left on the thumb's side (as on a
+  // right hand seen from above); markers named by the subject's left and right on a left hand
+  // put hand_right there instead (the thumb's markers lie nearer it): the two are swapped. And
+  // the back of the hand is the side of its plane away from the fingertips and the thumb: u x v
+  // for a right hand, v x u for a left one (a left hand taken for a right one had the sign of
+  // every flexion turned: the mirror image of the shared recording gave index.mcp.flex 77° off).
+  const auto median = [](std::vector<double> v) {
+    if (v.empty()) return kNaN;
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  const auto marker = [&](const std::vector<Eigen::Vector3d>& fr, const std::string& n) {
+    return has(n) ? fr[idx.at(n)] : Eigen::Vector3d::Constant(kNaN);
+  };
+  const std::string thumb_marker = has("thumb_middle") ? "thumb_middle" : "thumb_tip";
+  std::vector<double> nearer_left;
+  for (const auto& fr : track.frames) {
+    const Eigen::Vector3d t = marker(fr, thumb_marker), l = marker(fr, "hand_left"), r = marker(fr, "hand_right");
+    if (t.allFinite() && l.allFinite() && r.allFinite()) nearer_left.push_back((t - r).norm() - (t - l).norm());
+  }
+  const bool swapped = median(nearer_left) < 0;  // NaN (no thumb marker): the convention
+  const std::string thumb_side = swapped ? "hand_right" : "hand_left", other_side = swapped ? "hand_left" : "hand_right";
+  std::vector<double> below;  // per frame: the digits' markers' mean depth below the u x v plane
+  for (const auto& fr : track.frames) {
+    const Eigen::Vector3d top = marker(fr, "hand_top"), l = marker(fr, thumb_side), r = marker(fr, other_side);
+    if (!top.allFinite() || !l.allFinite() || !r.allFinite()) continue;
+    const Eigen::Vector3d u = (top - 0.5 * (l + r)).normalized();
+    const Eigen::Vector3d v = ((l - r) - (l - r).dot(u) * u).normalized();
+    const Eigen::Vector3d n = u.cross(v);
+    double sum = 0;
+    int count = 0;
+    for (const char* m : {"thumb_middle", "thumb_tip", "index_tip", "middle_tip", "ring_tip", "little_tip"})
+      if (const Eigen::Vector3d q = marker(fr, m); q.allFinite()) sum -= (q - top).dot(n), ++count;
+    if (count > 0) below.push_back(sum / count);
+  }
+  const bool left_hand = median(below) < 0;
+  out.notes.push_back(std::string(left_hand ? "a left hand" : "a right hand") +
+                      " (its fingertips and thumb lie on that side of the back-of-hand plane)" +
+                      (swapped ? "; hand_right is on the thumb's side (the thumb's markers lie nearer it): hand_left "
+                                 "and hand_right are taken the other way round below"
+                               : ""));
   out.notes.push_back(
       "hand frame: u = hand_top - midpoint(hand_left, hand_right) (along the hand), v = toward hand_left (thumb "
-      "side), n = u x v (back of the hand, right hand)");
+      "side), n = the back of the hand (u x v on a right hand, v x u on a left one)");
   out.notes.push_back(
       "<f>.mcp.flex: elevation of hand_top -> <f>_middle below the back-of-hand plane; <f>.pip.flex: the further "
       "bend of <f>_middle -> <f>_tip (PIP and DIP together); <f>.mcp.abd: lateral angle of hand_top -> <f>_middle "
@@ -229,13 +271,13 @@ MocapAngles angles_from_markers(const MarkerTrack& track, const std::string& fil
   for (const auto& fr : track.frames) {
     std::vector<double> row(cols.size(), kNaN);
     auto P = [&](const std::string& n) { return fr[idx.at(n)]; };
-    const Eigen::Vector3d top = P("hand_top"), left = P("hand_left"), right = P("hand_right");
+    const Eigen::Vector3d top = P("hand_top"), left = P(thumb_side), right = P(other_side);
     bool gap = false;
     if (top.allFinite() && left.allFinite() && right.allFinite()) {
       const Eigen::Vector3d u = (top - 0.5 * (left + right)).normalized();
       Eigen::Vector3d v = left - right;
       v = (v - v.dot(u) * u).normalized();
-      const Eigen::Vector3d n = u.cross(v);
+      const Eigen::Vector3d n = left_hand ? v.cross(u) : u.cross(v);
       auto elevation = [&](const Eigen::Vector3d& d) { return std::atan2(-d.dot(n), d.dot(u)) * kDeg; };
       auto lateral = [&](const Eigen::Vector3d& d) { return std::atan2(d.dot(v), d.dot(u)) * kDeg; };
       const bool mid_ok = has("middle_middle") && P("middle_middle").allFinite();

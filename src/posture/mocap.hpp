@@ -34,6 +34,8 @@ struct MocapAngles {
 
 /// Joint angles from markers named hand_top, hand_left (thumb side), hand_right on the back
 /// of the hand and <digit>_middle, <digit>_tip per digit (thumb, index, middle, ring, little).
+/// Left or right hand, and which side marker the thumb is nearer, are told from the recording
+/// (the notes say which): a left hand's angles are its mirror image's, a right hand's.
 /// Throws InputError naming `file` when the three back-of-hand markers are absent.
 MocapAngles angles_from_markers(const MarkerTrack& track, const std::string& file);
 
