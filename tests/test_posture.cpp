@@ -437,11 +437,12 @@ TEST(Mocap, SharedQualisysRecordingReadsAndCalibrates) {
   for (double v : sol.angles) EXPECT_TRUE(std::isfinite(v));
 }
 
-// A left hand (the shared recording's mirror image), and one whose side markers are named the
-// other way round (hand_right on the thumb's side), give the recording's own angles: the hand
+// A left hand (the shared recording's mirror image), one whose side markers are named the
+// other way round (hand_right on the thumb's side), and markers labelled for a subject
+// ("P01:HAND_TOP") give the recording's own angles: the hand
 // and the thumb's side are told from the markers, not assumed (before, the mirror image's
 // flexions came out with their signs turned, index.mcp.flex up to 77° off).
-TEST(Mocap, ALeftHandOrSwappedSideMarkersGiveTheSameAngles) {
+TEST(Mocap, ALeftHandSwappedSideMarkersOrLabelledNamesGiveTheSameAngles) {
   const MarkerTrack right = read_qualisys_tsv(kMocap);
   const MocapAngles a = angles_from_markers(right, kMocap);
   auto said = [](const MocapAngles& m, const std::string& what) {
@@ -457,10 +458,15 @@ TEST(Mocap, ALeftHandOrSwappedSideMarkersGiveTheSameAngles) {
   for (auto& n : swapped.names) n = n == "hand_left" ? "hand_right" : n == "hand_right" ? "hand_left" : n;
   MarkerTrack right_swapped = right;
   right_swapped.names = swapped.names;
-  for (const MarkerTrack* t : {&left, &swapped, &right_swapped}) {
+  MarkerTrack labelled = right;  // as Vicon or QTM label a subject's markers
+  for (auto& n : labelled.names) {
+    std::transform(n.begin(), n.end(), n.begin(), [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+    n = "P01:" + n;
+  }
+  for (const MarkerTrack* t : {&left, &swapped, &right_swapped, &labelled}) {
     const MocapAngles b = angles_from_markers(*t, "variant");
-    EXPECT_TRUE(said(b, t == &right_swapped ? "a right hand" : "a left hand"));
-    EXPECT_EQ(said(b, "hand_right is on the thumb's side"), t != &left);
+    EXPECT_TRUE(said(b, t == &right_swapped || t == &labelled ? "a right hand" : "a left hand"));
+    EXPECT_EQ(said(b, "hand_right is on the thumb's side"), t == &swapped || t == &right_swapped);
     ASSERT_EQ(b.table.columns, a.table.columns);
     ASSERT_EQ(b.table.rows.size(), a.table.rows.size());
     double worst = 0;

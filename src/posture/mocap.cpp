@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
@@ -189,8 +190,15 @@ MarkerTrack read_marker_file(const std::string& file) {
 }
 
 MocapAngles angles_from_markers(const MarkerTrack& track, const std::string& file) {
+  // Markers by name; a name as Vicon and QTM label them for a subject ("P01:hand_top") or in
+  // capitals ("Hand_Top") is the marker set's name too (an exact name first).
   std::map<std::string, int> idx;
-  for (size_t k = 0; k < track.names.size(); ++k) idx[track.names[k]] = static_cast<int>(k);
+  for (size_t k = 0; k < track.names.size(); ++k) idx.emplace(track.names[k], static_cast<int>(k));
+  for (size_t k = 0; k < track.names.size(); ++k) {
+    std::string plain = track.names[k].substr(track.names[k].find_last_of(':') + 1);
+    std::transform(plain.begin(), plain.end(), plain.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    idx.emplace(plain, static_cast<int>(k));
+  }
   for (const char* need : {"hand_top", "hand_left", "hand_right"})
     if (!idx.count(need))
       throw InputError(file, std::string("no marker '") + need +
