@@ -1,6 +1,7 @@
 // The skeleton, the posture solver, calibration and motion capture (thesis chapter 3).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 
@@ -366,6 +367,14 @@ TEST(Calibrate, TooShortRaggedOrBadTablesAreErrors) {
   EXPECT_NE(input_error_of([&] { parse_angle_table("index.mcp.flex,I2.flex\n", "d.csv"); }).find("twice"), std::string::npos);
   EXPECT_NE(input_error_of([&] { parse_angle_table("knuckle\n", "k.csv"); }).find("knuckle"), std::string::npos);
   EXPECT_NE(input_error_of([&] { parse_angle_table("I2.flex\n1e300\n", "h.csv"); }).find("plausible"), std::string::npos);
+  // A recording in radians (every angle within ±π) is refused naming the file; in degrees it calibrates.
+  AngleTable rad = planted(600, 3);
+  for (auto& row : rad.rows)
+    for (double& v : row) v *= M_PI / 180;
+  const std::string why = input_error_of([&] { calibrate(rad, CalibrationOptions{}, "glove.csv", nullptr); });
+  EXPECT_EQ(why.rfind("glove.csv", 0), 0u) << why;
+  EXPECT_NE(why.find("radians?"), std::string::npos) << why;
+  EXPECT_NO_THROW(calibrate(planted(600, 3), CalibrationOptions{}, "glove.csv", nullptr));
   const AngleTable t = parse_angle_table("I2.flex,I3.flex\n1,\n,2\n", "ok.csv");
   ASSERT_EQ(t.rows.size(), 2u);
   EXPECT_TRUE(std::isnan(t.rows[0][1]));

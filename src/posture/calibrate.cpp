@@ -666,6 +666,19 @@ PostureModel calibrate(const std::vector<AngleTable>& tables, const std::vector<
   std::string err;
   if (!o.IsValid(&err)) throw InputError("calibration options", err);
   HS_CHECK(!tables.empty() && tables.size() == files.size(), "calibrate needs one name per table");
+  // Angles are in degrees. A recording whose every angle lies within ±π over many rows is in
+  // radians (a hand that moves no joint by more than 3° gives nothing to calibrate either):
+  // taken as degrees it would calibrate a hand that barely moves, and every solve would be wrong.
+  for (size_t r = 0; r < tables.size(); ++r) {
+    double largest = 0;
+    size_t values = 0;
+    for (const auto& row : tables[r].rows)
+      for (double v : row)
+        if (std::isfinite(v)) largest = std::max(largest, std::abs(v)), ++values;
+    if (tables[r].rows.size() >= static_cast<size_t>(std::max<long>(o.min_rows, 20)) && values > 0 && largest <= M_PI + 1e-9)
+      throw InputError(files[r], "every angle lies within ±π (the largest is " + std::to_string(largest) +
+                                     "): radians? Joint-angle tables are in degrees (multiply by 57.2958)");
+  }
   std::vector<int> rec;
   const AngleTable all = merged(tables, &rec);
   std::string label = files[0];
