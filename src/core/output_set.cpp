@@ -273,6 +273,7 @@ void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<
   // --- the signal handlers clean up what the claim made from now on ---
   const std::string lock = (out / kLockName).string();
   if (signals_) {
+    slot_ = 0;
     while (g_slots[slot_].active) ++slot_;  // a free one: fewer than kMaxSlots are in use
     SignalSlot& g = g_slots[slot_];
     g.path_count = 0;
@@ -289,7 +290,7 @@ void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<
     const int fd = ::open(lock.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (fd < 0) {
       const std::string why = std::strerror(errno);
-      if (signals_) g_slots[slot_].lock[0] = 0;
+      if (slot_ >= 0) g_slots[slot_].lock[0] = 0;
       discard();
       throw InputError(out_dir_, "cannot lock: " + why);
     }
@@ -297,7 +298,7 @@ void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<
       char pid[32] = {0};
       const ssize_t n = ::pread(fd, pid, sizeof pid - 1, 0);
       ::close(fd);
-      if (signals_) g_slots[slot_].lock[0] = 0;  // not ours to remove
+      if (slot_ >= 0) g_slots[slot_].lock[0] = 0;  // not ours to remove
       discard();
       throw InputError(out_dir_, std::string("another handskin command") +
                                      (n > 0 ? " (pid " + std::string(pid, static_cast<size_t>(n)) + ")" : "") +
@@ -317,7 +318,7 @@ void OutputSet::claim(const std::vector<std::string>& writes, const std::vector<
     }
   }
   if (lock_fd_ < 0) {
-    if (signals_) g_slots[slot_].lock[0] = 0;
+    if (slot_ >= 0) g_slots[slot_].lock[0] = 0;
     discard();
     throw InputError(out_dir_, "cannot lock: the lock file keeps changing");
   }
@@ -379,7 +380,7 @@ std::string OutputSet::stage(const std::string& name) {
   if (fault("stage", n)) throw InputError(final_path(name), "cannot write: injected fault (HANDSKIN_FAULT)");
   const std::string path = (fs::path(staging_) / name).string();
   for (const std::string& q : {path, temp_name_for(path)}) {
-    if (!signals_) break;
+    if (slot_ < 0) break;
     SignalSlot& g = g_slots[slot_];
     HS_CHECK(g.path_count < kMaxPaths, "too many outputs in one set");
     copy_path(g.paths[g.path_count], q);
@@ -403,7 +404,7 @@ void OutputSet::ensure_staging() {
     throw InputError(out_dir_, "cannot write: cannot create a staging folder in '" + parent.string() + "'" +
                                    (ec ? ": " + ec.message() : std::string()));
   }
-  if (signals_) copy_path(g_slots[slot_].staging, staging_);
+  if (slot_ >= 0) copy_path(g_slots[slot_].staging, staging_);
 }
 
 std::string OutputSet::staged_path(const std::string& name) const {
@@ -420,8 +421,9 @@ void OutputSet::release() noexcept {
     ::close(lock_fd_);
     lock_fd_ = -1;
   }
-  if (signals_ && g_slots[slot_].active) {
+  if (slot_ >= 0) {  // the set holds a slot of the handlers' storage (and none other's)
     SignalSlot& g = g_slots[slot_];
+    slot_ = -1;
     g.active = 0;
     g.lock[0] = 0;
     g.staging[0] = 0;

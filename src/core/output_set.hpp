@@ -123,7 +123,7 @@ class OutputSet {
   int lock_fd_ = -1;
   bool claimed_done_ = false, committed_ = false;
   bool signals_;  ///< options_.signal_cleanup: this set registers with the signal handlers
-  int slot_ = 0;  ///< its place in the handlers' fixed storage (while it holds one)
+  int slot_ = -1;  ///< its place in the handlers' fixed storage while it holds one (from the claim to the release)
 };
 
 /// Single output files that the user names (`render --out picture.png`, `model --out
