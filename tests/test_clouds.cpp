@@ -418,6 +418,24 @@ TEST(Cli, RunOnACloudFromAnyScanner) {
   for (const char* f : {"skin.ply", "merged.ply", "patches.json", "skin.glb"})
     EXPECT_EQ(read_file(d + "/halves/" + f), read_file(d + "/halves1/" + f)) << f;
   EXPECT_EQ(load_json_object(d + "/halves1/registration.json")["back_to_palm"], reg["back_to_palm"]);
+  // A rig labelled with another frame than "palm" (as `synth hand` labels its rig "hand") with
+  // a cloud in the rig's frame (here the fixture's true skin's vertices): a cloud's rig is in
+  // the cloud's frame whatever its label (until 2026-11-30 refused, and clouds.md's example
+  // with it); with a scan pair it is refused, naming the palm frame.
+  std::string rig_text = read_file(kFix + "rig.json");
+  rig_text.replace(rig_text.find("\"palm\""), 6, "\"hand\"");
+  test::write_text(d + "/rig_hand.json", rig_text);
+  ASSERT_EQ(test::run(kBin + " -q run --cloud " + kFix + "truth_skin.ply --rig " + d + "/rig_hand.json --out " + d + "/given",
+                      &out),
+            0)
+      << out;
+  EXPECT_EQ(load_json_object(d + "/given/report.json")["stages"][1]["skeleton"]["used"], "given");
+  EXPECT_EQ(test::run(kBin + " -q run --back " + kFix + "back --palm " + kFix + "palm --rig " + d + "/rig_hand.json --out " +
+                          d + "/pair",
+                      &out),
+            1)
+      << out;
+  EXPECT_NE(out.find("the skin needs joints in the palm frame"), std::string::npos) << out;
   // Three clouds are a usage error.
   EXPECT_EQ(test::run(kBin + " -q run --cloud " + d + "/in/a.ply --cloud " + d + "/in/b.ply --cloud " + d +
                           "/in/a.ply --out " + d + "/three",

@@ -144,7 +144,10 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   }
   SkinStageInputs si;
   if (!in.rig_path.empty()) {
-    si.rig = load_palm_rig(in.rig_path);
+    // A cloud's rig is in the cloud's own frame, whatever its `frame` label says (a `synth
+    // hand` rig, "hand", serves a cloud sampled from its hand.ply); whether it fits the cloud
+    // is checked against the cloud (skin stage). A scan pair's is in the palm scan's frame.
+    si.rig = clouds ? load_rig(in.rig_path) : load_palm_rig(in.rig_path);
     si.rig_name = in.rig_path;
   }
   std::optional<TruthSkin> truth;

@@ -62,7 +62,9 @@ std::string mm(double v) { return std::to_string(v).substr(0, std::to_string(v).
 Rig load_palm_rig(const std::string& path) {
   Rig rig = load_rig(path);
   if (rig.frame != "palm")
-    throw InputError(path, "key 'frame' is \"" + rig.frame + "\"; the skin needs joints in the palm frame");
+    throw InputError(path, "key 'frame' is \"" + rig.frame +
+                               "\"; the skin needs joints in the palm frame (the palm scan's, as `synth scan` writes "
+                               "rig.json; a rig in a cloud's own frame goes with `run --cloud`)");
   return rig;
 }
 
