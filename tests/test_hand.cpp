@@ -13,6 +13,7 @@
 #include "core/transform.hpp"
 #include "synth/hand_mesher.hpp"
 #include "synth/hand_model.hpp"
+#include "synth/cloud_sim.hpp"
 #include "synth/replica.hpp"
 #include "test_util.hpp"
 
@@ -220,3 +221,31 @@ TEST(ScanPair, FixtureTruthFile) {
   const Mesh skin = load_mesh(dir + "truth_skin.ply");
   EXPECT_TRUE(mesh_health(skin).closed());
 }
+
+namespace handskin {
+namespace {
+// A mesh and a rig a scanner may not take: in metres (refused with the unit named), or the rig
+// of another frame (before: synth cloud wrote a cloud with a rig beside it, exit 0; synth scan
+// said it could not place the markers).
+TEST(ScanPair, AMeshAndRigInMetresOrInTwoFramesAreRefused) {
+  const std::string dir = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
+  const Mesh skin = load_mesh(dir + "truth_skin.ply");
+  const Rig rig = load_rig(dir + "rig.json");
+  EXPECT_NO_THROW(check_hand_and_rig(skin, rig));
+  Mesh metres = skin;
+  for (auto& v : metres.vertices) v *= 1e-3;
+  Rig rig_m = rig;
+  for (auto& j : rig_m.joints) j *= 1e-3;
+  const std::string m = test::input_error_of([&] { simulate_cloud(metres, rig_m, CloudSimOptions{}, 1); });
+  EXPECT_NE(m.find("--rig: its wrist lies 0.1"), std::string::npos) << m;
+  EXPECT_NE(m.find("in metres?"), std::string::npos) << m;
+  Rig shifted = rig;
+  for (auto& j : shifted.joints) j.x() += 100;
+  const std::string f = test::input_error_of([&] { simulate_cloud(skin, shifted, CloudSimOptions{}, 1); });
+  EXPECT_NE(f.find("not in one frame or one unit"), std::string::npos) << f;
+  EXPECT_NE(test::input_error_of([&] { synthesize_scan_pair(skin, shifted, ReplicaOptions{}, ScannerOptions{}, 1, false); })
+                .find("not in one frame"),
+            std::string::npos);
+}
+}  // namespace
+}  // namespace handskin

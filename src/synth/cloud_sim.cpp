@@ -7,6 +7,7 @@
 #include "core/errors.hpp"
 #include "core/random.hpp"
 #include "mesh/triangle_tree.hpp"
+#include "synth/replica.hpp"
 
 namespace handskin {
 
@@ -68,6 +69,7 @@ struct Hit {
 CloudSim simulate_cloud(const Mesh& hand, const Rig& rig, const CloudSimOptions& o, std::uint64_t seed) {
   std::string err;
   if (!o.IsValid(&err)) throw InputError("synth cloud options", err);
+  check_hand_and_rig(hand, rig);
   Rng rng(seed);
   const Eigen::Isometry3d T_hand_rig = hand_frame_from_rig(rig);
   std::vector<Eigen::Vector3d> v = hand.vertices;

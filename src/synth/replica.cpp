@@ -12,6 +12,7 @@
 #include <CGAL/Polygon_mesh_processing/triangulate_faces.h>
 #include <CGAL/Surface_mesh.h>
 
+#include "core/dof.hpp"
 #include "core/errors.hpp"
 #include "mesh/from_cgal.hpp"
 #include "mesh/triangle_tree.hpp"
@@ -357,8 +358,44 @@ Eigen::Isometry3d place_on_table(const std::vector<Eigen::Vector3d>& hv, const s
 
 }  // namespace
 
+namespace {
+template <typename... Args>
+std::string format(const char* f, Args... args) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, f, args...);
+  return buf;
+}
+}  // namespace
+
+void check_hand_and_rig(const Mesh& hand, const Rig& rig) {
+  if (hand.vertices.empty() || hand.faces.empty()) throw InputError("--mesh", "the hand mesh has no faces");
+  const Eigen::Vector3d wrist = rig.joints[joint_index("wrist").value()];
+  const double length = (rig.joints[joint_index("middle-finger-tip").value()] - wrist).norm();
+  constexpr double kShortest = 80, kLongest = 450;
+  if (!(length >= kShortest && length <= kLongest)) {
+    std::string hint;
+    for (const auto& [unit, per_mm] : {std::pair<const char*, double>{"metres", 1000}, {"centimetres", 10}, {"inches", 25.4}})
+      if (hint.empty() && length * per_mm >= kShortest && length * per_mm <= kLongest)
+        hint = std::string("; in ") + unit + "? scale the mesh and the rig to mm (by " + format("%g", per_mm) + ")";
+    throw InputError("--rig", format("its wrist lies %.4g mm from the middle fingertip: not a hand in mm (%g-%g mm)", length,
+                                  kShortest, kLongest) +
+                                  hint);
+  }
+  Eigen::AlignedBox3d box;
+  for (const auto& v : hand.vertices) box.extend(v);
+  const double margin = std::max(10.0, 0.05 * length);
+  box.min().array() -= margin, box.max().array() += margin;
+  for (size_t j = 0; j < rig.joints.size(); ++j)
+    if (!box.contains(rig.joints[j]))
+      throw InputError("--rig", "joint '" + std::string(joints()[j].name) +
+                                    format("' lies %.0f mm outside the mesh's bounding box (widened by %.0f mm): the "
+                                        "mesh and the rig are not in one frame or one unit",
+                                        box.exteriorDistance(rig.joints[j]), margin));
+}
+
 ScanPair synthesize_scan_pair(const Mesh& hand_in, const Rig& rig_in, const ReplicaOptions& ro,
                               const ScannerOptions& so, std::uint64_t seed, bool verbose) {
+  check_hand_and_rig(hand_in, rig_in);
   std::string err;
   if (!ro.IsValid(&err)) throw InputError("replica options", err);
   if (!so.IsValid(&err)) throw InputError("scanner options", err);

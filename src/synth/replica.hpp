@@ -48,6 +48,14 @@ struct ScanPair {
   int placement_attempts = 0;
 };
 
+/// A hand mesh and its rig that a scanner may take: a hand's size in mm (wrist to middle
+/// fingertip 80–450 mm; a hint names the unit it looks like otherwise) and every joint within
+/// the mesh's bounding box (widened by the larger of 10 mm and 5 % of the hand's length): one
+/// frame and one unit. InputError naming --rig or --mesh otherwise (synth scan and synth
+/// cloud: a mesh in metres, or a rig of another frame, made garbage scans or a failure to
+/// place the markers).
+void check_hand_and_rig(const Mesh& hand, const Rig& rig);
+
 /// Build the replica from `hand` + `rig` (same frame), place it twice on the table (back up,
 /// then turned over about its long axis) with random yaw and shift, and scan both sides.
 /// Every marker is visible in both scans (placements are redrawn until so, or InputError).
