@@ -652,6 +652,30 @@ TEST(Trust, ASignalLeavesEveryFolderOfAManyFolderCommandAsItWas) {
   }
 }
 
+// A write that the system refuses (here the file-size limit, as a full disk would: ENOSPC,
+// EFBIG) names the output the user asked for and the system's cause — not handskin's staging
+// folder (it said "/tmp/.handskin-staging-out-4711/merged.ply: write failed (disk full?)") —
+// and leaves nothing: the folder not made, no staging left.
+TEST(Trust, AFailedWriteNamesTheOutputAndItsCause) {
+  const std::string root = test::temp_dir("write-fails");
+  std::string out;
+  const std::string limit = "trap '' XFSZ; ulimit -f 200; ";  // 200 kB: merged.ply (3 MB) fails
+  EXPECT_EQ(test::run("bash -c \"" + limit + kBin + " -q register --back " + kFix + "back --palm " + kFix + "palm --out " +
+                          root + "/out\"",
+                      &out),
+            1);
+  EXPECT_EQ(out, "error: " + root + "/out/merged.ply: write failed: File too large\n");
+  EXPECT_FALSE(fs::exists(root + "/out"));
+  // A single output file, staged inside its folder.
+  const std::string glb = test::default_fixture_run() + "/skin.glb";
+  EXPECT_EQ(test::run("cd " + root + " && bash -c \"trap '' XFSZ; ulimit -f 20; " + kBin + " -q render --mesh " + glb +
+                          " --size 1200 --out picture.png\"",
+                      &out),
+            1);
+  EXPECT_EQ(out.rfind("error: picture.png: write failed: File too large", 0), 0u) << out;
+  EXPECT_TRUE(fs::is_empty(root));
+}
+
 TEST(Trust, OutputFilesUnit) {
   const std::string a = test::temp_dir("files-a"), b = test::temp_dir("files-b");
   {

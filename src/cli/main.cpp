@@ -12,6 +12,7 @@
 #include "cli/commands.hpp"
 #include "cli/huge_pages.hpp"
 #include "core/errors.hpp"
+#include "core/output_set.hpp"
 #include "core/threads.hpp"
 #include "scan/cloud.hpp"
 
@@ -134,7 +135,8 @@ int main(int argc, char** argv) {
   } catch (const UsageError& e) {
     return fail(command, std::string(e.what()) + " (see --help)", 2);
   } catch (const InputError& e) {
-    return fail(command, e.what(), 1);
+    // A failed write names the output the user asked for, not the staging folder it went to.
+    return fail(command, InputError(as_output_path(e.where()), e.detail()).what(), 1);
   } catch (const GateFailure& e) {
     return fail(command, e.what(), 3);
   } catch (const std::exception& e) {

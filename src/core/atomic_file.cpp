@@ -56,9 +56,13 @@ void write_file_atomic(const std::string& path, const std::string& bytes) {
       const int cause = errno;
       throw InputError(path, std::string("cannot open for writing: ") + std::strerror(cause));
     }
+    errno = 0;
     out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
     out.flush();
-    if (!out) throw InputError(path, "write failed (disk full?)");
+    if (!out) {  // the system's cause when the stream's write call left one (ENOSPC, EFBIG, EIO)
+      const int cause = errno;
+      throw InputError(path, cause ? std::string("write failed: ") + std::strerror(cause) : std::string("write failed (disk full?)"));
+    }
   });
 }
 

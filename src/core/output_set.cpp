@@ -6,6 +6,7 @@
 #include <cerrno>
 #include <chrono>
 #include <csignal>
+#include <mutex>
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
@@ -88,6 +89,14 @@ void hold_signals() { g_committing = g_committing + 1; }
 void release_signals() {
   g_committing = g_committing - 1;
   if (g_committing == 0 && g_pending) std::raise(g_pending);
+}
+
+// Every staging folder made in this process and the output folder it stands for (never
+// forgotten: an error is printed after its set is gone), for as_output_path.
+std::mutex g_staging_mutex;
+std::vector<std::pair<std::string, std::string>>& staging_folders() {
+  static std::vector<std::pair<std::string, std::string>> v;
+  return v;
 }
 
 // HANDSKIN_FAULT=<kind>:<n> (tests only; see the header).
@@ -405,6 +414,24 @@ void OutputSet::ensure_staging() {
                                    (ec ? ": " + ec.message() : std::string()));
   }
   if (slot_ >= 0) copy_path(g_slots[slot_].staging, staging_);
+  const std::lock_guard<std::mutex> lock(g_staging_mutex);
+  staging_folders().emplace_back(staging_, out_dir_);
+}
+
+std::string as_output_path(const std::string& path) {
+  const std::lock_guard<std::mutex> lock(g_staging_mutex);
+  for (const auto& [staging, out] : staging_folders()) {
+    if (path.size() <= staging.size() + 1 || path.compare(0, staging.size(), staging) != 0 || path[staging.size()] != '/')
+      continue;
+    std::string name = path.substr(staging.size() + 1);
+    if (name.find('/') != std::string::npos) continue;  // not one of its outputs
+    // A writer's temporary file (atomic_file.cpp's temp_name_for: ".<stem>.tmp<pid><ext>").
+    const std::string tmp = ".tmp" + std::to_string(::getpid());
+    if (const size_t at = name.find(tmp); name.size() > 1 && name[0] == '.' && at != std::string::npos)
+      name = name.substr(1, at - 1) + name.substr(at + tmp.size());
+    return out == "." ? name : (fs::path(out) / name).string();  // a file of the working folder as given
+  }
+  return path;
 }
 
 std::string OutputSet::staged_path(const std::string& name) const {

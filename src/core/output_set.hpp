@@ -43,6 +43,12 @@ namespace handskin {
 
 class InputError;
 
+/// A path inside a staging folder that an OutputSet of this process made, as the output it
+/// stands for (`/out/.handskin-staging-12/skin.ply` and its writer's temporary file →
+/// `/out/skin.ply`); any other path as it is. For error messages: a failed write names the
+/// file the user asked for, not handskin's staging (the CLI's and the Python module's errors).
+std::string as_output_path(const std::string& path);
+
 /// The manifest's name in an output folder.
 inline constexpr const char* kManifestName = ".handskin-manifest.json";
 /// The lock's name in an output folder.

@@ -17,6 +17,7 @@
 
 #include "core/dof.hpp"
 #include "core/errors.hpp"
+#include "core/output_set.hpp"
 #include "core/rig.hpp"
 #include "mesh/mesh.hpp"
 #include "pipeline/mesh_files.hpp"
@@ -387,7 +388,7 @@ void translate(std::exception_ptr p) {
              starts("cannot lock") || starts("cannot move") || starts("is not writable") || starts("is in the way") ||
              starts("write failed") || starts("exists and is not a folder") || starts("another handskin command"))
       type = PyExc_OSError;
-    PyErr_SetString(type, e.what());
+    PyErr_SetString(type, InputError(as_output_path(e.where()), d).what());  // the output, not its staging
   } catch (const GateFailure& e) {
     PyErr_SetString(g_gate_failure, e.what());
   }
