@@ -415,7 +415,8 @@ void OutputSet::ensure_staging() {
   }
   if (slot_ >= 0) copy_path(g_slots[slot_].staging, staging_);
   const std::lock_guard<std::mutex> lock(g_staging_mutex);
-  staging_folders().emplace_back(staging_, out_dir_);
+  auto& known = staging_folders();  // (a host process writing one folder again and again: once)
+  if (std::find(known.begin(), known.end(), std::pair{staging_, out_dir_}) == known.end()) known.emplace_back(staging_, out_dir_);
 }
 
 std::string as_output_path(const std::string& path) {
