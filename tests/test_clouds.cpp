@@ -133,6 +133,48 @@ TEST(CloudFile, ReadsEveryFormatAndScalesUnits) {
   EXPECT_FALSE(parse_length_unit("furlong"));
 }
 
+// A mesh given as a cloud whose vertices lie sparser than a scanner's points: its surface
+// sampled in their place (area-uniform, 0.5 mm, the same points every time), with its faces
+// read from a PLY too; a mesh as dense as a scan, and a cloud, are left as they are.
+TEST(CloudFile, ASparseMeshIsSampledLikeAScanAndADenseOneIsNot) {
+  const std::string d = test::temp_dir("sparse-mesh");
+  // A 40 x 20 mm rectangle of two triangles (edges 20-45 mm), as OFF and as PLY with faces.
+  test::write_text(d + "/r.off", "OFF\n4 2 0\n0 0 0\n40 0 0\n40 20 0\n0 20 0\n3 0 1 2\n3 0 2 3\n");
+  test::write_text(d + "/r.ply", "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                                 "element face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n40 0 0\n40 20 0\n"
+                                 "0 20 0\n3 0 1 2\n3 0 2 3\n");
+  for (const char* f : {"r.off", "r.ply"}) {
+    SCOPED_TRACE(f);
+    PointCloudFile m = read_point_cloud(d + "/" + f);
+    ASSERT_EQ(m.points.size(), 4u);
+    ASSERT_EQ(m.faces.size(), 2u);
+    EXPECT_EQ(sample_sparse_mesh(&m), 3200u);  // 800 mm² at one point per 0.25 mm²
+    ASSERT_EQ(m.points.size(), 3200u);
+    EXPECT_TRUE(m.faces.empty());
+    size_t left = 0;
+    for (const auto& p : m.points) {
+      EXPECT_TRUE(p.x() >= 0 && p.x() <= 40 && p.y() >= 0 && p.y() <= 20 && p.z() == 0) << p.transpose();
+      left += p.x() < 20;
+    }
+    EXPECT_NEAR(static_cast<double>(left) / 3200, 0.5, 0.05);  // area-uniform
+    PointCloudFile again = read_point_cloud(d + "/" + f);
+    sample_sparse_mesh(&again);
+    EXPECT_EQ(again.points, m.points);  // deterministic
+  }
+  // The same rectangle in metres is sampled in mm (0.04 x 0.02 m: 3200 points again).
+  test::write_text(d + "/m.off", "OFF\n4 2 0\n0 0 0\n0.04 0 0\n0.04 0.02 0\n0 0.02 0\n3 0 1 2\n3 0 2 3\n");
+  PointCloudFile metres = read_point_cloud(d + "/m.off", LengthUnit::Metre);
+  EXPECT_EQ(sample_sparse_mesh(&metres), 3200u);
+  // Dense (a 0.5 mm square: its edges' mean 0.57 mm) is left as it is, as is a cloud.
+  test::write_text(d + "/s.off", "OFF\n4 2 0\n0 0 0\n0.5 0 0\n0.5 0.5 0\n0 0.5 0\n3 0 1 2\n3 0 2 3\n");
+  PointCloudFile dense = read_point_cloud(d + "/s.off");
+  EXPECT_EQ(sample_sparse_mesh(&dense), 0u);
+  EXPECT_EQ(dense.points.size(), 4u);
+  test::write_text(d + "/c.xyz", "0 0 0\n40 0 0\n40 20 0\n");
+  PointCloudFile cloud = read_point_cloud(d + "/c.xyz");
+  EXPECT_EQ(sample_sparse_mesh(&cloud), 0u);
+}
+
 TEST(CloudFile, BadFilesGetOneLineErrorsNamingThem) {
   const std::string d = test::temp_dir("cloudbad");
   const auto err = [](const std::string& path) {
@@ -436,6 +478,13 @@ TEST(Cli, RunOnACloudFromAnyScanner) {
             1)
       << out;
   EXPECT_NE(out.find("the skin needs joints in the palm frame"), std::string::npos) << out;
+  // The hand's own mesh (a mesher's ~1.6 mm facets, ~22 000 vertices) as the cloud, nothing
+  // else given: its surface sampled as a scan's (before: "found 0 digits beyond the palm").
+  ASSERT_EQ(test::run(kBin + " -q run --cloud " + d + "/hand/hand.ply --out " + d + "/mesh", &out), 0) << out;
+  const Json mr = load_json_object(d + "/mesh/report.json");
+  EXPECT_GT(mr["stages"][0]["files"][0]["surface_samples"].get<size_t>(), 100000u);
+  EXPECT_GT(mr["stages"][0]["files"][0]["faces"].get<size_t>(), 10000u);
+  EXPECT_EQ(mr["stages"][1]["skeleton"]["used"], "automatic");
   // Three clouds are a usage error.
   EXPECT_EQ(test::run(kBin + " -q run --cloud " + d + "/in/a.ply --cloud " + d + "/in/b.ply --cloud " + d +
                           "/in/a.ply --out " + d + "/three",

@@ -192,8 +192,12 @@ CloudStageResult run_cloud_stage(const CloudStageInputs& in, const std::function
     progress("reading " + file);
     read.push_back(read_point_cloud(file, in.units));
     make_normals_unit(&read.back());
+    const size_t vertices = read.back().points.size(), faces = read.back().faces.size();
+    const size_t sampled = sample_sparse_mesh(&read.back());  // a coarse mesh's surface, as a scanner would see it
+    if (sampled) progress(file + ": a mesh of " + std::to_string(vertices) + " vertices, sparser than a scanner's points: its surface sampled, " +
+                          std::to_string(sampled) + " points in their place");
     const PointCloudFile& f = read.back();
-    r.files.push_back({f.path, f.format, f.points.size(), f.no_return, !f.normals.empty()});
+    r.files.push_back({f.path, f.format, vertices, f.no_return, !f.normals.empty(), faces, sampled});
   }
   const PointCloudFile f = read.size() == 2 ? register_halves(read[0], read[1], in, &r, progress) : std::move(read[0]);
   const std::string& file = in.files.back();
@@ -238,7 +242,7 @@ Json to_json(const CloudStageResult& r) {
   Json files = Json::array();
   for (const auto& f : r.files)
     files.push_back({{"path", f.path}, {"format", f.format}, {"points", f.points}, {"no_return", f.no_return},
-                     {"normals", f.normals}});
+                     {"normals", f.normals}, {"faces", f.faces}, {"surface_samples", f.surface_samples}});
   size_t back = 0;
   for (auto s : r.sides) back += s == 1;
   Json j = {{"name", "cloud"},

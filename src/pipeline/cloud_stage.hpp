@@ -48,6 +48,8 @@ struct CloudFileFigures {
   std::string path, format;
   size_t points = 0, no_return = 0;
   bool normals = false;
+  size_t faces = 0;            ///< a mesh's triangles (0: a cloud)
+  size_t surface_samples = 0;  ///< points sampled on a sparse mesh's surface (sample_sparse_mesh)
 };
 
 /// Two halves' registration: the fit and what each half's cleaning kept.
