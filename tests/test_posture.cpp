@@ -4,7 +4,9 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <sstream>
 
+#include "core/atomic_file.hpp"
 #include "core/errors.hpp"
 #include "core/random.hpp"
 #include "posture/calibrate.hpp"
@@ -487,6 +489,39 @@ TEST(Mocap, ALeftHandSwappedSideMarkersOrLabelledNamesGiveTheSameAngles) {
       }
     EXPECT_LT(worst, 1e-9);
   }
+}
+
+// A Qualisys export with more columns per marker than X Y Z (QTM's trajectory types: "hand_top
+// Type" after each marker's Z) is read by the column header's names: the same positions as the
+// plain export (before: "'Measured' is not a number").
+TEST(Mocap, AQualisysExportWithTypeColumnsReadsByName) {
+  std::istringstream in(read_file(kMocap));
+  std::string text, line;
+  bool data = false;
+  while (std::getline(in, line)) {
+    std::vector<std::string> cells;
+    std::istringstream row(line);
+    for (std::string c; std::getline(row, c, '\t');) cells.push_back(c);
+    if (!cells.empty() && (cells[0] == "Frame" || (data && cells.size() > 2))) {
+      const bool header = cells[0] == "Frame";
+      data = true;
+      std::string out = cells[0] + "\t" + cells[1];
+      for (size_t c = 2; c + 2 < cells.size(); c += 3)
+        out += "\t" + cells[c] + "\t" + cells[c + 1] + "\t" + cells[c + 2] + "\t" +
+               (header ? cells[c].substr(0, cells[c].size() - 2) + " Type" : std::string("Measured"));
+      text += out + "\n";
+    } else {
+      text += line + "\n";
+    }
+  }
+  const MarkerTrack plain = read_qualisys_tsv(kMocap), typed = parse_qualisys_tsv(text, "typed.tsv");
+  ASSERT_EQ(typed.names, plain.names);
+  ASSERT_EQ(typed.frames.size(), plain.frames.size());
+  for (size_t f = 0; f < plain.frames.size(); ++f)
+    for (size_t m = 0; m < plain.names.size(); ++m) {
+      const Eigen::Vector3d &a = plain.frames[f][m], &b = typed.frames[f][m];
+      ASSERT_TRUE((a.array().isNaN() && b.array().isNaN()).all() || a == b) << f << " " << plain.names[m];
+    }
 }
 
 TEST(Mocap, BadMarkerFilesAreErrors) {

@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cmath>
 #include <cstdlib>
@@ -29,16 +30,18 @@ bool parse_number(const std::string& s, double* v) {
   return *end == '\0';
 }
 
-// Cells [first, first + 3·markers) of a data row as marker positions.
+// Each marker's X, Y, Z cells of a data row: cells [first + 3 m, first + 3 m + 3), or, when
+// `columns` is given, the cells it names per marker.
 // Qualisys writes an unseen marker as 0 0 0 (`zero_is_missing`); TRC leaves the cells empty.
 std::vector<Eigen::Vector3d> read_positions(const std::vector<std::string>& cells, size_t first, size_t markers,
-                                            double scale, bool zero_is_missing, const std::string& where) {
+                                            double scale, bool zero_is_missing, const std::string& where,
+                                            const std::vector<std::array<size_t, 3>>* columns = nullptr) {
   std::vector<Eigen::Vector3d> p(markers, kMissing);
   for (size_t m = 0; m < markers; ++m) {
     double xyz[3] = {0, 0, 0};
     bool ok = true;
     for (int k = 0; k < 3; ++k) {
-      const size_t c = first + 3 * m + k;
+      const size_t c = columns ? (*columns)[m][k] : first + 3 * m + k;
       if (c >= cells.size() || cells[c].empty()) {
         ok = false;
         continue;
@@ -60,6 +63,7 @@ MarkerTrack parse_qualisys_tsv(const std::string& text, const std::string& file)
   std::string line;
   long lineno = 0;
   size_t first = 0;  // column of the first coordinate
+  std::vector<std::array<size_t, 3>> columns;  // per marker its X, Y, Z columns, when not in threes
   long declared_frames = -1;
   bool data = false;
   while (std::getline(in, line)) {
@@ -80,6 +84,17 @@ MarkerTrack parse_qualisys_tsv(const std::string& text, const std::string& file)
       } else if (cells[0] == "Frame") {  // column header of exports with frame and time columns
         first = 2;
         data = true;
+        // Each marker's columns by their names ("hand_top X" …): an export with more columns
+        // per marker (QTM's trajectory types, "hand_top Type") is read by name, not by threes.
+        std::map<std::string, size_t> at;
+        for (size_t c = 0; c < cells.size(); ++c) at.emplace(cells[c], c);
+        std::vector<std::array<size_t, 3>> named;
+        for (const std::string& m : t.names) {
+          const auto x = at.find(m + " X"), y = at.find(m + " Y"), z = at.find(m + " Z");
+          if (x == at.end() || y == at.end() || z == at.end()) break;
+          named.push_back({x->second, y->second, z->second});
+        }
+        if (named.size() == t.names.size() && !named.empty()) columns = std::move(named);
       } else {
         double v;
         if (parse_number(cells[0], &v)) {  // exports without the column header: data starts here
@@ -97,11 +112,12 @@ MarkerTrack parse_qualisys_tsv(const std::string& text, const std::string& file)
     if (t.names.empty()) throw InputError(file, "no MARKER_NAMES line before the data");
     // Qualisys writes every cell of every row (an unseen marker as 0 0 0): a short row is a
     // file cut mid-row, not a frame with markers missing.
-    const size_t expected = first + 3 * t.names.size();
+    size_t expected = first + 3 * t.names.size();
+    for (const auto& m : columns) expected = std::max(expected, m[0] + 1), expected = std::max({expected, m[1] + 1, m[2] + 1});
     if (cells.size() < expected)
       throw InputError(where, "the row has " + std::to_string(cells.size()) + " cells, " + std::to_string(expected) +
                                   " expected (" + std::to_string(t.names.size()) + " markers): the file is cut mid-row?");
-    t.frames.push_back(read_positions(cells, first, t.names.size(), 1.0, true, where));
+    t.frames.push_back(read_positions(cells, first, t.names.size(), 1.0, true, where, columns.empty() ? nullptr : &columns));
   }
   if (t.names.empty()) throw InputError(file, "not a Qualisys TSV export (no MARKER_NAMES line)");
   if (t.frames.empty()) throw InputError(file, "no data rows");
