@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "core/atomic_file.hpp"
+#include "core/dof.hpp"
 #include "core/errors.hpp"
 #include "core/json_util.hpp"
 #include "core/transform.hpp"
@@ -227,7 +228,7 @@ namespace {
 // A mesh and a rig a scanner may not take: in metres (refused with the unit named), or the rig
 // of another frame (before: synth cloud wrote a cloud with a rig beside it, exit 0; synth scan
 // said it could not place the markers).
-TEST(ScanPair, AMeshAndRigInMetresOrInTwoFramesAreRefused) {
+TEST(ScanPair, AMeshAndRigInMetresInTwoFramesOrOpenAreRefused) {
   const std::string dir = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
   const Mesh skin = load_mesh(dir + "truth_skin.ply");
   const Rig rig = load_rig(dir + "rig.json");
@@ -246,6 +247,16 @@ TEST(ScanPair, AMeshAndRigInMetresOrInTwoFramesAreRefused) {
   EXPECT_NE(test::input_error_of([&] { synthesize_scan_pair(skin, shifted, ReplicaOptions{}, ScannerOptions{}, 1, false); })
                 .find("not in one frame"),
             std::string::npos);
+  // An open mesh (its wrist end cut away) is no cast: refused naming it (before: "cannot place
+  // the markers ... with an irregular pattern").
+  Mesh open = skin;
+  const Eigen::Vector3d w = rig.joints[0], axis = (rig.joints[joint_index("middle-finger-tip").value()] - w).normalized();
+  open.faces.clear();
+  for (const auto& f : skin.faces)
+    if ((skin.vertices[f[0]] - w).dot(axis) > -8) open.faces.push_back(f);
+  ASSERT_LT(open.faces.size(), skin.faces.size());
+  const std::string o = test::input_error_of([&] { synthesize_scan_pair(open, rig, ReplicaOptions{}, ScannerOptions{}, 1, false); });
+  EXPECT_NE(o.find("--mesh: not a closed surface"), std::string::npos) << o;
 }
 }  // namespace
 }  // namespace handskin

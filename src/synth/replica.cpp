@@ -396,6 +396,12 @@ void check_hand_and_rig(const Mesh& hand, const Rig& rig) {
 ScanPair synthesize_scan_pair(const Mesh& hand_in, const Rig& rig_in, const ReplicaOptions& ro,
                               const ScannerOptions& so, std::uint64_t seed, bool verbose) {
   check_hand_and_rig(hand_in, rig_in);
+  // The replica is a solid cast: an open mesh (a hole, an open wrist) has no inside to cast, and
+  // its markers were refused as "an irregular pattern" that could not be placed.
+  if (const MeshHealth h = mesh_health(hand_in); !h.closed())
+    throw InputError("--mesh", "not a closed surface (" + std::to_string(h.boundary_edges) +
+                                   " boundary edges): the replica is a solid cast of the hand; close the mesh's holes "
+                                   "(an open wrist too) first");
   std::string err;
   if (!ro.IsValid(&err)) throw InputError("replica options", err);
   if (!so.IsValid(&err)) throw InputError("scanner options", err);
