@@ -700,6 +700,20 @@ TEST(Trust, OutputFilesUnit) {
   EXPECT_NE(test::input_error_of([&] { OutputFiles({a + "/.handskin-manifest.json"}); }).find("bookkeeping"), std::string::npos);
   EXPECT_NE(test::input_error_of([&] { OutputFiles({a + "/none/x.txt"}); }).find("does not exist"), std::string::npos);
   EXPECT_FALSE(fs::exists(a + "/none"));
+  // A file of ours changed during the run in the second folder: the commit refused before it
+  // moves anything in either folder (before: the first folder's file was already in place).
+  const auto before_a = snapshot(a);
+  {
+    OutputFiles files({a + "/x.txt", b + "/y.txt"});
+    write_file_atomic(files.stage(a + "/x.txt"), "x2");
+    write_file_atomic(files.stage(b + "/y.txt"), "y2");
+    test::write_text(b + "/y.txt", "the user's edit");  // during the run
+    const std::string why = test::input_error_of([&] { files.commit(); });
+    EXPECT_NE(why.find(b + "/y.txt: cannot move into place: it was changed during the run"), std::string::npos) << why;
+    EXPECT_EQ(read_file(a + "/x.txt"), "x");
+  }
+  EXPECT_EQ(snapshot(a), before_a);  // nor its lock or staging left
+  EXPECT_EQ(read_file(b + "/y.txt"), "the user's edit");
 }
 
 // `--out ~`: the user's own folder in one they cannot write (/home is root's). The outputs are

@@ -470,6 +470,33 @@ void OutputSet::discard() noexcept {
   created_.clear();
 }
 
+bool OutputSet::ours_unchanged(const std::string& name) const {
+  std::error_code ec;
+  const fs::path dst = fs::path(out_dir_) / name;
+  const auto it = ours_.find(name);
+  if (it == ours_.end() || !fs::is_regular_file(fs::symlink_status(dst, ec))) return false;
+  try {
+    return describe_file(dst.string()) == it->second;
+  } catch (const InputError&) {
+    return false;
+  }
+}
+
+void OutputSet::check_commit() const {
+  HS_CHECK(claimed_done_ && !committed_, "an output set is checked between its claim and its commit");
+  std::error_code ec;
+  const fs::path out(out_dir_);
+  const auto refuse = [&](const std::string& name, const std::string& why) {
+    throw InputError(final_path(name), "cannot move into place: " + why + "; " + out_dir_ + " is as it was");
+  };
+  if (!fs::is_directory(out, ec)) refuse(".", "the output folder is gone");
+  for (const auto& name : names_) {
+    if (!fs::exists(fs::symlink_status(out / name, ec)) || contains(in_the_way_, name)) continue;
+    if (!ours_unchanged(name))
+      refuse(name, ours_.count(name) ? "it was changed during the run" : "it appeared during the run and is not handskin's");
+  }
+}
+
 void OutputSet::commit() {
   HS_CHECK(!committed_, "an output set is committed once");
   HS_CHECK(claimed_done_, "an output set is claimed before it commits");
@@ -522,13 +549,7 @@ void OutputSet::commit() {
     }
     if (!forced) {
       const auto it = ours_.find(name);
-      bool unchanged = false;
-      if (it != ours_.end() && fs::is_regular_file(fs::symlink_status(dst, ec))) {
-        try {
-          unchanged = describe_file(dst.string()) == it->second;
-        } catch (const InputError&) {
-        }
-      }
+      const bool unchanged = ours_unchanged(name);
       if (!unchanged) {
         if (!writing) return;  // not ours (or no longer): left alone (the caller drops it from the manifest)
         fail(name, it == ours_.end() ? "it appeared during the run and is not handskin's"
@@ -677,6 +698,13 @@ void OutputFiles::commit() {
       if (on) release_signals();
     }
   } hold(signal_cleanup_);
+  // Every folder checked first (a file changed or put there during the run, a folder gone):
+  // a refusal then leaves every folder as it was, not the first ones committed.
+  for (size_t k = 0; k < sets_.size(); ++k) try {
+      sets_[k]->check_commit();
+    } catch (const InputError& e) {
+      rethrow_as_given(k, e);
+    }
   for (size_t k = 0; k < sets_.size(); ++k) try {
       sets_[k]->commit();
     } catch (const InputError& e) {

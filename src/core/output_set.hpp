@@ -109,6 +109,11 @@ class OutputSet {
   /// aside into the backup, and write the manifest. Throws InputError naming the file when a
   /// move fails (or a file of ours was changed during the run), after putting everything back.
   void commit();
+  /// What commit would refuse before it moves anything: the output folder gone, a file under
+  /// a staged name that appeared or was changed during the run (not one --force moves aside).
+  /// Throws InputError as commit would; leaves everything as it is. (OutputFiles checks every
+  /// folder's set before committing any.)
+  void check_commit() const;
   /// What commit moved aside (final paths in the backup folder).
   const std::vector<std::string>& moved_aside() const { return moved_aside_; }
 
@@ -117,6 +122,7 @@ class OutputSet {
 
  private:
   void ensure_staging();
+  bool ours_unchanged(const std::string& name) const;  ///< listed at the claim and the same bytes now
   void discard() noexcept;
   void release() noexcept;
   std::string out_dir_, staging_;
