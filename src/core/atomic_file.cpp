@@ -19,6 +19,13 @@ std::string temp_name_for(const std::string& path) {
       .string();
 }
 
+std::string name_of_temp(const std::string& name) {
+  const std::string tmp = ".tmp" + std::to_string(::getpid());
+  const size_t at = name.find(tmp);
+  if (name.size() < 2 || name[0] != '.' || at == std::string::npos) return name;
+  return name.substr(1, at - 1) + name.substr(at + tmp.size());
+}
+
 void write_via_temp(const std::string& path, const std::function<void(const std::string& tmp)>& writer) {
   // The folder is checked first: library writers (PCL, OpenMesh) report a missing folder in
   // their own words, or by an exception of their own type.

@@ -8,6 +8,9 @@ namespace handskin {
 
 /// The temporary name write_via_temp uses for `path`: `.<stem>.tmp<pid><ext>` beside it.
 std::string temp_name_for(const std::string& path);
+/// The file name a temporary's file name stands for (`.skin.tmp4711.ply` → `skin.ply`, for this
+/// process's temporaries); any other name as it is.
+std::string name_of_temp(const std::string& name);
 
 /// Write `bytes` to `path` atomically. Throws InputError naming `path` on failure.
 void write_file_atomic(const std::string& path, const std::string& bytes);

@@ -424,12 +424,8 @@ std::string as_output_path(const std::string& path) {
   for (const auto& [staging, out] : staging_folders()) {
     if (path.size() <= staging.size() + 1 || path.compare(0, staging.size(), staging) != 0 || path[staging.size()] != '/')
       continue;
-    std::string name = path.substr(staging.size() + 1);
+    const std::string name = name_of_temp(path.substr(staging.size() + 1));  // an output, or its writer's temporary
     if (name.find('/') != std::string::npos) continue;  // not one of its outputs
-    // A writer's temporary file (atomic_file.cpp's temp_name_for: ".<stem>.tmp<pid><ext>").
-    const std::string tmp = ".tmp" + std::to_string(::getpid());
-    if (const size_t at = name.find(tmp); name.size() > 1 && name[0] == '.' && at != std::string::npos)
-      name = name.substr(1, at - 1) + name.substr(at + tmp.size());
     return out == "." ? name : (fs::path(out) / name).string();  // a file of the working folder as given
   }
   return path;
@@ -658,7 +654,7 @@ OutputFiles::OutputFiles(const std::vector<std::string>& paths, OutputSetOptions
     if (fresh) folders.push_back(folder), names.emplace_back();
     names[it->second].push_back(name);
     where_[whole] = {it->second, name};
-    given_.emplace_back(path, where_[whole]);
+    given_.push_back(path);
   }
   for (size_t k = 0; k < folders.size(); ++k) {
     OutputSetOptions o = options;
@@ -674,8 +670,9 @@ OutputFiles::OutputFiles(const std::vector<std::string>& paths, OutputSetOptions
 
 void OutputFiles::rethrow_as_given(size_t set, const InputError& e) const {
   // A file named as the user gave it ("picture.png", not "./picture.png").
-  for (const auto& [path, at] : given_)
-    if (at.first == set && e.where() == sets_[set]->final_path(at.second)) throw InputError(path, e.detail());
+  for (const std::string& path : given_)
+    if (const auto& [s, name] = where_.at(whole_path(path)); s == set && e.where() == sets_[set]->final_path(name))
+      throw InputError(path, e.detail());
   throw e;
 }
 

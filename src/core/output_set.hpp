@@ -165,7 +165,7 @@ class OutputFiles {
   std::vector<std::unique_ptr<OutputSet>> sets_;
   [[noreturn]] void rethrow_as_given(size_t set, const InputError& e) const;
   bool signal_cleanup_ = true;  ///< the sets' (every folder's set is cleaned up by a signal)
-  std::vector<std::pair<std::string, std::pair<size_t, std::string>>> given_;  ///< each path as given → (set, name)
+  std::vector<std::string> given_;  ///< the paths as given (their set and name: where_)
   std::map<std::string, std::pair<size_t, std::string>> where_;  ///< path → (set, file name)
 };
 

@@ -113,7 +113,7 @@ MarkerTrack parse_qualisys_tsv(const std::string& text, const std::string& file)
     // Qualisys writes every cell of every row (an unseen marker as 0 0 0): a short row is a
     // file cut mid-row, not a frame with markers missing.
     size_t expected = first + 3 * t.names.size();
-    for (const auto& m : columns) expected = std::max(expected, m[0] + 1), expected = std::max({expected, m[1] + 1, m[2] + 1});
+    for (const auto& m : columns) expected = std::max({expected, m[0] + 1, m[1] + 1, m[2] + 1});
     if (cells.size() < expected)
       throw InputError(where, "the row has " + std::to_string(cells.size()) + " cells, " + std::to_string(expected) +
                                   " expected (" + std::to_string(t.names.size()) + " markers): the file is cut mid-row?");
@@ -255,6 +255,11 @@ MocapAngles angles_from_markers(const MarkerTrack& track, const std::string& fil
   const auto marker = [&](const std::vector<Eigen::Vector3d>& fr, const std::string& n) {
     return has(n) ? fr[idx.at(n)] : Eigen::Vector3d::Constant(kNaN);
   };
+  // The hand's axes from the back's markers: u along the hand, v toward the thumb's side.
+  const auto hand_axes = [](const Eigen::Vector3d& top, const Eigen::Vector3d& thumb_side, const Eigen::Vector3d& other) {
+    const Eigen::Vector3d u = (top - 0.5 * (thumb_side + other)).normalized(), w = thumb_side - other;
+    return std::pair<Eigen::Vector3d, Eigen::Vector3d>{u, (w - w.dot(u) * u).normalized()};
+  };
   const std::string thumb_marker = has("thumb_middle") ? "thumb_middle" : "thumb_tip";
   std::vector<double> nearer_left;
   for (const auto& fr : track.frames) {
@@ -267,8 +272,7 @@ MocapAngles angles_from_markers(const MarkerTrack& track, const std::string& fil
   for (const auto& fr : track.frames) {
     const Eigen::Vector3d top = marker(fr, "hand_top"), l = marker(fr, thumb_side), r = marker(fr, other_side);
     if (!top.allFinite() || !l.allFinite() || !r.allFinite()) continue;
-    const Eigen::Vector3d u = (top - 0.5 * (l + r)).normalized();
-    const Eigen::Vector3d v = ((l - r) - (l - r).dot(u) * u).normalized();
+    const auto [u, v] = hand_axes(top, l, r);
     const Eigen::Vector3d n = u.cross(v);
     double sum = 0;
     int count = 0;
@@ -298,9 +302,7 @@ MocapAngles angles_from_markers(const MarkerTrack& track, const std::string& fil
     const Eigen::Vector3d top = P("hand_top"), left = P(thumb_side), right = P(other_side);
     bool gap = false;
     if (top.allFinite() && left.allFinite() && right.allFinite()) {
-      const Eigen::Vector3d u = (top - 0.5 * (left + right)).normalized();
-      Eigen::Vector3d v = left - right;
-      v = (v - v.dot(u) * u).normalized();
+      const auto [u, v] = hand_axes(top, left, right);
       const Eigen::Vector3d n = left_hand ? v.cross(u) : u.cross(v);
       auto elevation = [&](const Eigen::Vector3d& d) { return std::atan2(-d.dot(n), d.dot(u)) * kDeg; };
       auto lateral = [&](const Eigen::Vector3d& d) { return std::atan2(d.dot(v), d.dot(u)) * kDeg; };

@@ -74,8 +74,7 @@ CloudSim simulate_cloud(const Mesh& hand, const Rig& rig, const CloudSimOptions&
   const Eigen::Isometry3d T_hand_rig = hand_frame_from_rig(rig);
   std::vector<Eigen::Vector3d> v = hand.vertices;
   for (auto& p : v) p = T_hand_rig * p;
-  std::vector<std::array<int, 3>> f = hand.faces;
-  if (v.empty() || f.empty()) throw InputError("--mesh", "the hand mesh has no faces");
+  std::vector<std::array<int, 3>> f = hand.faces;  // (not empty: check_hand_and_rig)
   const std::vector<Eigen::Vector3d> hv = v;
   const size_t hand_faces = f.size();
   if (o.stand) add_stand(hv, o, &v, &f);
