@@ -272,8 +272,8 @@ MocapAngles angles_from_markers(const MarkerTrack& track, const std::string& fil
   for (const auto& fr : track.frames) {
     const Eigen::Vector3d top = marker(fr, "hand_top"), l = marker(fr, thumb_side), r = marker(fr, other_side);
     if (!top.allFinite() || !l.allFinite() || !r.allFinite()) continue;
-    const auto [u, v] = hand_axes(top, l, r);
-    const Eigen::Vector3d n = u.cross(v);
+    const std::pair<Eigen::Vector3d, Eigen::Vector3d> axes = hand_axes(top, l, r);
+    const Eigen::Vector3d n = axes.first.cross(axes.second);
     double sum = 0;
     int count = 0;
     for (const char* m : {"thumb_middle", "thumb_tip", "index_tip", "middle_tip", "ring_tip", "little_tip"})
@@ -302,7 +302,10 @@ MocapAngles angles_from_markers(const MarkerTrack& track, const std::string& fil
     const Eigen::Vector3d top = P("hand_top"), left = P(thumb_side), right = P(other_side);
     bool gap = false;
     if (top.allFinite() && left.allFinite() && right.allFinite()) {
-      const auto [u, v] = hand_axes(top, left, right);
+      // (Named variables, not a structured binding: the lambdas below capture them, which
+      // C++17 allows of variables only — clang refuses a binding.)
+      const std::pair<Eigen::Vector3d, Eigen::Vector3d> axes = hand_axes(top, left, right);
+      const Eigen::Vector3d u = axes.first, v = axes.second;
       const Eigen::Vector3d n = left_hand ? v.cross(u) : u.cross(v);
       auto elevation = [&](const Eigen::Vector3d& d) { return std::atan2(-d.dot(n), d.dot(u)) * kDeg; };
       auto lateral = [&](const Eigen::Vector3d& d) { return std::atan2(d.dot(v), d.dot(u)) * kDeg; };
