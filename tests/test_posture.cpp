@@ -524,6 +524,71 @@ TEST(Mocap, AQualisysExportWithTypeColumnsReadsByName) {
     }
 }
 
+// Each angle is measured wherever its own markers are seen: an occluded fingertip leaves its
+// finger's PIP bend out of that frame, not its MCP flexion; a recording without thumb_tip
+// keeps thumb.cmc.abd (hand_left -> thumb_middle). An angle never measurable is left out and
+// said, not written as an empty column; no hand frame or no angle at all is an error.
+TEST(Mocap, EachAngleNeedsOnlyItsOwnMarkers) {
+  const MarkerTrack full = read_qualisys_tsv(kMocap);
+  const MocapAngles a = angles_from_markers(full, kMocap);
+  auto column = [](const MocapAngles& m, const char* n) {
+    for (size_t k = 0; k < m.table.columns.size(); ++k)
+      if (m.table.columns[k] == D(n)) return static_cast<int>(k);
+    return -1;
+  };
+  auto marker = [](const MarkerTrack& t, const std::string& n) {
+    return static_cast<int>(std::find(t.names.begin(), t.names.end(), n) - t.names.begin());
+  };
+  auto said = [](const MocapAngles& m, const std::string& what) {
+    for (const auto& n : m.notes)
+      if (n.find(what) != std::string::npos) return true;
+    return false;
+  };
+  // A frame where everything is seen; the index tip lost there.
+  size_t f0 = 0;
+  while (std::any_of(a.table.rows[f0].begin(), a.table.rows[f0].end(), [](double v) { return std::isnan(v); })) ++f0;
+  MarkerTrack occluded = full;
+  occluded.frames[f0][marker(full, "index_tip")] = Eigen::Vector3d::Constant(std::nan(""));
+  const MocapAngles b = angles_from_markers(occluded, "occluded");
+  EXPECT_EQ(b.table.rows[f0][column(b, "index.mcp.flex")], a.table.rows[f0][column(a, "index.mcp.flex")]);
+  EXPECT_EQ(b.table.rows[f0][column(b, "index.mcp.abd")], a.table.rows[f0][column(a, "index.mcp.abd")]);
+  EXPECT_TRUE(std::isnan(b.table.rows[f0][column(b, "index.pip.flex")]));
+  EXPECT_EQ(b.frames_with_gaps, a.frames_with_gaps + 1);
+  // No thumb_tip in the file: thumb.cmc.abd stays, the same values.
+  MarkerTrack no_tip = full;
+  const int k = marker(full, "thumb_tip");
+  no_tip.names.erase(no_tip.names.begin() + k);
+  for (auto& fr : no_tip.frames) fr.erase(fr.begin() + k);
+  const MocapAngles c = angles_from_markers(no_tip, "no_tip");
+  ASSERT_GE(column(c, "thumb.cmc.abd"), 0);
+  EXPECT_EQ(column(c, "thumb.mcp.flex"), -1);
+  EXPECT_TRUE(said(c, "thumb.mcp.flex: no marker thumb_tip"));
+  for (size_t r = 0; r < a.table.rows.size(); ++r) {
+    const double x = a.table.rows[r][column(a, "thumb.cmc.abd")], y = c.table.rows[r][column(c, "thumb.cmc.abd")];
+    ASSERT_TRUE(x == y || (std::isnan(x) && (std::isnan(y) || std::isnan(a.table.rows[r][column(a, "thumb.mcp.flex")]))))
+        << r;
+  }
+  // thumb_tip in the file but never seen: left out, said.
+  MarkerTrack unseen = full;
+  for (auto& fr : unseen.frames) fr[k] = Eigen::Vector3d::Constant(std::nan(""));
+  const MocapAngles d = angles_from_markers(unseen, "unseen");
+  EXPECT_EQ(column(d, "thumb.mcp.flex"), -1);
+  EXPECT_EQ(d.table.columns.size(), a.table.columns.size() - 1);
+  EXPECT_TRUE(said(d, "thumb.mcp.flex: its markers (thumb_middle, thumb_tip and the back's three) are never seen"));
+  // The back never seen together, or no digit marker at all: errors naming the file.
+  MarkerTrack no_back = full;
+  for (auto& fr : no_back.frames) fr[marker(full, "hand_top")] = Eigen::Vector3d::Constant(std::nan(""));
+  EXPECT_NE(input_error_of([&] { angles_from_markers(no_back, "noback.tsv"); }).find("never seen in the same frame"),
+            std::string::npos);
+  MarkerTrack back_only;
+  back_only.names = {"hand_top", "hand_left", "hand_right"};
+  for (const auto& fr : full.frames)
+    back_only.frames.push_back({fr[marker(full, "hand_top")], fr[marker(full, "hand_left")], fr[marker(full, "hand_right")]});
+  const std::string e = input_error_of([&] { angles_from_markers(back_only, "back.tsv"); });
+  EXPECT_NE(e.find("back.tsv"), std::string::npos);
+  EXPECT_NE(e.find("no joint angle"), std::string::npos);
+}
+
 TEST(Mocap, BadMarkerFilesAreErrors) {
   const std::string dir = test::temp_dir("mocapbad");
   test::write_text(dir + "/a.tsv", "NO_OF_FRAMES\t3\nMARKER_NAMES\thand_top\n1\t2\t3\n");

@@ -221,25 +221,43 @@ MocapAngles angles_from_markers(const MarkerTrack& track, const std::string& fil
                                  "': the back-of-hand markers hand_top, hand_left, hand_right are needed for a hand frame");
   MocapAngles out;
   auto has = [&](const std::string& n) { return idx.count(n) > 0; };
-  const char* digits[] = {"thumb", "index", "middle", "ring", "little"};
-  std::vector<std::string> cols;
-  for (const char* d : digits) {
-    const std::string s = d;
-    if (!has(s + "_middle") || !has(s + "_tip")) {
-      out.notes.push_back(s + ": markers " + s + "_middle / " + s + "_tip not both present; its angles are left out");
-      continue;
-    }
-    if (s == "thumb") {
-      cols.push_back("thumb.cmc.abd");
-      cols.push_back("thumb.mcp.flex");
+  // Each angle needs only the markers its lines join (besides the back's three): an occluded
+  // fingertip leaves its PIP bend out of that frame, not the MCP flexion and spread beside it
+  // (before, a digit's angles were all or nothing: a recording without thumb_tip lost
+  // thumb.cmc.abd, which hand_left -> thumb_middle gives alone, and every frame that missed a
+  // fingertip lost that finger's MCP angles too).
+  struct Angle {
+    std::string name, digit;
+    std::vector<std::string> needs;  ///< markers besides the back's three
+  };
+  std::vector<Angle> angles;
+  for (const std::string d : {"thumb", "index", "middle", "ring", "little"}) {
+    const std::string mid = d + "_middle", tip = d + "_tip";
+    if (d == "thumb") {
+      angles.push_back({"thumb.cmc.abd", d, {mid}});
+      angles.push_back({"thumb.mcp.flex", d, {mid, tip}});
     } else {
-      cols.push_back(s + ".mcp.flex");
-      cols.push_back(s + ".pip.flex");
-      if (s != "middle" && has("middle_middle")) cols.push_back(s + ".mcp.abd");
-      if (s == "middle") cols.push_back("middle.mcp.abd");
+      angles.push_back({d + ".mcp.flex", d, {mid}});
+      angles.push_back({d + ".pip.flex", d, {mid, tip}});
+      angles.push_back({d + ".mcp.abd", d, d == "middle" ? std::vector<std::string>{mid} : std::vector<std::string>{mid, "middle_middle"}});
     }
   }
-  for (const auto& c : cols) out.table.columns.push_back(dof_index(c).value());
+  std::vector<std::string> cols;
+  std::vector<std::vector<int>> needs;  // per column: the markers' indices
+  for (const Angle& a : angles) {
+    std::vector<std::string> absent;
+    for (const auto& m : a.needs)
+      if (!has(m)) absent.push_back(m);
+    if (!absent.empty()) {
+      std::string list;
+      for (const auto& m : absent) list += (list.empty() ? "" : ", ") + m;
+      out.notes.push_back(a.name + ": no marker " + list + " in the recording; left out");
+      continue;
+    }
+    cols.push_back(a.name);
+    needs.emplace_back();
+    for (const auto& m : a.needs) needs.back().push_back(idx.at(m));
+  }
   // Which back-of-hand marker is on the thumb's side, and which hand it is: from the recording
   // itself, not assumed. The marker set's convention puts hand_left on the thumb's side (as on a
   // right hand seen from above); markers named by the subject's left and right on a left hand
@@ -296,12 +314,13 @@ MocapAngles angles_from_markers(const MarkerTrack& track, const std::string& fil
       "thumb_middle -> thumb_tip (MCP and IP together); thumb.cmc.abd: lateral angle of hand_left -> thumb_middle "
       "from the hand axis. Angles carry marker-placement offsets: calibrate uses them relative to their median");
   constexpr double kDeg = 180.0 / M_PI;
+  size_t frames_with_back = 0;
   for (const auto& fr : track.frames) {
     std::vector<double> row(cols.size(), kNaN);
     auto P = [&](const std::string& n) { return fr[idx.at(n)]; };
     const Eigen::Vector3d top = P("hand_top"), left = P(thumb_side), right = P(other_side);
-    bool gap = false;
     if (top.allFinite() && left.allFinite() && right.allFinite()) {
+      ++frames_with_back;
       // (Named variables, not a structured binding: the lambdas below capture them, which
       // C++17 allows of variables only — clang refuses a binding.)
       const std::pair<Eigen::Vector3d, Eigen::Vector3d> axes = hand_axes(top, left, right);
@@ -309,42 +328,66 @@ MocapAngles angles_from_markers(const MarkerTrack& track, const std::string& fil
       const Eigen::Vector3d n = left_hand ? v.cross(u) : u.cross(v);
       auto elevation = [&](const Eigen::Vector3d& d) { return std::atan2(-d.dot(n), d.dot(u)) * kDeg; };
       auto lateral = [&](const Eigen::Vector3d& d) { return std::atan2(d.dot(v), d.dot(u)) * kDeg; };
-      const bool mid_ok = has("middle_middle") && P("middle_middle").allFinite();
-      const double lat_mid = mid_ok ? lateral(P("middle_middle") - top) : kNaN;
       for (size_t c = 0; c < cols.size(); ++c) {
+        bool seen = true;
+        for (const int m : needs[c]) seen = seen && fr[m].allFinite();
+        if (!seen) continue;
         const std::string& name = cols[c];
         const std::string f = name.substr(0, name.find('.'));
-        const Eigen::Vector3d mid = P(f + "_middle"), tip = P(f + "_tip");
-        if (!mid.allFinite() || !tip.allFinite()) {
-          gap = true;
-          continue;
-        }
+        const Eigen::Vector3d mid = P(f + "_middle");
         if (f == "thumb") {
-          const Eigen::Vector3d p = mid - left, q = tip - mid;
-          row[c] = name == "thumb.mcp.flex" ? std::acos(std::clamp(p.normalized().dot(q.normalized()), -1.0, 1.0)) * kDeg
-                                            : lateral(p);
+          const Eigen::Vector3d p = mid - left;
+          row[c] = name == "thumb.mcp.flex"
+                       ? std::acos(std::clamp(p.normalized().dot((P("thumb_tip") - mid).normalized()), -1.0, 1.0)) * kDeg
+                       : lateral(p);
           continue;
         }
-        const Eigen::Vector3d p = mid - top, q = tip - mid;
+        const Eigen::Vector3d p = mid - top;
         if (name.find(".mcp.flex") != std::string::npos) {
           row[c] = elevation(p);
         } else if (name.find(".pip.flex") != std::string::npos) {
-          row[c] = elevation(q) - elevation(p);
+          row[c] = elevation(P(f + "_tip") - mid) - elevation(p);
         } else if (f == "middle") {
           row[c] = lateral(p);
-        } else if (std::isfinite(lat_mid)) {
-          row[c] = f == "index" ? lateral(p) - lat_mid : lat_mid - lateral(p);
         } else {
-          gap = true;
+          const double lat_mid = lateral(P("middle_middle") - top);
+          row[c] = f == "index" ? lateral(p) - lat_mid : lat_mid - lateral(p);
         }
       }
-    } else {
-      gap = true;
     }
-    out.frames_with_gaps += gap;
     out.table.rows.push_back(std::move(row));
     out.table.lines.push_back(static_cast<long>(out.table.rows.size()));
   }
+  // An angle whose markers were never seen together is left out, said in the notes, not
+  // written as a column of empty cells; a recording that gives no angle at all is an error.
+  if (!track.frames.empty() && frames_with_back == 0)
+    throw InputError(file, "hand_top, hand_left and hand_right are never seen in the same frame: no hand frame, no angles");
+  std::vector<size_t> kept;
+  for (size_t c = 0; c < cols.size(); ++c) {
+    bool any = false;
+    for (const auto& row : out.table.rows) any = any || std::isfinite(row[c]);
+    if (any) {
+      kept.push_back(c);
+    } else {
+      std::string list;
+      for (const int m : needs[c]) list += (list.empty() ? "" : ", ") + track.names[m];
+      out.notes.push_back(cols[c] + ": its markers (" + list + " and the back's three) are never seen together; left out");
+    }
+  }
+  if (kept.empty()) throw InputError(file, "no joint angle can be measured: every digit's markers are missing or never seen");
+  if (kept.size() < cols.size()) {
+    for (auto& row : out.table.rows) {
+      std::vector<double> r;
+      for (const size_t c : kept) r.push_back(row[c]);
+      row = std::move(r);
+    }
+    std::vector<std::string> names;
+    for (const size_t c : kept) names.push_back(cols[c]);
+    cols = std::move(names);
+  }
+  for (const auto& c : cols) out.table.columns.push_back(dof_index(c).value());
+  for (const auto& row : out.table.rows)
+    out.frames_with_gaps += std::any_of(row.begin(), row.end(), [](double v) { return std::isnan(v); });
   return out;
 }
 
