@@ -377,6 +377,20 @@ TEST(Calibrate, TooShortRaggedOrBadTablesAreErrors) {
   EXPECT_EQ(why.rfind("glove.csv", 0), 0u) << why;
   EXPECT_NE(why.find("radians?"), std::string::npos) << why;
   EXPECT_NO_THROW(calibrate(planted(600, 3), CalibrationOptions{}, "glove.csv", nullptr));
+  // A hand held still (every row the same posture) calibrates nothing, by any method: before,
+  // thesis-pairs correlated the columns' rounding and wrote lines with r = ±1.
+  AngleTable still = planted(600, 3);
+  for (auto& row : still.rows) row = still.rows[0];
+  for (const char* method : {"gaussian", "mixture", "thesis-pairs"}) {
+    CalibrationOptions o;
+    o.method = method;
+    EXPECT_NE(input_error_of([&] { calibrate(still, o, "still.csv", nullptr); }).find("nothing to correlate"),
+              std::string::npos) << method;
+    o.pairs = {{still.columns[0], still.columns[1]}};
+    if (o.method == "thesis-pairs")
+      EXPECT_NE(input_error_of([&] { calibrate(still, o, "still.csv", nullptr); }).find("the same value in every row"),
+                std::string::npos);
+  }
   const AngleTable t = parse_angle_table("I2.flex,I3.flex\n1,\n,2\n", "ok.csv");
   ASSERT_EQ(t.rows.size(), 2u);
   EXPECT_TRUE(std::isnan(t.rows[0][1]));

@@ -61,7 +61,16 @@ void common(const Column& a, const Column& b, std::vector<double>* x, std::vecto
     if (std::isfinite(a.v[i]) && std::isfinite(b.v[i])) x->push_back(a.v[i]), y->push_back(b.v[i]);
 }
 
+// Whether the values vary at all (a joint held still gives the same number in every row).
+bool varies(const std::vector<double>& v) {
+  const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
+  return lo != v.end() && *hi - *lo > 1e-9;
+}
+
 double correlation(const std::vector<double>& x, const std::vector<double>& y) {
+  // A constant column correlates with nothing: its deviations from the computed mean are the
+  // mean's rounding, the same in every row, and would give r = ±1 with any other such column.
+  if (!varies(x) || !varies(y)) return 0.0;
   const double n = static_cast<double>(x.size());
   double mx = 0, my = 0;
   for (size_t i = 0; i < x.size(); ++i) mx += x[i], my += y[i];
@@ -161,6 +170,9 @@ std::vector<Fit> fit_pair_lines(Columns& cols, const std::vector<std::pair<int, 
     if (static_cast<long>(x.size()) < o.min_rows)
       throw InputError(file, "pair " + name + ": only " + std::to_string(x.size()) + " rows give both angles (need " +
                                  std::to_string(o.min_rows) + ")");
+    if (!varies(x) || !varies(y))
+      throw InputError(file, "pair " + name + ": " + dofs()[varies(x) ? b : a].name +
+                                 " has the same value in every row that gives both angles: no line to fit");
     // Least-squares line in the sense of the thesis's l_i (the Euclidean distance of a data
     // point to the line): total least squares, the normal is the covariance's minor axis.
     const double n = static_cast<double>(x.size());
@@ -690,7 +702,7 @@ PostureModel calibrate(const std::vector<AngleTable>& tables, const std::vector<
   for (size_t r = 0; r < tables.size(); ++r) recs.push_back({{"file", files[r]}, {"rows", tables[r].rows.size()}});
   rep["recordings"] = recs;
   const PostureSamples s = measured_samples(all, rec, static_cast<int>(tables.size()), m, o, &rep);
-  if (s.dofs.size() < 2 && o.method != "thesis-pairs")
+  if (s.dofs.size() < 2 && (o.method != "thesis-pairs" || o.pairs.empty()))
     throw InputError(label, "fewer than two DOFs have " + std::to_string(o.min_rows) + " or more varying values; nothing to correlate");
 
   std::vector<std::string> skipped;
