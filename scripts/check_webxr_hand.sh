@@ -149,4 +149,55 @@ d="$work/right-thumb-bent-s2"
 "$BIN" -q register --back "$d/back" --palm "$d/palm" --truth "$d/truth.json" --out "$d/reg" >/dev/null
 auto_skin "$d" right-thumb-bent-s2
 check_skin "right-thumb-bent-s2 automatic" "$d/auto/skin_report.json" 0.13 0.40 0.985
+# The profiles' other hand, "generic-fixed-hand" (fixed-right.glb): one posture — fingers
+# flexed, the thumb turned under them — and no joints, given to `run` as a cloud with the
+# skeleton placed automatically, whole (its rounded forearm too) and cut 5 mm beyond the placed
+# wrist (a live hand's scan, the forearm open). Every gate must pass. Before the thumb's base
+# could be turned toward the palm (docs/patches.md, "The layout"): the whole hand's patches
+# passed through themselves at the base (86 pairs of triangles), strayed 4.7 mm from the skin
+# and folded by 34 deg at the middle finger's first row; the cut one folded by 69 deg at the
+# base.
+"$PY" scripts/webxr_hand.py --glb fixtures/webxr-hand/fixed-right.glb --side right --out "$work/fixed" --subdivide 2
+"$PY" - "$work/fixed/hand.ply" "$work/fixed/cut5.ply" <<'PYEOF'
+import sys
+import numpy as np
+lines = open(sys.argv[1]).read().split("\n")
+nv = int(next(l for l in lines if l.startswith("element vertex")).split()[2])
+start = lines.index("end_header") + 1
+V = np.array([[float(x) for x in l.split()] for l in lines[start:start + nv]])
+F = np.array([[int(x) for x in l.split()[1:]] for l in lines[start + nv:] if l.strip()])
+# The hand's axis: the mesh's longest extent; its forearm end the one whose section is roundest
+# (the wrist), found as the end with the smaller spread across. Cut 5 mm in from 25 mm beyond.
+c = V.mean(0)
+w, U = np.linalg.eigh(np.cov((V - c).T))
+ax = U[:, -1]
+t = (V - c) @ ax
+lo, hi = t.min(), t.max()
+spread = lambda m: np.linalg.norm((V[m] - c) - np.outer(t[m], ax), axis=1).std()
+if spread(t < lo + 20) > spread(t > hi - 20):
+    t, lo, hi = -t, -hi, -lo
+keep = t > lo + 15.7  # the rounded end and 5 mm of forearm off (the wrist lies ~20.7 mm in)
+Fk = F[keep[F].all(1)]
+used = np.unique(Fk)
+idx = -np.ones(len(V), int)
+idx[used] = np.arange(len(used))
+with open(sys.argv[2], "w") as f:
+    f.write(f"ply\nformat ascii 1.0\nelement vertex {len(used)}\nproperty double x\nproperty double y\n"
+            f"property double z\nelement face {len(Fk)}\nproperty list uchar int vertex_indices\nend_header\n")
+    for v in V[used]:
+        f.write(f"{v[0]:.6f} {v[1]:.6f} {v[2]:.6f}\n")
+    for tr in idx[Fk]:
+        f.write(f"3 {tr[0]} {tr[1]} {tr[2]}\n")
+PYEOF
+for mesh in hand cut5; do
+  set +e
+  msg=$("$BIN" -q run --cloud "$work/fixed/$mesh.ply" --out "$work/fixed/run-$mesh" 2>&1)
+  rc=$?
+  set -e
+  [ $rc -eq 0 ] || fail "fixed hand ($mesh): exit $rc ($msg)"
+  r="$work/fixed/run-$mesh/report.json"
+  echo "fixed hand ($mesh): gates $(jq_py "$r" "'%d of %d' % (sum(g['pass'] for g in d['gates']), len(d['gates']))"); layouts tried: $(jq_py "$r" "'; '.join('%+d rings %+.0f deg: %d crossing pairs, G1 %.1f deg' % (t['thumb_ring_shift'], t['thumb_turn_deg'], t['crossing_pairs'], t['g1_max_deg']) for t in [s for s in d['stages'] if s['name'] == 'patches'][0]['layout_tries'])")"
+  failed=$(jq_py "$r" "' '.join(g['name'] for g in d['gates'] if not g['pass'])")
+  [ -z "$failed" ] || fail "fixed hand ($mesh): gates failed: $failed"
+done
 echo "check_webxr_hand: ok"

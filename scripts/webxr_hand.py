@@ -9,7 +9,9 @@ beyond the wrist joint) and the 25 WebXR hand joints, whose names are the rig's
 coordinates split its vertices), checks it closed and two-manifold, optionally smooths it by
 Loop subdivision (the asset is low-poly, 2314 triangles with 3-5 mm edges; a plaster cast is
 smooth), scales it to millimetres and writes hand.ply and hand_rig.json (joints from the
-skin's inverse bind matrices, palm_normal out of the back of the hand).
+skin's inverse bind matrices, palm_normal out of the back of the hand). A glTF with no skin
+(profiles/generic-fixed-hand: one posture, no joints) gives hand.ply alone, for `handskin run
+--cloud` with the skeleton placed automatically.
 
     python3 scripts/webxr_hand.py --glb right.glb --side right --out DIR [--subdivide 2]
 """
@@ -170,6 +172,23 @@ def pose(J, frames, sets):
     return T
 
 
+def write_ply(path, V, F, subdivide):
+    """The mesh as an ASCII PLY in mm, its faces turned outward (a positive enclosed volume)."""
+    vol = np.einsum("ij,ij->i", V[F[:, 0]], np.cross(V[F[:, 1]], V[F[:, 2]])).sum() / 6
+    if vol < 0:
+        F = F[:, [0, 2, 1]]
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    with open(path, "w") as f:
+        f.write(f"ply\nformat ascii 1.0\ncomment WebXR Input Profiles generic hand (MIT, Amazon 2019), "
+                f"{subdivide} Loop subdivisions, mm\nelement vertex {len(V)}\nproperty double x\n"
+                f"property double y\nproperty double z\nelement face {len(F)}\nproperty list uchar int vertex_indices\n"
+                "end_header\n")
+        for v in V:
+            f.write(f"{v[0]:.6f} {v[1]:.6f} {v[2]:.6f}\n")
+        for t in F:
+            f.write(f"3 {t[0]} {t[1]} {t[2]}\n")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--glb", required=True)
@@ -202,6 +221,16 @@ def main():
     V, F, first = weld(V, F)
     check_closed(F, a.glb)
     V *= 1000.0  # metres -> mm
+    if not js.get("skins"):
+        # A hand with no skeleton (the profiles' "generic-fixed-hand": one posture, no joints):
+        # the mesh alone, for `run --cloud` with the skeleton placed automatically.
+        if sets:
+            sys.exit(f"{a.glb}: no skin (no joints) to pose with --set")
+        for _ in range(a.subdivide):
+            V, F = loop_subdivide(V, F)
+        write_ply(os.path.join(a.out, "hand.ply"), V, F, a.subdivide)
+        print(f"{len(V)} vertices, {len(F)} triangles, no rig (the asset has no joints)")
+        return
     skin = js["skins"][0]
     ibm = accessor(skin["inverseBindMatrices"]).reshape(-1, 4, 4).transpose(0, 2, 1)
     joints = {}
@@ -245,20 +274,7 @@ def main():
         joints = {name: (T[name][0] @ np.array(p) + T[name][1]).tolist() for name, p in joints.items()}
     for _ in range(a.subdivide):
         V, F = loop_subdivide(V, F)
-    # The enclosed volume must be positive (faces outward).
-    vol = np.einsum("ij,ij->i", V[F[:, 0]], np.cross(V[F[:, 1]], V[F[:, 2]])).sum() / 6
-    if vol < 0:
-        F = F[:, [0, 2, 1]]
-    os.makedirs(a.out, exist_ok=True)
-    with open(os.path.join(a.out, "hand.ply"), "w") as f:
-        f.write(f"ply\nformat ascii 1.0\ncomment WebXR Input Profiles generic hand (MIT, Amazon 2019), "
-                f"{a.subdivide} Loop subdivisions, mm\nelement vertex {len(V)}\nproperty double x\n"
-                f"property double y\nproperty double z\nelement face {len(F)}\nproperty list uchar int vertex_indices\n"
-                "end_header\n")
-        for v in V:
-            f.write(f"{v[0]:.6f} {v[1]:.6f} {v[2]:.6f}\n")
-        for t in F:
-            f.write(f"3 {t[0]} {t[1]} {t[2]}\n")
+    write_ply(os.path.join(a.out, "hand.ply"), V, F, a.subdivide)
     rig = {"format": "hand-rig/1", "units": "mm", "frame": "hand", "joints": joints, "palm_normal": back.tolist()}
     with open(os.path.join(a.out, "hand_rig.json"), "w") as f:
         json.dump(rig, f, indent=2, sort_keys=True)

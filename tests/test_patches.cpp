@@ -647,6 +647,29 @@ TEST(Patches, FollowThePostureAndTheirLayoutComesBack) {
       EXPECT_GT(thumb_moved, 3.0) << shift;  // two of the skin's rings: ~7 mm
       EXPECT_LT(wrist_moved, 1e-9) << shift;
     }
+    // The thumb's base turned round the palm (a thumb grown from the palm's side): its corners
+    // on rings 1 and 2 — on the palm (p0, two of palm.1.palm0's corners) and on the back (b0,
+    // two of thumb.0.back's) — go toward the palm for a positive turn and toward the back for a
+    // negative one; the wrist's and the fingers' corners stay.
+    Eigen::Vector3d back_mean = Eigen::Vector3d::Zero(), palm_mean = Eigen::Vector3d::Zero();
+    double nb = 0, np = 0;
+    for (size_t k = 0; k < m.points.size(); ++k)
+      (m.sides[k] == 1 ? back_mean : palm_mean) += m.points[k], ++(m.sides[k] == 1 ? nb : np);
+    const Eigen::Vector3d dorsal = (back_mean / nb - palm_mean / np).normalized();
+    for (double turn : {20.0, -20.0}) {
+      const PatchLayout L = hand_patch_layout(skin, rig, m.points, m.sides, 0, turn);
+      EXPECT_NO_THROW(layout_topology(L, "turned"));
+      ASSERT_EQ(L.faces.size(), 98u);
+      for (const char* face : {"palm.1.palm0", "thumb.0.back"}) {
+        double toward_back = 0;  // the face's corners' moves along the dorsal axis, summed
+        for (int k = 0; k < 4; ++k) toward_back += (corner(L, face, k) - corner(L0, face, k)).dot(dorsal);
+        EXPECT_GT(turn > 0 ? -toward_back : toward_back, 1.0) << turn << " " << face;
+      }
+      double still = 0;
+      for (const char* face : {"wrist.0", "wrist.3", "index.0.palm", "middle.0.back"})
+        for (int k = 0; k < 4; ++k) still = std::max(still, (corner(L, face, k) - corner(L0, face, k)).norm());
+      EXPECT_LT(still, 1e-9) << turn;
+    }
   }
   // The layout pictures colour neighbouring patches differently (skin tone, blue, green…):
   // both warm and cool patches cover much of the hand. (A release build once drew every patch

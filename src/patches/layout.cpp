@@ -408,8 +408,8 @@ class HandLayout {
   /// index's and the little finger's outer flanks at their level.
   void webs();
   /// 2. The palm's rings: the wrist rim, two between (the second where the thumb's base ends,
-  /// moved by `thumb_ring_shift` rings), the webs' ring.
-  void palm_rings(int thumb_ring_shift);
+  /// moved by `thumb_ring_shift` rings; the thumb's base turned by `thumb_turn_deg`), the webs' ring.
+  void palm_rings(int thumb_ring_shift, double thumb_turn_deg);
   /// 3. The palm's faces, the wrist's cap and the rim's creases.
   void palm_faces();
   /// 4. Each digit: a base ring, rings at the joints and one on the distal link, a cap.
@@ -561,7 +561,7 @@ void HandLayout::webs() {
   flank(Finger::Little, to_rig * skin.webs[2], false, &web_b[4], &web_p[4]);
 }
 
-void HandLayout::palm_rings(int thumb_ring_shift) {
+void HandLayout::palm_rings(int thumb_ring_shift, double thumb_turn_deg) {
   const RingGrid& palm = skin_.grid.at(static_cast<int>(SkinTube::Palm));
   // On a ring of the palm's grid, a corner at angle θ of the section scaled to a unit circle
   // (0 radial, 90° dorsal, ±180° ulnar): the lanes run from the wrist's even spread to the
@@ -595,6 +595,14 @@ void HandLayout::palm_rings(int thumb_ring_shift) {
       const double even = (45 + 22.5 * k) * kPi / 180;
       tb[k] = std::clamp(even + f * std::remainder(top_b[k] - even, 2 * kPi), 5 * kPi / 180, 175 * kPi / 180);
       tp[k] = std::clamp(-even + f * std::remainder(top_p[k] + even, 2 * kPi), -175 * kPi / 180, -5 * kPi / 180);
+    }
+    // Levels 1 and 2 (the thumb's base between them): the base's corners on the back (b0) and
+    // the palm (p0) turned `thumb_turn_deg` round the section toward the palm, where a thumb
+    // turned under the hand grows from the palm's side and not from its radial flank.
+    if (level == 1 || level == 2) {
+      const double turn = thumb_turn_deg * kPi / 180;
+      tb[0] = std::clamp(tb[0] - turn, 5 * kPi / 180, 175 * kPi / 180);
+      tp[0] = std::clamp(tp[0] - turn, -175 * kPi / 180, -5 * kPi / 180);
     }
     std::sort(tb.begin(), tb.end());
     std::sort(tp.begin(), tp.end(), std::greater<double>());
@@ -699,7 +707,7 @@ PatchLayout HandLayout::finish() {
 }  // namespace
 
 PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
-                              const std::vector<std::uint32_t>& sides, int thumb_ring_shift) {
+                              const std::vector<std::uint32_t>& sides, int thumb_ring_shift, double thumb_turn_deg) {
   for (int t = 0; t < kSkinTubes; ++t)
     if (t >= static_cast<int>(skin.tubes.size()) || !skin.tubes[t].present)
       throw InputError("patches", std::string("the ") + skin_tube_name(t) +
@@ -708,7 +716,7 @@ PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std:
     throw InputError("patches", "the skin has too few palm rings or webs to lay patches on");
   HandLayout h(skin, rig, points, sides);
   h.webs();
-  h.palm_rings(thumb_ring_shift);
+  h.palm_rings(thumb_ring_shift, thumb_turn_deg);
   h.palm_faces();
   h.digits();
   return h.finish();

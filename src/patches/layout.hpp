@@ -87,10 +87,13 @@ LayoutTopology layout_topology(const PatchLayout& layout, const std::string& wha
 /// The hand's layout on `skin` (built on `rig`; `points`/`sides` tell the back from the palm).
 /// `thumb_ring_shift` moves the palm ring the thumb's base ends at (two thirds of the way from
 /// the wrist to the webs) by that many of the skin's rings toward the webs (negative: toward
-/// the wrist), within the palm's middle rings. Throws InputError when a digit is missing from
-/// the skin or a corner cannot be placed.
+/// the wrist), within the palm's middle rings. `thumb_turn_deg` turns the thumb's base (the
+/// palm's radial column between those rings) round the palm's section toward the palm (negative:
+/// toward the back), for a thumb that grows from the palm's side. Throws InputError when a digit
+/// is missing from the skin or a corner cannot be placed.
 PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
-                              const std::vector<std::uint32_t>& sides, int thumb_ring_shift = 0);
+                              const std::vector<std::uint32_t>& sides, int thumb_ring_shift = 0,
+                              double thumb_turn_deg = 0);
 
 /// Every face split into k × k (bilinear in its corners): k² times the patches, same corners.
 PatchLayout subdivide_layout(const PatchLayout& layout, int k);

@@ -31,6 +31,8 @@ inline void carry_fit_choices(PatchSkin* from, PatchSkin* to) {
   to->layout_try_crossings = std::move(from->layout_try_crossings);
   to->layout_try_folds = std::move(from->layout_try_folds);
   to->thumb_ring_shift = from->thumb_ring_shift;
+  to->layout_try_turns = std::move(from->layout_try_turns);
+  to->thumb_turn_deg = from->thumb_turn_deg;
 }
 
 /// The Bernstein basis of degree 3 at t (B), and its derivatives (D, when given).

@@ -679,8 +679,9 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
   // The skin as weak data, one sample per 2 mm², so that it holds the surface where the scans saw
   // nothing (the flanks between the fingers, the wrist cut) and nowhere outweighs them.
   const std::vector<Eigen::Vector3d> support = sample_surface(skin.mesh, 0.5);
-  auto fit = [&](int shift) {
-    const PatchLayout layout = o.layout ? *o.layout : subdivide_layout(hand_patch_layout(skin, rig, points, sides, shift), o.subdivision);
+  auto fit = [&](int shift, double turn) {
+    const PatchLayout layout =
+        o.layout ? *o.layout : subdivide_layout(hand_patch_layout(skin, rig, points, sides, shift, turn), o.subdivision);
     return fit_patches_unmeasured(layout, points, sides, support, skin.bones, o);
   };
   // The skin's distance tree for the check below, built beside the first fit (~2 ms, which
@@ -688,7 +689,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
   std::future<std::unique_ptr<MeshDistance>> skin_tree;
   if (!o.layout)
     skin_tree = std::async(side_launch(), [&skin] { return std::make_unique<MeshDistance>(skin.mesh); });
-  PatchSkin s = fit(0);
+  PatchSkin s = fit(0, 0);
   if (!o.layout) {
     // Where the patches stray from the polygon skin they were laid on, one bridges what the skin
     // follows: on the WebXR hand model (scripts/webxr_study.py) a patch of the thumb's first row
@@ -712,6 +713,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
       return d[q];
     };
     std::vector<std::pair<int, double>> tries = {{0, stray(s)}};
+    std::vector<double> turns = {0.0};
     // A surface that passes through itself at the thumb's base, the palm or the wrist (not
     // between two fingers, which another thumb ring does not part) is tried again too: on the
     // WebXR hand model (scripts/webxr_study.py) the thumb's first row crossed the thenar's
@@ -726,40 +728,71 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
              w.find("wrist.") != std::string::npos;
     };
     const bool crossed_at_base = std::any_of(s.crossings->patches.begin(), s.crossings->patches.end(), at_base);
-    // And one that folds there: a jump between two patches' normals over the gate's 30 deg
-    // (gates.g1_kink_deg) at a border of the thumb's, the palm's or the wrist's patches. On
-    // the WebXR hand with its thumb bent (left, second pair) the first layout crossed itself
-    // at the thumb's base in 53 pairs, or, its skin a few micrometres otherwise, in none but
-    // folded there by 42 deg with its patches 3.1 mm from the skin; the layout with that ring
-    // 2 rings toward the wrist did neither.
+    // And one that folds: a jump between two patches' normals over the gate's 30 deg
+    // (gates.g1_kink_deg). On the WebXR hand with its thumb bent (left, second pair) the first
+    // layout crossed itself at the thumb's base in 53 pairs, or, its skin a few micrometres
+    // otherwise, in none but folded there by 42 deg with its patches 3.1 mm from the skin; the
+    // layout with that ring 2 rings toward the wrist did neither. (Until 2026-11-30 a fold
+    // counted at the thumb's, the palm's or the wrist's borders only: the WebXR fixed hand,
+    // its forearm cut 5 mm beyond the wrist, folded by 160 deg at its middle finger's first
+    // row and no other layout was tried.)
     constexpr double kFoldDeg = 30;
-    const auto folded_at_base = [&](const PatchSkin& p) { return p.g1_max_deg > kFoldDeg && at_base(p.g1_max_where); };
-    if (tries[0].second > kStrayP95Mm || crossed_at_base || folded_at_base(s)) {
+    const auto folded = [&](const PatchSkin& p) { return p.g1_max_deg > kFoldDeg; };
+    if (tries[0].second > kStrayP95Mm || crossed_at_base || folded(s)) {
       // The two other layouts are fitted at once, each on a thread of its own (a fit's
       // factorisations leave most of the second core idle), and compared in a fixed order:
       // the same choice with any number of threads.
-      auto other = [&](int shift) -> std::optional<PatchSkin> {
+      auto other = [&](int shift, double turn) -> std::optional<PatchSkin> {
         try {
-          return fit(shift);
+          return fit(shift, turn);
         } catch (const InputError&) {
           return std::nullopt;  // a corner that cannot be placed there: the layout stays as it was
         }
       };
-      std::future<std::optional<PatchSkin>> toward_webs = std::async(side_launch(), other, 2);
-      std::pair<int, std::optional<PatchSkin>> others[] = {{-2, other(-2)}, {2, toward_webs.get()}};
-      // Kept: the fewest crossings, then one not folded at the base, then the nearest the skin.
-      std::tuple<size_t, bool, double> best = {crossed[0], folded_at_base(s), tries[0].second};
-      for (auto& [shift, t] : others) {
-        if (!t) continue;
-        tries.push_back({shift, stray(*t)});
-        t->crossings = crossings(*t, o.tessellation);
-        crossed.push_back(t->crossings->pairs);
-        folds.push_back({t->g1_max_deg, t->g1_max_where});
-        const std::tuple<size_t, bool, double> mine = {crossed.back(), folded_at_base(*t), tries.back().second};
-        if (mine < best) best = mine, s = std::move(*t), s.thumb_ring_shift = shift;
+      // Kept: the fewest crossings, then one not folded over the G1 gate's 30 deg anywhere (a
+      // ring moved for the thumb's sake can fold a finger's first row: the WebXR fixed hand's
+      // middle finger, 34-47 deg at its web with the index), then the nearest the skin.
+      std::tuple<size_t, bool, double> best = {crossed[0], folded(s), tries[0].second};
+      const auto compare = [&](std::array<std::tuple<int, double, std::optional<PatchSkin>>, 2>& others) {
+        for (auto& [shift, turn, t] : others) {
+          if (!t) continue;
+          tries.push_back({shift, stray(*t)});
+          turns.push_back(turn);
+          t->crossings = crossings(*t, o.tessellation);
+          crossed.push_back(t->crossings->pairs);
+          folds.push_back({t->g1_max_deg, t->g1_max_where});
+          const std::tuple<size_t, bool, double> mine = {crossed.back(), folded(*t), tries.back().second};
+          if (mine < best) best = mine, s = std::move(*t), s.thumb_ring_shift = shift, s.thumb_turn_deg = turn;
+        }
+      };
+      {
+        std::future<std::optional<PatchSkin>> toward_webs = std::async(side_launch(), other, 2, 0.0);
+        std::array<std::tuple<int, double, std::optional<PatchSkin>>, 2> shifted = {
+            std::tuple<int, double, std::optional<PatchSkin>>{-2, 0.0, other(-2, 0.0)}, {2, 0.0, toward_webs.get()}};
+        compare(shifted);
+      }
+      // A thumb turned under the hand grows from the palm's side, not from the radial flank the
+      // layout puts its base on: the patches beside its base then fold over (the WebXR
+      // "generic-fixed-hand", a relaxed hand with its thumb under the fingers, without a rig:
+      // 86-189 pairs of crossing triangles with the ring moved either way). Where the kept
+      // layout still crosses or folds, the base is turned kThumbTurnDeg round the palm's section
+      // toward the palm and toward the back, with the ring where it was and where it was kept,
+      // and compared in the same order. That hand: every gate passes turned toward the palm.
+      constexpr double kThumbTurnDeg = 20;
+      if (std::get<0>(best) > 0 || std::get<1>(best)) {
+        std::vector<int> shifts = {0};
+        if (s.thumb_ring_shift != 0) shifts.push_back(s.thumb_ring_shift);
+        for (const int shift : shifts) {
+          std::future<std::optional<PatchSkin>> toward_back = std::async(side_launch(), other, shift, -kThumbTurnDeg);
+          std::array<std::tuple<int, double, std::optional<PatchSkin>>, 2> turned = {
+              std::tuple<int, double, std::optional<PatchSkin>>{shift, kThumbTurnDeg, other(shift, kThumbTurnDeg)},
+              {shift, -kThumbTurnDeg, toward_back.get()}};
+          compare(turned);
+        }
       }
     }
     s.layout_tries = std::move(tries);
+    s.layout_try_turns = std::move(turns);
     s.layout_try_crossings = std::move(crossed);
     s.layout_try_folds = std::move(folds);
   }

@@ -146,7 +146,11 @@ struct PatchSkin {
   /// border it is at; one folded over 30 deg at the thumb's, the palm's or the wrist's patches
   /// is kept after one that is not.
   std::vector<std::pair<double, std::string>> layout_try_folds;
+  /// Per layout tried, the turn of the thumb's base toward the palm (deg; hand_patch_layout):
+  /// 0 but where the rings' shifts left the surface crossing or folded at the base.
+  std::vector<double> layout_try_turns;
   int thumb_ring_shift = 0;
+  double thumb_turn_deg = 0;
   /// The polygon skin's samples' weight it was fitted with (fit_patches): PatchOptions::skin_weight,
   /// or 0.05 where fit_patch_skin's fit crossed itself and one with 0.05 crossed less.
   double skin_weight_used = 0;

@@ -346,12 +346,17 @@ std::string fit_sections(const PatchStageResult& r, const std::string& svg, cons
            " mm over 5 × 5 samples per patch" + crossed(0) +
            (folded ? ", folded by " + fmt("%.0f", s.layout_try_folds[0].first) + "° at " + s.layout_try_folds[0].second
                    : std::string()) +
-           "): the palm ring the thumb's base ends at was moved";
+           "): the palm ring the thumb's base ends at was moved, and where that did not help the base turned round "
+           "the palm,";
+      const auto turned = [](double deg) {
+        return deg == 0 ? std::string() : ", its base turned " + fmt("%.0f", std::abs(deg)) + "° toward the " + (deg > 0 ? "palm" : "back");
+      };
       for (size_t k = 1; k < s.layout_tries.size(); ++k)
-        h += std::string(k == 1 ? " " : ", ") + signed_rings(s.layout_tries[k].first) + " rings (" +
+        h += std::string(k == 1 ? " " : ", ") + signed_rings(s.layout_tries[k].first) + " rings" +
+             turned(k < s.layout_try_turns.size() ? s.layout_try_turns[k] : 0.0) + " (" +
              fmt("%.2f", s.layout_tries[k].second) + " mm" + crossed(k) + ")";
-      h += "; kept: " + signed_rings(s.thumb_ring_shift) +
-           " (the fewest crossings, then one not folded over 30° at the thumb's base, then the nearest the skin).";
+      h += "; kept: " + signed_rings(s.thumb_ring_shift) + " rings" + turned(s.thumb_turn_deg) +
+           " (the fewest crossings, then one not folded over 30°, then the nearest the skin).";
     }
     if (!s.separations.empty()) {
       h += " Two fingers' tubes passed through each other (" + std::to_string(s.crossings_before_separation) +

@@ -22,8 +22,9 @@ std::optional<std::string> layout_note(const PatchSkin& s) {
   if (s.layout_tries.size() < 2) return std::nullopt;
   const auto crossed = [&](size_t k) { return k < s.layout_try_crossings.size() ? s.layout_try_crossings[k] : size_t{0}; };
   size_t kept = 0;
+  const auto turn = [&](size_t k) { return k < s.layout_try_turns.size() ? s.layout_try_turns[k] : 0.0; };
   for (size_t k = 0; k < s.layout_tries.size(); ++k)
-    if (s.layout_tries[k].first == s.thumb_ring_shift) kept = k;
+    if (s.layout_tries[k].first == s.thumb_ring_shift && turn(k) == s.thumb_turn_deg) kept = k;
   char first[160], buf[400];
   const double fold = s.layout_try_folds.empty() ? 0.0 : s.layout_try_folds[0].first;
   if (crossed(0) > 0)
@@ -34,11 +35,21 @@ std::optional<std::string> layout_note(const PatchSkin& s) {
                   s.layout_try_folds[0].second.c_str(), s.layout_tries[0].second);
   else
     std::snprintf(first, sizeof first, "strayed from the skin (p95 %.2f mm)", s.layout_tries[0].second);
-  if (s.thumb_ring_shift != 0)
+  if (kept != 0) {
+    char moved[120];
+    if (s.thumb_turn_deg != 0)
+      std::snprintf(moved, sizeof moved, "turned %.0f deg toward the %s%s", std::abs(s.thumb_turn_deg),
+                    s.thumb_turn_deg > 0 ? "palm" : "back",
+                    s.thumb_ring_shift != 0 ? (" and moved " + std::string(s.thumb_ring_shift > 0 ? "+" : "") +
+                                                       std::to_string(s.thumb_ring_shift) + " rings").c_str()
+                                                  : "");
+    else
+      std::snprintf(moved, sizeof moved, "moved %+d rings", s.thumb_ring_shift);
     std::snprintf(buf, sizeof buf,
-                  "layout: the first one's patches %s; the one with the thumb's base moved %+d rings (%zu crossing "
-                  "pairs, p95 %.2f mm) was kept (docs/patches.md)",
-                  first, s.thumb_ring_shift, crossed(kept), s.layout_tries[kept].second);
+                  "layout: the first one's patches %s; the one with the thumb's base %s (%zu crossing pairs, p95 %.2f "
+                  "mm) was kept (docs/patches.md)",
+                  first, moved, crossed(kept), s.layout_tries[kept].second);
+  }
   else
     std::snprintf(buf, sizeof buf, "warning: the patches %s and no other layout tried did better (docs/patches.md)", first);
   return std::string(buf);
@@ -98,7 +109,9 @@ Json to_json(const PatchStageResult& r) {
             {"layout_tries", [&] {
                Json a = Json::array();
                for (size_t k = 0; k < s.layout_tries.size(); ++k) {
-                 a.push_back({{"thumb_ring_shift", s.layout_tries[k].first}, {"surface_to_skin_p95_mm", s.layout_tries[k].second}});
+                 a.push_back({{"thumb_ring_shift", s.layout_tries[k].first},
+                              {"thumb_turn_deg", k < s.layout_try_turns.size() ? s.layout_try_turns[k] : 0.0},
+                              {"surface_to_skin_p95_mm", s.layout_tries[k].second}});
                  if (k < s.layout_try_crossings.size()) a.back()["crossing_pairs"] = s.layout_try_crossings[k];
                  if (k < s.layout_try_folds.size())
                    a.back()["g1_max_deg"] = s.layout_try_folds[k].first, a.back()["g1_max_at"] = s.layout_try_folds[k].second;
@@ -106,6 +119,7 @@ Json to_json(const PatchStageResult& r) {
                return a;
              }()},
             {"thumb_ring_shift", s.thumb_ring_shift},
+            {"thumb_turn_deg", s.thumb_turn_deg},
             {"skin_weight_used", s.skin_weight_used},
             {"separations", [&] {
                Json a = Json::array();
