@@ -151,12 +151,12 @@ auto_skin "$d" right-thumb-bent-s2
 check_skin "right-thumb-bent-s2 automatic" "$d/auto/skin_report.json" 0.13 0.40 0.985
 # The profiles' other hand, "generic-fixed-hand" (fixed-right.glb): one posture — fingers
 # flexed, the thumb turned under them — and no joints, given to `run` as a cloud with the
-# skeleton placed automatically, whole (its rounded forearm too) and cut 5 mm beyond the placed
-# wrist (a live hand's scan, the forearm open). Every gate must pass. Before the thumb's base
-# could be turned toward the palm (docs/patches.md, "The layout"): the whole hand's patches
-# passed through themselves at the base (86 pairs of triangles), strayed 4.7 mm from the skin
-# and folded by 34 deg at the middle finger's first row; the cut one folded by 69 deg at the
-# base.
+# skeleton placed automatically, whole (its rounded forearm too), cut 5 mm beyond the placed
+# wrist (a live hand's scan, the forearm open) and mirrored (a left hand). Every gate must
+# pass. Before the thumb's base could be turned toward the palm (docs/patches.md, "And with
+# the thumb's base turned toward the palm"): the whole hand's patches passed through
+# themselves at the base (86 pairs of triangles), strayed 4.7 mm from the skin and folded by
+# 34 deg at the middle finger's first row; the cut one folded by 69 deg at the base.
 "$PY" scripts/webxr_hand.py --glb fixtures/webxr-hand/fixed-right.glb --side right --out "$work/fixed" --subdivide 2
 "$PY" - "$work/fixed/hand.ply" "$work/fixed/cut5.ply" <<'PYEOF'
 import sys
@@ -189,7 +189,22 @@ with open(sys.argv[2], "w") as f:
     for tr in idx[Fk]:
         f.write(f"3 {tr[0]} {tr[1]} {tr[2]}\n")
 PYEOF
-for mesh in hand cut5; do
+# And its mirror image, a left hand (the profiles' left.glb is this one mirrored by its node).
+"$PY" - "$work/fixed/hand.ply" "$work/fixed/left.ply" <<'PYEOF'
+import sys
+lines = open(sys.argv[1]).read().split("\n")
+nv = int(next(l for l in lines if l.startswith("element vertex")).split()[2])
+start = lines.index("end_header") + 1
+out = lines[:start]
+for l in lines[start:start + nv]:
+    x, y, z = l.split()
+    out.append(f"{-float(x):.6f} {y} {z}")
+for l in lines[start + nv:]:
+    p = l.split()
+    out.append(f"3 {p[1]} {p[3]} {p[2]}" if len(p) == 4 else l)
+open(sys.argv[2], "w").write("\n".join(out))
+PYEOF
+for mesh in hand cut5 left; do
   set +e
   msg=$("$BIN" -q run --cloud "$work/fixed/$mesh.ply" --out "$work/fixed/run-$mesh" 2>&1)
   rc=$?
