@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include "core/atomic_file.hpp"
@@ -338,6 +339,37 @@ TEST(CloudStage, TellsTheBackOfTheHandAndWhichHandItIs) {
   const CloudStageResult g = run_cloud_stage(in, quiet);
   EXPECT_EQ(g.orientation.by, "rig");
   EXPECT_GT(g.orientation.back.dot(back), 0.999);
+}
+
+// A cloud that does not hold both the back and the palm (one depth camera's view; a scan from
+// the flanks alone) is refused at the cloud stage, naming the file and what is missing; a hand
+// seen all round holds both in nearly every column. Before, the one-sided cloud went on to the
+// skeleton's placement and was refused there as "the automatic placement missed this hand".
+TEST(CloudStage, ACloudOfOneSideOfTheHandIsRefusedAsSuch) {
+  const SimHand& h = sim_hand();
+  const Eigen::Vector3d back = *h.sim.rig.palm_normal;
+  EXPECT_GT(two_sided_share(h.sim.points, back), 0.8);  // 0.89 with the stand and the outliers
+  // What a camera above the back sees: the points nearest it in each 1 mm column.
+  const Eigen::Vector3d x = back.unitOrthogonal(), y = back.cross(x);
+  std::map<std::pair<long, long>, Eigen::Vector3d> top;
+  for (const auto& p : h.sim.points) {
+    const std::pair<long, long> key{std::lround(std::floor(p.dot(x))), std::lround(std::floor(p.dot(y)))};
+    const auto it = top.find(key);
+    if (it == top.end() || p.dot(back) > it->second.dot(back)) top[key] = p;
+  }
+  std::vector<Eigen::Vector3d> seen;
+  for (const auto& [key, p] : top) seen.push_back(p);
+  EXPECT_LT(two_sided_share(seen, back), 0.2);
+  const std::string d = test::temp_dir("oneside");
+  save_cloud(d + "/top.ply", seen);
+  CloudStageInputs in;
+  in.files = {d + "/top.ply"};
+  in.rig = &h.sim.rig;
+  const std::string why = test::input_error_of([&] { run_cloud_stage(in, [](const std::string&) {}); });
+  EXPECT_EQ(why.rfind(d + "/top.ply: the cloud does not hold both the back and the palm", 0), 0u) << why;
+  in.files = {d + "/all.ply"};
+  save_cloud(d + "/all.ply", h.sim.points);
+  EXPECT_GT(run_cloud_stage(in, [](const std::string&) {}).two_sided_share, 0.8);
 }
 
 TEST(CloudAlign, RegistersTwoHalvesWithoutMarkers) {

@@ -753,6 +753,12 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
       // ring moved for the thumb's sake can fold a finger's first row: the WebXR fixed hand's
       // middle finger, 34-47 deg at its web with the index), then the nearest the skin.
       std::tuple<size_t, bool, double> best = {crossed[0], folded(s), tries[0].second};
+      const auto at_thumb = [](const std::string& w) { return w.find("thumb.") != std::string::npos; };
+      const auto thumb_in_trouble = [&](const PatchSkin& p) {
+        return std::any_of(p.crossings->patches.begin(), p.crossings->patches.end(), at_thumb) ||
+               (folded(p) && at_thumb(p.g1_max_where));
+      };
+      bool thumb_trouble = thumb_in_trouble(s);
       const auto compare = [&](std::array<std::tuple<int, double, std::optional<PatchSkin>>, 2>& others) {
         for (auto& [shift, turn, t] : others) {
           if (!t) continue;
@@ -761,6 +767,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
           t->crossings = crossings(*t, o.tessellation);
           crossed.push_back(t->crossings->pairs);
           folds.push_back({t->g1_max_deg, t->g1_max_where});
+          thumb_trouble = thumb_trouble || thumb_in_trouble(*t);
           const std::tuple<size_t, bool, double> mine = {crossed.back(), folded(*t), tries.back().second};
           if (mine < best) best = mine, s = std::move(*t), s.thumb_ring_shift = shift, s.thumb_turn_deg = turn;
         }
@@ -775,11 +782,15 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
       // layout puts its base on: the patches beside its base then fold over (the WebXR
       // "generic-fixed-hand", a relaxed hand with its thumb under the fingers, without a rig:
       // 86-189 pairs of crossing triangles with the ring moved either way). Where the kept
-      // layout still crosses or folds, the base is turned kThumbTurnDeg round the palm's section
-      // toward the palm and toward the back, with the ring where it was and where it was kept,
-      // and compared in the same order. That hand: every gate passes turned toward the palm.
+      // layout still crosses or folds, and a layout tried so far crossed or folded at the thumb
+      // (a thumb patch in a crossing pair, or at the largest fold), the base is turned kThumbTurnDeg round the palm's section toward the palm
+      // and toward the back, with the ring where it was and where it was kept, and compared in
+      // the same order. That hand: every gate passes turned toward the palm. (Turned wherever
+      // the kept layout crossed, a hand whose pressed fingers cross each other — the unusual
+      // hands' P03 — kept a turn that crossed 7 pairs less before its fingers were held apart
+      // and 104 more after.)
       constexpr double kThumbTurnDeg = 20;
-      if (std::get<0>(best) > 0 || std::get<1>(best)) {
+      if (thumb_trouble && (std::get<0>(best) > 0 || std::get<1>(best))) {
         std::vector<int> shifts = {0};
         if (s.thumb_ring_shift != 0) shifts.push_back(s.thumb_ring_shift);
         for (const int shift : shifts) {

@@ -66,6 +66,7 @@ struct CloudStageResult {
   std::vector<std::uint32_t> sides;      ///< 0 palm, 1 back
   std::vector<std::uint32_t> sheets;     ///< sheet_labels: 1 facing the back, 0 the palm, 2 neither
   CloudOrientation orientation;
+  double two_sided_share = 0;            ///< two_sided_share of the hand's points along the back
   double seconds = 0;
   /// The merged arrays the skin and patch stages take (points, normals, sides).
   MergedArrays merged() const;

@@ -440,6 +440,25 @@ PreparedCloud prepare_cloud(const std::vector<Eigen::Vector3d>& points_in, const
   return r;
 }
 
+double two_sided_share(const std::vector<Eigen::Vector3d>& pts, const Eigen::Vector3d& back) {
+  const Eigen::Vector3d z = back.normalized();
+  const Eigen::Vector3d x = z.unitOrthogonal(), y = z.cross(x);
+  constexpr double kCell = 2.0, kSpan = 4.0;
+  std::unordered_map<std::uint64_t, std::pair<double, double>> cells;  // order-free: only counted
+  cells.reserve(pts.size() / 8);
+  for (const auto& p : pts) {
+    const auto i = static_cast<std::int32_t>(std::floor(p.dot(x) / kCell)), j = static_cast<std::int32_t>(std::floor(p.dot(y) / kCell));
+    const std::uint64_t key = (static_cast<std::uint64_t>(static_cast<std::uint32_t>(i)) << 32) | static_cast<std::uint32_t>(j);
+    const double h = p.dot(z);
+    auto [it, fresh] = cells.try_emplace(key, h, h);
+    if (!fresh) it->second.first = std::min(it->second.first, h), it->second.second = std::max(it->second.second, h);
+  }
+  if (cells.empty()) return 0.0;
+  size_t thick = 0;
+  for (const auto& [key, span] : cells) thick += span.second - span.first > kSpan;
+  return static_cast<double>(thick) / static_cast<double>(cells.size());
+}
+
 std::vector<std::uint32_t> label_sides(const std::vector<Eigen::Vector3d>& pts, const Eigen::Vector3d& back,
                                        std::vector<Eigen::Vector3d>* normals) {
   const Eigen::Vector3d z = back.normalized();

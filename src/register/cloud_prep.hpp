@@ -65,6 +65,12 @@ PreparedCloud prepare_cloud(const std::vector<Eigen::Vector3d>& points, const st
 std::vector<std::uint32_t> label_sides(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& back,
                                        std::vector<Eigen::Vector3d>* normals);
 
+/// How much of the hand the cloud holds from both sides: of the 2 mm columns along `back` that
+/// hold points, the share whose points span more than 4 mm along it (a back and a palm surface,
+/// or a steep flank). A hand seen all round: 0.92-0.98 (synth cloud of the fixture and the
+/// family, 3 views or more; the WebXR fixed hand 0.98); seen from one side only: under 0.1.
+double two_sided_share(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& back);
+
 /// Unoriented normals: the least-spread axis of the points within `radius` of each (zero
 /// where fewer than 6 lie there).
 std::vector<Eigen::Vector3d> neighbour_normals(const std::vector<Eigen::Vector3d>& points, double radius);
