@@ -739,7 +739,7 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
     constexpr double kFoldDeg = 30;
     const auto folded = [&](const PatchSkin& p) { return p.g1_max_deg > kFoldDeg; };
     if (tries[0].second > kStrayP95Mm || crossed_at_base || folded(s)) {
-      // The two other layouts are fitted at once, each on a thread of its own (a fit's
+      // The other layouts are fitted two at a time, each on a thread of its own (a fit's
       // factorisations leave most of the second core idle), and compared in a fixed order:
       // the same choice with any number of threads.
       auto other = [&](int shift, double turn) -> std::optional<PatchSkin> {
@@ -783,12 +783,12 @@ PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vect
       // "generic-fixed-hand", a relaxed hand with its thumb under the fingers, without a rig:
       // 86-189 pairs of crossing triangles with the ring moved either way). Where the kept
       // layout still crosses or folds, and a layout tried so far crossed or folded at the thumb
-      // (a thumb patch in a crossing pair, or at the largest fold), the base is turned kThumbTurnDeg round the palm's section toward the palm
-      // and toward the back, with the ring where it was and where it was kept, and compared in
-      // the same order. That hand: every gate passes turned toward the palm. (Turned wherever
-      // the kept layout crossed, a hand whose pressed fingers cross each other — the unusual
-      // hands' P03 — kept a turn that crossed 7 pairs less before its fingers were held apart
-      // and 104 more after.)
+      // (a thumb patch in a crossing pair, or at the largest fold), the base is turned
+      // kThumbTurnDeg round the palm's section toward the palm and toward the back, with the
+      // ring where it was and where it was kept, and compared in the same order. That hand:
+      // every gate passes turned toward the palm. (Turned wherever the kept layout crossed, a
+      // hand whose pressed fingers cross each other — the unusual hands' P03 — kept a turn that
+      // crossed 7 pairs less before its fingers were held apart and 104 more after.)
       constexpr double kThumbTurnDeg = 20;
       if (thumb_trouble && (std::get<0>(best) > 0 || std::get<1>(best))) {
         std::vector<int> shifts = {0};
