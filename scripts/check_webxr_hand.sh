@@ -157,7 +157,7 @@ check_skin "right-thumb-bent-s2 automatic" "$d/auto/skin_report.json" 0.13 0.40 
 # the thumb's base turned toward the palm"): the whole hand's patches passed through
 # themselves at the base (86 pairs of triangles), strayed 4.7 mm from the skin and folded by
 # 34 deg at the middle finger's first row; the cut one folded by 69 deg at the base.
-"$PY" scripts/webxr_hand.py --glb fixtures/webxr-hand/fixed-right.glb --side right --out "$work/fixed" --subdivide 2
+"$PY" scripts/webxr_hand.py --glb fixtures/webxr-hand/fixed-right.glb --out "$work/fixed" --subdivide 2
 "$PY" - "$work/fixed/hand.ply" "$work/fixed/cut5.ply" <<'PYEOF'
 import sys
 import numpy as np

@@ -193,7 +193,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--glb", required=True)
     ap.add_argument("--out", required=True)
-    ap.add_argument("--side", required=True, choices=("right", "left"))
+    ap.add_argument("--side", choices=("right", "left"),
+                    help="which hand the asset is (its joints alone cannot tell); not needed for one without a skin")
     ap.add_argument("--subdivide", type=int, default=2, help="Loop subdivision rounds (0: the asset's facets)")
     ap.add_argument("--set", action="append", default=[], metavar="DOF=DEG",
                     help="pose the hand through its own skin weights before subdividing: flexion in degrees, "
@@ -231,6 +232,8 @@ def main():
         write_ply(os.path.join(a.out, "hand.ply"), V, F, a.subdivide)
         print(f"{len(V)} vertices, {len(F)} triangles, no rig (the asset has no joints)")
         return
+    if a.side is None:
+        sys.exit(f"{a.glb}: give --side right or --side left (the asset's joints alone cannot tell)")
     skin = js["skins"][0]
     ibm = accessor(skin["inverseBindMatrices"]).reshape(-1, 4, 4).transpose(0, 2, 1)
     joints = {}
