@@ -82,6 +82,21 @@ TEST(Cli, EveryUsageErrorExitsTwoInOneLineNamingItsFlag) {
         << given << ": " << out;
   EXPECT_EQ(read_file(pics + "/back.json.png"), read_file(pics + "/back.png"));
   EXPECT_EQ(read_file(pics + "/back.png.png"), read_file(pics + "/back.png"));
+  // At the scan's proportions: the fixture's 512 scanlines 250/512 mm apart and 512 points
+  // 200/512 mm apart cover 250 x 200 mm, so its picture is 512 wide and 640 tall (it was 512 x
+  // 512, the hand 20 % short); --size sets the width.
+  const auto png_size = [](const std::string& png) {
+    const auto be32 = [&](size_t at) {
+      return (static_cast<unsigned>(static_cast<unsigned char>(png[at])) << 24) |
+             (static_cast<unsigned>(static_cast<unsigned char>(png[at + 1])) << 16) |
+             (static_cast<unsigned>(static_cast<unsigned char>(png[at + 2])) << 8) |
+             static_cast<unsigned>(static_cast<unsigned char>(png[at + 3]));
+    };
+    return std::make_pair(be32(16), be32(20));  // IHDR: width, height
+  };
+  EXPECT_EQ(png_size(read_file(pics + "/back.png")), std::make_pair(512u, 640u));
+  ASSERT_EQ(test::run(kBin + " -q render --scan " + kFix + "back --size 300 --out " + pics + "/small.png", &out), 0) << out;
+  EXPECT_EQ(png_size(read_file(pics + "/small.png")), std::make_pair(300u, 375u));
 }
 
 TEST(Cli, PipelineCommandsRunOnHugePagesWhereTheKernelGivesThemOnRequest) {

@@ -25,6 +25,7 @@ constexpr int kMinPictureWidth = 16, kMaxPictureWidth = 4096;
 struct RenderArgs {
   std::string mesh, scan, rig, out, view = "back";
   int width = 1024;
+  bool width_given = false;  ///< a scan is drawn one column a point unless --size says
   bool force = false;
 };
 
@@ -35,7 +36,7 @@ void render(const RenderArgs& a) {
   const Eigen::Matrix3d view = named_view(a.view);  // a usage error before the output is claimed
   OutputFiles files({a.out}, output_options(a.force));
   if (!a.scan.empty()) {
-    write_file_atomic(files.stage(a.out), render_scan_png(load_scan(a.scan)));
+    write_file_atomic(files.stage(a.out), render_scan_png(load_scan(a.scan), a.width_given ? a.width : 0));
   } else {
     RenderOptions ro;
     ro.width = a.width;
@@ -128,12 +129,17 @@ void add_tool_commands(CLI::App& app, const Progress& progress, Commands* out) {
   rc->add_option("--scan", ra->scan, "Scan to draw: its stem or either file")->transform(scan_stem_option());
   rc->add_option("--rig", ra->rig, "Rig of the mesh: views follow the hand, joints drawn as dots");
   rc->add_option("--view", ra->view, "back, palm or side")->capture_default_str();
-  rc->add_option("--size", ra->width, "Picture width, px (height 3/4 of it)")
-      ->capture_default_str()
-      ->check(CLI::Range(kMinPictureWidth, kMaxPictureWidth));
+  auto* size = rc->add_option("--size", ra->width,
+                              "Picture width, px (a mesh: height 3/4 of it; a scan: default one column a point, the "
+                              "height at the scan's proportions)")
+                   ->capture_default_str()
+                   ->check(CLI::Range(kMinPictureWidth, kMaxPictureWidth));
   rc->add_option("--out", ra->out, "PNG to write (.png)")->required();
   add_force_flag(rc, &ra->force);
-  out->push_back({rc, [ra] { render(*ra); }});
+  out->push_back({rc, [ra, size] {
+                    ra->width_given = size->count() > 0;
+                    render(*ra);
+                  }});
 
   auto ca = std::make_shared<ConvertArgs>();
   auto* cc = app.add_subcommand("convert", "Convert between scans (<stem>) and point clouds (.ply/.pcd), or between meshes "

@@ -42,24 +42,38 @@ Eigen::Matrix3d principal_view(const std::vector<Eigen::Vector3d>& points) {
   return R;
 }
 
-std::string render_scan_png(const RangeScan& scan) {
-  const int w = scan.meta.points, h = scan.meta.scanlines;
+std::string render_scan_png(const RangeScan& scan, int width) {
+  // At the scan's proportions: CUBIST's rows are 250/512 mm apart, its columns 200/512 mm, so
+  // one pixel a sample drew the hand 20 % short along its scanlines' direction; a scan with
+  // half the points a line, twice as far apart, came out half as wide as it is (before
+  // 2026-11-30).
+  const int points = scan.meta.points, lines = scan.meta.scanlines;
+  const double aspect = (lines * scan.meta.x_step_mm) / (points * scan.meta.y_step_mm);
+  int w = width > 0 ? width : points;
+  // Neither side over 4096 px (a long, narrow scan at --size 4096 would otherwise ask for
+  // hundreds of megabytes): the picture is made smaller, its proportions kept.
+  constexpr double kMaxSide = 4096;
+  if (w * aspect > kMaxSide) w = std::max(1, static_cast<int>(kMaxSide / aspect));
+  const int h = std::clamp(static_cast<int>(std::lround(w * aspect)), 1, static_cast<int>(kMaxSide));
   std::uint16_t lo = 65535, hi = 0;
   for (std::uint16_t v : scan.values)
     if (v) lo = std::min(lo, v), hi = std::max(hi, v);
   std::vector<std::uint8_t> rgb(static_cast<size_t>(w) * h * 3, 0);
-  for (int i = 0; i < h; ++i)
-    for (int j = 0; j < w; ++j) {
+  for (int r = 0; r < h; ++r) {
+    const int i = std::min(lines - 1, static_cast<int>((r + 0.5) * lines / h));
+    for (int c = 0; c < w; ++c) {
+      const int j = std::min(points - 1, static_cast<int>((c + 0.5) * points / w));
       const std::uint16_t v = scan.at(i, j);
       if (!v) continue;
       const double t = hi > lo ? static_cast<double>(v - lo) / (hi - lo) : 0.5;
       // Blue (low) -> yellow (high) ramp, gamma-lifted so low relief stays visible.
       const double g = std::pow(t, 0.6);
-      const size_t idx = (static_cast<size_t>(i) * w + j) * 3;
+      const size_t idx = (static_cast<size_t>(r) * w + c) * 3;
       rgb[idx] = static_cast<std::uint8_t>(40 + 215 * g);
       rgb[idx + 1] = static_cast<std::uint8_t>(60 + 170 * g);
       rgb[idx + 2] = static_cast<std::uint8_t>(140 - 100 * g);
     }
+  }
   return encode_rgb8_png(w, h, rgb);
 }
 

@@ -50,8 +50,12 @@ std::string render_skeletons_png(const std::vector<SkeletonDrawing>& skeletons, 
 /// runs right, the shortest up (for clouds without a rig, e.g. a merged scan pair).
 Eigen::Matrix3d principal_view(const std::vector<Eigen::Vector3d>& points);
 
-/// Height image of a scan: colour ramp over the measured heights, black for no return.
-std::string render_scan_png(const RangeScan& scan);
+/// Height image of a scan: colour ramp over the measured heights, black for no return; rows
+/// the scanlines, columns the points along them, drawn at the scan's own proportions (a row is
+/// x_step_mm tall, a column y_step_mm wide). `width` px wide (0: one column a point), the
+/// height to match; neither side over 4096 px (narrower then); each pixel the sample under
+/// its centre.
+std::string render_scan_png(const RangeScan& scan, int width = 0);
 
 /// Standard views of the hand frame (X along the hand, Z out of the back): "back", "palm", "side".
 Eigen::Matrix3d named_view(const std::string& name);
