@@ -17,6 +17,8 @@
 #include "skin/skin_mesh.hpp"
 #include "skin/slices.hpp"
 #include "mesh/mesh_distance.hpp"
+#include "pipeline/options.hpp"
+#include "pipeline/skin_stage.hpp"
 #include "test_util.hpp"
 #include "core/atomic_file.hpp"
 #include "core/json_util.hpp"
@@ -293,6 +295,18 @@ TEST(SkinMesh, RigShiftedSidewaysIsRefusedAndTheErrorNamesTheDigit) {
     const std::string e = input_error_of([&] { build_skin(m.points, rig, SkinOptions{}); });
     EXPECT_NE(e.find("does not fit this scan"), std::string::npos) << dy << ": " << e;
   }
+  // Through the stage, the error names the rig's file, the causes a user can act on (a rig
+  // placed by hand off the digits' axes among them) and the way on without it.
+  SkinStageInputs in;
+  in.points = m.points, in.normals = m.normals, in.sides = m.sides;
+  in.rig = load_rig(kFixture + "rig.json");
+  for (auto& j : in.rig->joints) j.y() += 4.0;
+  in.rig_name = "hand_rig.json";
+  in.slices = false;
+  const std::string why = input_error_of([&] { run_skin_stage(in, PipelineOptions{}, [](const std::string&) {}); });
+  EXPECT_EQ(why.rfind("hand_rig.json: ", 0), 0u) << why;
+  EXPECT_NE(why.find("placed off the digits' axes"), std::string::npos) << why;
+  EXPECT_NE(why.find("--auto-rig"), std::string::npos) << why;
   // The rig as given fits: every digit's links within 1.2 mm of its sections' middle.
   const SkinResult s = build_skin(m.points, load_rig(kFixture + "rig.json"), SkinOptions{});
   for (const auto& t : s.tubes)
