@@ -158,16 +158,22 @@ check_skin "right-thumb-bent-s2 automatic" "$d/auto/skin_report.json" 0.13 0.40 
 # themselves at the base (86 pairs of triangles), strayed 4.7 mm from the skin and folded by
 # 34 deg at the middle finger's first row; the cut one folded by 69 deg at the base.
 "$PY" scripts/webxr_hand.py --glb fixtures/webxr-hand/fixed-right.glb --out "$work/fixed" --subdivide 2
-"$PY" - "$work/fixed/hand.ply" "$work/fixed/cut5.ply" <<'PYEOF'
+# Cut 5 mm beyond the wrist, and its mirror image, a left hand (the profiles' left.glb is this
+# one mirrored by its node), both written by webxr_hand.py's own writer (faces outward).
+"$PY" - "$work/fixed" <<'PYEOF'
+import os
 import sys
 import numpy as np
-lines = open(sys.argv[1]).read().split("\n")
+sys.path.insert(0, "scripts")
+from webxr_hand import write_ply
+d = sys.argv[1]
+lines = open(os.path.join(d, "hand.ply")).read().split("\n")
 nv = int(next(l for l in lines if l.startswith("element vertex")).split()[2])
 start = lines.index("end_header") + 1
 V = np.array([[float(x) for x in l.split()] for l in lines[start:start + nv]])
 F = np.array([[int(x) for x in l.split()[1:]] for l in lines[start + nv:] if l.strip()])
 # The hand's axis: the mesh's longest extent; its forearm end the one whose section is roundest
-# (the wrist), found as the end with the smaller spread across. Cut 5 mm in from 25 mm beyond.
+# (the wrist), found as the end with the smaller spread across.
 c = V.mean(0)
 w, U = np.linalg.eigh(np.cov((V - c).T))
 ax = U[:, -1]
@@ -181,28 +187,8 @@ Fk = F[keep[F].all(1)]
 used = np.unique(Fk)
 idx = -np.ones(len(V), int)
 idx[used] = np.arange(len(used))
-with open(sys.argv[2], "w") as f:
-    f.write(f"ply\nformat ascii 1.0\nelement vertex {len(used)}\nproperty double x\nproperty double y\n"
-            f"property double z\nelement face {len(Fk)}\nproperty list uchar int vertex_indices\nend_header\n")
-    for v in V[used]:
-        f.write(f"{v[0]:.6f} {v[1]:.6f} {v[2]:.6f}\n")
-    for tr in idx[Fk]:
-        f.write(f"3 {tr[0]} {tr[1]} {tr[2]}\n")
-PYEOF
-# And its mirror image, a left hand (the profiles' left.glb is this one mirrored by its node).
-"$PY" - "$work/fixed/hand.ply" "$work/fixed/left.ply" <<'PYEOF'
-import sys
-lines = open(sys.argv[1]).read().split("\n")
-nv = int(next(l for l in lines if l.startswith("element vertex")).split()[2])
-start = lines.index("end_header") + 1
-out = lines[:start]
-for l in lines[start:start + nv]:
-    x, y, z = l.split()
-    out.append(f"{-float(x):.6f} {y} {z}")
-for l in lines[start + nv:]:
-    p = l.split()
-    out.append(f"3 {p[1]} {p[3]} {p[2]}" if len(p) == 4 else l)
-open(sys.argv[2], "w").write("\n".join(out))
+write_ply(os.path.join(d, "cut5.ply"), V[used], idx[Fk], 2)
+write_ply(os.path.join(d, "left.ply"), V * np.array([-1.0, 1.0, 1.0]), F, 2)
 PYEOF
 for mesh in hand cut5 left; do
   set +e

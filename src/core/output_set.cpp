@@ -466,6 +466,14 @@ void OutputSet::discard() noexcept {
   created_.clear();
 }
 
+InputError OutputSet::refusal(const std::string& name, const std::string& why) const {
+  return InputError(final_path(name), "cannot move into place: " + why + "; " + out_dir_ + " is as it was");
+}
+
+std::string OutputSet::why_not_ours(const std::string& name) const {
+  return ours_.count(name) ? "it was changed during the run" : "it appeared during the run and is not handskin's";
+}
+
 bool OutputSet::ours_unchanged(const std::string& name) const {
   std::error_code ec;
   const fs::path dst = fs::path(out_dir_) / name;
@@ -482,14 +490,10 @@ void OutputSet::check_commit() const {
   HS_CHECK(claimed_done_ && !committed_, "an output set is checked between its claim and its commit");
   std::error_code ec;
   const fs::path out(out_dir_);
-  const auto refuse = [&](const std::string& name, const std::string& why) {
-    throw InputError(final_path(name), "cannot move into place: " + why + "; " + out_dir_ + " is as it was");
-  };
-  if (!fs::is_directory(out, ec)) refuse(".", "the output folder is gone");
+  if (!fs::is_directory(out, ec)) throw refusal(".", "the output folder is gone");
   for (const auto& name : names_) {
     if (!fs::exists(fs::symlink_status(out / name, ec)) || contains(in_the_way_, name)) continue;
-    if (!ours_unchanged(name))
-      refuse(name, ours_.count(name) ? "it was changed during the run" : "it appeared during the run and is not handskin's");
+    if (!ours_unchanged(name)) throw refusal(name, why_not_ours(name));
   }
 }
 
@@ -525,7 +529,7 @@ void OutputSet::commit() {
     moved_aside_.clear();
     discard();
     if (signals_) release_signals();
-    throw InputError(final_path(name), "cannot move into place: " + why + "; " + out_dir_ + " is as it was");
+    throw refusal(name, why);
   };
   if (!fs::is_directory(out, ec)) fail(".", "the output folder is gone");
   fs::create_directory(aside, ec);
@@ -544,12 +548,9 @@ void OutputSet::commit() {
       return;
     }
     if (!forced) {
-      const auto it = ours_.find(name);
-      const bool unchanged = ours_unchanged(name);
-      if (!unchanged) {
+      if (!ours_unchanged(name)) {
         if (!writing) return;  // not ours (or no longer): left alone (the caller drops it from the manifest)
-        fail(name, it == ours_.end() ? "it appeared during the run and is not handskin's"
-                                     : "it was changed during the run");
+        fail(name, why_not_ours(name));
       }
       fs::rename(dst, aside / name, ec);
       if (ec) fail(name, ec.message());

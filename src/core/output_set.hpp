@@ -123,6 +123,9 @@ class OutputSet {
  private:
   void ensure_staging();
   bool ours_unchanged(const std::string& name) const;  ///< listed at the claim and the same bytes now
+  /// commit's and check_commit's refusal of `name`, and why a file there is not ours to replace.
+  InputError refusal(const std::string& name, const std::string& why) const;
+  std::string why_not_ours(const std::string& name) const;
   void discard() noexcept;
   void release() noexcept;
   std::string out_dir_, staging_;

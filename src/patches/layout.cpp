@@ -591,18 +591,21 @@ void HandLayout::palm_rings(int thumb_ring_shift, double thumb_turn_deg) {
     for (size_t i = 0; i < ring.size(); ++i) th[i] = angle_of(ring[i], c, A, B);
     const double f = level / 3.0;
     std::array<double, 5> tb, tp;
+    // A back corner stays on the back (5°–175°), a palm corner on the palm (−175°–−5°).
+    const auto on_back = [](double t) { return std::clamp(t, 5 * kPi / 180, 175 * kPi / 180); };
+    const auto on_palm = [](double t) { return std::clamp(t, -175 * kPi / 180, -5 * kPi / 180); };
     for (int k = 0; k < 5; ++k) {
       const double even = (45 + 22.5 * k) * kPi / 180;
-      tb[k] = std::clamp(even + f * std::remainder(top_b[k] - even, 2 * kPi), 5 * kPi / 180, 175 * kPi / 180);
-      tp[k] = std::clamp(-even + f * std::remainder(top_p[k] + even, 2 * kPi), -175 * kPi / 180, -5 * kPi / 180);
+      tb[k] = on_back(even + f * std::remainder(top_b[k] - even, 2 * kPi));
+      tp[k] = on_palm(-even + f * std::remainder(top_p[k] + even, 2 * kPi));
     }
     // Levels 1 and 2 (the thumb's base between them): the base's corners on the back (b0) and
     // the palm (p0) turned `thumb_turn_deg` round the section toward the palm, where a thumb
     // turned under the hand grows from the palm's side and not from its radial flank.
     if (level == 1 || level == 2) {
       const double turn = thumb_turn_deg * kPi / 180;
-      tb[0] = std::clamp(tb[0] - turn, 5 * kPi / 180, 175 * kPi / 180);
-      tp[0] = std::clamp(tp[0] - turn, -175 * kPi / 180, -5 * kPi / 180);
+      tb[0] = on_back(tb[0] - turn);
+      tp[0] = on_palm(tp[0] - turn);
     }
     std::sort(tb.begin(), tb.end());
     std::sort(tp.begin(), tp.end(), std::greater<double>());

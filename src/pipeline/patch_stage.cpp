@@ -36,15 +36,14 @@ std::optional<std::string> layout_note(const PatchSkin& s) {
   else
     std::snprintf(first, sizeof first, "strayed from the skin (p95 %.2f mm)", s.layout_tries[0].second);
   if (kept != 0) {
-    char moved[120];
+    char moved[120], shifted[40];
+    std::snprintf(shifted, sizeof shifted, "moved %+d rings", s.thumb_ring_shift);
     if (s.thumb_turn_deg != 0)
-      std::snprintf(moved, sizeof moved, "turned %.0f deg toward the %s%s", std::abs(s.thumb_turn_deg),
-                    s.thumb_turn_deg > 0 ? "palm" : "back",
-                    s.thumb_ring_shift != 0 ? (" and moved " + std::string(s.thumb_ring_shift > 0 ? "+" : "") +
-                                                       std::to_string(s.thumb_ring_shift) + " rings").c_str()
-                                                  : "");
+      std::snprintf(moved, sizeof moved, "turned %.0f deg toward the %s%s%s", std::abs(s.thumb_turn_deg),
+                    s.thumb_turn_deg > 0 ? "palm" : "back", s.thumb_ring_shift != 0 ? " and " : "",
+                    s.thumb_ring_shift != 0 ? shifted : "");
     else
-      std::snprintf(moved, sizeof moved, "moved %+d rings", s.thumb_ring_shift);
+      std::snprintf(moved, sizeof moved, "%s", shifted);
     std::snprintf(buf, sizeof buf,
                   "layout: the first one's patches %s; the one with the thumb's base %s (%zu crossing pairs, p95 %.2f "
                   "mm) was kept (docs/patches.md)",

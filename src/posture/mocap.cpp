@@ -227,19 +227,19 @@ MocapAngles angles_from_markers(const MarkerTrack& track, const std::string& fil
   // thumb.cmc.abd, which hand_left -> thumb_middle gives alone, and every frame that missed a
   // fingertip lost that finger's MCP angles too).
   struct Angle {
-    std::string name, digit;
+    std::string name;
     std::vector<std::string> needs;  ///< markers besides the back's three
   };
   std::vector<Angle> angles;
   for (const std::string d : {"thumb", "index", "middle", "ring", "little"}) {
     const std::string mid = d + "_middle", tip = d + "_tip";
     if (d == "thumb") {
-      angles.push_back({"thumb.cmc.abd", d, {mid}});
-      angles.push_back({"thumb.mcp.flex", d, {mid, tip}});
+      angles.push_back({"thumb.cmc.abd", {mid}});
+      angles.push_back({"thumb.mcp.flex", {mid, tip}});
     } else {
-      angles.push_back({d + ".mcp.flex", d, {mid}});
-      angles.push_back({d + ".pip.flex", d, {mid, tip}});
-      angles.push_back({d + ".mcp.abd", d, d == "middle" ? std::vector<std::string>{mid} : std::vector<std::string>{mid, "middle_middle"}});
+      angles.push_back({d + ".mcp.flex", {mid}});
+      angles.push_back({d + ".pip.flex", {mid, tip}});
+      angles.push_back({d + ".mcp.abd", d == "middle" ? std::vector<std::string>{mid} : std::vector<std::string>{mid, "middle_middle"}});
     }
   }
   std::vector<std::string> cols;

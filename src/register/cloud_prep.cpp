@@ -440,41 +440,48 @@ PreparedCloud prepare_cloud(const std::vector<Eigen::Vector3d>& points_in, const
   return r;
 }
 
-double two_sided_share(const std::vector<Eigen::Vector3d>& pts, const Eigen::Vector3d& back) {
-  const Eigen::Vector3d z = back.normalized();
-  const Eigen::Vector3d x = z.unitOrthogonal(), y = z.cross(x);
-  constexpr double kCell = 2.0, kSpan = 4.0;
-  std::unordered_map<std::uint64_t, std::pair<double, double>> cells;  // order-free: only counted
-  cells.reserve(pts.size() / 8);
-  for (const auto& p : pts) {
-    const auto i = static_cast<std::int32_t>(std::floor(p.dot(x) / kCell)), j = static_cast<std::int32_t>(std::floor(p.dot(y) / kCell));
-    const std::uint64_t key = (static_cast<std::uint64_t>(static_cast<std::uint32_t>(i)) << 32) | static_cast<std::uint32_t>(j);
-    const double h = p.dot(z);
-    auto [it, fresh] = cells.try_emplace(key, h, h);
-    if (!fresh) it->second.first = std::min(it->second.first, h), it->second.second = std::max(it->second.second, h);
+namespace {
+// The points binned in 2 mm columns along `back` (deterministic order), each column's span of
+// heights, and each point's column.
+struct Span {
+  double lo = 1e300, hi = -1e300;
+};
+struct Columns {
+  Eigen::Vector3d z;
+  std::map<std::pair<long, long>, Span> spans;
+  std::vector<std::pair<long, long>> of_point;
+};
+Columns columns_along(const std::vector<Eigen::Vector3d>& pts, const Eigen::Vector3d& back) {
+  constexpr double kCell = 2.0;
+  Columns c;
+  c.z = back.normalized();
+  const Eigen::Vector3d x = c.z.unitOrthogonal(), y = c.z.cross(x);
+  c.of_point.resize(pts.size());
+  for (size_t k = 0; k < pts.size(); ++k) {
+    c.of_point[k] = {static_cast<long>(std::floor(pts[k].dot(x) / kCell)), static_cast<long>(std::floor(pts[k].dot(y) / kCell))};
+    Span& s = c.spans[c.of_point[k]];
+    const double h = pts[k].dot(c.z);
+    s.lo = std::min(s.lo, h), s.hi = std::max(s.hi, h);
   }
-  if (cells.empty()) return 0.0;
+  return c;
+}
+}  // namespace
+
+double two_sided_share(const std::vector<Eigen::Vector3d>& pts, const Eigen::Vector3d& back) {
+  constexpr double kSpan = 4.0;
+  const Columns c = columns_along(pts, back);
+  if (c.spans.empty()) return 0.0;
   size_t thick = 0;
-  for (const auto& [key, span] : cells) thick += span.second - span.first > kSpan;
-  return static_cast<double>(thick) / static_cast<double>(cells.size());
+  for (const auto& [key, span] : c.spans) thick += span.hi - span.lo > kSpan;
+  return static_cast<double>(thick) / static_cast<double>(c.spans.size());
 }
 
 std::vector<std::uint32_t> label_sides(const std::vector<Eigen::Vector3d>& pts, const Eigen::Vector3d& back,
                                        std::vector<Eigen::Vector3d>* normals) {
-  const Eigen::Vector3d z = back.normalized();
-  const Eigen::Vector3d x = z.unitOrthogonal(), y = z.cross(x);
-  constexpr double kCell = 2.0;
-  struct Span {
-    double lo = 1e300, hi = -1e300;
-  };
-  std::map<std::pair<long, long>, Span> cells;  // ordered: deterministic
-  std::vector<std::pair<long, long>> cell(pts.size());
-  for (size_t k = 0; k < pts.size(); ++k) {
-    cell[k] = {static_cast<long>(std::floor(pts[k].dot(x) / kCell)), static_cast<long>(std::floor(pts[k].dot(y) / kCell))};
-    Span& s = cells[cell[k]];
-    const double h = pts[k].dot(z);
-    s.lo = std::min(s.lo, h), s.hi = std::max(s.hi, h);
-  }
+  const Columns columns = columns_along(pts, back);
+  const Eigen::Vector3d& z = columns.z;
+  const auto& cells = columns.spans;
+  const auto& cell = columns.of_point;
   // The mid-surface of a column and its eight neighbours: a column that sees one side only
   // (a hole on the other) takes its neighbours' span.
   std::map<std::pair<long, long>, double> mid;
