@@ -358,6 +358,43 @@ TEST(Patches, LayoutsAreCheckedOrientedAndSplit) {
   j["faces"][1][2] = 99;
   EXPECT_NE(test::input_error_of([&] { layout_from_json(j, "l.json"); }).find("faces[1] must hold vertex indices in [0, 7]"),
             std::string::npos);
+  // Turned inside out (every face's corners the other way): closed and oriented alike, but its
+  // patches would face into the hand.
+  j = layout_to_json(S);
+  for (auto& f : j["faces"]) f = {f[3], f[2], f[1], f[0]};
+  EXPECT_NE(test::input_error_of([&] { layout_from_json(j, "l.json"); }).find("l.json: its faces run clockwise seen from outside"),
+            std::string::npos);
+  // Halvings: graded (neighbours one apart at most) and at most 12; as a refinement leaves
+  // them, accepted.
+  PatchLayout graded = S;
+  graded.levels.assign(S.faces.size(), {0, 0});
+  EXPECT_NO_THROW(layout_from_json(layout_to_json(graded), "l.json"));
+  graded.levels[4] = {1, 1};
+  EXPECT_NO_THROW(layout_from_json(layout_to_json(graded), "l.json"));
+  graded.levels[4] = {2, 0};  // two more halvings along u than the faces across its sides 1 and 3
+  EXPECT_NE(test::input_error_of([&] { layout_from_json(layout_to_json(graded), "l.json"); })
+                .find("l.json: levels[4] halves face 4 2 times across its side 1"),
+            std::string::npos);
+  for (auto& x : graded.levels) x = {12, 12};
+  EXPECT_NO_THROW(layout_from_json(layout_to_json(graded), "l.json"));
+  graded.levels[0] = {13, 12};
+  EXPECT_NE(test::input_error_of([&] { layout_from_json(layout_to_json(graded), "l.json"); }).find("levels[0] must hold counts in [0, 12]"),
+            std::string::npos);
+}
+
+// A layout given back lies on its skin when its corners are near the skin's surface, however
+// far from its vertices: a refined layout's corner in the middle of the wrist cut's cap, whose
+// vertices are its rim (the family's H04: 24-30 mm from the nearest), was refused.
+TEST(Patches, ALayoutsCornersAreCheckedAgainstTheSkinsSurface) {
+  Mesh cap;  // a 100 mm square of two triangles
+  cap.vertices = {{0, 0, 0}, {100, 0, 0}, {100, 100, 0}, {0, 100, 0}};
+  cap.faces = {{0, 1, 2}, {0, 2, 3}};
+  PatchLayout L = cube_layout(1);
+  for (auto& v : L.vertices) v = Eigen::Vector3d(50, 50, 0) + 10 * v.normalized();  // within 20 mm of the square, 40+ mm from its corners
+  EXPECT_NO_THROW(check_layout_on_skin(L, cap));
+  L.vertices[5].z() += 25;
+  EXPECT_NE(test::input_error_of([&] { check_layout_on_skin(L, cap); }).find("corner 5 lies more than 20 mm from the skin"),
+            std::string::npos);
 }
 
 TEST(Patches, TheLayoutFollowsPatchesCount) {

@@ -664,18 +664,23 @@ std::vector<Separation> finger_separations(const PatchSkin& s, const PatchCrossi
 
 }  // namespace
 
+void check_layout_on_skin(const PatchLayout& layout, const Mesh& skin) {
+  // Every corner within 20 mm of the skin's surface, not of its vertices: a refined layout has
+  // corners in the middle of the wrist cut's cap, whose vertices are its rim only (the family's
+  // H04, 300 mm long: 24–30 mm from the nearest vertex, on the cap; refused as "not from this
+  // skin" until 2026-11-30).
+  const MeshDistance to_skin(skin);
+  for (size_t k = 0; k < layout.vertices.size(); ++k)
+    if (!layout.vertices[k].allFinite() || !(to_skin.distance(layout.vertices[k]) <= 20.0))
+      throw InputError("patch layout", "corner " + std::to_string(k) + " lies more than 20 mm from the skin; is the layout from this skin?");
+}
+
 PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
                          const std::vector<std::uint32_t>& sides, const PatchOptions& o) {
   std::string err;
   if (!o.IsValid(&err)) throw InputError("patch options", err);
   const auto t0 = std::chrono::steady_clock::now();
-  if (o.layout) {  // a layout given back must lie on this skin: every corner within 20 mm of it
-    const PointGrid grid(skin.mesh.vertices, 4.0);
-    for (size_t k = 0; k < o.layout->vertices.size(); ++k)
-      if (!o.layout->vertices[k].allFinite() || !grid.any_within(o.layout->vertices[k], 20.0))
-        throw InputError("patch layout", "corner " + std::to_string(k) +
-                                             " lies more than 20 mm from the skin; is the layout from this skin?");
-  }
+  if (o.layout) check_layout_on_skin(*o.layout, skin.mesh);
   // The skin as weak data, one sample per 2 mm², so that it holds the surface where the scans saw
   // nothing (the flanks between the fingers, the wrist cut) and nowhere outweighs them.
   const std::vector<Eigen::Vector3d> support = sample_surface(skin.mesh, 0.5);

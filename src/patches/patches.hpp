@@ -232,6 +232,9 @@ std::vector<double> patch_error_percentile(const PatchSkin& s, double q);
 /// The largest distance of a measured point (PatchSkin::samples) with its foot point on each patch.
 std::vector<double> patch_max_error(const PatchSkin& s);
 
+/// A layout given back (PatchOptions::layout) must lie on the skin it is fitted to: throws
+/// InputError naming the first corner farther than 20 mm from the skin's surface.
+void check_layout_on_skin(const PatchLayout& layout, const Mesh& skin);
 /// The hand's patches: the layout given in `options`, else the hand's (hand_patch_layout on
 /// the skin and its rig, subdivided), fitted to the merged cloud with the skin as support.
 PatchSkin fit_patch_skin(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,

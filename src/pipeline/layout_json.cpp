@@ -20,6 +20,7 @@ Json layout_to_json(const PatchLayout& L) {
 }
 
 namespace {
+constexpr int kMaxLevel = 12;  // halvings of a face along one direction (layout_from_json)
 // N vertex indices (a face's corners, a crease's ends) from a JSON array, each in [0, nv).
 template <size_t N>
 std::array<int, N> vertex_indices(const Json& a, const std::string& where, size_t nv, const std::string& file) {
@@ -66,14 +67,44 @@ PatchLayout layout_from_json(const Json& j, const std::string& file) {
       if (!l[k].is_array() || l[k].size() != 2) throw InputError(file, where + " must be two counts");
       std::array<int, 2> x{};
       for (int d = 0; d < 2; ++d) {
-        if (!l[k][d].is_number_integer() || l[k][d].get<long>() < 0 || l[k][d].get<long>() > 30)
-          throw InputError(file, where + " must hold counts in [0, 30]");
+        // A face halved 12 times along a direction is 1/4096 of its first length, and grading
+        // halves its neighbours nearly as often: no layout within patches.max_patches (20 000).
+        // The fit's G1 rows weigh 2^level: every face given 20 more halvings left the normal
+        // equations singular to working precision.
+        if (!l[k][d].is_number_integer() || l[k][d].get<long>() < 0 || l[k][d].get<long>() > kMaxLevel)
+          throw InputError(file, where + " must hold counts in [0, " + std::to_string(kMaxLevel) + "]");
         x[d] = static_cast<int>(l[k][d].get<long>());
       }
       L.levels.push_back(x);
     }
   }
-  layout_topology(L, file);  // closed and oriented alike, or an error naming the edge
+  const LayoutTopology T = layout_topology(L, file);  // closed and oriented alike, or an error naming the edge
+  // Graded as a refinement leaves it (balance_cuts): across a border the two faces' halvings
+  // across it differ by one at most. The fit weighs C1 there by 2^(their difference): a face
+  // given 3 more halvings than its neighbours kinked by 169° at its border, 30 more left the
+  // normal equations unsolvable.
+  if (!L.levels.empty())
+    for (size_t f = 0; f < L.faces.size(); ++f)
+      for (int s = 0; s < 4; ++s)
+        for (const auto& [g, gs] : T.sides_across(static_cast<int>(f), s)) {
+          const int a = L.level(static_cast<int>(f), s % 2 == 0 ? 1 : 0), b = L.level(g, gs % 2 == 0 ? 1 : 0);
+          if (a > b + 1)
+            throw InputError(file, "levels[" + std::to_string(f) + "] halves face " + std::to_string(f) + " " + std::to_string(a) +
+                                       " times across its side " + std::to_string(s) + ", its neighbour there (face " +
+                                       std::to_string(g) + ") " + std::to_string(b) +
+                                       " times: neighbours differ by one halving at most, as a refinement leaves them");
+        }
+  // Outward (docs/formats.md: each face counter-clockwise seen from outside): the volume the
+  // faces enclose, each as two triangles, positive. A layout turned inside out fits as well,
+  // but its patches face into the hand: every normal, the STEP faces and the pictures' light.
+  double volume = 0;
+  for (const auto& c : L.faces) {
+    const auto& V = L.vertices;
+    volume += V[c[0]].dot(V[c[1]].cross(V[c[2]])) + V[c[0]].dot(V[c[2]].cross(V[c[3]]));
+  }
+  if (volume < 0)
+    throw InputError(file, "its faces run clockwise seen from outside (the volume they enclose is negative): each face's "
+                           "corners must run counter-clockwise seen from outside");
   return L;
 }
 
