@@ -412,6 +412,26 @@ TEST(Cli, ConvertBetweenScansAndClouds) {
   EXPECT_EQ(load_scan(dir + "/b").values, load_scan(kFix + "back").values);
   EXPECT_EQ(test::run(kBin + " -q convert --in " + dir + "/b.pcd --out " + dir + "/c", &out), 2);
   EXPECT_NE(out.find("--side"), std::string::npos) << out;
+  // A scan given by either of its files, as every other command takes it (it was looked for
+  // as "back.png.json").
+  ASSERT_EQ(test::run(kBin + " -q convert --in " + kFix + "back.png --out " + dir + "/bp.pcd", &out), 0) << out;
+  EXPECT_EQ(read_file(dir + "/bp.pcd"), read_file(dir + "/b.pcd"));
+  // A scanner's text cloud, as `run --cloud` reads it, to PLY and to a scan; written only as
+  // .ply or .pcd.
+  {
+    std::string xyz = "# x y z\n";
+    for (int i = 0; i < 50; ++i) xyz += std::to_string(i) + " " + std::to_string(2 * i) + " 1.5\n";
+    test::write_text(dir + "/t.xyz", xyz);
+  }
+  ASSERT_EQ(test::run(kBin + " -q convert --in " + dir + "/t.xyz --out " + dir + "/t.ply", &out), 0) << out;
+  EXPECT_EQ(load_cloud(dir + "/t.ply")->size(), 50u);
+  EXPECT_EQ(test::run(kBin + " -q convert --in " + dir + "/t.xyz --out " + dir + "/u.xyz", &out), 2);
+  EXPECT_EQ(out, "error: --out: '" + dir + "/u.xyz': a cloud is written as .ply or .pcd (by its extension) (see --help)\n");
+  // A file of a kind convert does not read: said as such, not looked for as a scan's sidecar.
+  test::write_text(dir + "/p.step", "ISO-10303-21;\n");
+  EXPECT_EQ(test::run(kBin + " -q convert --in " + dir + "/p.step --out " + dir + "/p.ply", &out), 1);
+  EXPECT_NE(out.find(dir + "/p.step: not a file convert reads"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir + "/p.ply"));
 }
 
 TEST(Cli, SynthScanRunsOnAnotherHand) {

@@ -259,7 +259,7 @@ TEST(Clouds, OrganisedLayoutAndFileRoundTrip) {
   expect_input_error([&] { load_cloud(dir + "/loose.ply"); }, {"loose.ply", "point 3", "non-finite"});
   test::write_text(dir + "/junk.ply", "ply\nformat nonsense\n");
   expect_input_error([&] { load_cloud(dir + "/junk.ply"); }, {"junk.ply"});
-  expect_input_error([&] { load_cloud(dir + "/c.xyz"); }, {"c.xyz", "extension"});
+  expect_input_error([&] { load_cloud(dir + "/c.las"); }, {"c.las", "extension"});
   expect_input_error([&] { load_cloud(dir + "/missing.ply"); }, {"missing.ply", "no such file"});
 }
 

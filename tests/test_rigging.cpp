@@ -231,6 +231,9 @@ TEST(Rigging, BadGlbsAndOptionsAreRefused) {
   };
   refused(edited("handskin-rigged-skin/1", "handskin-rigged-skin/9"), "handskin-rigged-skin/1");
   refused(edited("\"index-finger-tip\"", "\"index-finger-toe\""), "index-finger-toe");
+  // The binding's name is one of the two handskin makes (an edited one was echoed as "posed …
+  // (dqs, x binding)" and written again into the posed glb).
+  refused(edited("\"binding\":\"smooth\"", "\"binding\":\"sticky\""), "extras.handskin.binding must be \"smooth\" or \"rigid\"");
   // A non-finite inverse bind matrix: the JSON chunk says where the matrices are.
   {
     const uint32_t json_len = *reinterpret_cast<const uint32_t*>(good.data() + 12);

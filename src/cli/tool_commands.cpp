@@ -62,9 +62,14 @@ struct ConvertArgs {
   bool force = false;
 };
 
+// A cloud handskin writes (.ply, .pcd), or reads: those and the scanners' text clouds.
 bool is_cloud_path(const std::string& p) {
-  const std::string e = fs::path(p).extension().string();
+  const std::string e = lower_extension(p);
   return e == ".ply" || e == ".pcd";
+}
+bool is_cloud_input(const std::string& p) {
+  const std::string e = lower_extension(p);
+  return is_cloud_path(p) || e == ".xyz" || e == ".pts" || e == ".txt";
 }
 
 bool is_mesh_path(const std::string& p) {
@@ -76,10 +81,17 @@ void convert(const ConvertArgs& a, const Progress& progress) {
   // What is converted, decided once: its usage errors, the files it claims and its work follow.
   enum class Kind { Mesh, ScanToCloud, CloudToCloud, CloudToScan };
   const Kind kind = is_mesh_path(a.in) || is_mesh_path(a.out) ? Kind::Mesh  // any mesh the project writes, to .ply/.obj/.off/.stl
-                    : !is_cloud_path(a.in)                    ? Kind::ScanToCloud
+                    : !is_cloud_input(a.in)                   ? Kind::ScanToCloud
                     : is_cloud_path(a.out)                    ? Kind::CloudToCloud
                                                               : Kind::CloudToScan;
   if (kind == Kind::Mesh) require_mesh_extension(a.out, "--out");
+  if (kind == Kind::CloudToScan && is_cloud_input(a.out))
+    throw UsageError("--out", "'" + a.out + "': a cloud is written as .ply or .pcd (by its extension)");
+  // A scan is given by its stem (`back` for back.png and back.json); a file that is there under
+  // the name given is none of the kinds convert reads (a STEP file, an FBX…), not a stem.
+  if (std::error_code ec; kind == Kind::ScanToCloud && fs::is_regular_file(a.in, ec))
+    throw InputError(a.in, "not a file convert reads: a scan (its stem, or its .png or .json), a cloud (.ply, .pcd, .xyz, "
+                           ".pts, .txt) or a mesh (.obj, .off, .stl, .glb)");
   if (kind == Kind::ScanToCloud && !is_cloud_path(a.out))
     throw UsageError("--out", "converting a scan needs a .ply or .pcd output");
   if (kind == Kind::CloudToScan) {
@@ -144,7 +156,11 @@ void add_tool_commands(CLI::App& app, const Progress& progress, Commands* out) {
   auto ca = std::make_shared<ConvertArgs>();
   auto* cc = app.add_subcommand("convert", "Convert between scans (<stem>) and point clouds (.ply/.pcd), or between meshes "
                                           "(any the project writes to .ply, .obj, .off or .stl, e.g. skin.glb to an STL for printing)");
-  cc->add_option("--in", ca->in, "Scan stem, .ply/.pcd cloud, or mesh (.obj, .off, .stl, .glb; patches.obj tessellated)")->required();
+  cc->add_option("--in", ca->in,
+                 "Scan (its stem or either file), cloud (.ply, .pcd, or .xyz/.pts/.txt text), or mesh (.obj, .off, .stl, .glb; "
+                 "patches.obj tessellated)")
+      ->transform(scan_stem_option())
+      ->required();
   cc->add_option("--out", ca->out, "Scan stem, .ply/.pcd cloud, or mesh (.ply, .obj, .off, .stl) by extension")->required();
   cc->add_option("--like", ca->like, "Cloud -> scan: take the grid from this scan's sidecar (default: CUBIST 512 x 512)");
   cc->add_option("--side", ca->side, "Cloud -> scan: back or palm");

@@ -633,7 +633,14 @@ RiggedSkin read_skin_glb(const std::string& file) {
   if (!h.contains("rig") || !h.contains("posture_model")) throw InputError(file, "extras.handskin lacks its rig or posture model");
   s.rig = parse_rig(h["rig"].dump(), file + ": extras.handskin.rig");
   s.model = parse_model(h["posture_model"], file + ": extras.handskin.posture_model");
-  s.binding.mode = h.contains("binding") && h["binding"].is_string() ? h["binding"].get<std::string>() : "smooth";
+  // The binding's name, as `run` wrote it (the weights themselves are the glb's JOINTS_0 and
+  // WEIGHTS_0); absent in a file that lost it: smooth, as `run` makes by default.
+  s.binding.mode = "smooth";
+  if (h.contains("binding") && !h["binding"].is_null()) {
+    if (!h["binding"].is_string() || (h["binding"] != "smooth" && h["binding"] != "rigid"))
+      throw InputError(file, "extras.handskin.binding must be \"smooth\" or \"rigid\" (got " + h["binding"].dump() + ")");
+    s.binding.mode = h["binding"].get<std::string>();
+  }
   const std::array<int, kJointCount> ours = skin_joints(m, file);
   check_bind_matrices(m, file, s.rig, ours);
   const tinygltf::Primitive& prim = skin_primitive(m, file);

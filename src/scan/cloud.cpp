@@ -143,7 +143,9 @@ void save_any_cloud(const std::string& path, const pcl::PointCloud<PointT>& clou
 }  // namespace
 
 Cloud::Ptr load_cloud(const std::string& path) {
-  ply_or_pcd(path);
+  const std::string ext = lower_extension(path);
+  if (ext != ".ply" && ext != ".pcd" && ext != ".xyz" && ext != ".pts" && ext != ".txt")
+    throw InputError(path, "unknown point-cloud extension (use .ply, .pcd, .xyz, .pts or .txt)");
   return std::make_shared<Cloud>(cloud_of(read_point_cloud(path).points));
 }
 

@@ -27,9 +27,10 @@ Cloud::Ptr dense_copy(const Cloud& cloud);
 /// dropped and counted in `*dropped` (if given). Inverse of scan_to_organized_cloud.
 RangeScan cloud_to_scan(const Cloud& cloud, const ScanMeta& meta, size_t* dropped = nullptr);
 
-/// Load a `.ply` or `.pcd` cloud's points through read_point_cloud (an organised cloud's NaN
-/// points, its no-returns, are dropped). Throws InputError naming the file when it cannot be
-/// read, has another extension, holds no points or a non-finite coordinate elsewhere.
+/// Load a cloud's points (.ply, .pcd, or .xyz/.pts/.txt text) through read_point_cloud (an
+/// organised cloud's NaN points, its no-returns, are dropped). Throws InputError naming the file
+/// when it cannot be read, has another extension, holds no points or a non-finite coordinate
+/// elsewhere.
 Cloud::Ptr load_cloud(const std::string& path);
 /// Save as binary PLY or PCD by extension, atomically: x y z as floats (the project's one
 /// writer of clouds; not through pcl_io, see pcl_module.hpp).
