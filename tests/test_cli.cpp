@@ -427,6 +427,26 @@ TEST(Cli, ConvertBetweenScansAndClouds) {
   EXPECT_EQ(load_cloud(dir + "/t.ply")->size(), 50u);
   EXPECT_EQ(test::run(kBin + " -q convert --in " + dir + "/t.xyz --out " + dir + "/u.xyz", &out), 2);
   EXPECT_EQ(out, "error: --out: '" + dir + "/u.xyz': a cloud is written as .ply or .pcd (by its extension) (see --help)\n");
+  // A merged cloud (normals, side labels) to PCD and back: nothing lost (its normals and labels
+  // were dropped). Onto itself: refused, the file as it was (it was rewritten without them).
+  {
+    pcl::PointCloud<pcl::PointXYZLNormal> m;
+    for (int i = 0; i < 40; ++i) {
+      pcl::PointXYZLNormal q;
+      q.x = static_cast<float>(i), q.y = 0.5f * static_cast<float>(i), q.z = 3;
+      q.normal_x = 0, q.normal_y = 0.6f, q.normal_z = 0.8f;
+      q.label = static_cast<std::uint32_t>(i % 2);
+      m.push_back(q);
+    }
+    save_cloud(dir + "/m.ply", m);
+  }
+  ASSERT_EQ(test::run(kBin + " -q convert --in " + dir + "/m.ply --out " + dir + "/m.pcd", &out), 0) << out;
+  ASSERT_EQ(test::run(kBin + " -q convert --in " + dir + "/m.pcd --out " + dir + "/m2.ply", &out), 0) << out;
+  EXPECT_EQ(read_file(dir + "/m2.ply"), read_file(dir + "/m.ply"));
+  const std::string before = read_file(dir + "/m2.ply");
+  EXPECT_EQ(test::run(kBin + " -q convert --in " + dir + "/m2.ply --out " + dir + "/./m2.ply --force", &out), 2);
+  EXPECT_NE(out.find("is the file --in reads"), std::string::npos) << out;
+  EXPECT_EQ(read_file(dir + "/m2.ply"), before);
   // A file of a kind convert does not read: said as such, not looked for as a scan's sidecar.
   test::write_text(dir + "/p.step", "ISO-10303-21;\n");
   EXPECT_EQ(test::run(kBin + " -q convert --in " + dir + "/p.step --out " + dir + "/p.ply", &out), 1);

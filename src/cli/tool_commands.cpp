@@ -87,6 +87,10 @@ void convert(const ConvertArgs& a, const Progress& progress) {
   if (kind == Kind::Mesh) require_mesh_extension(a.out, "--out");
   if (kind == Kind::CloudToScan && is_cloud_input(a.out))
     throw UsageError("--out", "'" + a.out + "': a cloud is written as .ply or .pcd (by its extension)");
+  // Onto itself: the file read would be replaced by what convert makes of it (a cloud's or a
+  // mesh's other format, a scan's cloud), which is not always all it held.
+  if (std::error_code ec; fs::exists(a.in, ec) && fs::exists(a.out, ec) && fs::equivalent(a.in, a.out, ec))
+    throw UsageError("--out", "'" + a.out + "' is the file --in reads; convert writes a new file");
   // A scan is given by its stem (`back` for back.png and back.json); a file that is there under
   // the name given is none of the kinds convert reads (a STEP file, an FBX…), not a stem.
   if (std::error_code ec; kind == Kind::ScanToCloud && fs::is_regular_file(a.in, ec))
@@ -112,7 +116,10 @@ void convert(const ConvertArgs& a, const Progress& progress) {
     save_cloud(files.stage(a.out), *dense_copy(*scan_to_organized_cloud(scan)));
     progress("convert", std::to_string(scan.count_valid()) + " points written");
   } else if (kind == Kind::CloudToCloud) {
-    save_cloud(files.stage(a.out), *load_cloud(a.in));
+    const PointCloudFile cloud = load_cloud_file(a.in);  // its normals and side labels kept (a merged.ply's)
+    save_cloud_file(files.stage(a.out), cloud);
+    progress("convert", std::to_string(cloud.points.size()) + " points written" +
+                            (cloud.normals.empty() ? "" : cloud.labels.empty() ? ", with their normals" : ", with their normals and labels"));
   } else {
     // The grid comes from an existing scan's sidecar (--like) or the CUBIST defaults.
     ScanMeta meta = a.like.empty() ? ScanMeta{} : parse_scan_meta(read_file(a.like + ".json"), a.like + ".json");

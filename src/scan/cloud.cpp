@@ -95,12 +95,12 @@ std::string cloud_file_bytes(const pcl::PointCloud<PointT>& cloud, bool ply) {
   static_assert(std::numeric_limits<float>::is_iec559 && sizeof(float) == 4, "PLY and PCD store IEEE floats");
   const std::uint16_t probe = 1;
   HS_CHECK(*reinterpret_cast<const unsigned char*>(&probe) == 1, "the cloud writers assume a little-endian machine");
-  constexpr bool oriented = std::is_same_v<PointT, pcl::PointXYZLNormal>;
+  constexpr bool labelled = std::is_same_v<PointT, pcl::PointXYZLNormal>;
+  constexpr bool oriented = labelled || std::is_same_v<PointT, pcl::PointNormal>;
   // (PLY name, PCD name, PCD type) per 4-byte field.
   std::vector<std::array<const char*, 3>> fields = {{"x", "x", "F"}, {"y", "y", "F"}, {"z", "z", "F"}};
-  if (oriented)
-    fields.insert(fields.end(), {{"nx", "normal_x", "F"}, {"ny", "normal_y", "F"}, {"nz", "normal_z", "F"},
-                                 {"label", "label", "U"}});
+  if (oriented) fields.insert(fields.end(), {{"nx", "normal_x", "F"}, {"ny", "normal_y", "F"}, {"nz", "normal_z", "F"}});
+  if (labelled) fields.push_back({"label", "label", "U"});
   const size_t n = cloud.size();
   // An organised cloud (a scan's grid, its no-returns NaN) keeps its rows: PCD's WIDTH and
   // HEIGHT, PLY's obj_info num_cols / num_rows as PCL's reader and writer name them.
@@ -131,7 +131,8 @@ std::string cloud_file_bytes(const pcl::PointCloud<PointT>& cloud, bool ply) {
   };
   for (const PointT& p : cloud.points) {
     put(p.x), put(p.y), put(p.z);
-    if constexpr (oriented) put(p.normal_x), put(p.normal_y), put(p.normal_z), put(static_cast<std::uint32_t>(p.label));
+    if constexpr (oriented) put(p.normal_x), put(p.normal_y), put(p.normal_z);
+    if constexpr (labelled) put(static_cast<std::uint32_t>(p.label));
   }
   return out;
 }
@@ -142,11 +143,37 @@ void save_any_cloud(const std::string& path, const pcl::PointCloud<PointT>& clou
 }
 }  // namespace
 
-Cloud::Ptr load_cloud(const std::string& path) {
+PointCloudFile load_cloud_file(const std::string& path) {
   const std::string ext = lower_extension(path);
   if (ext != ".ply" && ext != ".pcd" && ext != ".xyz" && ext != ".pts" && ext != ".txt")
     throw InputError(path, "unknown point-cloud extension (use .ply, .pcd, .xyz, .pts or .txt)");
-  return std::make_shared<Cloud>(cloud_of(read_point_cloud(path).points));
+  return read_point_cloud(path);
+}
+
+Cloud::Ptr load_cloud(const std::string& path) { return std::make_shared<Cloud>(cloud_of(load_cloud_file(path).points)); }
+
+void save_cloud_file(const std::string& path, const PointCloudFile& file) {
+  if (file.normals.empty()) return save_cloud(path, file.points);
+  HS_CHECK(file.normals.size() == file.points.size() && (file.labels.empty() || file.labels.size() == file.points.size()),
+           "a cloud's normals and labels are one per point");
+  const auto fill = [&](auto* cloud) {
+    cloud->resize(file.points.size());
+    for (size_t k = 0; k < file.points.size(); ++k) {
+      auto& q = (*cloud)[k];
+      q.x = static_cast<float>(file.points[k].x()), q.y = static_cast<float>(file.points[k].y()), q.z = static_cast<float>(file.points[k].z());
+      q.normal_x = static_cast<float>(file.normals[k].x()), q.normal_y = static_cast<float>(file.normals[k].y());
+      q.normal_z = static_cast<float>(file.normals[k].z());
+    }
+  };
+  if (!file.labels.empty()) {
+    pcl::PointCloud<pcl::PointXYZLNormal> c;
+    fill(&c);
+    for (size_t k = 0; k < file.points.size(); ++k) c[k].label = file.labels[k];
+    return save_any_cloud(path, c);
+  }
+  pcl::PointCloud<pcl::PointNormal> c;
+  fill(&c);
+  save_any_cloud(path, c);
 }
 
 void save_cloud(const std::string& path, const Cloud& cloud) { save_any_cloud(path, cloud); }

@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 
+#include "scan/cloud_file.hpp"
 #include "scan/cubist_io.hpp"
 
 namespace handskin {
@@ -32,6 +33,8 @@ RangeScan cloud_to_scan(const Cloud& cloud, const ScanMeta& meta, size_t* droppe
 /// when it cannot be read, has another extension, holds no points or a non-finite coordinate
 /// elsewhere.
 Cloud::Ptr load_cloud(const std::string& path);
+/// The same file as read_point_cloud reads it: its normals and labels too (`convert`).
+PointCloudFile load_cloud_file(const std::string& path);
 /// Save as binary PLY or PCD by extension, atomically: x y z as floats (the project's one
 /// writer of clouds; not through pcl_io, see pcl_module.hpp).
 void save_cloud(const std::string& path, const Cloud& cloud);
@@ -40,6 +43,9 @@ void save_cloud(const std::string& path, const Cloud& cloud);
 void save_cloud(const std::string& path, const pcl::PointCloud<pcl::PointXYZLNormal>& cloud);
 /// The same for a list of points (mm, or whatever units they are in): x y z.
 void save_cloud(const std::string& path, const std::vector<Eigen::Vector3d>& points);
+/// The same for a cloud file read (`convert`): x y z, and what it has of the normal and the
+/// label (a merged.ply's side), so that a cloud converted to the other format loses neither.
+void save_cloud_file(const std::string& path, const PointCloudFile& file);
 
 /// PCL's console messages off: every failure of ours is one line that names the file.
 void silence_pcl_console();
