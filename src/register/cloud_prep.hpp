@@ -49,6 +49,8 @@ struct PreparedCloud {
   Eigen::Vector4d support_plane = Eigen::Vector4d::Zero();  ///< n·p + d = 0 (when found)
   double spacing_mm = 0;     ///< the points' spacing: the voxel after a voxel grid, else the median nearest-neighbour distance
   double part_gap_mm = 0;    ///< the gap used for connected parts
+  double noise_mm = 0;       ///< the points' noise after the voxel grid (a local plane's spread, median; 0 when not measured)
+  double support_band_mm = 0;  ///< the support plane's inlier band (each side) used
   Eigen::Vector3d extent_mm = Eigen::Vector3d::Zero();  ///< the hand's extents along its principal axes, largest first
   std::vector<std::pair<std::string, double>> timings_ms;  ///< per step, in order
 };
