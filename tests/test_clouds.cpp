@@ -322,8 +322,19 @@ TEST(CloudPrep, RefusesWhatIsNotAHand) {
   const auto next = [&] { return (seed = seed * 1664525u + 1013904223u) / 4294967296.0 * 100.0; };
   for (int i = 0; i < 5000; ++i) scatter.emplace_back(next(), next(), next());
   const std::string sc = err(scatter);
-  EXPECT_NE(sc.find("scattered points, not a surface"), std::string::npos) << sc;
+  EXPECT_NE(sc.find("scattered points, or a surface sampled too sparsely"), std::string::npos) << sc;
   EXPECT_EQ(sc.find("plane"), std::string::npos) << sc;
+  // A hand scanned at 2.5 mm between rays falls apart into small parts, and the message says
+  // why it may have and what density is read.
+  {
+    CloudSimOptions o;
+    o.spacing_mm = 2.5;
+    const std::string sparse = err(simulate_cloud(h.skin, h.rig, o, 7).points);
+    EXPECT_NE(sparse.find("a surface sampled too sparsely? a hand's cloud needs its points at most ~1.5 mm apart"),
+              std::string::npos)
+        << sparse;
+    EXPECT_NE(sparse.find("mm apart, median"), std::string::npos) << sparse;
+  }
   // Non-finite coordinates.
   std::vector<Eigen::Vector3d> nan = h.sim.points;
   nan[10].y() = std::nan("");
