@@ -211,6 +211,24 @@ TEST(ScanPair, SawnReplicaEndsFlatWhereAsked) {
   EXPECT_THROW(synthesize_scan_pair(h.mesh.mesh, h.model.rig, ro, ScannerOptions{}, 7, false), InputError);
 }
 
+// A hand mesh whose faces face inward (another tool's winding) is the same solid: its scans,
+// markers and true skin are the outward mesh's, bit for bit (it was refused as a hand whose
+// markers could not be placed).
+TEST(ScanPair, AMeshFacingInwardIsScannedAsTheSameSolid) {
+  const auto& h = default_hand();
+  Mesh inward = h.mesh.mesh;
+  for (auto& f : inward.faces) std::reverse(f.begin(), f.end());
+  ASSERT_LT(mesh_health(inward).volume_mm3, 0);
+  const ScanPair a = synthesize_scan_pair(h.mesh.mesh, h.model.rig, ReplicaOptions{}, ScannerOptions{}, 7, false);
+  const ScanPair b = synthesize_scan_pair(inward, h.model.rig, ReplicaOptions{}, ScannerOptions{}, 7, false);
+  EXPECT_EQ(a.back.scan.values, b.back.scan.values);
+  EXPECT_EQ(a.palm.scan.values, b.palm.scan.values);
+  ASSERT_EQ(a.markers_hand.size(), b.markers_hand.size());
+  for (size_t k = 0; k < a.markers_hand.size(); ++k) EXPECT_EQ(a.markers_hand[k], b.markers_hand[k]);
+  EXPECT_EQ(a.skin_palm.faces, b.skin_palm.faces);
+  EXPECT_GT(mesh_health(b.skin_palm).volume_mm3, 0);
+}
+
 TEST(ScanPair, FixtureTruthFile) {
   const std::string dir = std::string(HANDSKIN_SOURCE_DIR) + "/fixtures/default/";
   const Json t = load_json_object(dir + "truth.json");

@@ -393,15 +393,26 @@ void check_hand_and_rig(const Mesh& hand, const Rig& rig) {
                                         box.exteriorDistance(rig.joints[j]), margin));
 }
 
-ScanPair synthesize_scan_pair(const Mesh& hand_in, const Rig& rig_in, const ReplicaOptions& ro,
+ScanPair synthesize_scan_pair(const Mesh& hand_given, const Rig& rig_in, const ReplicaOptions& ro,
                               const ScannerOptions& so, std::uint64_t seed, bool verbose) {
-  check_hand_and_rig(hand_in, rig_in);
+  check_hand_and_rig(hand_given, rig_in);
   // The replica is a solid cast: an open mesh (a hole, an open wrist) has no inside to cast, and
   // its markers were refused as "an irregular pattern" that could not be placed.
-  if (const MeshHealth h = mesh_health(hand_in); !h.closed())
-    throw InputError("--mesh", "not a closed surface (" + std::to_string(h.boundary_edges) +
+  const MeshHealth health = mesh_health(hand_given);
+  if (!health.closed())
+    throw InputError("--mesh", "not a closed surface (" + std::to_string(health.boundary_edges) +
                                    " boundary edges): the replica is a solid cast of the hand; close the mesh's holes "
                                    "(an open wrist too) first");
+  // A closed mesh whose faces face inward (its signed volume negative: another tool's winding)
+  // is the same solid: its faces are turned outward, as the scanner's incidence and the true
+  // skin's normals want (such a mesh was refused as a hand whose markers could not be placed).
+  Mesh turned;
+  if (health.volume_mm3 < 0) {
+    turned = hand_given;
+    for (auto& f : turned.faces) std::reverse(f.begin(), f.end());
+    if (verbose) std::fprintf(stderr, "[synth scan] the mesh's faces faced inward; turned outward\n");
+  }
+  const Mesh& hand_in = health.volume_mm3 < 0 ? turned : hand_given;
   std::string err;
   if (!ro.IsValid(&err)) throw InputError("replica options", err);
   if (!so.IsValid(&err)) throw InputError("scanner options", err);
