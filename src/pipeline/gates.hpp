@@ -42,6 +42,7 @@ struct GateInputs {
   std::string skin_file;                          ///< a written skin mesh (the staged skin.ply)
   std::string skin_name;                          ///< how messages name it (its final path)
   const std::vector<Eigen::Vector3d>* cloud = nullptr;  ///< the merged cloud (cloud → skin)
+  double cloud_noise_mm = 0;                      ///< run --cloud: the cloud's measured noise (PreparedCloud::noise_mm), 0 unknown
   const Registration* registration = nullptr;     ///< its own error estimate (1σ)
   const PatchStageResult* patches = nullptr;      ///< patches → skin, G0 gap
 };

@@ -372,6 +372,7 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
     gi.skin_file = out.staged_path("skin.ply");
     gi.skin_name = out.final_path("skin.ply");
     gi.cloud = r.cloud ? &r.cloud->prepared.points : &merged.points;
+    if (r.cloud) gi.cloud_noise_mm = r.cloud->prepared.noise_mm;
     gi.registration = r.cloud ? nullptr : &r.registration;
     gi.patches = r.patches ? &*r.patches : nullptr;
     W.gates = check_gates(gi, in.options);
