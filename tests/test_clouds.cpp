@@ -201,6 +201,27 @@ TEST(CloudFile, BadFilesGetOneLineErrorsNamingThem) {
   EXPECT_NE(err(d + "/nan.ply").find("non-finite"), std::string::npos) << err(d + "/nan.ply");
   for (const auto& m : {err(d + "/nan.ply"), err(d + "/empty.xyz"), err(d + "/png.ply")})
     EXPECT_EQ(m.find('\n'), std::string::npos) << m;
+  // A header that declares more than the file holds, or more points than are read at all:
+  // refused from the header, before PCL's reader sizes its buffers by it (a PLY declaring
+  // 2 000 000 000 vertices over 12 bytes had run --cloud take 23 GB and be killed).
+  {
+    const std::string head = "ply\nformat binary_little_endian 1.0\nelement vertex ";
+    const std::string props = "\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+    test::write_text(d + "/liar.ply", head + "2000000000" + props + "abcdefghijkl");
+    EXPECT_NE(err(d + "/liar.ply").find("liar.ply: its header declares 2000000000 points, more than 20000000"), std::string::npos)
+        << err(d + "/liar.ply");
+    test::write_text(d + "/cut.ply", head + "1000" + props + std::string(120, '\0'));  // 10 of 1000 points
+    EXPECT_NE(err(d + "/cut.ply").find("in at least 12000 bytes, but 120 bytes follow it: the file is cut short"), std::string::npos)
+        << err(d + "/cut.ply");
+    test::write_text(d + "/cut.pcd", "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2000000\n"
+                                     "HEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2000000\nDATA binary\n" + std::string(100, '\0'));
+    EXPECT_NE(err(d + "/cut.pcd").find("2000000 points and what else it holds in at least 24000000 bytes"), std::string::npos)
+        << err(d + "/cut.pcd");
+    // An ASCII PLY whose last line ends the file without a newline, every value one digit: read.
+    test::write_text(d + "/tight.ply", "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                                       "property float z\nend_header\n1 2 3\n4 5 6");
+    EXPECT_EQ(read_point_cloud(d + "/tight.ply").points.size(), 2u);
+  }
   // Too many points for the limit given.
   test::write_text(d + "/two.xyz", "1 2 3\n4 5 6\n");
   EXPECT_NE(test::input_error_of([&] { read_point_cloud(d + "/two.xyz", LengthUnit::Millimetre, 1); }).find("more than 1"),

@@ -97,6 +97,103 @@ std::vector<double> field_values(const pcl::PCLPointCloud2& c, const pcl::PCLPoi
   return v;
 }
 
+// What a PLY's or PCD's header declares, checked against the file before PCL reads it: PCL's
+// readers size their buffers by the header's counts, so a header that claims 2 000 000 000
+// points over a few bytes (a file cut short, a count mistyped) had `run --cloud` take 23 GB and
+// be killed. The points declared must be at most `max_points`, and the body must be long
+// enough to hold them: each binary element's fixed size (a list its count's bytes at least),
+// two bytes a value in ASCII ("1 "). A compressed PCD's body is not bounded so; its count is.
+void check_declared_size(const std::string& path, const std::string& format, size_t max_points) {
+  std::ifstream in(path, std::ios::binary);
+  std::error_code ec;
+  const auto file_size = static_cast<double>(std::filesystem::file_size(path, ec));
+  if (ec) return;  // PCL's reader says what is wrong
+  const auto scalar_bytes = [](const std::string& t) -> int {
+    if (t == "char" || t == "uchar" || t == "int8" || t == "uint8") return 1;
+    if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
+    if (t == "int" || t == "uint" || t == "float" || t == "int32" || t == "uint32" || t == "float32") return 4;
+    if (t == "double" || t == "float64") return 8;
+    return 0;
+  };
+  std::string line;
+  double header = 0, body_min = 0, points = -1;
+  bool ascii = false, compressed = false;
+  if (format == "ply") {
+    double count = 0, element_min = 0;  // the element being declared
+    const auto close_element = [&] { body_min += count * element_min; };
+    for (int k = 0; k < 10000 && std::getline(in, line); ++k) {
+      header += static_cast<double>(line.size()) + 1;
+      std::istringstream w(line);
+      std::string word, type;
+      w >> word;
+      if (word == "format") {
+        w >> type;
+        ascii = type == "ascii";
+      } else if (word == "element") {
+        close_element();
+        std::string name;
+        w >> name >> count;
+        if (!w || count < 0) return;  // PCL's reader says what is wrong
+        element_min = 0;
+        if (name == "vertex") points = count;
+      } else if (word == "property") {
+        w >> type;
+        if (type == "list") {
+          std::string count_type;
+          w >> count_type;
+          element_min += ascii ? 2 : scalar_bytes(count_type);
+        } else {
+          element_min += ascii ? 2 : scalar_bytes(type);
+        }
+      } else if (word == "end_header") {
+        close_element();
+        break;
+      }
+    }
+  } else {  // pcd
+    double per_point = 0, width = 0, height = 1;
+    std::vector<double> sizes, counts;
+    for (int k = 0; k < 100 && std::getline(in, line); ++k) {
+      header += static_cast<double>(line.size()) + 1;
+      std::istringstream w(line);
+      std::string word;
+      w >> word;
+      double v;
+      if (word == "SIZE") {
+        while (w >> v) sizes.push_back(v);
+      } else if (word == "COUNT") {
+        while (w >> v) counts.push_back(v);
+      } else if (word == "WIDTH") {
+        w >> width;
+      } else if (word == "HEIGHT") {
+        w >> height;
+      } else if (word == "POINTS") {
+        w >> points;
+      } else if (word == "DATA") {
+        std::string kind;
+        w >> kind;
+        ascii = kind == "ascii";
+        compressed = kind == "binary_compressed";
+        break;
+      }
+    }
+    if (points < 0) points = width * height;
+    for (size_t f = 0; f < sizes.size(); ++f) {
+      const double c = f < counts.size() ? counts[f] : 1;
+      per_point += ascii ? 2 * c : sizes[f] * c;
+    }
+    if (!compressed) body_min = points * per_point;
+  }
+  if (ascii) body_min = std::max(0.0, body_min - 1);  // the last value's line may end the file without a newline
+  const auto whole = [](double v) { return std::to_string(static_cast<long long>(std::min(std::max(v, 0.0), 9e18))); };
+  if (points > static_cast<double>(max_points))
+    throw InputError(path, "its header declares " + whole(points) + " points, more than " + std::to_string(max_points));
+  if (body_min > file_size - header)
+    throw InputError(path, "its header declares " + whole(points) + " points and what else it holds in at least " +
+                               whole(body_min) + " bytes, but " + whole(file_size - header) +
+                               " bytes follow it: the file is cut short, or its header's counts are wrong");
+}
+
 // PLY and PCD through PCL's readers (binary and ASCII; a PLY mesh's faces are skipped), in
 // handskin's PCL module (pcl_module.hpp).
 void read_pcl(PointCloudFile* out) {
@@ -247,6 +344,7 @@ PointCloudFile read_point_cloud(const std::string& path, LengthUnit unit, size_t
   if (!std::filesystem::is_regular_file(path, ec)) throw InputError(path, "no such file");
   silence_pcl_console();
   if (pcl_format) {
+    check_declared_size(path, f, max_points);
     read_pcl(&out);
     if (f == "ply") read_ply_faces(&out);
   }
