@@ -607,6 +607,10 @@ TEST(Mocap, BadMarkerFilesAreErrors) {
   const std::string dir = test::temp_dir("mocapbad");
   test::write_text(dir + "/a.tsv", "NO_OF_FRAMES\t3\nMARKER_NAMES\thand_top\n1\t2\t3\n");
   EXPECT_NE(input_error_of([&] { read_qualisys_tsv(dir + "/a.tsv"); }).find("NO_OF_FRAMES"), std::string::npos);
+  // A count out of range: the message gives the value and the range (it said only "is not a count").
+  test::write_text(dir + "/big.tsv", "NO_OF_FRAMES\t2000000000\nMARKER_NAMES\thand_top\n1\t2\t3\n");
+  EXPECT_NE(input_error_of([&] { read_qualisys_tsv(dir + "/big.tsv"); }).find("big.tsv:1: NO_OF_FRAMES '2000000000' is not a count in [0, 1e9]"),
+            std::string::npos);
   test::write_text(dir + "/b.tsv", "MARKER_NAMES\tfoo\n1\t2\tx\n");
   EXPECT_NE(input_error_of([&] { read_qualisys_tsv(dir + "/b.tsv"); }).find("b.tsv:2"), std::string::npos);
   test::write_text(dir + "/c.tsv", "MARKER_NAMES\tfoo\tbar\n1\t2\t3\t4\t5\t6\n");

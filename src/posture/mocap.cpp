@@ -79,7 +79,7 @@ MarkerTrack parse_qualisys_tsv(const std::string& text, const std::string& file)
       } else if (cells[0] == "NO_OF_FRAMES" && cells.size() > 1) {
         double v;
         if (!parse_number(cells[1], &v) || !(v >= 0 && v <= 1e9) || v != std::floor(v))
-          throw InputError(where, "NO_OF_FRAMES is not a count");
+          throw InputError(where, "NO_OF_FRAMES '" + cells[1] + "' is not a count in [0, 1e9]");
         declared_frames = static_cast<long>(v);
       } else if (cells[0] == "Frame") {  // column header of exports with frame and time columns
         first = 2;
@@ -140,7 +140,7 @@ MarkerTrack parse_trc(const std::string& text, const std::string& file) {
   auto count_of = [](const std::string& cell, const std::string& where, const char* key) {
     double v;
     if (!parse_number(cell, &v) || !(v >= 0 && v <= 1e9) || v != std::floor(v))
-      throw InputError(where, std::string(key) + " '" + cell + "' is not a count");
+      throw InputError(where, std::string(key) + " '" + cell + "' is not a count in [0, 1e9]");
     return static_cast<long>(v);
   };
   const bool ends_with_newline = !text.empty() && text.back() == '\n';
