@@ -593,6 +593,18 @@ TEST(Register, ManualMarkersGiveTheSameResult) {
       input_error_of([&] { register_scans(back, palm, "back", "palm", RegistrationOptions{}, &bad, kQuiet); });
   EXPECT_NE(err.find("bad.json"), std::string::npos) << err;
   EXPECT_NE(err.find("palm[4]"), std::string::npos) << err;
+  // Every back position 50 mm off (another pair's, or another frame's): the radius's estimate
+  // finds nothing at them, and the error names the file, not the scans (it told the user to
+  // give approximate positions with --markers, which they had).
+  for (auto& m : hints["back"]) m[0] = m[0].get<double>() + 50.0;
+  hints["palm"][4] = truth["markers_palm"][4];
+  save_json(dir + "/far.json", hints);
+  const MarkerHints far = load_marker_hints(dir + "/far.json");
+  RegistrationOptions estimated;  // as run and register do without markers.radius_mm
+  estimated.estimate_radius = true;
+  const std::string far_err = input_error_of([&] { register_scans(back, palm, "back", "palm", estimated, &far, kQuiet); });
+  EXPECT_NE(far_err.find("far.json: at the positions it gives no radius finds 3 marker spheres"), std::string::npos) << far_err;
+  EXPECT_NE(far_err.find("are they this pair's markers"), std::string::npos) << far_err;
 }
 
 TEST(Register, RefusesWhatItCannotTrust) {

@@ -300,6 +300,13 @@ void settle_radius(const PreparedScan& back, const PreparedScan& palm, Registrat
     if (d->caps == 0) {
       std::string tried;
       for (double rc : o->radius_candidates_mm) tried += (tried.empty() ? "" : ", ") + fmt("%.1f", rc);
+      // With positions given, the caps are looked for at them only: positions of another pair,
+      // or of one scan given as the other's, found nothing, and the message told the user to
+      // give the positions they had given.
+      if (hints)
+        throw InputError(hints->file, "at the positions it gives no radius finds 3 marker spheres in both scans (tried " +
+                                          tried + " mm): are they this pair's markers, each side's in its own scan's "
+                                          "frame (mm), within 3 mm of the bumps?");
       throw InputError(both, "no radius finds 3 marker spheres in both scans (tried " + tried +
                                  " mm); set markers.radius_mm in the pipeline file or give approximate positions with "
                                  "--markers");
