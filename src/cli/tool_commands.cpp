@@ -62,14 +62,10 @@ struct ConvertArgs {
   bool force = false;
 };
 
-// A cloud handskin writes (.ply, .pcd), or reads: those and the scanners' text clouds.
+// A cloud handskin writes (.ply, .pcd); it reads those and the scanners' text clouds (is_cloud_file).
 bool is_cloud_path(const std::string& p) {
   const std::string e = lower_extension(p);
   return e == ".ply" || e == ".pcd";
-}
-bool is_cloud_input(const std::string& p) {
-  const std::string e = lower_extension(p);
-  return is_cloud_path(p) || e == ".xyz" || e == ".pts" || e == ".txt";
 }
 
 bool is_mesh_path(const std::string& p) {
@@ -81,11 +77,11 @@ void convert(const ConvertArgs& a, const Progress& progress) {
   // What is converted, decided once: its usage errors, the files it claims and its work follow.
   enum class Kind { Mesh, ScanToCloud, CloudToCloud, CloudToScan };
   const Kind kind = is_mesh_path(a.in) || is_mesh_path(a.out) ? Kind::Mesh  // any mesh the project writes, to .ply/.obj/.off/.stl
-                    : !is_cloud_input(a.in)                   ? Kind::ScanToCloud
+                    : !is_cloud_file(a.in)                   ? Kind::ScanToCloud
                     : is_cloud_path(a.out)                    ? Kind::CloudToCloud
                                                               : Kind::CloudToScan;
   if (kind == Kind::Mesh) require_mesh_extension(a.out, "--out");
-  if (kind == Kind::CloudToScan && is_cloud_input(a.out))
+  if (kind == Kind::CloudToScan && is_cloud_file(a.out))
     throw UsageError("--out", "'" + a.out + "': a cloud is written as .ply or .pcd (by its extension)");
   // Onto itself: the file read would be replaced by what convert makes of it (a cloud's or a
   // mesh's other format, a scan's cloud), which is not always all it held.

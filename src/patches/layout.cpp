@@ -288,6 +288,15 @@ LayoutTopology layout_topology(const PatchLayout& L, const std::string& what) {
   return T;
 }
 
+double layout_volume(const PatchLayout& L) {
+  double volume = 0;
+  for (const auto& c : L.faces) {
+    const auto& V = L.vertices;
+    volume += V[c[0]].dot(V[c[1]].cross(V[c[2]])) + V[c[0]].dot(V[c[2]].cross(V[c[3]]));
+  }
+  return volume;  // six times the volume: only its sign is asked
+}
+
 void orient_layout(PatchLayout* L, const std::string& what) {
   const int nf = static_cast<int>(L->faces.size());
   if (nf == 0) throw InputError(what, "the layout has no faces");
@@ -332,13 +341,8 @@ void orient_layout(PatchLayout* L, const std::string& what) {
       }
     }
   }
-  // Outward: the enclosed volume (each quad as two triangles) positive.
-  double volume = 0;
-  for (const auto& c : L->faces) {
-    const auto& V = L->vertices;
-    volume += V[c[0]].dot(V[c[1]].cross(V[c[2]])) + V[c[0]].dot(V[c[2]].cross(V[c[3]]));
-  }
-  if (volume < 0)
+  // Outward: the enclosed volume positive.
+  if (layout_volume(*L) < 0)
     for (auto& c : L->faces) std::reverse(c.begin(), c.end());
 }
 

@@ -98,6 +98,9 @@ PatchLayout hand_patch_layout(const SkinResult& skin, const Rig& rig, const std:
 /// Every face split into k × k (bilinear in its corners): k² times the patches, same corners.
 PatchLayout subdivide_layout(const PatchLayout& layout, int k);
 
+/// Six times the volume the layout's faces enclose (each quad as two triangles): positive when
+/// they run counter-clockwise seen from outside.
+double layout_volume(const PatchLayout& layout);
 /// Faces turned so that every edge is run both ways and the enclosed volume is positive.
 /// Throws InputError (naming `what`) when the faces cannot be oriented (not a closed surface).
 void orient_layout(PatchLayout* layout, const std::string& what);

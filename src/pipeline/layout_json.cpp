@@ -97,12 +97,7 @@ PatchLayout layout_from_json(const Json& j, const std::string& file) {
   // Outward (docs/formats.md: each face counter-clockwise seen from outside): the volume the
   // faces enclose, each as two triangles, positive. A layout turned inside out fits as well,
   // but its patches face into the hand: every normal, the STEP faces and the pictures' light.
-  double volume = 0;
-  for (const auto& c : L.faces) {
-    const auto& V = L.vertices;
-    volume += V[c[0]].dot(V[c[1]].cross(V[c[2]])) + V[c[0]].dot(V[c[2]].cross(V[c[3]]));
-  }
-  if (volume < 0)
+  if (layout_volume(L) < 0)
     throw InputError(file, "its faces run clockwise seen from outside (the volume they enclose is negative): each face's "
                            "corners must run counter-clockwise seen from outside");
   return L;

@@ -209,6 +209,28 @@ void give_back_hand_end(const std::vector<Eigen::Vector3d>& sub, const std::vect
     if ((*on)[k] && std::abs(n.dot(sub[k]) + d - med) > band && hand.any_within(sub[k], kNearHandMm)) (*on)[k] = 0;
 }
 
+// The spread of q's neighbours within `radius` (q among them): their count, mean offset from q
+// and covariance (estimate_noise_mm, estimate_normals).
+struct NeighbourSpread {
+  int n = 0;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+};
+NeighbourSpread neighbour_spread(const PointGrid& grid, const std::vector<Eigen::Vector3d>& pts, const Eigen::Vector3d& q,
+                                 double radius) {
+  Eigen::Vector3d s = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d ss = Eigen::Matrix3d::Zero();
+  NeighbourSpread r;
+  grid.within(q, radius, [&](int j) {
+    const Eigen::Vector3d d = pts[static_cast<size_t>(j)] - q;
+    s += d, ss += d * d.transpose(), ++r.n;
+  });
+  if (r.n == 0) return r;
+  r.mean = s / r.n;
+  r.C = ss / r.n - r.mean * r.mean.transpose();
+  return r;
+}
+
 // The points' noise: over an even subsample, each point's neighbours within kNoiseRadiusMm fitted
 // by a plane, the root of the least eigenvalue of their spread (a plane's noise along its
 // normal; on a finger of 8 mm radius the curvature adds ~0.07 mm), the median of those.
@@ -218,17 +240,9 @@ double estimate_noise_mm(const std::vector<Eigen::Vector3d>& pts) {
   const size_t step = std::max<size_t>(1, pts.size() / 3000);
   std::vector<double> sigma;
   for (size_t k = 0; k < pts.size(); k += step) {
-    Eigen::Vector3d s = Eigen::Vector3d::Zero();
-    Eigen::Matrix3d ss = Eigen::Matrix3d::Zero();
-    int n = 0;
-    grid.within(pts[k], kNoiseRadiusMm, [&](int j) {
-      const Eigen::Vector3d d = pts[static_cast<size_t>(j)] - pts[k];
-      s += d, ss += d * d.transpose(), ++n;
-    });
-    if (n < 12) continue;
-    const Eigen::Vector3d mean = s / n;
-    const Eigen::Matrix3d C = ss / n - mean * mean.transpose();
-    sigma.push_back(std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(C, Eigen::EigenvaluesOnly).eigenvalues()(0))));
+    const NeighbourSpread sp = neighbour_spread(grid, pts, pts[k], kNoiseRadiusMm);
+    if (sp.n < 12) continue;
+    sigma.push_back(std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(sp.C, Eigen::EigenvaluesOnly).eigenvalues()(0))));
   }
   if (sigma.empty()) return 0;
   std::nth_element(sigma.begin(), sigma.begin() + static_cast<long>(sigma.size() / 2), sigma.end());
@@ -383,21 +397,13 @@ std::vector<Eigen::Vector3d> estimate_normals(const std::vector<Eigen::Vector3d>
 #pragma omp parallel for schedule(static, 1024)
   for (long k = 0; k < static_cast<long>(pts.size()); ++k) {
     const Eigen::Vector3d& q = pts[static_cast<size_t>(k)];
-    Eigen::Vector3d s = Eigen::Vector3d::Zero();
-    Eigen::Matrix3d ss = Eigen::Matrix3d::Zero();
-    int n = 0;
-    grid.within(q, radius, [&](int j) {
-      const Eigen::Vector3d d = pts[static_cast<size_t>(j)] - q;
-      s += d, ss += d * d.transpose(), ++n;
-    });
-    if (n < 6) continue;
-    const Eigen::Vector3d mean = s / n;
-    const Eigen::Matrix3d C = ss / n - mean * mean.transpose();
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
+    const NeighbourSpread sp = neighbour_spread(grid, pts, q, radius);
+    if (sp.n < 6) continue;
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(sp.C);
     const Eigen::Vector3d nrm = es.eigenvectors().col(0).normalized();
     out[static_cast<size_t>(k)] = nrm;
     if (smoothed && es.eigenvalues()(0) < es.eigenvalues()(1) / 9.0)
-      (*smoothed)[static_cast<size_t>(k)] = q + nrm.dot(mean) * nrm;
+      (*smoothed)[static_cast<size_t>(k)] = q + nrm.dot(sp.mean) * nrm;
   }
   return out;
 }

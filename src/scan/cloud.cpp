@@ -143,10 +143,13 @@ void save_any_cloud(const std::string& path, const pcl::PointCloud<PointT>& clou
 }
 }  // namespace
 
-PointCloudFile load_cloud_file(const std::string& path) {
+bool is_cloud_file(const std::string& path) {
   const std::string ext = lower_extension(path);
-  if (ext != ".ply" && ext != ".pcd" && ext != ".xyz" && ext != ".pts" && ext != ".txt")
-    throw InputError(path, "unknown point-cloud extension (use .ply, .pcd, .xyz, .pts or .txt)");
+  return ext == ".ply" || ext == ".pcd" || ext == ".xyz" || ext == ".pts" || ext == ".txt";
+}
+
+PointCloudFile load_cloud_file(const std::string& path) {
+  if (!is_cloud_file(path)) throw InputError(path, "unknown point-cloud extension (use .ply, .pcd, .xyz, .pts or .txt)");
   return read_point_cloud(path);
 }
 

@@ -33,6 +33,8 @@ RangeScan cloud_to_scan(const Cloud& cloud, const ScanMeta& meta, size_t* droppe
 /// when it cannot be read, has another extension, holds no points or a non-finite coordinate
 /// elsewhere.
 Cloud::Ptr load_cloud(const std::string& path);
+/// A cloud file by its extension as load_cloud reads it: .ply, .pcd, .xyz, .pts or .txt.
+bool is_cloud_file(const std::string& path);
 /// The same file as read_point_cloud reads it: its normals and labels too (`convert`).
 PointCloudFile load_cloud_file(const std::string& path);
 /// Save as binary PLY or PCD by extension, atomically: x y z as floats (the project's one
