@@ -315,6 +315,44 @@ TEST(SkinMesh, RigShiftedSidewaysIsRefusedAndTheErrorNamesTheDigit) {
     }
 }
 
+TEST(SkinMesh, APlacedDigitBesideItsSectionsIsMovedOntoThem) {
+  // The skin stage's last try for a skeleton it placed: the digits whose links lie off their
+  // sections' middles, moved onto them. The fixture's rig with its thumb's MCP, IP and tip and
+  // its ring finger's PIP, DIP and tip 4 mm aside is refused; centred, it is taken, those
+  // joints come back near the rig's, and the other digits' joints stay as they were.
+  const MergedArrays& m = fixture_merged();
+  const Rig rig = load_rig(kFixture + "rig.json");
+  EXPECT_FALSE(centre_digit_links(m.points, rig, SkinOptions{}).has_value()) << "a rig that fits is not moved";
+  Rig off = rig;
+  const auto thumb = finger_chain(Finger::Thumb), ring = finger_chain(Finger::Ring);
+  for (size_t k = 1; k < thumb.size(); ++k) off.joints[thumb[k]].y() += 4.0;
+  for (size_t k = 2; k < ring.size(); ++k) off.joints[ring[k]].y() -= 4.0;
+  const std::string e = input_error_of([&] { build_skin(m.points, off, SkinOptions{}); });
+  EXPECT_NE(e.find("does not fit this scan"), std::string::npos) << e;
+  const std::optional<Rig> centred = centre_digit_links(m.points, off, SkinOptions{});
+  ASSERT_TRUE(centred.has_value());
+  const SkinResult s = build_skin(m.points, *centred, SkinOptions{});
+  EXPECT_TRUE(s.watertight());
+  for (const auto& t : s.tubes)
+    if (t.name != "palm") {
+      EXPECT_LT(t.axis_offset_mm, 1.5) << t.name;
+    }
+  // Sections tell where a link lies across itself, not along: each moved joint is measured
+  // square to the rig's link that ends at it.
+  auto across = [&](const std::vector<int>& chain, size_t k) {
+    const Eigen::Vector3d dir = (rig.joints[chain[k]] - rig.joints[chain[k - 1]]).normalized();
+    const Eigen::Vector3d r = centred->joints[chain[k]] - rig.joints[chain[k]];
+    return (r - r.dot(dir) * dir).norm();
+  };
+  for (size_t k = 1; k < thumb.size(); ++k) EXPECT_LT(across(thumb, k), 1.2) << joints()[thumb[k]].name;
+  for (size_t k = 2; k < ring.size(); ++k) EXPECT_LT(across(ring, k), 1.2) << joints()[ring[k]].name;
+  for (int j = 0; j < kJointCount; ++j) {
+    const bool moved = std::find(thumb.begin() + 1, thumb.end(), j) != thumb.end() ||
+                       std::find(ring.begin() + 2, ring.end(), j) != ring.end();
+    if (!moved) EXPECT_EQ(centred->joints[j], off.joints[j]) << joints()[j].name;
+  }
+}
+
 TEST(SkinMesh, DecimationStopsAtTheBudgetOrTheTolerance) {
   const MergedArrays& m = fixture_merged();
   const Rig rig = load_rig(kFixture + "rig.json");

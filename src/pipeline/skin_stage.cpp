@@ -264,6 +264,18 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
         ok = traced && (attempt(*traced, traced->rig, traced_note) ||
                         attempt(*traced, traced->thumb_base_on_line, traced_note + "and " + base_note));
       }
+      if (!ok) {
+        // A digit the placements put beside its sections every way (the WebXR hand's thumb
+        // bent across the palm at its CMC, MCP and IP: 2.9-3.5 mm off, allowed 2.6-2.7):
+        // the first placement with that digit's joints moved onto its sections' middles.
+        std::optional<Rig> centred;
+        try {
+          centred = centre_digit_links(in.points, R.placed->rig, so);
+        } catch (const InputError&) {
+        }
+        if (centred) progress("trying the placed skeleton with its digits' joints moved onto their sections' middles");
+        ok = centred && attempt(*R.placed, *centred, "the digits' joints moved onto their sections' middles: placed, ");
+      }
       if (!ok) build_error = refused;  // the first refusal is the one to report
     }
   } else {

@@ -23,8 +23,7 @@ using namespace proportions;
 // wrist joint (measured on the proportions' hand: the knee of its breadth along the hand).
 constexpr double kKneeBeyondWrist = 12.0;
 
-// A finger's bones lie this far (nominal mm) dorsal of the middle of its cross-sections.
-constexpr double kDorsalOffset = 1.0;
+constexpr double kDorsalOffset = kDigitBoneDorsalMm;
 
 // In the palm, the joints' depth as a share of the palm's local thickness from its back: the
 // metacarpals lie nearer the back than the palm (the palmar soft tissue is the thicker).

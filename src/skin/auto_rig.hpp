@@ -12,6 +12,10 @@
 
 namespace handskin {
 
+/// A digit's bones lie this far (nominal mm) dorsal of the middle of its cross-sections (the
+/// palmar pad is the thicker side): where the placement puts them, and centre_digit_links.
+constexpr double kDigitBoneDorsalMm = 1.0;
+
 struct AutoRig {
   Rig rig;                  ///< palm frame (the cloud's), palm_normal set
   double scale = 1;         ///< measured hand / nominal proportions

@@ -163,6 +163,35 @@ constexpr double kFingerTurnRadii = 2.0;
 constexpr double kMinSectionAspect = 0.55;
 }  // namespace
 
+std::vector<SectionMiddle> section_middles(const TubeBuild& t, const HandFrame& H, int f) {
+  // The thumb's tube starts at its base (CMC), but its metacarpal lies in the thenar, whose
+  // sections (the thumb's share of the palm) have no middle the bone keeps to: even the
+  // WebXR hand model's own rig lies 6-8.5 mm off there. Its phalanges are measured, as a
+  // finger's are (a finger's tube starts at its MCP).
+  const auto chain = finger_chain(static_cast<Finger>(f));
+  const double s_from = f == 0 ? (H.J[chain[1]] - H.J[chain[0]]).norm() : 0.0;
+  std::vector<SectionMiddle> mids;
+  for (size_t k = 0; k < t.slab.size(); ++k) {
+    const auto& g = t.slab[k];
+    if (g.size() < 20 || static_cast<double>(k) * t.station_step < s_from) continue;
+    Eigen::Vector2d mn = g.front(), mx = mn;
+    for (const auto& p : g) mn = mn.cwiseMin(p), mx = mx.cwiseMax(p);
+    mids.push_back({static_cast<int>(k), static_cast<double>(k) * t.station_step, 0.5 * (mn + mx), mx - mn, false});
+  }
+  // A section seen from one side only (a bent thumb's or a curled finger's far side, which
+  // neither scan sees) has no middle to measure: its extent falls short across the unseen
+  // side, to well under its extent along it. Only sections whose extent one way is at least
+  // kMinSectionAspect of the other count (all, when fewer than 3 do): a digit's section is
+  // round to oval (a thumb's ~0.75); the WebXR hand's own rig, its thumb bent 10/20/25 deg,
+  // lay 4.0-4.4 mm off by the median over all its sections, the one-sided ones 0.2-0.45
+  // across. A rig beside the digit keeps its full sections and their offsets.
+  size_t round = 0;
+  for (auto& m : mids) round += (m.counted = m.ext.minCoeff() >= kMinSectionAspect * m.ext.maxCoeff());
+  if (round < 3)
+    for (auto& m : mids) m.counted = true;
+  return mids;
+}
+
 TubeBuild digit_planes(const HandFrame& H, const TubePoints& Pts, int f, double h) {
   const auto& J = H.J;
   TubeBuild t;
@@ -211,38 +240,17 @@ TubeBuild digit_planes(const HandFrame& H, const TubePoints& Pts, int f, double 
   const double window = f == 0 ? hs : std::max(hs, kFingerTurnRadii * r_tip);
   for (int k = 0; k < K; ++k) t.st.push_back(frame_at(pl.at(k * hs), pl.tangent(k * hs, window)));
   fill_slabs(&t, pts, hs, true);
+  t.station_step = hs;
   {
-    // The thumb's tube starts at its base (CMC), but its metacarpal lies in the thenar, whose
-    // sections (the thumb's share of the palm) have no middle the bone keeps to: even the
-    // WebXR hand model's own rig lies 6-8.5 mm off there. Its phalanges are measured, as a
-    // finger's are (a finger's tube starts at its MCP).
-    const double s_from = f == 0 ? (axis[1] - axis[0]).norm() : 0.0;
-    std::vector<Eigen::Vector2d> mid, ext;  // per slab: the middle and the size of its extent
-    for (const auto& g : t.slab) {
-      if (g.size() < 20 || static_cast<double>(&g - t.slab.data()) * hs < s_from) continue;
-      Eigen::Vector2d mn = g.front(), mx = mn;
-      for (const auto& p : g) mn = mn.cwiseMin(p), mx = mx.cwiseMax(p);
-      mid.push_back(0.5 * (mn + mx));
-      ext.push_back(mx - mn);
-    }
+    const std::vector<SectionMiddle> mids = section_middles(t, H, f);
     auto median = [](std::vector<double> v) {
       std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
       return v[v.size() / 2];
     };
-    if (mid.size() >= 3) {
-      // A section seen from one side only (a bent thumb's or a curled finger's far side,
-      // which neither scan sees) has no middle to measure: its extent falls short across
-      // the unseen side, to well under its extent along it. Only sections whose extent one
-      // way is at least kMinSectionAspect of the other count (all, when fewer than 3 do): a
-      // digit's section is round to oval (a thumb's ~0.75); the WebXR hand's own rig, its
-      // thumb bent 10/20/25 deg, lay 4.0-4.4 mm off by the median over all its sections, the
-      // one-sided ones 0.2-0.45 across. A rig beside the digit keeps its full sections and
-      // their offsets.
-      auto round = [&](size_t k) { return ext[k].minCoeff() >= kMinSectionAspect * ext[k].maxCoeff(); };
-      const bool every = std::count_if(ext.begin(), ext.end(), [&](const auto& e) { return round(&e - ext.data()); }) < 3;
+    if (mids.size() >= 3) {
       std::vector<double> off, rad;
-      for (size_t k = 0; k < mid.size(); ++k)
-        if (every || round(k)) off.push_back(mid[k].norm()), rad.push_back(0.25 * ext[k].sum());
+      for (const auto& m : mids)
+        if (m.counted) off.push_back(m.mid.norm()), rad.push_back(0.25 * m.ext.sum());
       t.report.axis_offset_mm = median(off), t.report.section_radius_mm = median(rad);
     }
   }

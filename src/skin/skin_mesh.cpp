@@ -15,6 +15,7 @@
 #include "core/dof.hpp"
 #include "core/errors.hpp"
 #include "mesh/from_cgal.hpp"
+#include "skin/auto_rig.hpp"
 #include "skin/profile.hpp"
 #include "skin/skin_steps.hpp"
 
@@ -32,6 +33,7 @@ double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::
 // the two): a rig that fits puts them within ~1 mm (the bones lie a little dorsal); 4 mm off
 // already gives 3.5–4 mm (measured on the fixture, docs/skin.md).
 constexpr double kMaxAxisOffsetMm = 2.5, kMaxAxisOffsetShare = 0.3;
+double allowed_axis_offset(const SkinTubeReport& r) { return std::max(kMaxAxisOffsetMm, kMaxAxisOffsetShare * r.section_radius_mm); }
 
 }  // namespace
 
@@ -103,7 +105,7 @@ std::vector<TubeBuild> build_tubes(const HandFrame& H, const TubePoints& tube_po
   for (const auto& t : tubes) {
     const SkinTubeReport& r = t.report;
     if (t.id == 0 || !r.present || r.section_radius_mm <= 0) continue;
-    const double allowed = std::max(kMaxAxisOffsetMm, kMaxAxisOffsetShare * r.section_radius_mm);
+    const double allowed = allowed_axis_offset(r);
     if (r.axis_offset_mm > allowed) {
       char buf[240];
       std::snprintf(buf, sizeof buf,
@@ -161,6 +163,67 @@ std::string rig_outside_cloud(const std::vector<Eigen::Vector3d>& points, const 
     return e.detail();
   }
   return {};
+}
+
+std::optional<Rig> centre_digit_links(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const SkinOptions& o) {
+  Rig r = rig;
+  std::vector<int> chosen;  // the digits over the allowed offset at the start
+  for (int round = 0; round < 3; ++round) {
+    const HandFrame H = to_hand_frame(points, r, bones_from_rig(r));
+    const TubePoints P = assign_points(H, o.thumb_overlap_mm);
+    const Eigen::Vector3d tip_mid = H.J[finger_chain(Finger::Middle).back()];
+    const double h = std::max((tip_mid.x() - H.lo.x()) / o.slicing.planes, 0.5);  // as build_skin's
+    const Eigen::Isometry3d Ti = H.T.inverse();
+    for (int f = 0; f < kFingerCount; ++f) {
+      const TubeBuild t = digit_planes(H, P, f, h);
+      if (!t.report.present || t.report.section_radius_mm <= 0) continue;
+      if (round == 0 && t.report.axis_offset_mm > allowed_axis_offset(t.report)) chosen.push_back(f);
+      if (std::find(chosen.begin(), chosen.end(), f) == chosen.end()) continue;
+      std::vector<SectionMiddle> mids = section_middles(t, H, f);
+      mids.erase(std::remove_if(mids.begin(), mids.end(), [](const SectionMiddle& m) { return !m.counted; }), mids.end());
+      if (mids.empty()) continue;
+      // Each measured link (the thumb's phalanges, a finger's three) is moved by its sections'
+      // offset about its middle, tent-weighted over half its length; a joint between two such
+      // links by the mean of theirs, the thumb's MCP and the tip by their one link's. The
+      // sections about a joint itself are no guide: at the thumb's MCP they hold the thenar
+      // (the WebXR hand's bent thumb: 8 mm off there against 1-2 along its phalanx). A
+      // finger's links go kDigitBoneDorsalMm dorsal of their sections' middles, as the
+      // placement puts a finger's bones; the thumb's stay on them, since a turned thumb's nail
+      // faces aside (lifted toward the hand's back, one WebXR pair's skin went 0.099 -> 0.125
+      // mm from the truth).
+      const auto chain = finger_chain(static_cast<Finger>(f));
+      constexpr size_t first = 1;  // the thumb's MCP, a finger's MCP: the first measured link ends at chain[2]
+      std::vector<std::optional<Eigen::Vector3d>> link_move(chain.size());
+      const double lift = f == 0 ? 0.0 : kDigitBoneDorsalMm;
+      double s0 = f == 0 ? (H.J[chain[1]] - H.J[chain[0]]).norm() : 0.0;
+      for (size_t k = first + 1; k < chain.size(); ++k) {
+        const double len = (H.J[chain[k]] - H.J[chain[k - 1]]).norm();
+        const double mid_s = s0 + 0.5 * len, W = std::max(0.5 * len, 2 * t.station_step);
+        s0 += len;
+        Eigen::Vector3d d = Eigen::Vector3d::Zero();
+        double wsum = 0;
+        for (const auto& m : mids) {
+          const double w = 1 - std::abs(m.s - mid_s) / W;
+          if (w <= 0) continue;
+          const Station& st = t.st[m.station];
+          d += w * (m.mid.x() * st.u + (m.mid.y() + lift) * st.v), wsum += w;
+        }
+        if (wsum > 0) link_move[k] = d / wsum;
+      }
+      for (size_t k = first; k < chain.size(); ++k) {
+        if (f != 0 && k == first) continue;  // a finger's MCP is the palm's
+        Eigen::Vector3d d = Eigen::Vector3d::Zero();
+        int n = 0;
+        if (k > first && link_move[k]) d += *link_move[k], ++n;
+        if (k + 1 < chain.size() && link_move[k + 1]) d += *link_move[k + 1], ++n;
+        if (n == 0) continue;
+        d /= n;
+        r.joints[chain[k]] = Ti * (H.J[chain[k]] + d);
+      }
+    }
+    if (chosen.empty()) return std::nullopt;
+  }
+  return r;
 }
 
 SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const SkinOptions& o,

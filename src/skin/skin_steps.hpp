@@ -53,6 +53,7 @@ struct TubeBuild {
   std::vector<Eigen::Vector3d> ring_centre;
   std::optional<Eigen::Vector3d> pole;
   WristCut cut;  ///< the palm: the wrist cut its first station lies in
+  double station_step = 0;  ///< a digit's: the stations' spacing along its links, mm
   SkinTubeReport report;
 };
 
@@ -141,6 +142,17 @@ TubeBuild palm_planes(const HandFrame& H, const TubePoints& P, const Webs& webs,
 /// starts) and slabs, with the axis-offset figures in its report; report.present is false
 /// when the digit is missing from the scan.
 TubeBuild digit_planes(const HandFrame& H, const TubePoints& P, int finger, double h);
+/// A digit's measured sections (digit_planes' slabs of 20 points or more; the thumb's from its
+/// MCP on): the middle and size of each one's extent in its station's (u, v), and whether it
+/// counts toward the axis offset (round enough to have a middle; every one when fewer than 3
+/// are).
+struct SectionMiddle {
+  int station = 0;
+  double s = 0;  ///< arc length along the digit's links, mm
+  Eigen::Vector2d mid, ext;
+  bool counted = false;
+};
+std::vector<SectionMiddle> section_middles(const TubeBuild& digit, const HandFrame& H, int finger);
 
 /// Step 5: give each point to its station's slab (`beyond` past the last when `dome`).
 void fill_slabs(TubeBuild* t, const std::vector<Eigen::Vector3d>& pts, double h, bool dome);
