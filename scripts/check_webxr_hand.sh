@@ -153,14 +153,14 @@ check_skin "right-thumb-bent-s2 automatic" "$d/auto/skin_report.json" 0.13 0.40 
 # Its first pair (seed 1, 3 mm markers): every placement put the thumb's links 2.9 mm from the
 # middle of its sections (allowed 2.6) and the skin stage stopped; the placed thumb's joints
 # are now moved onto its sections' middles (the stage's last try, said in the notes), and the
-# skin meets the hand's own rig's figures (measured 0.096 / 0.364 mm, 99.34 %; its own rig
-# 0.096 / 0.329 mm, 99.17 %).
+# skin builds near the hand's own rig's figures (measured 0.104 / 0.358 mm, 99.26 %; its own
+# rig 0.096 / 0.329 mm, 99.17 %).
 d="$work/right-thumb-bent-s1"
 "$BIN" -q synth scan --mesh "$work/right-thumb-bent/hand.ply" --rig "$work/right-thumb-bent/hand_rig.json" --out "$d" \
   --seed 1 --marker-radius 3 --saw 12 --no-render --no-photos >/dev/null
 "$BIN" -q register --back "$d/back" --palm "$d/palm" --truth "$d/truth.json" --out "$d/reg" >/dev/null
 auto_skin "$d" right-thumb-bent-s1
-check_skin "right-thumb-bent-s1 automatic" "$d/auto/skin_report.json" 0.11 0.40 0.985
+check_skin "right-thumb-bent-s1 automatic" "$d/auto/skin_report.json" 0.12 0.40 0.985
 notes=$(jq_py "$d/auto/skin_report.json" "'\n'.join(d['skeleton']['automatic']['notes'])")
 grep -q "moved onto their sections' middles" <<< "$notes" \
   || fail "right-thumb-bent-s1 automatic: the notes do not say the thumb's joints were moved onto its sections ($notes)"

@@ -344,8 +344,9 @@ TEST(SkinMesh, APlacedDigitBesideItsSectionsIsMovedOntoThem) {
     const Eigen::Vector3d r = centred->joints[chain[k]] - rig.joints[chain[k]];
     return (r - r.dot(dir) * dir).norm();
   };
-  for (size_t k = 1; k < thumb.size(); ++k) EXPECT_LT(across(thumb, k), 1.2) << joints()[thumb[k]].name;
-  for (size_t k = 2; k < ring.size(); ++k) EXPECT_LT(across(ring, k), 1.2) << joints()[ring[k]].name;
+  // (The tip lies beyond the last section, at the end of its link's line through them.)
+  for (size_t k = 1; k < thumb.size(); ++k) EXPECT_LT(across(thumb, k), k + 1 < thumb.size() ? 1.2 : 1.5) << joints()[thumb[k]].name;
+  for (size_t k = 2; k < ring.size(); ++k) EXPECT_LT(across(ring, k), k + 1 < ring.size() ? 1.2 : 1.5) << joints()[ring[k]].name;
   for (int j = 0; j < kJointCount; ++j) {
     const bool moved = std::find(thumb.begin() + 1, thumb.end(), j) != thumb.end() ||
                        std::find(ring.begin() + 2, ring.end(), j) != ring.end();

@@ -266,8 +266,9 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
       }
       if (!ok) {
         // A digit the placements put beside its sections every way (the WebXR hand's thumb
-        // bent across the palm at its CMC, MCP and IP: 2.9-3.5 mm off, allowed 2.6-2.7):
-        // the first placement with that digit's joints moved onto its sections' middles.
+        // bent across the palm at its CMC, MCP and IP: 2.9-3.5 mm off, allowed 2.6-2.7; a
+        // curled little finger's proximal link tilted against it): the first placement with
+        // that digit's joints fitted through its sections' middles.
         std::optional<Rig> centred;
         try {
           centred = centre_digit_links(in.points, R.placed->rig, so);

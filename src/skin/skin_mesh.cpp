@@ -182,44 +182,51 @@ std::optional<Rig> centre_digit_links(const std::vector<Eigen::Vector3d>& points
       std::vector<SectionMiddle> mids = section_middles(t, H, f);
       mids.erase(std::remove_if(mids.begin(), mids.end(), [](const SectionMiddle& m) { return !m.counted; }), mids.end());
       if (mids.empty()) continue;
-      // Each measured link (the thumb's phalanges, a finger's three) is moved by its sections'
-      // offset about its middle, tent-weighted over half its length; a joint between two such
-      // links by the mean of theirs, the thumb's MCP and the tip by their one link's. The
-      // sections about a joint itself are no guide: at the thumb's MCP they hold the thenar
-      // (the WebXR hand's bent thumb: 8 mm off there against 1-2 along its phalanx). A
-      // finger's links go kDigitBoneDorsalMm dorsal of their sections' middles, as the
-      // placement puts a finger's bones; the thumb's stay on them, since a turned thumb's nail
-      // faces aside (lifted toward the hand's back, one WebXR pair's skin went 0.099 -> 0.125
-      // mm from the truth).
+      // The joints beyond the digit's root (the thumb's MCP, IP and tip; a finger's PIP, DIP
+      // and tip: its MCP is the palm's, and stays) such that the links pass through their
+      // sections' middles, each section's residual taken in its own plane (along the links
+      // the sections say nothing), each joint held to where it is by kHold: a linear least
+      // squares of 3 unknowns a joint. A finger's bones go kDigitBoneDorsalMm dorsal of the
+      // middles, as the placement puts them; the thumb's stay on them, since a turned thumb's
+      // nail faces aside (lifted toward the hand's back, one WebXR pair's skin went 0.099 ->
+      // 0.125 mm from the truth). Sections much wider than the digit's usual hold the palm (a
+      // flexed finger's first slabs lie within the palm's thickness) and are left out.
+      constexpr double kHold = 0.3;
       const auto chain = finger_chain(static_cast<Finger>(f));
-      constexpr size_t first = 1;  // the thumb's MCP, a finger's MCP: the first measured link ends at chain[2]
-      std::vector<std::optional<Eigen::Vector3d>> link_move(chain.size());
+      const size_t axis_from = f == 0 ? 0 : 1, first = f == 0 ? 1 : 2, nj = chain.size() - first;
       const double lift = f == 0 ? 0.0 : kDigitBoneDorsalMm;
-      double s0 = f == 0 ? (H.J[chain[1]] - H.J[chain[0]]).norm() : 0.0;
-      for (size_t k = first + 1; k < chain.size(); ++k) {
-        const double len = (H.J[chain[k]] - H.J[chain[k - 1]]).norm();
-        const double mid_s = s0 + 0.5 * len, W = std::max(0.5 * len, 2 * t.station_step);
-        s0 += len;
-        Eigen::Vector3d d = Eigen::Vector3d::Zero();
-        double wsum = 0;
-        for (const auto& m : mids) {
-          const double w = 1 - std::abs(m.s - mid_s) / W;
-          if (w <= 0) continue;
-          const Station& st = t.st[m.station];
-          d += w * (m.mid.x() * st.u + (m.mid.y() + lift) * st.v), wsum += w;
+      std::vector<double> widths;
+      for (const auto& m : mids) widths.push_back(m.ext.maxCoeff());
+      std::nth_element(widths.begin(), widths.begin() + widths.size() / 2, widths.end());
+      const double wide = 1.3 * widths[widths.size() / 2];
+      std::vector<double> sj(chain.size(), 0.0);  // each joint's arc length along the links
+      for (size_t k = axis_from + 1; k < chain.size(); ++k) sj[k] = sj[k - 1] + (H.J[chain[k]] - H.J[chain[k - 1]]).norm();
+      Eigen::MatrixXd A = kHold * Eigen::MatrixXd::Identity(3 * nj, 3 * nj);
+      Eigen::VectorXd b(3 * nj);
+      for (size_t j = 0; j < nj; ++j) b.segment<3>(3 * j) = kHold * H.J[chain[first + j]];
+      for (const auto& m : mids) {
+        if (m.ext.maxCoeff() > wide) continue;
+        size_t k = axis_from + 1;
+        while (k + 1 < chain.size() && m.s > sj[k]) ++k;
+        if (k < first || m.s < sj[k - 1] || m.s > sj[k]) continue;
+        const double wb = (m.s - sj[k - 1]) / std::max(sj[k] - sj[k - 1], 1e-9), wa = 1 - wb;
+        const Station& st = t.st[m.station];
+        const Eigen::Matrix3d Pi = st.u * st.u.transpose() + st.v * st.v.transpose();
+        Eigen::Vector3d c = st.o + m.mid.x() * st.u + (m.mid.y() + lift) * st.v;
+        const size_t jb = k - first;
+        if (k - 1 < first) {  // the link from the fixed root
+          c -= wa * H.J[chain[k - 1]];
+        } else {
+          const size_t ja = jb - 1;
+          A.block<3, 3>(3 * ja, 3 * ja) += wa * wa * Pi;
+          A.block<3, 3>(3 * ja, 3 * jb) += wa * wb * Pi, A.block<3, 3>(3 * jb, 3 * ja) += wa * wb * Pi;
+          b.segment<3>(3 * ja) += wa * Pi * c;
         }
-        if (wsum > 0) link_move[k] = d / wsum;
+        A.block<3, 3>(3 * jb, 3 * jb) += wb * wb * Pi;
+        b.segment<3>(3 * jb) += wb * Pi * c;
       }
-      for (size_t k = first; k < chain.size(); ++k) {
-        if (f != 0 && k == first) continue;  // a finger's MCP is the palm's
-        Eigen::Vector3d d = Eigen::Vector3d::Zero();
-        int n = 0;
-        if (k > first && link_move[k]) d += *link_move[k], ++n;
-        if (k + 1 < chain.size() && link_move[k + 1]) d += *link_move[k + 1], ++n;
-        if (n == 0) continue;
-        d /= n;
-        r.joints[chain[k]] = Ti * (H.J[chain[k]] + d);
-      }
+      const Eigen::VectorXd x = A.ldlt().solve(b);
+      for (size_t j = 0; j < nj; ++j) r.joints[chain[first + j]] = Ti * Eigen::Vector3d(x.segment<3>(3 * j));
     }
     if (chosen.empty()) return std::nullopt;
   }

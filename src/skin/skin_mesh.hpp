@@ -165,9 +165,10 @@ std::string rig_outside_cloud(const std::vector<Eigen::Vector3d>& points, const 
 
 /// A placed skeleton whose digits' links lie off the middle of their sections (build_skin's
 /// refusal: "the thumb's links lie 2.9 mm from the middle of its sections") with those digits'
-/// joints beyond their roots moved onto the middles of the sections about them, three times
-/// (each time the points given to the links again); none when no digit is off. The skin
-/// stage's last try for a skeleton it placed itself; a rig given is never moved.
+/// joints beyond their roots (the thumb's MCP, IP and tip; a finger's PIP, DIP and tip) fitted
+/// so that the links pass through their sections' middles, three times (each time the points
+/// given to the links again); none when no digit is off. The skin stage's last try for a
+/// skeleton it placed itself; a rig given is never moved.
 std::optional<Rig> centre_digit_links(const std::vector<Eigen::Vector3d>& points, const Rig& rig,
                                       const SkinOptions& options);
 
