@@ -408,6 +408,28 @@ TEST(Family, APlacedLinkTiltedAgainstItsCurledFingerIsFittedThroughItsSections) 
   EXPECT_GE(r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.965);      // measured 0.9728
 }
 
+// A hand 165 mm long with its thumb at 25 deg and its IP bent 45 deg: on its own true rig the
+// thumb's planes, turning at once through the IP, crossed inside the thumb and its tube folded
+// ("the thumb tube folds into itself"). The tubes are made again with the thumb's planes
+// turning over its bends, as a finger's do (docs/skin.md, step 3).
+TEST(Family, AThumbBentAtItsIPIsSkinnedOnItsOwnRig) {
+  const std::string dir = study_pair("family-thumb-ip", "--thumb-abduction 25 --set thumb.ip.flex=45 --hand-length 165", 3, 3.5);
+  std::string out;
+  const std::string args = "skin --merged " + dir + "/reg/merged.ply --rig " + dir + "/pair/rig.json --truth " + dir +
+                           "/pair/truth.json --out " + dir + "/skin";
+  ASSERT_EQ(test::run(std::string(HANDSKIN_BINARY) + " -q " + args, &out), 0) << out;
+  std::ifstream in(dir + "/skin/skin_report.json");
+  const auto r = nlohmann::json::parse(in);
+  EXPECT_EQ(r["skeleton"]["used"], "given");
+  EXPECT_TRUE(r["thumb_turns_slowly"].get<bool>());
+  EXPECT_TRUE(r["mesh"]["watertight"].get<bool>());
+  std::printf("[family] thumb IP 45 deg, its rig: skin -> truth mean %.4f p95 %.4f, within 1 mm %.2f %%\n",
+              r["truth"]["skin_to_truth_mm"]["mean"].get<double>(), r["truth"]["skin_to_truth_mm"]["p95"].get<double>(),
+              100 * r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>());
+  EXPECT_LE(r["truth"]["skin_to_truth_mm"]["mean"].get<double>(), 0.09);         // measured 0.066 (run)
+  EXPECT_GE(r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.995);  // measured 0.9994 (run)
+}
+
 // A broad, thick hand 240 mm long with its fingers together (scripts/unusual_hands_study.py,
 // P03; not one of the study's hands): the automatic placement lost it (a thumb joint 15 mm
 // beyond the cloud), and compared with that skeleton the pair's own rig, which the skin was

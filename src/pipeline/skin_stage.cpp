@@ -359,6 +359,7 @@ Json to_json(const SkinStageResult& r) {
   j["mesh"]["watertight"] = skin.watertight();
   j["triangles_before_decimation"] = skin.triangles_before_decimation;
   j["pockets_removed"] = skin.pockets_removed;
+  j["thumb_turns_slowly"] = skin.thumb_turns_slowly;
   j["fit_to_data"] = {{"points", skin.data_fit.points},
                       {"moved", skin.data_fit.moved},
                       {"reverted", skin.data_fit.reverted},

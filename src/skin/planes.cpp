@@ -192,7 +192,7 @@ std::vector<SectionMiddle> section_middles(const TubeBuild& t, const HandFrame& 
   return mids;
 }
 
-TubeBuild digit_planes(const HandFrame& H, const TubePoints& Pts, int f, double h) {
+TubeBuild digit_planes(const HandFrame& H, const TubePoints& Pts, int f, double h, bool thumb_turns_slowly) {
   const auto& J = H.J;
   TubeBuild t;
   t.id = 1 + f;
@@ -237,8 +237,15 @@ TubeBuild digit_planes(const HandFrame& H, const TubePoints& Pts, int f, double 
   // finger on the inside of the bend, where samples then fall into the wrong slab. On the
   // family study's curled hand the surface error's p95 went 0.363 -> 0.312 mm; the thumb is
   // left as it was (its wide root turning slowly cost the raised thumb 0.3 % within 1 mm).
-  const double window = f == 0 ? hs : std::max(hs, kFingerTurnRadii * r_tip);
-  for (int k = 0; k < K; ++k) t.st.push_back(frame_at(pl.at(k * hs), pl.tangent(k * hs, window)));
+  // With `thumb_turns_slowly` (build_skin's second try, when the thumb's tube folded) the
+  // thumb's planes turn so too from its MCP on, the window growing from one station at the MCP
+  // to the fingers' beyond it: a thumb whose IP is bent 45 deg folded its tube on its own true
+  // rig (docs/skin.md).
+  const double window = std::max(hs, kFingerTurnRadii * r_tip), s_mcp = f == 0 ? pl.s[1] : 0.0;
+  for (int k = 0; k < K; ++k) {
+    const double w = f != 0 ? window : thumb_turns_slowly ? std::clamp(k * hs - s_mcp, hs, window) : hs;
+    t.st.push_back(frame_at(pl.at(k * hs), pl.tangent(k * hs, w)));
+  }
   fill_slabs(&t, pts, hs, true);
   t.station_step = hs;
   {

@@ -76,7 +76,7 @@ namespace {
 // neighbours, closed by its fingertip's dome); the tubes' reports and warnings, the check that
 // the rig fits, and the regular ring grid before stitching (rig frame).
 std::vector<TubeBuild> build_tubes(const HandFrame& H, const TubePoints& tube_points, const Webs& webs, double h,
-                                   const SkinOptions& o, SkinResult* R) {
+                                   const SkinOptions& o, bool thumb_turns_slowly, SkinResult* R) {
   const int pps = o.slicing.points_per_segment;
   const Eigen::Isometry3d Ti = H.T.inverse();
   std::vector<TubeBuild> tubes(kSkinTubes);
@@ -84,7 +84,7 @@ std::vector<TubeBuild> build_tubes(const HandFrame& H, const TubePoints& tube_po
   resample_rings(&tubes[0], 8 * pps, o, false);
   for (int f = 0; f < kFingerCount; ++f) {
     TubeBuild& t = tubes[1 + f];
-    t = digit_planes(H, tube_points, f, h);
+    t = digit_planes(H, tube_points, f, h, thumb_turns_slowly);
     if (!t.report.present) continue;
     resample_rings(&t, 2 * pps, o, true);
     if (!t.report.present) continue;
@@ -266,12 +266,27 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
     if (webs.x_end - H.lo.x() < 5 * h)
       throw InputError("rig", "the finger webs lie at the wrist end of the cloud; the rig does not fit it");
     // 4.-5. planes, slabs and rings (build_tubes)
-    tubes = build_tubes(H, tube_points, webs, h, o, &R);
+    const size_t warnings = R.warnings.size();
+    tubes = build_tubes(H, tube_points, webs, h, o, false, &R);
     R.seconds_rings = since(t0);
     say("rings resampled (" + std::to_string(static_cast<int>(R.seconds_rings * 1000)) + " ms)");
     // 6. the tubes' meshes united into one surface
     const auto t1 = Clock::now();
-    skin = stitch_tubes(tubes, H.T.inverse(), &origin, &R.pockets_removed);
+    try {
+      skin = stitch_tubes(tubes, H.T.inverse(), &origin, &R.pockets_removed);
+    } catch (const TubeFoldsError& e) {
+      // The thumb's planes turn at once through its joints (a finger's over two tip radii):
+      // its wide root turning slowly cost a raised thumb 0.3 % within 1 mm, and turned so
+      // from its MCP on, the WebXR hand's bent thumb's patches kinked (docs/skin.md). A thumb
+      // whose IP is bent 45 deg then folded its tube on its own true rig: the tubes are made
+      // again with the thumb's planes turning slowly from its MCP on.
+      if (e.tube != static_cast<int>(SkinTube::Thumb)) throw;
+      say("the thumb's tube folds where its planes turn at once: its planes turned over its bends");
+      R.warnings.resize(warnings), R.tubes.clear(), R.grid.clear(), origin.clear();
+      tubes = build_tubes(H, tube_points, webs, h, o, true, &R);
+      skin = stitch_tubes(tubes, H.T.inverse(), &origin, &R.pockets_removed);
+      R.thumb_turns_slowly = true;
+    }
     R.seconds_union = since(t1);
     say("tubes stitched (" + std::to_string(static_cast<int>(R.seconds_union * 1000)) + " ms)");
   };

@@ -147,6 +147,7 @@ struct SkinResult {
   bool self_intersects = false;
   bool self_intersection_checked = false;
   int pockets_removed = 0;            ///< inner shells the union enclosed between tubes, dropped
+  bool thumb_turns_slowly = false;    ///< the thumb's tube folded with its planes turning at once, and was made again
   std::vector<Eigen::Vector3d> webs;  ///< the finger webs found (palm end plane goes through them)
   WristCut wrist_cut;                 ///< the plane the palm's first ring lies in
   std::vector<std::string> warnings;
@@ -177,7 +178,9 @@ std::optional<Rig> centre_digit_links(const std::vector<Eigen::Vector3d>& points
 /// tries its other placements).
 class TubeFoldsError : public InputError {
  public:
-  using InputError::InputError;
+  TubeFoldsError(const std::string& where, const std::string& detail, int tube)
+      : InputError(where, detail), tube(tube) {}
+  int tube;  ///< the tube that folds (SkinTube: 0 the palm, 1 the thumb, 2-5 the fingers)
 };
 
 /// Build the skin from the merged cloud `points` (rig frame, mm, markers removed) and the

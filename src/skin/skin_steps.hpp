@@ -140,8 +140,10 @@ WristCut fit_wrist_cut(const std::vector<Eigen::Vector3d>& palm_pts, double x0, 
 TubeBuild palm_planes(const HandFrame& H, const TubePoints& P, const Webs& webs, double h);
 /// A digit's stations (perpendicular to its links, from its root to where its tip's dome
 /// starts) and slabs, with the axis-offset figures in its report; report.present is false
-/// when the digit is missing from the scan.
-TubeBuild digit_planes(const HandFrame& H, const TubePoints& P, int finger, double h);
+/// when the digit is missing from the scan. A finger's stations turn through a bent joint
+/// over two tip radii; the thumb's at once, or, with `thumb_turns_slowly`, from its MCP on as
+/// a finger's (the window growing from one station at the MCP).
+TubeBuild digit_planes(const HandFrame& H, const TubePoints& P, int finger, double h, bool thumb_turns_slowly = false);
 /// A digit's measured sections (digit_planes' slabs of 20 points or more; the thumb's from its
 /// MCP on): the middle and size of each one's extent in its station's (u, v), and whether it
 /// counts toward the axis offset (round enough to have a middle; every one when fewer than 3

@@ -177,8 +177,10 @@ SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& Ti
     part_tube.push_back(t.id);
   }
   auto folds = [&](size_t k) {
-    return TubeFoldsError("merged cloud", std::string("the ") + skin_tube_name(part_tube[k]) +
-                                          " tube folds into itself; the rig may be badly placed for this scan");
+    return TubeFoldsError("merged cloud",
+                          std::string("the ") + skin_tube_name(part_tube[k]) +
+                              " tube folds into itself; the rig may be badly placed for this scan",
+                          part_tube[k]);
   };
   auto unite = [&](SM& a, SM& b, const std::string& what) {
     SM out;
