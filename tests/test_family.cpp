@@ -430,6 +430,33 @@ TEST(Family, AThumbBentAtItsIPIsSkinnedOnItsOwnRig) {
   EXPECT_GE(r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.995);  // measured 0.9994 (run)
 }
 
+// A hand with its fingers spread 15 deg and its thumb at 70 deg: the automatic placement missed
+// it (its thumb's links 4.0 mm off their sections, its wrist 101 mm from the pair's own), and
+// compared with that skeleton the pair's own rig, on which the skin builds, was refused as
+// another hand's (21.7 mm mean). A placed skeleton the skin would refuse is now the
+// placement's failure: the given rig is used, with a warning.
+TEST(Family, AGivenRigIsNotRefusedForAPlacedSkeletonOffItsSections) {
+  const std::string dir = study_pair("family-spread-placement", "--spread 15 --thumb-abduction 70", 5, 3.0);
+  std::string out;
+  const std::string args = "skin --merged " + dir + "/reg/merged.ply --rig " + dir + "/pair/rig.json --truth " + dir +
+                           "/pair/truth.json --out " + dir + "/skin";
+  ASSERT_EQ(test::run(std::string(HANDSKIN_BINARY) + " -q " + args, &out), 0) << out;
+  EXPECT_NE(out.find("warning: the given rig is used unchecked"), std::string::npos) << out;  // shown with -q
+  std::ifstream in(dir + "/skin/skin_report.json");
+  const auto r = nlohmann::json::parse(in);
+  EXPECT_EQ(r["skeleton"]["used"], "given");
+  ASSERT_TRUE(r["skeleton"]["automatic"].contains("failed")) << r["skeleton"].dump();
+  EXPECT_NE(r["skeleton"]["automatic"]["failed"].get<std::string>().find("middle of its sections"), std::string::npos);
+  EXPECT_LE(r["truth"]["skin_to_truth_mm"]["mean"].get<double>(), 0.12);  // measured 0.089 (run)
+  // `run -q` shows the stage's warning too (it had been a progress line "skin: warning: …").
+  ASSERT_EQ(test::run(std::string(HANDSKIN_BINARY) + " -q run --back " + dir + "/pair/back --palm " + dir +
+                          "/pair/palm --rig " + dir + "/pair/rig.json --out " + dir + "/run",
+                      &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("warning: skin: the given rig is used unchecked"), std::string::npos) << out;
+}
+
 // A broad, thick hand 240 mm long with its fingers together (scripts/unusual_hands_study.py,
 // P03; not one of the study's hands): the automatic placement lost it (a thumb joint 15 mm
 // beyond the cloud), and compared with that skeleton the pair's own rig, which the skin was

@@ -23,6 +23,17 @@
 namespace handskin {
 
 namespace {
+
+// A stage's progress as the run's, its name before each line; a stage's warning stays one
+// ("warning: skin: …"), so that -q still shows it.
+ProgressFn staged(const ProgressFn& progress, const std::string& stage) {
+  return [&progress, stage](const std::string& m) {
+    if (m.rfind("warning: ", 0) == 0)
+      progress("warning: " + stage + ": " + m.substr(9));
+    else
+      progress(stage + ": " + m);
+  };
+}
 class StageTimer {
  public:
   StageTimer() : t0_(std::chrono::steady_clock::now()) {}
@@ -115,7 +126,7 @@ MergedArrays register_pair(const RunInputs& in, const RangeScan& back, const Ran
   R.registration =
       register_scans(back, palm, in.back_stem + ".png", in.palm_stem + ".png", registration_options(in.options),
                      in.markers_path.empty() ? nullptr : &hints,
-                     [&](const std::string& m) { progress("registration: " + m); });
+                     staged(progress, "registration"));
   for (const auto& w : R.registration.warnings) progress("warning: " + w);
   if (truth) R.registration_truth = registration_against_truth(R.registration, *truth);
   MergedArrays merged = merged_arrays(*R.registration.merged);  // the preview's and the skin's
@@ -165,7 +176,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
     ci.units = in.units;
     ci.hand = in.hand;
     ci.rig = si.rig ? &*si.rig : nullptr;
-    R.cloud = run_cloud_stage(ci, [&](const std::string& m) { progress("cloud: " + m); });
+    R.cloud = run_cloud_stage(ci, staged(progress, "cloud"));
     if (truth && R.cloud->halves) R.registration_truth = halves_against_truth(*R.cloud, *truth);
     merged = R.cloud->merged();
     si.sheets = R.cloud->sheets;
@@ -213,7 +224,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   si.baseline = in.baseline || in.options.skin.baseline;
   si.slices = in.options.skin.slices_json;
   si.truth = truth;
-  R.skin = run_skin_stage(si, in.options, [&](const std::string& m) { progress("skin: " + m); });
+  R.skin = run_skin_stage(si, in.options, staged(progress, "skin"));
 
   // --- patches: bicubic Bézier patches over the whole skin (docs/patches.md) ---
   if (in.options.patches.enabled) {

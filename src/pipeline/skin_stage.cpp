@@ -89,10 +89,21 @@ namespace {
 
 // The automatic skeleton against the given rig: a rig of another hand or scan is refused
 // (unless --auto-rig), one a little off is warned about.
-void check_given_rig(const SkinStageInputs& in, const std::function<void(const std::string&)>& progress,
-                     SkinStageResult* Rp) {
+void check_given_rig(const SkinStageInputs& in, const SkinOptions& so,
+                     const std::function<void(const std::string&)>& progress, SkinStageResult* Rp) {
   SkinStageResult& R = *Rp;
   const JointError e = joint_error(R.placed->rig, *in.rig);
+  // Far from the given rig, on which the skin was built: the placed skeleton is the one that
+  // does not fit when the skin would refuse it (a hand spread 15 deg with its thumb at 70 deg:
+  // the placement's thumb 4.0 mm off its sections, its wrist 101 mm from the given one's, and
+  // the given rig, the pair's own, had been refused as another hand's). A rig of another scan
+  // or with its digits out of order is refused by the skin or by a placement that fits.
+  if (e.mean_mm > kRigRefuseMm && !in.auto_rig)
+    if (std::string why = digits_off_their_sections(in.points, R.placed->rig, so); !why.empty()) {
+      R.placement_failed = "the skeleton placed in the cloud does not fit it: " + why;
+      R.placed.reset();
+      return;
+    }
   R.against_given = e;
   progress("automatic skeleton: mean joint error " + mm(e.mean_mm) + " mm against the given rig");
   if (e.mean_mm > kRigRefuseMm && !in.auto_rig)
@@ -308,7 +319,7 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
       if (in.beside_build) in.beside_build();
     });
   }
-  if (R.placed && in.rig) check_given_rig(in, progress, &R);
+  if (R.placed && in.rig) check_given_rig(in, so, progress, &R);
   if (in.rig && !R.automatic && !R.placement_failed.empty())
     R.warnings.push_back("the given rig is used unchecked: the automatic placement missed this hand (" +
                          R.placement_failed + ")");

@@ -34,6 +34,31 @@ double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::
 // already gives 3.5–4 mm (measured on the fixture, docs/skin.md).
 constexpr double kMaxAxisOffsetMm = 2.5, kMaxAxisOffsetShare = 0.3;
 double allowed_axis_offset(const SkinTubeReport& r) { return std::max(kMaxAxisOffsetMm, kMaxAxisOffsetShare * r.section_radius_mm); }
+// build_skin's refusal of a digit whose links lie beside its sections; empty when they do not.
+std::string off_sections(const TubeBuild& t) {
+  const SkinTubeReport& r = t.report;
+  if (t.id == 0 || !r.present || r.section_radius_mm <= 0 || r.axis_offset_mm <= allowed_axis_offset(r)) return {};
+  char buf[240];
+  std::snprintf(buf, sizeof buf,
+                "the %s's links lie %.1f mm from the middle of its sections (allowed %.1f mm): the skeleton "
+                "does not fit this scan",
+                skin_tube_name(t.id), r.axis_offset_mm, allowed_axis_offset(r));
+  return buf;
+}
+// Steps 1-2 and the ring spacing, as build_skin makes them.
+struct DigitFrame {
+  HandFrame H;
+  TubePoints P;
+  double h = 0;
+};
+DigitFrame digit_frame(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const SkinOptions& o) {
+  DigitFrame d;
+  d.H = to_hand_frame(points, rig, bones_from_rig(rig));
+  d.P = assign_points(d.H, o.thumb_overlap_mm);
+  const Eigen::Vector3d tip_mid = d.H.J[finger_chain(Finger::Middle).back()];
+  d.h = std::max((tip_mid.x() - d.H.lo.x()) / o.slicing.planes, 0.5);  // ring spacing, mm
+  return d;
+}
 
 }  // namespace
 
@@ -102,19 +127,8 @@ std::vector<TubeBuild> build_tubes(const HandFrame& H, const TubePoints& tube_po
   R->wrist_cut = tubes[0].cut;
   // A rig that does not fit the cloud (another scan's, shifted, fingers swapped) puts a
   // digit's links beside the middle of its sections: refused rather than worked around.
-  for (const auto& t : tubes) {
-    const SkinTubeReport& r = t.report;
-    if (t.id == 0 || !r.present || r.section_radius_mm <= 0) continue;
-    const double allowed = allowed_axis_offset(r);
-    if (r.axis_offset_mm > allowed) {
-      char buf[240];
-      std::snprintf(buf, sizeof buf,
-                    "the %s's links lie %.1f mm from the middle of its sections (allowed %.1f mm): the skeleton "
-                    "does not fit this scan",
-                    skin_tube_name(t.id), r.axis_offset_mm, allowed);
-      throw InputError("rig", buf);
-    }
-  }
+  for (const auto& t : tubes)
+    if (std::string why = off_sections(t); !why.empty()) throw InputError("rig", why);
   // The regular ring grid, before stitching (rig frame).
   for (const auto& t : tubes) {
     RingGrid g;
@@ -165,19 +179,28 @@ std::string rig_outside_cloud(const std::vector<Eigen::Vector3d>& points, const 
   return {};
 }
 
+std::string digits_off_their_sections(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const SkinOptions& o) {
+  try {
+    const DigitFrame d = digit_frame(points, rig, o);
+    for (int f = 0; f < kFingerCount; ++f)
+      if (std::string why = off_sections(digit_planes(d.H, d.P, f, d.h)); !why.empty()) return why;
+  } catch (const InputError& e) {
+    return e.detail();
+  }
+  return {};
+}
+
 std::optional<Rig> centre_digit_links(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const SkinOptions& o) {
   Rig r = rig;
   std::vector<int> chosen;  // the digits over the allowed offset at the start
   for (int round = 0; round < 3; ++round) {
-    const HandFrame H = to_hand_frame(points, r, bones_from_rig(r));
-    const TubePoints P = assign_points(H, o.thumb_overlap_mm);
-    const Eigen::Vector3d tip_mid = H.J[finger_chain(Finger::Middle).back()];
-    const double h = std::max((tip_mid.x() - H.lo.x()) / o.slicing.planes, 0.5);  // as build_skin's
+    const DigitFrame d = digit_frame(points, r, o);
+    const HandFrame& H = d.H;
     const Eigen::Isometry3d Ti = H.T.inverse();
     for (int f = 0; f < kFingerCount; ++f) {
-      const TubeBuild t = digit_planes(H, P, f, h);
+      const TubeBuild t = digit_planes(H, d.P, f, d.h);
       if (!t.report.present || t.report.section_radius_mm <= 0) continue;
-      if (round == 0 && t.report.axis_offset_mm > allowed_axis_offset(t.report)) chosen.push_back(f);
+      if (round == 0 && !off_sections(t).empty()) chosen.push_back(f);
       if (std::find(chosen.begin(), chosen.end(), f) == chosen.end()) continue;
       std::vector<SectionMiddle> mids = section_middles(t, H, f);
       mids.erase(std::remove_if(mids.begin(), mids.end(), [](const SectionMiddle& m) { return !m.counted; }), mids.end());
@@ -253,12 +276,11 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   // from a second thread (~125 ms on one, ~120 on two on the fixture): with work `beside`,
   // they run on one thread and it on the other.
   auto first_steps = [&] {
-    // 1. the hand frame; the rig must sit in the cloud
-    H = to_hand_frame(points, rig, R.bones);
-    // 2. each point to its tube
-    const TubePoints tube_points = assign_points(H, o.thumb_overlap_mm);
-    const Eigen::Vector3d tip_mid = H.J[finger_chain(Finger::Middle).back()];
-    const double h = std::max((tip_mid.x() - H.lo.x()) / o.slicing.planes, 0.5);  // ring spacing, mm
+    // 1. the hand frame (the rig must sit in the cloud); 2. each point to its tube
+    DigitFrame d = digit_frame(points, rig, o);
+    H = std::move(d.H);
+    const TubePoints& tube_points = d.P;
+    const double h = d.h;
     // 3. the webs and the palm's end plane
     Webs webs = find_webs(H, h);
     R.webs = webs.points;

@@ -164,6 +164,11 @@ struct SkinResult {
 /// not (build_skin's error).
 std::string rig_outside_cloud(const std::vector<Eigen::Vector3d>& points, const Rig& rig);
 
+/// build_skin's refusal of the rig for a digit's links beside its sections (or for a palm joint
+/// outside the cloud), without building the skin: empty when it would take the rig so far.
+std::string digits_off_their_sections(const std::vector<Eigen::Vector3d>& points, const Rig& rig,
+                                      const SkinOptions& options);
+
 /// A placed skeleton whose digits' links lie off the middle of their sections (build_skin's
 /// refusal: "the thumb's links lie 2.9 mm from the middle of its sections") with those digits'
 /// joints beyond their roots (the thumb's MCP, IP and tip; a finger's PIP, DIP and tip) fitted
