@@ -457,6 +457,42 @@ TEST(Family, AGivenRigIsNotRefusedForAPlacedSkeletonOffItsSections) {
   EXPECT_NE(out.find("warning: skin: the given rig is used unchecked"), std::string::npos) << out;
 }
 
+// Middle, ring and little fingers curled (MCPs 30-40 deg, PIPs 40-45 deg; the index pointing):
+// the little finger's far part points back toward the wrist, its stations' v turned half round
+// there, and its tube folded on the pair's own rig. Each station now keeps the last one's side.
+TEST(Family, FingersCurledPastARightAngleAreSkinnedOnTheirOwnRig) {
+  const std::string dir = study_pair("family-pointing", "--set middle.mcp.flex=30 --set ring.mcp.flex=35 --set "
+                                     "little.mcp.flex=40 --set middle.pip.flex=40 --set ring.pip.flex=45 --set "
+                                     "little.pip.flex=45", 5, 3.0);
+  std::string out;
+  const std::string args = "skin --merged " + dir + "/reg/merged.ply --rig " + dir + "/pair/rig.json --truth " + dir +
+                           "/pair/truth.json --out " + dir + "/skin";
+  ASSERT_EQ(test::run(std::string(HANDSKIN_BINARY) + " -q " + args, &out), 0) << out;
+  std::ifstream in(dir + "/skin/skin_report.json");
+  const auto r = nlohmann::json::parse(in);
+  EXPECT_TRUE(r["mesh"]["watertight"].get<bool>());
+  std::printf("[family] pointing, its rig: skin -> truth mean %.4f p95 %.4f, within 1 mm %.2f %%\n",
+              r["truth"]["skin_to_truth_mm"]["mean"].get<double>(), r["truth"]["skin_to_truth_mm"]["p95"].get<double>(),
+              100 * r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>());
+  EXPECT_LE(r["truth"]["skin_to_truth_mm"]["mean"].get<double>(), 0.2);          // measured 0.163
+  EXPECT_GE(r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.95);   // measured 0.963
+}
+
+// A hand spread 15 deg with its thumb at 70 deg: its thumb reaches back past the wrist end once
+// the placement's frame turns toward the hand's axis, and its tip was taken for the wrist's cut
+// (the wrist placed 101 mm off, the thumb's links 4.0 mm off its sections: refused). The cut and
+// the wrist's breadth are now the palm's, not the digits'.
+TEST(Family, AThumbSpreadBackPastTheWristIsNotTakenForIt) {
+  const auto r = study_pair_auto_skin("family-spread-auto", "--spread 15 --thumb-abduction 70", 5, 3.0);
+  EXPECT_EQ(r["skeleton"]["used"], "automatic");
+  const auto& e = r["skeleton"]["automatic"]["against_given_rig"];
+  std::printf("[family] spread, automatic: joints mean %.2f max %.2f mm (%s); skin -> truth mean %.4f\n",
+              e["mean_joint_error_mm"].get<double>(), e["max_joint_error_mm"].get<double>(),
+              e["worst_joint"].get<std::string>().c_str(), r["truth"]["skin_to_truth_mm"]["mean"].get<double>());
+  EXPECT_LE(e["max_joint_error_mm"].get<double>(), 16.0);                    // measured 12.6 (the wrist); 101 before
+  EXPECT_LE(r["truth"]["skin_to_truth_mm"]["mean"].get<double>(), 0.11);    // measured 0.076 (run)
+}
+
 // A broad, thick hand 240 mm long with its fingers together (scripts/unusual_hands_study.py,
 // P03; not one of the study's hands): the automatic placement lost it (a thumb joint 15 mm
 // beyond the cloud), and compared with that skeleton the pair's own rig, which the skin was

@@ -599,6 +599,48 @@ TEST(SkinSteps, CurledFingerPlanesDoNotCrossInsideTheFinger) {
   EXPECT_GT(crossings(abrupt), 50u);  // 86 of the samples
 }
 
+TEST(SkinSteps, AFingerCurledPastARightAngleKeepsItsStationsTurnedOneWay) {
+  // A finger curled 50, 60 and 40 deg at its MCP, PIP and DIP points its far part back toward
+  // the wrist. A station's v is the back of the hand on its plane, which there points palmar:
+  // it turned half round between two stations, and the strip between their rings twisted
+  // through itself (a little finger at MCP 40, PIP 45 deg folded its tube on its own rig). Every
+  // station's v must be the finger's own back, turned with it.
+  HandFrame H;
+  for (auto& j : H.J) j = Eigen::Vector3d(-100, 0, 0);
+  const auto c = finger_chain(Finger::Ring);
+  const double flex[] = {0, 50, 60, 40};  // at the metacarpal base, MCP, PIP, DIP
+  const double len[] = {60, 45, 28, 24};
+  Eigen::Vector3d p(0, 0, 0), d = Eigen::Vector3d::UnitX();
+  H.J[c[0]] = p;
+  for (size_t k = 1; k < c.size(); ++k) {
+    d = Eigen::AngleAxisd(-flex[k - 1] * M_PI / 180, Eigen::Vector3d::UnitY()) * d;  // curl toward -Z (palmar)
+    p += len[k - 1] * d;
+    H.J[c[k]] = p;
+  }
+  TubePoints P;
+  P.tube.resize(kSkinTubes);
+  Rng rng(5);
+  for (size_t k = 1; k + 1 < c.size(); ++k) {  // a tube of radius 8 mm along the links
+    const Eigen::Vector3d a = H.J[c[k]], b = H.J[c[k + 1]], ax = (b - a).normalized();
+    const Eigen::Vector3d u = ax.cross(Eigen::Vector3d::UnitY()).normalized(), v = ax.cross(u);
+    for (int n = 0; n < 8000; ++n) {
+      const double t = rng.uniform(0, (b - a).norm()), ang = rng.uniform(0, 2 * M_PI);
+      P.tube[1 + static_cast<int>(Finger::Ring)].push_back(a + t * ax + 8.0 * (std::cos(ang) * u + std::sin(ang) * v));
+    }
+  }
+  const TubeBuild t = digit_planes(H, P, static_cast<int>(Finger::Ring), 2.5);
+  ASSERT_TRUE(t.report.present);
+  double turned = 0;  // how far the stations turn, deg
+  for (size_t k = 0; k < t.st.size(); ++k) {
+    const Eigen::Vector3d& n = t.st[k].n;
+    // In the XZ plane the finger's back is its direction turned 90 deg toward +Z.
+    const Eigen::Vector3d back(-n.z(), 0, n.x());
+    EXPECT_GT(t.st[k].v.dot(back), 0.99) << "station " << k;
+    turned = std::max(turned, std::acos(std::clamp(n.x(), -1.0, 1.0)) * 180 / M_PI);
+  }
+  EXPECT_GT(turned, 120.0);  // the stations do go past a right angle
+}
+
 TEST(SkinSteps, SectionsSeenFromOneSideDoNotCountAgainstARigThatFits) {
   // A straight middle finger (radius 8 mm, along +X) sampled as the two scanners see it
   // (surface within 72 deg of straight up or down), whose distal part (beyond x = 35 mm, most

@@ -161,10 +161,16 @@ Chains place_chains(const std::vector<Eigen::Vector3d>& h, const std::vector<Dig
   double& s = out.s;
   std::array<std::vector<Eigen::Vector3d>, 5>& chains = out.joints;  // hand coordinates, MCP ... tip
   double& thumb_mcp_arc = out.thumb_mcp_arc;                      // the thumb's MCP along its centre line
+  // The wrist end is the palm's: a thumb spread 70 deg reaches back past it once the frame
+  // turns (its tip became the "cut", and the wrist went 101 mm off on a hand spread 15 deg).
+  std::vector<char> in_digit(h.size(), 0);
+  for (const auto& dg : digits)
+    for (const size_t i : dg.points) in_digit[i] = 1;
   for (int round = 0; round < 3; ++round) {
     const Eigen::Vector3d Yh = Eigen::Vector3d::UnitZ().cross(Xh);
     double cut = 1e300;
-    for (const auto& q : h) cut = std::min(cut, q.dot(Xh));
+    for (size_t i = 0; i < h.size(); ++i)
+      if (!in_digit[i]) cut = std::min(cut, h[i].dot(Xh));
     // The hand's length along the middle finger's centre line (a curled finger is longer
     // than its shadow): to the middle MCP (where the last round put it), then along the curve.
     const double a_mcp_guess =
@@ -184,8 +190,11 @@ Chains place_chains(const std::vector<Eigen::Vector3d>& h, const std::vector<Dig
       wrist_x = cut + kWristCut * s;
     }
     double vl = 1e300, vh = -1e300, wl = 1e300, wh = -1e300;
-    for (const auto& q : h)
-      if (q.dot(Xh) < cut + 10) vl = std::min(vl, q.dot(Yh)), vh = std::max(vh, q.dot(Yh)), wl = std::min(wl, q.z()), wh = std::max(wh, q.z());
+    for (size_t i = 0; i < h.size(); ++i) {
+      const Eigen::Vector3d& q = h[i];
+      if (!in_digit[i] && q.dot(Xh) < cut + 10)
+        vl = std::min(vl, q.dot(Yh)), vh = std::max(vh, q.dot(Yh)), wl = std::min(wl, q.z()), wh = std::max(wh, q.z());
+    }
     W = wrist_x * Xh + 0.5 * (vl + vh) * Yh + 0.5 * (wl + wh) * Eigen::Vector3d::UnitZ();
     // Its height from the thickness a disc's radius inside the cut: a disc at the cut itself
     // (a cast sawn off at the wrist, no stub) holds the rim only, often one scan's side, and

@@ -244,7 +244,14 @@ TubeBuild digit_planes(const HandFrame& H, const TubePoints& Pts, int f, double 
   const double window = std::max(hs, kFingerTurnRadii * r_tip), s_mcp = f == 0 ? pl.s[1] : 0.0;
   for (int k = 0; k < K; ++k) {
     const double w = f != 0 ? window : thumb_turns_slowly ? std::clamp(k * hs - s_mcp, hs, window) : hs;
-    t.st.push_back(frame_at(pl.at(k * hs), pl.tangent(k * hs, w)));
+    Station st = frame_at(pl.at(k * hs), pl.tangent(k * hs, w));
+    // A digit curled past a right angle points its far part back toward the wrist, where the
+    // back of the hand projected on a station's plane points palmar: the station's v (and u)
+    // turned half round from one station to the next, and the strip between their rings
+    // twisted through itself (a little finger at MCP 40, PIP 45 deg folded its tube on its own
+    // rig). It is kept on the side of the last station's, as a flexing finger turns its back.
+    if (!t.st.empty() && st.v.dot(t.st.back().v) < 0) st.v = -st.v, st.u = -st.u;
+    t.st.push_back(st);
   }
   fill_slabs(&t, pts, hs, true);
   t.station_step = hs;
