@@ -306,6 +306,28 @@ TEST(Cli, SkinFromAMergedCloudWithAndWithoutARig) {
       << out;
   EXPECT_NE(out.find("the palm tube folds into itself"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(dir6));
+  // A placed skeleton that misses the hand (HANDSKIN_FAULT=placement-off: 25 mm aside, its
+  // links off their sections) is no evidence against the given rig, on which the skin builds:
+  // the rig is used, with a warning -q shows, and the report says the placement failed.
+  const std::string dir7 = test::temp_dir("skin7") + "/out";
+  ASSERT_EQ(test::run("HANDSKIN_FAULT=placement-off " + kBin + " -q skin --merged " + reg + "/merged.ply --rig " + kFix +
+                          "rig.json --pipeline " + pipe + " --out " + dir7,
+                      &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("warning: the given rig is used unchecked"), std::string::npos) << out;
+  const Json r7 = load_json_object(dir7 + "/skin_report.json");
+  EXPECT_EQ(r7["skeleton"]["used"], "given");
+  EXPECT_NE(r7["skeleton"]["automatic"]["failed"].get<std::string>().find("middle of its sections"), std::string::npos)
+      << r7["skeleton"];
+  // `run -q` shows its stages' warnings too (they had been progress lines "skin: warning: …").
+  const std::string dir8 = test::temp_dir("skin8") + "/out";
+  ASSERT_EQ(test::run("HANDSKIN_FAULT=placement-off " + kBin + " -q run --back " + kFix + "back --palm " + kFix +
+                          "palm --rig " + kFix + "rig.json --out " + dir8,
+                      &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("warning: skin: the given rig is used unchecked"), std::string::npos) << out;
   // A rig with two fingers swapped would still close, but bound wrongly: it is refused, naming the file.
   Json swapped = load_json_object(kFix + "rig.json");
   for (const char* j : {"metacarpal", "phalanx-proximal", "phalanx-intermediate", "phalanx-distal", "tip"})

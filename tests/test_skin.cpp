@@ -543,23 +543,33 @@ TEST(SkinSteps, DigitPlanesAreSquareToTheirLinksAndOrderedAlongThem) {
   }
 }
 
+namespace {
+// A hand frame holding one finger along +X from the origin (the metacarpal 60 mm, the
+// phalanges 45, 28 and 24), flexed toward -Z (palmar) by `flex` deg at its metacarpal base,
+// MCP, PIP and DIP; every other joint far behind it.
+HandFrame curled_finger(Finger f, const std::array<double, 4>& flex) {
+  HandFrame H;
+  for (auto& j : H.J) j = Eigen::Vector3d(-100, 0, 0);
+  const auto c = finger_chain(f);
+  const double len[] = {60, 45, 28, 24};
+  Eigen::Vector3d p(0, 0, 0), d = Eigen::Vector3d::UnitX();
+  H.J[c[0]] = p;
+  for (size_t k = 1; k < c.size(); ++k) {
+    d = Eigen::AngleAxisd(-flex[k - 1] * M_PI / 180, Eigen::Vector3d::UnitY()) * d;
+    p += len[k - 1] * d;
+    H.J[c[k]] = p;
+  }
+  return H;
+}
+}  // namespace
+
 TEST(SkinSteps, CurledFingerPlanesDoNotCrossInsideTheFinger) {
   // A thick middle finger (radius 9 mm) curled 40 deg at the PIP and 30 deg at the DIP. The
   // planes through a bent joint must turn gradually enough that none crosses the next one
   // inside the finger: no sample lies ahead of one plane and behind the next (such samples
   // fell into the wrong slab on the inside of a curled finger's bends).
-  HandFrame H;
-  for (auto& j : H.J) j = Eigen::Vector3d(-100, 0, 0);
+  const HandFrame H = curled_finger(Finger::Middle, {0, 0, 40, 30});
   const auto c = finger_chain(Finger::Middle);
-  const double flex[] = {0, 0, 40, 30};  // at the metacarpal base, MCP, PIP, DIP
-  const double len[] = {60, 45, 28, 24};
-  Eigen::Vector3d p(0, 0, 0), d = Eigen::Vector3d::UnitX();
-  H.J[c[0]] = p;
-  for (size_t k = 1; k < c.size(); ++k) {
-    d = Eigen::AngleAxisd(-flex[k - 1] * M_PI / 180, Eigen::Vector3d::UnitY()) * d;  // curl toward -Z (palmar)
-    p += len[k - 1] * d;
-    H.J[c[k]] = p;
-  }
   TubePoints P;
   P.tube.resize(kSkinTubes);
   Rng rng(3);
@@ -605,18 +615,8 @@ TEST(SkinSteps, AFingerCurledPastARightAngleKeepsItsStationsTurnedOneWay) {
   // it turned half round between two stations, and the strip between their rings twisted
   // through itself (a little finger at MCP 40, PIP 45 deg folded its tube on its own rig). Every
   // station's v must be the finger's own back, turned with it.
-  HandFrame H;
-  for (auto& j : H.J) j = Eigen::Vector3d(-100, 0, 0);
+  const HandFrame H = curled_finger(Finger::Ring, {0, 50, 60, 40});
   const auto c = finger_chain(Finger::Ring);
-  const double flex[] = {0, 50, 60, 40};  // at the metacarpal base, MCP, PIP, DIP
-  const double len[] = {60, 45, 28, 24};
-  Eigen::Vector3d p(0, 0, 0), d = Eigen::Vector3d::UnitX();
-  H.J[c[0]] = p;
-  for (size_t k = 1; k < c.size(); ++k) {
-    d = Eigen::AngleAxisd(-flex[k - 1] * M_PI / 180, Eigen::Vector3d::UnitY()) * d;  // curl toward -Z (palmar)
-    p += len[k - 1] * d;
-    H.J[c[k]] = p;
-  }
   TubePoints P;
   P.tube.resize(kSkinTubes);
   Rng rng(5);

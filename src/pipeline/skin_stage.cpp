@@ -1,6 +1,7 @@
 #include "pipeline/skin_stage.hpp"
 
 #include <chrono>
+#include <cstdlib>
 #include <exception>
 
 #include "core/atomic_file.hpp"
@@ -94,10 +95,11 @@ void check_given_rig(const SkinStageInputs& in, const SkinOptions& so,
   SkinStageResult& R = *Rp;
   const JointError e = joint_error(R.placed->rig, *in.rig);
   // Far from the given rig, on which the skin was built: the placed skeleton is the one that
-  // does not fit when the skin would refuse it (a hand spread 15 deg with its thumb at 70 deg:
-  // the placement's thumb 4.0 mm off its sections, its wrist 101 mm from the given one's, and
-  // the given rig, the pair's own, had been refused as another hand's). A rig of another scan
-  // or with its digits out of order is refused by the skin or by a placement that fits.
+  // does not fit when the skin would refuse it (a hand spread 15 deg with its thumb at 70 deg,
+  // before the placement took its wrist from the palm: the placement's thumb 4.0 mm off its
+  // sections, its wrist 101 mm from the given one's, and the given rig, the pair's own, had
+  // been refused as another hand's). A rig of another scan or with its digits out of order is
+  // refused by the skin or by a placement that fits.
   if (e.mean_mm > kRigRefuseMm && !in.auto_rig)
     if (std::string why = digits_off_their_sections(in.points, R.placed->rig, so); !why.empty()) {
       R.placement_failed = "the skeleton placed in the cloud does not fit it: " + why;
@@ -195,6 +197,10 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
     try {
       if (R.automatic) progress("placing the skeleton in the cloud");
       R.placed = place_skeleton(in.points, in.sides);
+      // Fault injection for tests (docs/architecture.md): HANDSKIN_FAULT=placement-off moves
+      // the placed skeleton 25 mm aside, a placement that missed the hand.
+      if (const char* f = std::getenv("HANDSKIN_FAULT"); f && std::string(f) == "placement-off")
+        for (auto& j : R.placed->rig.joints) j.y() += 25.0;
     } catch (const InputError& e) {
       if (R.automatic) throw renamed(e);
       R.placement_failed = e.what();
