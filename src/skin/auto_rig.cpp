@@ -23,8 +23,6 @@ using namespace proportions;
 // wrist joint (measured on the proportions' hand: the knee of its breadth along the hand).
 constexpr double kKneeBeyondWrist = 12.0;
 
-constexpr double kDorsalOffset = kDigitBoneDorsalMm;
-
 // In the palm, the joints' depth as a share of the palm's local thickness from its back: the
 // metacarpals lie nearer the back than the palm (the palmar soft tissue is the thicker).
 // Measured at the true joints of the synthetic family (12 hands, 160-215 mm, thin to thick):
@@ -243,12 +241,12 @@ Chains place_chains(const std::vector<Eigen::Vector3d>& h, const std::vector<Dig
       std::optional<double> mcp_z;
       if (fi != 0) mcp_z = depth_at(h, js.back(), kMetacarpalDepth, 3 * s);
       // The bones lie dorsal of a digit's section middle (the palmar pad is the thicker
-      // side): the joints are lifted by kDorsalOffset, square to the centre line.
+      // side): the joints are lifted by kDigitBoneDorsalMm, square to the centre line.
       for (Eigen::Vector3d& j : js) {
         Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
         const Eigen::Vector3d tl = tangent_near(dg, j);
         up = (up - up.dot(tl) * tl).normalized();
-        j += kDorsalOffset * s * up;
+        j += kDigitBoneDorsalMm * s * up;
       }
       if (mcp_z) js.back().z() = *mcp_z;
       std::reverse(js.begin(), js.end());
@@ -285,7 +283,7 @@ void centre_thumb_joints(const std::vector<Eigen::Vector3d>& h, const Digit& thu
       Eigen::Vector3d e1 = Eigen::Vector3d::UnitZ() - a.z() * a;
       if (e1.norm() < 0.3) continue;  // a thumb pointing up or down out of the hand: no height to centre
       e1.normalize();
-      const Eigen::Vector3d e2 = a.cross(e1), up = kDorsalOffset * s * e1;
+      const Eigen::Vector3d e2 = a.cross(e1), up = kDigitBoneDorsalMm * s * e1;
       if (const auto m = section_middle(h, q - up, a, e1, e2, dg_thumb_width)) {
         js[k] += *m + up - q;
         if (k == 0) mcp_centred = true;
