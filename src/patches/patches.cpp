@@ -182,10 +182,12 @@ Net start_net(const PatchLayout& layout, const LayoutTopology& T, PatchSkin* out
 }
 
 // --- 2. data: the measured points near the skin, and samples of the polygon skin as weak
-// data. `in_fit`: per point, its datum, -1 measured at the end only, -2 stray ---
+// data. `in_fit`: per point, its datum, -1 measured at the end only, -2 stray; `refined`: the
+// layout was refined to a tolerance (its faces halved) ---
+constexpr double kSeenMm = 2.0, kRefinedSeenMm = 5.0;
 std::vector<Datum> gather_data(const std::vector<Eigen::Vector3d>& points, const std::vector<std::uint32_t>& sides,
                                const std::vector<Eigen::Vector3d>& support, int net_count, const PatchOptions& o,
-                               std::vector<int>* in_fit) {
+                               bool refined, std::vector<int>* in_fit) {
   std::vector<Datum> data;
   in_fit->assign(points.size(), -2);
   constexpr double kFarMm = 5.0;  // farther from the skin's every sample: not the skin (a stray sample)
@@ -208,16 +210,22 @@ std::vector<Datum> gather_data(const std::vector<Eigen::Vector3d>& points, const
       (*in_fit)[k] = -1;
     }
   }
-  // The skin's samples only where the scans saw nothing: within kSeenMm of a fitted measured
-  // point they weigh nothing beside it (0.05 against the stride's ~9) but cost as much in
-  // every round's foot points and blocks (on the fixture they were 56 % of the data).
-  constexpr double kSeenMm = 2.0;
+  // The skin's samples only where the scans saw nothing: within seen_mm of a fitted measured
+  // point they weigh little beside it (0.5 against the stride's ~9) but cost as much in every
+  // round's foot points and blocks (on the fixture they were 56 % of the data). A refined
+  // layout's small patches follow the samples closely: where the polygon skin's guess over an
+  // unseen rim (a spread thumb's web) leaves the data by millimetres, they bent to it within
+  // 2 mm of the data's last points and missed those by ~1 mm, whatever the splits; 5 mm gives
+  // the surface room to turn (docs/patches.md, refinement step 5). The default layout's large
+  // patches are held better by the nearer samples (at 4 mm: the family's surface → truth mean
+  // +0.001-0.005 mm).
+  const double seen_mm = refined ? kRefinedSeenMm : kSeenMm;
   std::vector<Eigen::Vector3d> fitted;
   fitted.reserve(data.size());
   for (const Datum& d : data) fitted.push_back(d.p);
-  const PointGrid seen(fitted, kSeenMm);
+  const PointGrid seen(fitted, seen_mm);
   for (const auto& p : support)
-    if (!seen.any_within(p, kSeenMm)) data.push_back({p, o.skin_weight, -1});
+    if (!seen.any_within(p, seen_mm)) data.push_back({p, o.skin_weight, -1});
   return data;
 }
 
@@ -536,7 +544,7 @@ PatchSkin patch_steps::fit_patches_unmeasured(const PatchLayout& layout, const s
   const Net net = start_net(layout, T, &out, seed);
   std::vector<int>& in_fit = pending->in_fit;
   std::vector<Datum>& data = pending->data;
-  data = gather_data(points, sides, support, net.count, o, &in_fit);
+  data = gather_data(points, sides, support, net.count, o, !layout.levels.empty(), &in_fit);
   if (data.size() < 16 * out.patches.size())
     throw InputError("patches", "too few points (" + std::to_string(data.size()) + ") for " +
                                     std::to_string(out.patches.size()) + " patches");
