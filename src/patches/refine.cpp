@@ -289,6 +289,18 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
     std::set<int> frozen;
   };
   std::optional<Entry> entry;
+  // A split that brought no gain while patches missed is let go on once: its fit is split again,
+  // and kept only if that brings a gain over the fit before it (on the WebXR hand, a second
+  // split that left the worst point 0.59 -> 0.68 mm was followed, on the code before the refits'
+  // 5 mm gap, by two that held the tolerance). `parked`: that fit before, as its round stood.
+  struct Parked {
+    PatchSkin fit;
+    PatchSkin::Refinement R;
+    size_t over = 0;
+    double worst = 0;
+    std::string why;
+  };
+  std::optional<Parked> parked;
   constexpr int kRestarts = 2;  // each one a refinement again from that round
   int restarts = 0, first_round = 0, frozen_total = 0;
   for (;;) {  // the refinement, and its restarts
@@ -309,6 +321,7 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
       R.over.push_back(static_cast<int>(over.size()));
       R.worst_mm.push_back(err.empty() ? 0.0 : *std::max_element(err.begin(), err.end()));
       R.held = over.empty();
+      if (parked && (over.size() < parked->over || R.worst_mm.back() < parked->worst)) parked.reset();
       const PatchSkin::Refinement R_headed = R;  // with this round's figures: as it stands if the round is taken back
       if (over.empty() && rough.empty()) break;
       if (round == o.refine_rounds) {
@@ -420,13 +433,20 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
       const auto over_now = std::count_if(terr.begin(), terr.end(), [&](double e) { return e > o.tolerance_mm; });
       // No gain: the split neither brought a patch within the tolerance nor the worst point nearer;
       // or, made for the rough patches only, it lost the tolerance the fit before held.
-      if ((over.empty() && over_now > 0) || (!over.empty() && over_now >= static_cast<long>(over.size()) && worst_now >= R.worst_mm.back())) {
+      const bool no_gain = !over.empty() && over_now >= static_cast<long>(over.size()) && worst_now >= R.worst_mm.back();
+      if ((over.empty() && over_now > 0) || (no_gain && parked)) {
         char b[200];
         std::snprintf(b, sizeof b, "a split to %zu patches left %ld over the tolerance, the worst point %.3f mm: the fit before it kept",
                       t.patches.size(), static_cast<long>(over_now), worst_now);
         R.stopped = b;
         R.seconds.pop_back();
         break;
+      }
+      if (no_gain) {
+        char b[200];
+        std::snprintf(b, sizeof b, "a split to %zu patches left %ld over the tolerance, the worst point %.3f mm, and what "
+                      "followed it brought no gain over the fit before it, which is kept", t.patches.size(), static_cast<long>(over_now), worst_now);
+        parked = Parked{*s, R_headed, over.size(), R.worst_mm.back(), b};
       }
       carry_fit_choices(s, &t);
       t.crossings_before_separation = s->crossings_before_separation;
@@ -441,6 +461,12 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
       for (size_t k = 0; k < next.size(); ++k)
         for (int side = 0; side < 4; ++side) next[k][side] = on_web[split.parent[k]][side] && split.on_parent_side[k][side];
       on_web = std::move(next);
+    }
+    if (parked) {  // the split let go on brought no gain over the fit before it either
+      *s = std::move(parked->fit);
+      R = std::move(parked->R);
+      R.stopped = std::move(parked->why);
+      parked.reset();
     }
     // Ended crossing itself (finished: fingers pressed together held apart, which can undo a
     // crossing there): back to the round that made it cross, the faces cut there whose
