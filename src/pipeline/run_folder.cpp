@@ -105,7 +105,9 @@ RunFolderPatches patches_for_run_folder(const std::string& dir, const Rig& rig, 
     if (!folder_skin) progress("the folder's skin was built on another rig than " + rig_path);
   }
   if (!folder_skin) progress("building the skin on " + rig_path);
-  const SkinResult skin = folder_skin ? std::move(*folder_skin) : build_skin(m.points, p.rig, skin_options(po));
+  SkinOptions so = skin_options(po);
+  so.rig_given = true;  // the folder's rig, given or placed, is the one its run built on
+  const SkinResult skin = folder_skin ? std::move(*folder_skin) : build_skin(m.points, p.rig, so);
   PatchOptions opts = patch_options(po);
   opts.layout = layout;
   progress(std::string("fitting bicubic patches") + (layout ? " on the layout of " + layout_name : "") +

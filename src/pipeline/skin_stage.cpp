@@ -167,9 +167,10 @@ void measure_skin(const SkinStageInputs& in, const SkinOptions& so, const std::f
 SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions& options,
                                const std::function<void(const std::string&)>& progress) {
   const auto t_stage = std::chrono::steady_clock::now();
-  const SkinOptions so = skin_options(options);  // checked by build_skin (and when the pipeline was read)
+  SkinOptions so = skin_options(options);  // checked by build_skin (and when the pipeline was read)
   SkinStageResult R;
   R.automatic = in.auto_rig || !in.rig;
+  so.rig_given = !R.automatic;
   // Errors of the skin steps say "rig" or "merged cloud": name the file the user gave, or the
   // automatic skeleton when that is what the skin was built on (also with --rig --auto-rig).
   auto renamed = [&](const InputError& e) {
@@ -382,7 +383,9 @@ Json to_json(const SkinStageResult& r) {
                       {"reverted", skin.data_fit.reverted},
                       {"mean_move_mm", skin.data_fit.mean_move_mm},
                       {"max_move_mm", skin.data_fit.max_move_mm}};
-  j["fair_unseen"] = {{"crease_vertices", skin.fair_unseen.crease_vertices},
+  j["fair_unseen"] = {{"vertices", skin.fair_unseen.vertices},
+                      {"unseen", skin.fair_unseen.unseen},
+                      {"crease_vertices", skin.fair_unseen.crease_vertices},
                       {"faired", skin.fair_unseen.faired},
                       {"held", skin.fair_unseen.held},
                       {"taken_back", skin.fair_unseen.taken_back},
@@ -394,7 +397,7 @@ Json to_json(const SkinStageResult& r) {
   Json tubes = Json::array();
   for (const auto& t : skin.tubes)
     tubes.push_back({{"name", t.name}, {"present", t.present}, {"points", t.points}, {"rings", t.rings},
-                     {"measured", t.measured}, {"filled", t.filled}, {"partial", t.partial}, {"axis_offset_mm", t.axis_offset_mm},
+                     {"measured", t.measured}, {"filled", t.filled}, {"partial", t.partial}, {"axis_offset_mm", t.axis_offset_mm}, {"axis_offset_seen_mm", t.axis_offset_seen_mm},
                      {"section_radius_mm", t.section_radius_mm}});
   j["tubes"] = tubes;
   const WristCut& cut = skin.wrist_cut;

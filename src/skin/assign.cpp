@@ -100,8 +100,30 @@ TubePoints assign_points(const HandFrame& H, double overlap) {
     const double dt = std::sqrt(best_thumb), dn = std::sqrt(best_other);
     shared[i] = label[i] == kThumb ? dn < dt + overlap : dt < dn + overlap;
   }
+  // The palm's planes take the fingers' points too (the knuckles and the webs lie within the
+  // palm's end), but not where a finger leaves the palm's thickness: a finger flexed at its MCP
+  // rises (or drops) through the planes by the knuckles, and the palm tube's last rings, taking
+  // it in, folded (a hand with its MCPs flexed 60 deg, on its own rig). The palm's thickness:
+  // its own points' heights (z, toward the back), 1st to 99th percentile, kPalmBandMm either side.
+  constexpr double kPalmBandMm = 2.0;
+  constexpr int kPalm = static_cast<int>(SkinTube::Palm);
+  double zlo = -1e300, zhi = 1e300;
+  {
+    std::vector<double> z;
+    for (size_t i = 0; i < q.size(); ++i)
+      if (label[i] == kPalm) z.push_back(q[i].z());
+    if (z.size() >= 100) {
+      const size_t k = z.size() / 100;
+      std::nth_element(z.begin(), z.begin() + k, z.end());
+      zlo = z[k] - kPalmBandMm;
+      std::nth_element(z.begin(), z.end() - 1 - k, z.end());
+      zhi = z[z.size() - 1 - k] + kPalmBandMm;
+    }
+  }
   for (size_t i = 0; i < q.size(); ++i) {
     tube_pts[label[i]].push_back(q[i]);
+    const bool finger = label[i] != kThumb && label[i] != kPalm;
+    if (finger && (q[i].z() < zlo || q[i].z() > zhi)) continue;
     if (label[i] != kThumb || shared[i]) palm_pts.push_back(q[i]);
     if (label[i] != kThumb && shared[i]) tube_pts[kThumb].push_back(q[i]);
   }

@@ -44,6 +44,8 @@ FairUnseen fair_unseen(SM* sm, const std::vector<Eigen::Vector3d>& points, const
     const auto& p = sm->point(v);
     const Eigen::Vector3d q(p.x(), p.y(), p.z());
     seen[v.idx()] = cut_n.dot(q) - cut_d < o.cut_margin_mm || grid.any_within(q, o.seen_mm);
+    ++f.vertices;
+    f.unseen += !seen[v.idx()];
   }
   // Each vertex's tube and ring, where the build kept them (skin_mesh.cpp's "v:origin").
   const auto [origin, has_origin] = sm->property_map<SM::Vertex_index, std::pair<int, int>>("v:origin");

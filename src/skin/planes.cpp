@@ -163,6 +163,15 @@ constexpr double kFingerTurnRadii = 2.0;
 constexpr double kMinSectionAspect = 0.55;
 }  // namespace
 
+double SectionMiddle::offset() const {
+  if (ext.minCoeff() >= kMinSectionAspect * ext.maxCoeff()) return mid.norm();
+  const int across = ext.x() < ext.y() ? 0 : 1;
+  const double t = std::clamp(-mid(across), -0.5 * ext.maxCoeff(), 0.5 * ext.maxCoeff());
+  Eigen::Vector2d q = mid;
+  q(across) += t;
+  return q.norm();
+}
+
 std::vector<SectionMiddle> section_middles(const TubeBuild& t, const HandFrame& H, int f) {
   // The thumb's tube starts at its base (CMC), but its metacarpal lies in the thenar, whose
   // sections (the thumb's share of the palm) have no middle the bone keeps to: even the
@@ -263,8 +272,14 @@ TubeBuild digit_planes(const HandFrame& H, const TubePoints& Pts, int f, double 
     };
     if (mids.size() >= 3) {
       std::vector<double> off, rad;
-      for (const auto& m : mids)
+      std::vector<double> seen;
+      for (const auto& m : mids) {
         if (m.counted) off.push_back(m.mid.norm()), rad.push_back(0.25 * m.ext.sum());
+        seen.push_back(m.offset());
+      }
+      // Every section, each by what it shows (SectionMiddle::offset): the measure a given rig
+      // is held to (skin_mesh.cpp, off_sections).
+      t.report.axis_offset_seen_mm = median(seen);
       t.report.axis_offset_mm = median(off), t.report.section_radius_mm = median(rad);
     }
   }

@@ -48,6 +48,8 @@ struct FairUnseenOptions {
 };
 /// What step 9 did.
 struct FairUnseen {
+  size_t vertices = 0;         ///< the skin's vertices, and of them
+  size_t unseen = 0;           ///< those with no cloud point within seen_mm (the wrist cut's counted as seen)
   size_t crease_vertices = 0;  ///< unseen vertices on a concave crease
   size_t faired = 0;           ///< vertices moved (the creases' regions)
   size_t held = 0;             ///< region vertices held where they were (fairing took them away from the cloud)
@@ -88,6 +90,11 @@ struct SkinOptions {
   DataFitOptions data_fit;
   FairUnseenOptions fair_unseen;
   bool check_self_intersections = true;
+  /// The rig was given, not placed: its digits are held to their sections as these show them
+  /// (SkinTubeReport::axis_offset_seen_mm), sections seen from one side only included. A
+  /// placed skeleton is held to the sections seen round (axis_offset_mm), as its placement's
+  /// retries expect. Set by the skin stage.
+  bool rig_given = false;
   bool IsValid(std::string* error) const;
 };
 
@@ -109,6 +116,9 @@ struct SkinTubeReport {
   /// sections' median radius. A rig that fits puts its links near the middle (the bones lie
   /// a little dorsal); one of another scan does not.
   double axis_offset_mm = 0, section_radius_mm = 0;
+  /// The links' median offset over every section, one seen from one side only by what it shows
+  /// (skin_steps::SectionMiddle::offset): what a given rig is held to.
+  double axis_offset_seen_mm = 0;
 };
 
 /// One tube's regular ring grid before stitching and decimation (rig frame, mm): its rings

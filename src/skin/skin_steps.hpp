@@ -151,8 +151,14 @@ TubeBuild digit_planes(const HandFrame& H, const TubePoints& P, int finger, doub
 struct SectionMiddle {
   int station = 0;
   double s = 0;  ///< arc length along the digit's links, mm
-  Eigen::Vector2d mid, ext;
-  bool counted = false;
+  Eigen::Vector2d mid, ext;  ///< the middle and the extent of the section's points (u, v)
+  bool counted = false;      ///< its middle is the digit's (see section_middles)
+  /// How far the links (the plane's origin) pass from the digit's middle as the section shows
+  /// it, mm. A section seen from one side only (its extent one way under kMinSectionAspect of
+  /// the other's) shows the middle across its width only: along its short extent the digit's
+  /// middle lies up to half its width off the seen arc's (the arc's depth does not say how much
+  /// of the round it is), so its offset is the origin's distance from that segment.
+  double offset() const;
 };
 std::vector<SectionMiddle> section_middles(const TubeBuild& digit, const HandFrame& H, int finger);
 
