@@ -290,9 +290,10 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
   };
   std::optional<Entry> entry;
   // A split that brought no gain while patches missed is let go on once: its fit is split again,
-  // and kept only if that brings a gain over the fit before it (on the WebXR hand, a second
-  // split that left the worst point 0.59 -> 0.68 mm was followed, on the code before the refits'
-  // 5 mm gap, by two that held the tolerance). `parked`: that fit before, as its round stood.
+  // and the refinement goes on from there if a later fit gains over the fit before that split;
+  // else that fit is kept (on the WebXR hand's left-arched pair a second split left the worst
+  // point 0.59 -> 0.68 mm, and the one after it held the tolerance). `parked`: that fit before,
+  // as its round stood.
   struct Parked {
     PatchSkin fit;
     PatchSkin::Refinement R;
