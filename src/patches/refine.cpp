@@ -293,12 +293,10 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
   // and the refinement goes on from there if a later fit gains over the fit before that split;
   // else that fit is kept (on the WebXR hand's left-arched pair a second split left the worst
   // point 0.59 -> 0.68 mm, and the one after it held the tolerance). `parked`: that fit before,
-  // as its round stood.
+  // as its round stood (its R ends with that round's patches over the tolerance and worst point).
   struct Parked {
     PatchSkin fit;
     PatchSkin::Refinement R;
-    size_t over = 0;
-    double worst = 0;
     std::string why;
   };
   std::optional<Parked> parked;
@@ -322,7 +320,8 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
       R.over.push_back(static_cast<int>(over.size()));
       R.worst_mm.push_back(err.empty() ? 0.0 : *std::max_element(err.begin(), err.end()));
       R.held = over.empty();
-      if (parked && (over.size() < parked->over || R.worst_mm.back() < parked->worst)) parked.reset();
+      if (parked && (static_cast<int>(over.size()) < parked->R.over.back() || R.worst_mm.back() < parked->R.worst_mm.back()))
+        parked.reset();
       const PatchSkin::Refinement R_headed = R;  // with this round's figures: as it stands if the round is taken back
       if (over.empty() && rough.empty()) break;
       if (round == o.refine_rounds) {
@@ -447,7 +446,7 @@ void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::functio
         char b[200];
         std::snprintf(b, sizeof b, "a split to %zu patches left %ld over the tolerance, the worst point %.3f mm, and what "
                       "followed it brought no gain over the fit before it, which is kept", t.patches.size(), static_cast<long>(over_now), worst_now);
-        parked = Parked{*s, R_headed, over.size(), R.worst_mm.back(), b};
+        parked = Parked{*s, R_headed, b};
       }
       carry_fit_choices(s, &t);
       t.crossings_before_separation = s->crossings_before_separation;

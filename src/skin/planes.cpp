@@ -163,8 +163,10 @@ constexpr double kFingerTurnRadii = 2.0;
 constexpr double kMinSectionAspect = 0.55;
 }  // namespace
 
+bool SectionMiddle::round() const { return ext.minCoeff() >= kMinSectionAspect * ext.maxCoeff(); }
+
 double SectionMiddle::offset() const {
-  if (ext.minCoeff() >= kMinSectionAspect * ext.maxCoeff()) return mid.norm();
+  if (round()) return mid.norm();
   const int across = ext.x() < ext.y() ? 0 : 1;
   const double t = std::clamp(-mid(across), -0.5 * ext.maxCoeff(), 0.5 * ext.maxCoeff());
   Eigen::Vector2d q = mid;
@@ -195,7 +197,7 @@ std::vector<SectionMiddle> section_middles(const TubeBuild& t, const HandFrame& 
   // lay 4.0-4.4 mm off by the median over all its sections, the one-sided ones 0.2-0.45
   // across. A rig beside the digit keeps its full sections and their offsets.
   size_t round = 0;
-  for (auto& m : mids) round += (m.counted = m.ext.minCoeff() >= kMinSectionAspect * m.ext.maxCoeff());
+  for (auto& m : mids) round += (m.counted = m.round());
   if (round < 3)
     for (auto& m : mids) m.counted = true;
   return mids;

@@ -153,11 +153,14 @@ struct SectionMiddle {
   double s = 0;  ///< arc length along the digit's links, mm
   Eigen::Vector2d mid, ext;  ///< the middle and the extent of the section's points (u, v)
   bool counted = false;      ///< its middle is the digit's (see section_middles)
+  /// Seen round: its extent one way at least kMinSectionAspect of the other's; else seen from
+  /// one side only.
+  bool round() const;
   /// How far the links (the plane's origin) pass from the digit's middle as the section shows
-  /// it, mm. A section seen from one side only (its extent one way under kMinSectionAspect of
-  /// the other's) shows the middle across its width only: along its short extent the digit's
-  /// middle lies up to half its width off the seen arc's (the arc's depth does not say how much
-  /// of the round it is), so its offset is the origin's distance from that segment.
+  /// it, mm. A section seen from one side only (not round()) shows the middle across its width
+  /// only: along its short extent the digit's middle lies up to half its width off the seen
+  /// arc's (the arc's depth does not say how much of the round it is), so its offset is the
+  /// origin's distance from that segment.
   double offset() const;
 };
 std::vector<SectionMiddle> section_middles(const TubeBuild& digit, const HandFrame& H, int finger);
