@@ -89,9 +89,11 @@ void extend_proximally(const std::vector<Eigen::Vector3d>& h, const Eigen::Vecto
 // finger's palmar side is seen by neither scan: the middle of a one-sided section's extent
 // is its seen sheet, a circle's centre is not); the slab turned to the direction it finds,
 // three times, at most kMaxTurn from the step before (at a sharp bend a slab square to the
-// direction before cuts the next phalanx lengthwise). Ends where a slab holds fewer than 15
-// points or the trace has turned kMaxTotalTurn; smoothed; the last entry is the skin's tip
-// (the farthest point along the last direction). Toward the back it turns kMaxDorsal at
+// direction before cuts the next phalanx lengthwise). Where a slab holds fewer than 15 points
+// it crosses a gap to the digit's points beyond, if any (`bridge` below); it ends where it
+// finds none or has turned kMaxTotalTurn; smoothed; the last entry is the skin's tip (the
+// farthest point along the last direction; over a gap, the farthest from where the first gap
+// starts). Toward the back it turns kMaxDorsal at
 // most: at a straight finger's tip the slab turned up round the nail and the line ran 8-20 mm
 // off (the family's relaxed hands). On straight fingers it places the joints no better than
 // the quadratic (six of the family's pairs: 1.30-2.88 -> 1.44-2.92 mm mean), so it is the
@@ -129,6 +131,44 @@ std::vector<Eigen::Vector2d> track_in_flexion_plane(const std::vector<Eigen::Vec
     if (n < 15) return std::nullopt;
     return Eigen::Vector2d(at + std::clamp(A.ldlt().solve(rhs)(0), -window, window) * across);
   };
+  // A gap in what the scans saw. A finger curled past ~90 deg shows neither scan the sides of
+  // its intermediate phalanx (they face along the hand, square to both views): the trace
+  // finds its PIP's knuckle, then nothing, and well above it the nail side of the distal
+  // phalanx (V1 of the probe hands, PIPs 60 and DIPs 40 deg: a 25-40 mm gap; the line ended
+  // at the knuckle, the hand's scale came out 0.81 and the fingers' skin 20-45 mm short).
+  // Where the slab ahead is empty: the nearest of the digit's points within kMaxGap, ahead
+  // or turned toward the palm (at most kMaxBridgeTurn; toward the back kMaxDorsal), farther
+  // than kOwnSurface widths from every centre traced so far (the finger's own surface: a
+  // straight finger's tip cap and its palmar side lie within it), with 15 such points within
+  // 2 kHalfSlab of it (a few stray returns are not a phalanx). None: the trace ends.
+  constexpr double kMaxGap = 45, kMaxBridgeTurn = 150 * M_PI / 180, kOwnSurface = 0.75;
+  const auto bridge = [&](const Eigen::Vector2d& at, const Eigen::Vector2d& dir) -> std::optional<Eigen::Vector2d> {
+    std::vector<Eigen::Vector2d> far;
+    for (const auto& q : p) {
+      const Eigen::Vector2d r = q.head<2>() - at;
+      const double dist = r.norm();
+      if (dist > kMaxGap || dist < kTrackStep) continue;
+      const double turn = std::atan2(dir.x() * r.y() - dir.y() * r.x(), dir.dot(r));
+      if (turn > kMaxDorsal || turn < -kMaxBridgeTurn) continue;
+      bool own = false;
+      for (const auto& l : line)
+        if ((q.head<2>() - l).squaredNorm() < kOwnSurface * kOwnSurface * window * window) {
+          own = true;
+          break;
+        }
+      if (!own) far.push_back(q.head<2>());
+    }
+    if (far.size() < 15) return std::nullopt;
+    const auto nearest = *std::min_element(far.begin(), far.end(), [&](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+      return (a - at).squaredNorm() < (b - at).squaredNorm();
+    });
+    const auto around = std::count_if(far.begin(), far.end(), [&](const Eigen::Vector2d& q) {
+      return (q - nearest).norm() <= 2 * kHalfSlab;
+    });
+    if (around < 15) return std::nullopt;
+    return nearest;
+  };
+  std::optional<Eigen::Vector2d> gap_from;  // where the first gap bridged starts
   // The trace ends where it has turned by more than kMaxTotalTurn from where it started.
   const Eigen::Vector2d d_start = d;
   for (double walked = 0; walked < kMaxLength; walked += kTrackStep) {
@@ -150,7 +190,22 @@ std::vector<Eigen::Vector2d> track_in_flexion_plane(const std::vector<Eigen::Vec
         if (bent > kMaxDorsal) dir = Eigen::Rotation2Dd(kMaxDorsal) * d_start;
       }
     }
-    if (!found) break;
+    if (!found) {
+      const auto jump = bridge(c, d);
+      if (!jump) break;
+      // The gap starts at the joint, a radius back from the knuckle's end: the slabs square
+      // to the direction there hold the knuckle's outer cap only, and their centres run on
+      // along it (V1's PIPs were put 5-6 mm beyond the joints). On from the gap's far side:
+      // the next slab at the nearest point seen there.
+      const Eigen::Vector2d knuckle_end = c;
+      while (line.size() > 4 && (line.back() - knuckle_end).norm() < 0.5 * window) line.pop_back();
+      c = line.back();
+      if (!gap_from) gap_from = c;
+      d = (*jump - c).normalized();
+      walked += (*jump - c).norm();
+      c = *jump - kTrackStep * d;
+      continue;
+    }
     if (std::acos(std::clamp(dir.dot(d_start), -1.0, 1.0)) > kMaxTotalTurn) break;
     d = dir;
     c = next;
@@ -164,10 +219,22 @@ std::vector<Eigen::Vector2d> track_in_flexion_plane(const std::vector<Eigen::Vec
     line.swap(sm);
   }
   if (line.size() >= 2) c = line.back(), d = (line.back() - line[line.size() - 2]).normalized();
-  double reach = -1e300;
-  for (const auto& q : p)
-    if ((q.head<2>() - c).norm() < 2 * window) reach = std::max(reach, (q.head<2>() - c).dot(d));
-  line.push_back(c + std::max(reach, 0.0) * d);
+  if (gap_from) {
+    // Over a gap the far side's centres are those of one-sided sections (the distal
+    // phalanx's nail side): their direction is a guess. The tip is the far side's point
+    // farthest from where the gap starts, the joint before it (V1's fingertips: 2.3-8.3 mm
+    // off along the last direction, 2.0-3.4 mm so).
+    Eigen::Vector2d tip = c;
+    for (const auto& q : p)
+      if ((q.head<2>() - c).norm() < 2 * window && (q.head<2>() - *gap_from).norm() > (tip - *gap_from).norm())
+        tip = q.head<2>();
+    line.push_back(tip);
+  } else {
+    double reach = -1e300;
+    for (const auto& q : p)
+      if ((q.head<2>() - c).norm() < 2 * window) reach = std::max(reach, (q.head<2>() - c).dot(d));
+    line.push_back(c + std::max(reach, 0.0) * d);
+  }
   return line;
 }
 }  // namespace
