@@ -497,6 +497,35 @@ TEST(Family, APointingHandIsPlacedWithItsTracedFingersCentredOnTheirSections) {
   EXPECT_GE(r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.93);
 }
 
+// A posture drawn at random (R12 of scripts/random_hands_study.py: right, 158 mm, the index
+// curled 27/44/22 deg at its MCP, PIP and DIP, the others less) scanned with a tilted table and
+// laser: the
+// index's distal phalanx, pointing down toward the palm, showed the scans 54 points, and on the
+// pair's own rig its tube ended at the DIP, 16 mm short of the tip joint (95.5 % of the true
+// skin within 1 mm; the cloud 14.8 mm from the skin there). A given rig's digits now reach
+// their tip joints, the fingertips' ends (skin_steps::digit_planes, `to_tip_joint`).
+TEST(Family, AFingerCurledDownReachesItsGivenTipJointWhereNoScanSawIt) {
+  const std::string dir = study_pair(
+      "family-tip-unseen",
+      "--side right --hand-length 158 --width 0.95 --thickness 0.93 --finger-thickness 0.90 --spread 6.6 "
+      "--thumb-abduction 36 --set index.mcp.flex=27 --set index.pip.flex=44 --set index.dip.flex=22 --set "
+      "middle.mcp.flex=8 --set middle.pip.flex=25 --set middle.dip.flex=23 --set ring.mcp.flex=2 --set "
+      "ring.pip.flex=30 --set ring.dip.flex=18 --set little.mcp.flex=38 --set little.pip.flex=24 --set "
+      "little.dip.flex=15 --set thumb.cmc.flex=6 --set thumb.mcp.flex=7 --set thumb.ip.flex=2",
+      82, 4.5, "--noise 0.073 --laser-tilt 22 --max-incidence 76 --table-tilt 2.9 --x-extent 300 --y-extent 240");
+  std::string out;
+  const std::string args = "skin --merged " + dir + "/reg/merged.ply --rig " + dir + "/pair/rig.json --truth " + dir +
+                           "/pair/truth.json --out " + dir + "/skin";
+  ASSERT_EQ(test::run(std::string(HANDSKIN_BINARY) + " -q " + args, &out), 0) << out;
+  std::ifstream in(dir + "/skin/skin_report.json");
+  const auto r = nlohmann::json::parse(in);
+  print_skin_truth("index curled down, its rig", r);
+  std::printf("[family] index curled down, its rig: cloud -> skin max %.2f mm\n", r["cloud_to_skin_mm"]["max"].get<double>());
+  EXPECT_TRUE(r["mesh"]["watertight"].get<bool>());
+  EXPECT_LE(r["cloud_to_skin_mm"]["max"].get<double>(), 3.0);
+  EXPECT_GE(r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.98);
+}
+
 // Every finger flexed 60 deg at its MCP, straight beyond: neither scan sees the fingers' backs
 // (the back scan's rays graze them), and their sections are palmar arcs. Held to the round
 // sections' middles, the hand's own true rig was refused (the middle finger's links 7.0 mm

@@ -115,7 +115,7 @@ std::vector<TubeBuild> build_tubes(const HandFrame& H, const TubePoints& tube_po
   resample_rings(&tubes[0], 8 * pps, o, false);
   for (int f = 0; f < kFingerCount; ++f) {
     TubeBuild& t = tubes[1 + f];
-    t = digit_planes(H, tube_points, f, h, thumb_turns_slowly);
+    t = digit_planes(H, tube_points, f, h, thumb_turns_slowly, o.rig_given);
     if (!t.report.present) continue;
     resample_rings(&t, 2 * pps, o, true);
     if (!t.report.present) continue;

@@ -143,7 +143,10 @@ TubeBuild palm_planes(const HandFrame& H, const TubePoints& P, const Webs& webs,
 /// when the digit is missing from the scan. A finger's stations turn through a bent joint
 /// over two tip radii; the thumb's at once, or, with `thumb_turns_slowly`, from its MCP on as
 /// a finger's (the window growing from one station at the MCP).
-TubeBuild digit_planes(const HandFrame& H, const TubePoints& P, int finger, double h, bool thumb_turns_slowly = false);
+/// With `to_tip_joint` (a given rig) the digit reaches at least its tip joint, where its
+/// points stop short of it.
+TubeBuild digit_planes(const HandFrame& H, const TubePoints& P, int finger, double h, bool thumb_turns_slowly = false,
+                       bool to_tip_joint = false);
 /// A digit's measured sections (digit_planes' slabs of 20 points or more; the thumb's from its
 /// MCP on): the middle and size of each one's extent in its station's (u, v), and whether it
 /// counts toward the axis offset (round enough to have a middle; every one when fewer than 3
