@@ -211,6 +211,7 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
   };
   std::exception_ptr build_error;
   std::string rig_refused;  // the build's error, when it refused the rig
+  std::vector<int> folded;  // the digits whose tubes folded on a placed skeleton (0 the thumb)
   auto build = [&](const Rig& rig, const std::function<void()>& beside = {}) {
     const auto tb = std::chrono::steady_clock::now();
     build_error = nullptr;
@@ -220,6 +221,8 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
     } catch (const TubeFoldsError& e) {
       build_error = std::current_exception();
       if (R.automatic) rig_refused = e.detail();  // says the same of a placed skeleton as a refusal
+      if (R.automatic && e.tube >= 1 && std::find(folded.begin(), folded.end(), e.tube - 1) == folded.end())
+        folded.push_back(e.tube - 1);
     } catch (const InputError& e) {
       build_error = std::current_exception();
       if (e.where() == "rig") rig_refused = e.detail();
@@ -309,7 +312,7 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
         for (const auto& [placed, note] : order) {
           std::optional<Rig> centred;
           try {
-            centred = centre_digit_links(in.points, placed->rig, so);
+            centred = centre_digit_links(in.points, placed->rig, so, folded);
           } catch (const InputError&) {
           }
           if (!centred) continue;

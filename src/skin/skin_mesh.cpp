@@ -196,7 +196,8 @@ std::string digits_off_their_sections(const std::vector<Eigen::Vector3d>& points
   return {};
 }
 
-std::optional<Rig> centre_digit_links(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const SkinOptions& o) {
+std::optional<Rig> centre_digit_links(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const SkinOptions& o,
+                                      const std::vector<int>& also) {
   Rig r = rig;
   std::vector<int> chosen;  // the digits over the allowed offset at the start
   for (int round = 0; round < 3; ++round) {
@@ -206,7 +207,8 @@ std::optional<Rig> centre_digit_links(const std::vector<Eigen::Vector3d>& points
     for (int f = 0; f < kFingerCount; ++f) {
       const TubeBuild t = digit_planes(H, d.P, f, d.h);
       if (!t.report.present || t.report.section_radius_mm <= 0) continue;
-      if (round == 0 && !off_sections(t).empty()) chosen.push_back(f);
+      if (round == 0 && (!off_sections(t).empty() || std::find(also.begin(), also.end(), f) != also.end()))
+        chosen.push_back(f);
       if (std::find(chosen.begin(), chosen.end(), f) == chosen.end()) continue;
       std::vector<SectionMiddle> mids = section_middles(t, H, f);
       mids.erase(std::remove_if(mids.begin(), mids.end(), [](const SectionMiddle& m) { return !m.counted; }), mids.end());

@@ -186,7 +186,7 @@ std::string digits_off_their_sections(const std::vector<Eigen::Vector3d>& points
 /// given to the links again); none when no digit is off. The skin stage's last try for a
 /// skeleton it placed itself; a rig given is never moved.
 std::optional<Rig> centre_digit_links(const std::vector<Eigen::Vector3d>& points, const Rig& rig,
-                                      const SkinOptions& options);
+                                      const SkinOptions& options, const std::vector<int>& also = {});
 
 /// build_skin's error when a tube folds into itself on the rig: the surface cannot be closed
 /// there, which says of a placed skeleton what a refusal of it does (the skin stage then
