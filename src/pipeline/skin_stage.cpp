@@ -298,7 +298,9 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
         // it against 0.122), on the probe hands' pointing hand (U2) and the WebXR hand's two
         // bent-thumb pairs that come this far the traced one's (93.5 against 92.7 %, 99.38
         // against 99.26, 99.33 against 99.05; cloud 0.0693 / 0.0698 / 0.0700 mm against
-        // 0.0779 / 0.0701 / 0.0703). A tie keeps the traced one.
+        // 0.0779 / 0.0701 / 0.0703). A tie keeps the traced one. A digit whose tube folded on
+        // any placement is centred too (R08 of scripts/random_hands_study.py: its thumb folded
+        // on every placement, with no digit off its sections, and the run stopped).
         std::vector<std::pair<const AutoRig*, std::string>> order;
         if (traced) order.emplace_back(&*traced, "the traced fingers' joints moved onto their sections' middles: placed, ");
         order.emplace_back(&*R.placed, "the digits' joints moved onto their sections' middles: placed, ");

@@ -183,8 +183,9 @@ std::string digits_off_their_sections(const std::vector<Eigen::Vector3d>& points
 /// refusal: "the thumb's links lie 2.9 mm from the middle of its sections") with those digits'
 /// joints beyond their roots (the thumb's MCP, IP and tip; a finger's PIP, DIP and tip) fitted
 /// so that the links pass through their sections' middles, three times (each time the points
-/// given to the links again); none when no digit is off. The skin stage's last try for a
-/// skeleton it placed itself; a rig given is never moved.
+/// given to the links again); none when no digit is off. `also`: digits (0 the thumb) to fit so
+/// whether off or not (those whose tubes folded on a placement). The skin stage's last try for
+/// a skeleton it placed itself; a rig given is never moved.
 std::optional<Rig> centre_digit_links(const std::vector<Eigen::Vector3d>& points, const Rig& rig,
                                       const SkinOptions& options, const std::vector<int>& also = {});
 
