@@ -405,11 +405,8 @@ TEST(Family, CurledFingersArePlacedAutomatically) {
   const auto r = study_pair_auto_skin("family-curled-auto", "--set index.pip.flex=55 --set middle.pip.flex=60 --set "
                                       "ring.pip.flex=60 --set little.pip.flex=55 --side left", 7, 3.5);
   expect_placed_by(r, "traced in their flexion planes");
-  const auto& e = r["skeleton"]["automatic"]["against_given_rig"];
-  std::printf("[family] curled, automatic: joints mean %.2f max %.2f mm (%s); skin -> truth mean %.4f, within 1 mm %.2f %%\n",
-              e["mean_joint_error_mm"].get<double>(), e["max_joint_error_mm"].get<double>(),
-              e["worst_joint"].get<std::string>().c_str(), r["truth"]["skin_to_truth_mm"]["mean"].get<double>(),
-              100 * r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>());
+  const auto& e = print_joint_error("curled, automatic", r);
+  print_skin_truth("curled, automatic", r);
   EXPECT_LE(e["mean_joint_error_mm"].get<double>(), 2.5);  // measured 1.94; 3.72 before
   EXPECT_LE(e["max_joint_error_mm"].get<double>(), 5.0);   // measured 3.89; 14.33 before (little tip)
   EXPECT_LE(r["truth"]["skin_to_truth_mm"]["mean"].get<double>(), 0.30);  // measured 0.243

@@ -248,13 +248,17 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
     if (!rig_refused.empty()) {
       const std::string first = rig_refused;
       const std::exception_ptr refused = build_error;
-      auto attempt = [&](const AutoRig& placed, const Rig& rig, const std::string& note) {
-        build(rig);
-        if (build_error) return false;
+      // A placement with `rig` for its skeleton, its notes saying how and why (the first refusal).
+      auto placed_as = [&](const AutoRig& placed, const Rig& rig, const std::string& note) {
         AutoRig kept = placed;
         kept.rig = rig;
         kept.notes.push_back(note + first);
-        R.placed = std::move(kept);
+        return kept;
+      };
+      auto attempt = [&](const AutoRig& placed, const Rig& rig, const std::string& note) {
+        build(rig);
+        if (build_error) return false;
+        R.placed = placed_as(placed, rig, note);
         R.rig = rig;
         return true;
       };
@@ -301,9 +305,14 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
         // 0.0779 / 0.0701 / 0.0703). A tie keeps the traced one. A digit whose tube folded on
         // any placement is centred too (R08 of scripts/random_hands_study.py: its thumb folded
         // on every placement, with no digit off its sections, and the run stopped).
-        std::vector<std::pair<const AutoRig*, std::string>> order;
-        if (traced) order.emplace_back(&*traced, "the traced fingers' joints moved onto their sections' middles: placed, ");
-        order.emplace_back(&*R.placed, "the digits' joints moved onto their sections' middles: placed, ");
+        struct Centring {
+          const AutoRig* placed;
+          const char* which;  // in the progress line
+          const char* note;
+        };
+        std::vector<Centring> order;
+        if (traced) order.push_back({&*traced, "traced", "the traced fingers' joints moved onto their sections' middles: placed, "});
+        order.push_back({&*R.placed, "placed", "the digits' joints moved onto their sections' middles: placed, "});
         struct Built {
           SkinResult skin;
           Rig rig;
@@ -311,22 +320,19 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
           double cloud_mean_mm = 0;
         };
         std::vector<Built> built;
-        for (const auto& [placed, note] : order) {
+        const std::vector<Eigen::Vector3d> cloud = thinned_points(in.points, kCloudToSkinPoints);  // as measure_skin
+        for (const Centring& c : order) {
           std::optional<Rig> centred;
           try {
-            centred = centre_digit_links(in.points, placed->rig, so, folded);
+            centred = centre_digit_links(in.points, c.placed->rig, so, folded);
           } catch (const InputError&) {
           }
           if (!centred) continue;
-          progress(std::string("trying the ") + (placed == &*R.placed ? "placed" : "traced") +
-                   " skeleton with its digits' joints moved onto their sections' middles");
+          progress(std::string("trying the ") + c.which + " skeleton with its digits' joints moved onto their sections' middles");
           build(*centred);
           if (build_error) continue;
-          AutoRig kept = *placed;
-          kept.rig = *centred;
-          kept.notes.push_back(note + first);
-          const double mean = one_way_distance(thinned_points(in.points, kCloudToSkinPoints), MeshDistance(R.skin.mesh)).mean;
-          built.push_back({std::move(R.skin), *centred, std::move(kept), mean});
+          const double mean = one_way_distance(cloud, MeshDistance(R.skin.mesh)).mean;
+          built.push_back({std::move(R.skin), *centred, placed_as(*c.placed, *centred, c.note), mean});
         }
         if (!built.empty()) {
           auto best = std::min_element(built.begin(), built.end(),
