@@ -21,6 +21,7 @@
 #include "posture/solver.hpp"
 #include "register/registration.hpp"
 #include "skin/auto_rig.hpp"
+#include "patches/layout.hpp"
 #include "patches/patches.hpp"
 #include "pipeline/patch_report.hpp"
 #include "pipeline/patch_stage.hpp"
@@ -292,6 +293,18 @@ static void BM_PatchesFixture(benchmark::State& st) {
   st.counters["back_mean_mm"] = p.side[1].mean;
 }
 BENCHMARK(BM_PatchesFixture)->Unit(benchmark::kMillisecond)->Iterations(its(5));
+
+// The hand's patch layout alone on the fixture's skin: what the skin stage's check of each
+// placed skeleton costs (docs/skin.md, "What refuses takes in").
+static void BM_PatchLayout(benchmark::State& st) {
+  const MergedArrays& m = fixture_merged();
+  static const Rig rig = load_rig(kFix + "rig.json");
+  static const SkinResult skin = build_skin(m.points, rig, SkinOptions{});
+  PatchLayout l;
+  for (auto _ : st) l = hand_patch_layout(skin, rig, m.points, m.sides);
+  st.counters["faces"] = static_cast<double>(l.faces.size());
+}
+BENCHMARK(BM_PatchLayout)->Unit(benchmark::kMillisecond)->Iterations(its(10));
 
 // The same refined to 0.5 mm (issue 38: --patch-tolerance 0.5; bar: at most 2 x BM_PatchesFixture).
 static void BM_PatchesFixtureTolerance(benchmark::State& st) {

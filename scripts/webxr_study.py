@@ -8,8 +8,9 @@ measured against its truth.
 
     python3 scripts/webxr_study.py [--bin build/handskin] [--work /tmp/webxr-study] [--postures rest,arched]
 
-Prints a Markdown table and the summary against the issue's figures (scripts/study_util.py);
-meshes and scans already in --work are reused. A failing stage is a row with its one-line
+Prints a Markdown table and the summary against the issue's figures (scripts/study_util.py)
+and writes every pair's figures to <work>/webxr_study.json; meshes and scans already in --work
+are reused. A failing stage is a row with its one-line
 error, not an abort. The hand's own joints are the asset's (its thumb's CMC lies ~21 mm
 distal of where the proportions put it), so the automatic skeleton's joint error is reported
 against them but is not the family's 4 mm figure.
@@ -72,7 +73,7 @@ def main():
                                          ["--saw", "12", "--no-photos"], pipeline, stats, regs)
                 rows.append(row)
                 fails += failed
-    print_table(rows, fails, stats, regs)
+    print_table(rows, fails, stats, regs, os.path.join(a.work, "webxr_study.json"))
 
 
 if __name__ == "__main__":

@@ -522,6 +522,53 @@ TEST(Family, AFingerCurledDownReachesItsGivenTipJointWhereNoScanSawIt) {
   EXPECT_GE(r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.98);
 }
 
+// A small right hand drawn at random (R10 of `scripts/random_hands_study.py --draw 70`: its
+// middle finger curled 32/49/8 deg at MCP, PIP and DIP, its distal phalanx standing up from
+// the palm) with no rig: the first placement's quadratic centre line ran on past the curl, the
+// middle fingertip 17.6 mm off, and the skin took it; but the patch layout's distal row then had
+// two corners on one spot and the run stopped in the patch stage. A placement whose skin cannot
+// carry the layout is now refused like one whose links miss their sections, and the next is
+// tried (here the fingers' lines traced in their flexion planes).
+TEST(Family, APlacementWhosePatchLayoutCannotBeLaidIsRefused) {
+  const auto r = study_pair_skin(
+      "family-layout-refused",
+      "--side right --hand-length 155 --width 0.91 --thickness 0.87 --finger-thickness 1.08 --spread 7.3 "
+      "--thumb-abduction 39 --set index.mcp.flex=29 --set index.pip.flex=9 --set index.dip.flex=28 --set "
+      "middle.mcp.flex=32 --set middle.pip.flex=49 --set middle.dip.flex=8 --set ring.mcp.flex=29 --set "
+      "ring.pip.flex=31 --set ring.dip.flex=24 --set little.mcp.flex=5 --set little.pip.flex=33 --set "
+      "little.dip.flex=14 --set thumb.cmc.flex=20 --set thumb.mcp.flex=0 --set thumb.ip.flex=1",
+      71, 3.0, true, "--noise 0.068 --laser-tilt 17 --max-incidence 76 --table-tilt 2.0 --x-extent 300 --y-extent 240");
+  expect_placed_by(r, "the patch layout cannot be laid on its skin");
+  print_joint_error("middle finger curled, its layout refused first", r);
+  print_skin_truth("middle finger curled, its layout refused first", r);
+  EXPECT_TRUE(r["mesh"]["watertight"].get<bool>());
+  EXPECT_GE(r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.95);
+}
+
+// A left hand drawn at random (R05 of `scripts/random_hands_study.py --draw 70`: its index and
+// middle fingers curled 39/39/14 and 45/41/5 deg at MCP, PIP and DIP; a noisy scanner, 0.097 mm)
+// with no rig: the skin took the first placement, whose quadratic centre line ran on past the
+// middle finger's curl (its tip 14.9 mm off; 0.72 mm mean from the true skin, 91.7 % of it
+// within 1 mm). The traced lines put that fingertip 17.5 mm away, so the skin is built on them
+// too (their refused middle finger moved onto its sections) and the one nearer the cloud kept.
+TEST(Family, AFingerCurledPastItsQuadraticLineIsPlacedByItsTracedLine) {
+  const auto r = study_pair_skin(
+      "family-traced-nearer",
+      "--side left --hand-length 199 --width 0.96 --thickness 1.18 --finger-thickness 0.94 --spread 9.3 "
+      "--thumb-abduction 42 --set index.mcp.flex=39 --set index.pip.flex=39 --set index.dip.flex=14 --set "
+      "middle.mcp.flex=45 --set middle.pip.flex=41 --set middle.dip.flex=5 --set ring.mcp.flex=10 --set "
+      "ring.pip.flex=12 --set ring.dip.flex=14 --set little.mcp.flex=21 --set little.pip.flex=25 --set "
+      "little.dip.flex=27 --set thumb.cmc.flex=11 --set thumb.mcp.flex=26 --set thumb.ip.flex=13",
+      88, 3.0, true, "--noise 0.097 --laser-tilt 18 --max-incidence 77 --table-tilt 2.0 --x-extent 300 --y-extent 240");
+  expect_placed_by(r, "their skin lies nearer the cloud");
+  const auto& e = print_joint_error("index and middle curled, traced", r);
+  print_skin_truth("index and middle curled, traced", r);
+  EXPECT_TRUE(r["mesh"]["watertight"].get<bool>());
+  EXPECT_LE(e["max_joint_error_mm"].get<double>(), 10.0);
+  EXPECT_LE(r["truth"]["skin_to_truth_mm"]["mean"].get<double>(), 0.3);
+  EXPECT_GE(r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.94);
+}
+
 // A left hand drawn at random (R08 of scripts/random_hands_study.py: the thumb at 29 deg, its
 // MCP flexed 29 deg, fingers spread 12 deg) with no rig: every placement folded the thumb's
 // tube, none left a digit's links off its sections, so none was centred, and the skin stage

@@ -7,12 +7,25 @@
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
+#include "patches/layout.hpp"
 #include "render/preview.hpp"
 #include "pipeline/figures_json.hpp"
 #include "pipeline/skin_grid.hpp"
 #include "pipeline/stage_options.hpp"
 
 namespace handskin {
+
+namespace {
+// A fingertip the traced lines put farther than this from the placed skeleton's has the skin
+// built on both (on none of the family's 96 runs, the WebXR hand's 32 or the unusual hands' 16).
+constexpr double kTracedTipGapMm = 6.0;
+// ... and their skin is kept when it lies nearer the cloud by more than this share of the first
+// skin's mean distance: a random hand's curled index (R12 of `random_hands_study.py --draw 69`,
+// 27/44/22 deg) gave a traced skin 2.8 % nearer (0.0774 against 0.0796 mm) whose patches folded
+// by 166 deg at its tip; the curled middle finger the traced lines are for (R05 of draw 70)
+// gave one 25 % nearer.
+constexpr double kTracedNearerShare = 0.05;
+}  // namespace
 
 Json slicing_to_json(const Slicing& s) {
   Json j;
@@ -218,6 +231,17 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
     rig_refused.clear();
     try {
       R.skin = build_skin(in.points, rig, so, progress, beside);
+      // A placed skeleton must also carry the patches' layout: its corners are cast from the
+      // joints onto the skin, and a placement whose curled finger's tip it put short of the
+      // true one (past the DIP, along the finger's line where the finger turned down) built a
+      // skin whose distal row had two corners on one spot, and the run stopped in the patch
+      // stage (R10 of `scripts/random_hands_study.py --draw 70`). Such a placement is refused
+      // like one whose links miss their sections, and the next is tried.
+      if (R.automatic) try {
+          (void)hand_patch_layout(R.skin, rig, in.points, in.sides);
+        } catch (const InputError& e) {
+          throw InputError("rig", "the patch layout cannot be laid on its skin: " + e.detail());
+        }
     } catch (const TubeFoldsError& e) {
       build_error = std::current_exception();
       if (R.automatic) rig_refused = e.detail();  // says the same of a placed skeleton as a refusal
@@ -237,6 +261,81 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
     place();
     R.rig = R.placed->rig;
     build(R.rig);
+    // The skin took the placement. But a finger curled past ~45 deg at its PIP can be followed
+    // by the quadratic centre line and still be missed: the line runs on past the curl, and the
+    // fingertip lands 15 mm beyond the true one, along the finger's first direction, in flesh
+    // the skin then builds (R05 of `scripts/random_hands_study.py --draw 70`, its middle finger
+    // at 45/41/5 deg: 0.72 mm mean from the true skin). Where the fingers' lines traced in their
+    // flexion planes (step 7 below) put a fingertip more than kTracedTipGapMm from the placed
+    // one, the skin is built on them too, and kept if it lies nearer the cloud (mean) by more
+    // than kTracedNearerShare.
+    if (!build_error && rig_refused.empty()) {
+      std::optional<AutoRig> traced;
+      try {
+        traced = place_skeleton(in.points, in.sides, DigitParting::Silhouette, CentreLines::Traced);
+      } catch (const InputError&) {
+      }
+      double gap = 0;
+      if (traced)
+        for (int f = 1; f < kFingerCount; ++f) {
+          const int tip = finger_chain(static_cast<Finger>(f)).back();
+          gap = std::max(gap, (traced->rig.joints[tip] - R.rig.joints[tip]).norm());
+        }
+      if (gap > kTracedTipGapMm) {
+        char line[400];
+        std::snprintf(line, sizeof line,
+                      "the fingers' lines traced in their flexion planes put a fingertip %.1f mm from the placed one; "
+                      "building the skin on them too",
+                      gap);
+        progress(line);
+        const std::vector<Eigen::Vector3d> cloud = thinned_points(in.points, kCloudToSkinPoints);  // as measure_skin
+        const double first_mean = one_way_distance(cloud, MeshDistance(R.skin.mesh)).mean;
+        SkinResult first_skin = std::move(R.skin);
+        const double first_seconds = R.build_seconds;
+        Rig traced_rig = traced->rig;
+        build(traced_rig);
+        // Refused (a digit's links off its sections: the middle finger above, 2.8 mm, allowed
+        // 2.7), those digits' joints moved onto their sections' middles, as the last fallback
+        // below does.
+        std::optional<Rig> centred;
+        if (!rig_refused.empty()) try {
+            centred = centre_digit_links(in.points, traced_rig, so, folded);
+          } catch (const InputError&) {
+          }
+        if (centred) {
+          traced_rig = *centred;
+          build(traced_rig);
+        }
+        const double traced_mean = build_error ? 0.0 : one_way_distance(cloud, MeshDistance(R.skin.mesh)).mean;
+        if (!build_error && traced_mean < (1.0 - kTracedNearerShare) * first_mean) {
+          std::snprintf(line, sizeof line,
+                        "the fingers' centre lines traced in their flexion planes%s: their skin lies nearer the cloud "
+                        "(mean %.4f mm) than the quadratic lines' (%.4f mm), whose fingertip lay %.1f mm away",
+                        centred ? ", the refused digits' joints moved onto their sections' middles" : "", traced_mean,
+                        first_mean, gap);
+          R.placed = *traced;
+          R.placed->rig = traced_rig;
+          R.placed->notes.push_back(line);
+          R.rig = traced_rig;
+        } else {
+          R.skin = std::move(first_skin);
+          if (build_error)
+            std::snprintf(line, sizeof line,
+                          "the fingers' lines traced in their flexion planes put a fingertip %.1f mm away; no skin "
+                          "built on them (%s)",
+                          gap, rig_refused.empty() ? "it failed" : rig_refused.c_str());
+          else
+            std::snprintf(line, sizeof line,
+                          "the fingers' lines traced in their flexion planes put a fingertip %.1f mm away; their skin "
+                          "lay not %.0f %% nearer the cloud (mean %.4f mm against %.4f)",
+                          gap, 100 * kTracedNearerShare, traced_mean, first_mean);
+          R.placed->notes.push_back(line);
+          build_error = nullptr;
+          rig_refused.clear();
+        }
+        R.build_seconds += first_seconds;
+      }
+    }
     // The skin refused the placed skeleton (its links off the middle of a digit's sections):
     // once more with the thumb's base on the thumb's own centre line. The proportions put it
     // in the thenar, which suits a thumb near the palm's plane; a thumb raised and turned out
