@@ -4,6 +4,7 @@
 // skinned with its own rig and with the automatic skeleton, against its truth.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -265,6 +266,44 @@ std::string study_pair(const std::string& tag, const std::string& hand_options, 
   return dir;
 }
 
+// A hand as scripts/random_hands_study.py draws one: its side, length (mm), breadth, palm and
+// finger girth, spread and thumb abduction (deg); each finger's MCP, PIP and DIP flexion (index,
+// middle, ring, little) and the thumb's CMC, MCP and IP (deg). The synth hand options, written
+// as the script writes them.
+struct DrawnHand {
+  const char* side;
+  int length;
+  double width, thickness, finger_thickness, spread;
+  int thumb_abduction;
+  std::array<int, 12> fingers;
+  std::array<int, 3> thumb;
+  std::string options() const {
+    char head[200];
+    std::snprintf(head, sizeof head,
+                  "--side %s --hand-length %d --width %.2f --thickness %.2f --finger-thickness %.2f --spread %.1f "
+                  "--thumb-abduction %d",
+                  side, length, width, thickness, finger_thickness, spread, thumb_abduction);
+    std::string o = head;
+    static const char* finger[4] = {"index", "middle", "ring", "little"};
+    static const char* joint[3] = {"mcp", "pip", "dip"};
+    for (int f = 0; f < 4; ++f)
+      for (int j = 0; j < 3; ++j)
+        o += std::string(" --set ") + finger[f] + "." + joint[j] + ".flex=" + std::to_string(fingers[3 * f + j]);
+    static const char* thumb_joint[3] = {"cmc", "mcp", "ip"};
+    for (int j = 0; j < 3; ++j) o += std::string(" --set thumb.") + thumb_joint[j] + ".flex=" + std::to_string(thumb[j]);
+    return o;
+  }
+};
+
+// The scanner the script draws with it: depth noise (mm), laser tilt, steepest returning
+// surface and table tilt (deg); the synth scan options.
+std::string drawn_scanner(double noise, int laser_tilt, int max_incidence, double table_tilt) {
+  char o[200];
+  std::snprintf(o, sizeof o, "--noise %.3f --laser-tilt %d --max-incidence %d --table-tilt %.1f --x-extent 300 --y-extent 240",
+                noise, laser_tilt, max_incidence, table_tilt);
+  return o;
+}
+
 // The pair's skin report (`skin --truth`) on its own rig, or on the automatic skeleton checked
 // against it (`--auto-rig`).
 nlohmann::json study_pair_skin(const std::string& tag, const std::string& hand_options, int seed, double radius,
@@ -506,14 +545,11 @@ TEST(Family, APointingHandIsPlacedWithItsTracedFingersCentredOnTheirSections) {
 // the true skin within 1 mm; the cloud 14.8 mm from the skin there). A given rig's digits now reach
 // their tip joints, the fingertips' ends (skin_steps::digit_planes, `to_tip_joint`).
 TEST(Family, AFingerCurledDownReachesItsGivenTipJointWhereNoScanSawIt) {
-  const auto r = study_pair_skin(
-      "family-tip-unseen",
-      "--side right --hand-length 158 --width 0.95 --thickness 0.93 --finger-thickness 0.90 --spread 6.6 "
-      "--thumb-abduction 36 --set index.mcp.flex=27 --set index.pip.flex=44 --set index.dip.flex=22 --set "
-      "middle.mcp.flex=8 --set middle.pip.flex=25 --set middle.dip.flex=23 --set ring.mcp.flex=2 --set "
-      "ring.pip.flex=30 --set ring.dip.flex=18 --set little.mcp.flex=38 --set little.pip.flex=24 --set "
-      "little.dip.flex=15 --set thumb.cmc.flex=6 --set thumb.mcp.flex=7 --set thumb.ip.flex=2",
-      82, 4.5, false, "--noise 0.073 --laser-tilt 22 --max-incidence 76 --table-tilt 2.9 --x-extent 300 --y-extent 240");
+  const auto r = study_pair_skin("family-tip-unseen",
+                                 DrawnHand{"right", 158, 0.95, 0.93, 0.90, 6.6, 36,
+                                           {27, 44, 22, 8, 25, 23, 2, 30, 18, 38, 24, 15}, {6, 7, 2}}
+                                     .options(),
+                                 82, 4.5, false, drawn_scanner(0.073, 22, 76, 2.9));
   EXPECT_EQ(r["skeleton"]["used"], "given");
   print_skin_truth("index curled down, its rig", r);
   std::printf("[family] index curled down, its rig: cloud -> skin max %.2f mm\n", r["cloud_to_skin_mm"]["max"].get<double>());
@@ -530,14 +566,11 @@ TEST(Family, AFingerCurledDownReachesItsGivenTipJointWhereNoScanSawIt) {
 // carry the layout is now refused like one whose links miss their sections, and the next is
 // tried (here the fingers' lines traced in their flexion planes).
 TEST(Family, APlacementWhosePatchLayoutCannotBeLaidIsRefused) {
-  const auto r = study_pair_skin(
-      "family-layout-refused",
-      "--side right --hand-length 155 --width 0.91 --thickness 0.87 --finger-thickness 1.08 --spread 7.3 "
-      "--thumb-abduction 39 --set index.mcp.flex=29 --set index.pip.flex=9 --set index.dip.flex=28 --set "
-      "middle.mcp.flex=32 --set middle.pip.flex=49 --set middle.dip.flex=8 --set ring.mcp.flex=29 --set "
-      "ring.pip.flex=31 --set ring.dip.flex=24 --set little.mcp.flex=5 --set little.pip.flex=33 --set "
-      "little.dip.flex=14 --set thumb.cmc.flex=20 --set thumb.mcp.flex=0 --set thumb.ip.flex=1",
-      71, 3.0, true, "--noise 0.068 --laser-tilt 17 --max-incidence 76 --table-tilt 2.0 --x-extent 300 --y-extent 240");
+  const auto r = study_pair_skin("family-layout-refused",
+                                 DrawnHand{"right", 155, 0.91, 0.87, 1.08, 7.3, 39,
+                                           {29, 9, 28, 32, 49, 8, 29, 31, 24, 5, 33, 14}, {20, 0, 1}}
+                                     .options(),
+                                 71, 3.0, true, drawn_scanner(0.068, 17, 76, 2.0));
   expect_placed_by(r, "the patch layout cannot be laid on its skin");
   print_joint_error("middle finger curled, its layout refused first", r);
   print_skin_truth("middle finger curled, its layout refused first", r);
@@ -552,14 +585,11 @@ TEST(Family, APlacementWhosePatchLayoutCannotBeLaidIsRefused) {
 // within 1 mm). The traced lines put that fingertip 17.5 mm away, so the skin is built on them
 // too (their refused middle finger moved onto its sections) and the one nearer the cloud kept.
 TEST(Family, AFingerCurledPastItsQuadraticLineIsPlacedByItsTracedLine) {
-  const auto r = study_pair_skin(
-      "family-traced-nearer",
-      "--side left --hand-length 199 --width 0.96 --thickness 1.18 --finger-thickness 0.94 --spread 9.3 "
-      "--thumb-abduction 42 --set index.mcp.flex=39 --set index.pip.flex=39 --set index.dip.flex=14 --set "
-      "middle.mcp.flex=45 --set middle.pip.flex=41 --set middle.dip.flex=5 --set ring.mcp.flex=10 --set "
-      "ring.pip.flex=12 --set ring.dip.flex=14 --set little.mcp.flex=21 --set little.pip.flex=25 --set "
-      "little.dip.flex=27 --set thumb.cmc.flex=11 --set thumb.mcp.flex=26 --set thumb.ip.flex=13",
-      88, 3.0, true, "--noise 0.097 --laser-tilt 18 --max-incidence 77 --table-tilt 2.0 --x-extent 300 --y-extent 240");
+  const auto r = study_pair_skin("family-traced-nearer",
+                                 DrawnHand{"left", 199, 0.96, 1.18, 0.94, 9.3, 42,
+                                           {39, 39, 14, 45, 41, 5, 10, 12, 14, 21, 25, 27}, {11, 26, 13}}
+                                     .options(),
+                                 88, 3.0, true, drawn_scanner(0.097, 18, 77, 2.0));
   expect_placed_by(r, "their skin lies nearer the cloud");
   const auto& e = print_joint_error("index and middle curled, traced", r);
   print_skin_truth("index and middle curled, traced", r);
@@ -575,14 +605,11 @@ TEST(Family, AFingerCurledPastItsQuadraticLineIsPlacedByItsTracedLine) {
 // stopped ("the thumb tube folds into itself"; its own rig builds). A digit whose tube folded on
 // a placement is now centred on its sections too (docs/skin.md, step 8 of the placement).
 TEST(Family, AThumbWhoseTubeFoldsOnEveryPlacementIsCentredOnItsSections) {
-  const auto r = study_pair_skin(
-      "family-thumb-folds",
-      "--side left --hand-length 186 --width 0.92 --thickness 1.03 --finger-thickness 0.97 --spread 12.0 "
-      "--thumb-abduction 29 --set index.mcp.flex=8 --set index.pip.flex=27 --set index.dip.flex=13 --set "
-      "middle.mcp.flex=0 --set middle.pip.flex=13 --set middle.dip.flex=4 --set ring.mcp.flex=13 --set "
-      "ring.pip.flex=48 --set ring.dip.flex=14 --set little.mcp.flex=34 --set little.pip.flex=18 --set "
-      "little.dip.flex=20 --set thumb.cmc.flex=8 --set thumb.mcp.flex=29 --set thumb.ip.flex=14",
-      33, 3.5, true, "--noise 0.075 --laser-tilt 24 --max-incidence 75 --table-tilt 1.6 --x-extent 300 --y-extent 240");
+  const auto r = study_pair_skin("family-thumb-folds",
+                                 DrawnHand{"left", 186, 0.92, 1.03, 0.97, 12.0, 29,
+                                           {8, 27, 13, 0, 13, 4, 13, 48, 14, 34, 18, 20}, {8, 29, 14}}
+                                     .options(),
+                                 33, 3.5, true, drawn_scanner(0.075, 24, 75, 1.6));
   expect_placed_by(r, "moved onto their sections");
   EXPECT_TRUE(r["mesh"]["watertight"].get<bool>());
   print_skin_truth("thumb folding on every placement, automatic", r);
