@@ -25,6 +25,19 @@ constexpr double kTracedTipGapMm = 6.0;
 // by 166 deg at its tip; the curled middle finger the traced lines are for (R05 of draw 70)
 // gave one 25 % nearer.
 constexpr double kTracedNearerShare = 0.05;
+
+// What an error caught in flight says (an InputError's detail, else its message).
+std::string error_line(const std::exception_ptr& e) {
+  try {
+    std::rethrow_exception(e);
+  } catch (const InputError& x) {
+    return x.detail();
+  } catch (const std::exception& x) {
+    return x.what();
+  } catch (...) {
+    return "an unknown error";
+  }
+}
 }  // namespace
 
 Json slicing_to_json(const Slicing& s) {
@@ -323,7 +336,7 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
             std::snprintf(line, sizeof line,
                           "the fingers' lines traced in their flexion planes put a fingertip %.1f mm away; no skin "
                           "built on them (%s)",
-                          gap, rig_refused.empty() ? "it failed" : rig_refused.c_str());
+                          gap, rig_refused.empty() ? error_line(build_error).c_str() : rig_refused.c_str());
           else
             std::snprintf(line, sizeof line,
                           "the fingers' lines traced in their flexion planes put a fingertip %.1f mm away; their skin "
