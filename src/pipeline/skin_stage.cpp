@@ -304,9 +304,10 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
         const std::vector<Eigen::Vector3d> cloud = thinned_points(in.points, kCloudToSkinPoints);  // as measure_skin
         const double first_mean = one_way_distance(cloud, MeshDistance(R.skin.mesh)).mean;
         SkinResult first_skin = std::move(R.skin);
-        const double first_seconds = R.build_seconds;
+        double build_seconds = R.build_seconds;  // every build's, for the report
         Rig traced_rig = traced->rig;
         build(traced_rig);
+        build_seconds += R.build_seconds;
         // Refused (a digit's links off its sections: the middle finger above, 2.8 mm, allowed
         // 2.7), those digits' joints moved onto their sections' middles, as the last fallback
         // below does.
@@ -318,6 +319,7 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
         if (centred) {
           traced_rig = *centred;
           build(traced_rig);
+          build_seconds += R.build_seconds;
         }
         const double traced_mean = build_error ? 0.0 : one_way_distance(cloud, MeshDistance(R.skin.mesh)).mean;
         if (!build_error && traced_mean < (1.0 - kTracedNearerShare) * first_mean) {
@@ -346,7 +348,7 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
           build_error = nullptr;
           rig_refused.clear();
         }
-        R.build_seconds += first_seconds;
+        R.build_seconds = build_seconds;
       }
     }
     // The skin refused the placed skeleton (its links off the middle of a digit's sections):
