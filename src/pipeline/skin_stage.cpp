@@ -238,6 +238,13 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
   std::exception_ptr build_error;
   std::string rig_refused;  // the build's error, when it refused the rig
   std::vector<int> folded;  // the digits whose tubes folded on a placed skeleton (0 the thumb)
+  // The cloud's mean distance to the skin just built, its points thinned once as measure_skin
+  // thins them: what chooses between two placements' skins.
+  std::vector<Eigen::Vector3d> thinned;
+  auto cloud_mean = [&] {
+    if (thinned.empty()) thinned = thinned_points(in.points, kCloudToSkinPoints);
+    return one_way_distance(thinned, MeshDistance(R.skin.mesh)).mean;
+  };
   auto build = [&](const Rig& rig, const std::function<void()>& beside = {}) {
     const auto tb = std::chrono::steady_clock::now();
     build_error = nullptr;
@@ -301,8 +308,7 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
                       "building the skin on them too",
                       gap);
         progress(line);
-        const std::vector<Eigen::Vector3d> cloud = thinned_points(in.points, kCloudToSkinPoints);  // as measure_skin
-        const double first_mean = one_way_distance(cloud, MeshDistance(R.skin.mesh)).mean;
+        const double first_mean = cloud_mean();
         SkinResult first_skin = std::move(R.skin);
         double build_seconds = R.build_seconds;  // every build's, for the report
         Rig traced_rig = traced->rig;
@@ -321,7 +327,7 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
           build(traced_rig);
           build_seconds += R.build_seconds;
         }
-        const double traced_mean = build_error ? 0.0 : one_way_distance(cloud, MeshDistance(R.skin.mesh)).mean;
+        const double traced_mean = build_error ? 0.0 : cloud_mean();
         if (!build_error && traced_mean < (1.0 - kTracedNearerShare) * first_mean) {
           std::snprintf(line, sizeof line,
                         "the fingers' centre lines traced in their flexion planes%s: their skin lies nearer the cloud "
@@ -434,7 +440,6 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
           double cloud_mean_mm = 0;
         };
         std::vector<Built> built;
-        const std::vector<Eigen::Vector3d> cloud = thinned_points(in.points, kCloudToSkinPoints);  // as measure_skin
         for (const Centring& c : order) {
           std::optional<Rig> centred;
           try {
@@ -445,7 +450,7 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
           progress(std::string("trying the ") + c.which + " skeleton with its digits' joints moved onto their sections' middles");
           build(*centred);
           if (build_error) continue;
-          const double mean = one_way_distance(cloud, MeshDistance(R.skin.mesh)).mean;
+          const double mean = cloud_mean();
           built.push_back({std::move(R.skin), *centred, placed_as(*c.placed, *centred, c.note), mean});
         }
         if (!built.empty()) {
