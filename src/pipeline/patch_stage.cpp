@@ -235,8 +235,7 @@ Json step_to_json(const StepSummary& s) {
           {"box_max_mm", {s.box.max().x(), s.box.max().y(), s.box.max().z()}}};
 }
 
-Json write_patch_outputs(OutputSet& out, const PatchStageResult& r, const Json& run_report,
-                         const std::vector<ReportPicture>& posed, Json* step) {
+Json write_patch_files(OutputSet& out, const PatchStageResult& r, Json* step) {
   save_json(out.stage("patches.json"), patches_to_json(r.patches));
   write_file_atomic(out.stage("patches.obj"), patches_obj(r.patches));
   save_mesh(out.stage("patches.ply"), r.tessellation);
@@ -245,12 +244,23 @@ Json write_patch_outputs(OutputSet& out, const PatchStageResult& r, const Json& 
   const StepFile& file = r.step ? *r.step : made;
   write_file_atomic(out.stage("patches.step"), file.bytes);
   if (step) *step = step_to_json(file.shape);
-  write_file_atomic(out.stage("report.html"), patch_report_html(r, run_report, posed));
   return {{"patches_json", out.final_path("patches.json")},
           {"patches_obj", out.final_path("patches.obj")},
           {"patches_ply", out.final_path("patches.ply")},
-          {"patches_step", out.final_path("patches.step")},
-          {"report_html", out.final_path("report.html")}};
+          {"patches_step", out.final_path("patches.step")}};
+}
+
+Json write_patch_report(OutputSet& out, const PatchStageResult& r, const Json& run_report,
+                        const std::vector<ReportPicture>& posed) {
+  write_file_atomic(out.stage("report.html"), patch_report_html(r, run_report, posed));
+  return {{"report_html", out.final_path("report.html")}};
+}
+
+Json write_patch_outputs(OutputSet& out, const PatchStageResult& r, const Json& run_report,
+                         const std::vector<ReportPicture>& posed, Json* step) {
+  Json o = write_patch_files(out, r, step);
+  o.update(write_patch_report(out, r, run_report, posed));
+  return o;
 }
 
 }  // namespace handskin

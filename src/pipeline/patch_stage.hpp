@@ -95,6 +95,11 @@ std::string patches_obj(const PatchSkin& s);
 /// the bytes written (faces, shells, closed, the box).
 Json write_patch_outputs(OutputSet& out, const PatchStageResult& r, const Json& run_report = Json(),
                          const std::vector<ReportPicture>& posed = {}, Json* step = nullptr);
+/// The two halves of write_patch_outputs: the surface's files (patches.json, .obj, .ply,
+/// .step; `step` as there), then report.html.
+Json write_patch_files(OutputSet& out, const PatchStageResult& r, Json* step = nullptr);
+Json write_patch_report(OutputSet& out, const PatchStageResult& r, const Json& run_report,
+                        const std::vector<ReportPicture>& posed = {});
 const std::vector<std::string>& patch_output_names();
 
 }  // namespace handskin

@@ -636,10 +636,11 @@ std::string skin_preview_png(const SkinStageResult& r, const TextureMap* texture
 }
 
 Json write_skin_outputs(OutputSet& out, const SkinStageResult& r, const std::string& skin_png,
-                        const TextureMap* texture) {
+                        const TextureMap* texture, const std::function<void()>& ply_staged) {
   Json outputs;
   save_skin_ply(out.stage("skin.ply"), r.skin);
   outputs["skin_ply"] = out.final_path("skin.ply");
+  if (ply_staged) ply_staged();
   const bool textured = texture && !texture->empty();
   write_file_atomic(out.stage("skin.obj"),
                     obj_text(r.skin.mesh, textured ? &texture->corner_uv : nullptr, textured ? "skin.mtl" : ""));

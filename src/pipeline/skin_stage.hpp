@@ -129,7 +129,9 @@ std::string skin_preview_png(const SkinStageResult& r, const TextureMap* texture
 /// and skin.mtl, whose map is texture.png, which the caller writes beside it), skin.png
 /// (`skin_png`, rendered by the caller), and as computed rig_auto.json, slices.json,
 /// baseline.ply into `out`. Returns {key: final path} for the report's "outputs".
+/// `ply_staged` (if given) is called once skin.ply is staged, before the other files: the
+/// run's gates read it back beside their writing.
 Json write_skin_outputs(OutputSet& out, const SkinStageResult& r, const std::string& skin_png,
-                        const TextureMap* texture = nullptr);
+                        const TextureMap* texture = nullptr, const std::function<void()>& ply_staged = {});
 
 }  // namespace handskin
