@@ -162,11 +162,15 @@ std::string error_view(const PatchSkin& s, const Eigen::Matrix3d& hand, int side
   return p.empty() ? std::string() : render_points_png(p, n, c, ro);
 }
 
-// The layout: the tessellation's samples, each patch its own colour (a checkerboard).
-std::string layout_view(const PatchSkin& s, const Eigen::Matrix3d& hand, const char* view) {
-  std::vector<Eigen::Vector3d> p, n;
+// The layout: the tessellation's samples, each patch its own colour (a checkerboard); the
+// same samples for either view, which turns each normal to face it.
+struct LayoutSamples {
+  std::vector<Eigen::Vector3d> p, n;  // n: the surface's normal as the patch's (u, v) orient it
   std::vector<Eigen::Vector3f> c;
-  const Eigen::Matrix3d V = named_view(view) * hand;
+};
+
+LayoutSamples layout_samples(const PatchSkin& s) {
+  LayoutSamples L;
   constexpr int kPerSpan = 36;  // samples per patch side: dense enough for the splats to close
   // Neighbouring patches in different colours: a greedy colouring over the layout's edges.
   const LayoutTopology T = layout_topology(s.layout, "patch layout");
@@ -184,7 +188,7 @@ std::string layout_view(const PatchSkin& s, const Eigen::Matrix3d& hand, const c
   static const Eigen::Vector3f refined[5] = {{0.70f, 0.30f, 0.18f}, {0.20f, 0.38f, 0.72f}, {0.25f, 0.58f, 0.22f},
                                              {0.72f, 0.58f, 0.10f}, {0.52f, 0.25f, 0.65f}};
   const size_t count = s.patches.size() * (kPerSpan + 1) * (kPerSpan + 1);
-  p.reserve(count), n.reserve(count), c.reserve(count);
+  L.p.reserve(count), L.n.reserve(count), L.c.reserve(count);
   for (size_t f = 0; f < s.patches.size(); ++f) {
     // By pointer and by value: GCC 12 took `(split ? refined : palette)[i]` for an element of
     // an uninitialised copy of the array, and every patch came out in one colour.
@@ -197,16 +201,23 @@ std::string layout_view(const PatchSkin& s, const Eigen::Matrix3d& hand, const c
         Eigen::Vector3d nn = Su.cross(Sv);
         if (nn.norm() < 1e-12) continue;
         nn.normalize();
-        if ((V * nn).z() < 0) nn = -nn;  // facing the viewer, for the shading
-        p.push_back(S), n.push_back(nn);
-        c.push_back(tone);
+        L.p.push_back(S), L.n.push_back(nn);
+        L.c.push_back(tone);
       }
   }
+  return L;
+}
+
+std::string layout_view(const LayoutSamples& L, const Eigen::Matrix3d& hand, const char* view) {
+  const Eigen::Matrix3d V = named_view(view) * hand;
+  std::vector<Eigen::Vector3d> n = L.n;
+  for (Eigen::Vector3d& nn : n)
+    if ((V * nn).z() < 0) nn = -nn;  // facing the viewer, for the shading
   RenderOptions ro;
   ro.width = 720;
   ro.height = 480;
   ro.view = V;
-  return render_points_png(p, n, c, ro);
+  return render_points_png(L.p, n, L.c, ro);
 }
 
 std::string img(const std::string& png, const std::string& alt) {
@@ -410,13 +421,14 @@ std::string fit_sections(const PatchStageResult& r, const std::string& svg, cons
 
 PatchReportPictures patch_report_pictures(const PatchSkin& s, const Rig& rig) {
   const Eigen::Matrix3d hand = hand_frame_from_rig(rig).linear();
-  // The four pictures are independent: drawn at once.
+  // The four pictures are independent: drawn at once (the layout's samples made once, for both).
+  const LayoutSamples layout = layout_samples(s);
   std::string pics[4];
 #pragma omp parallel for schedule(dynamic)
   for (int k = 0; k < 4; ++k)
     pics[k] = k == 0   ? error_view(s, hand, 0, "palm")
               : k == 1 ? error_view(s, hand, 1, "back")
-                       : layout_view(s, hand, k == 2 ? "back" : "palm");
+                       : layout_view(layout, hand, k == 2 ? "back" : "palm");
   return {pics[0], pics[1], pics[2], pics[3]};
 }
 

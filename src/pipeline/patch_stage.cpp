@@ -6,6 +6,7 @@
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
+#include "core/parallel_jobs.hpp"
 #include "pipeline/figures_json.hpp"
 #include "pipeline/layout_json.hpp"
 #include "pipeline/patch_report.hpp"
@@ -71,7 +72,14 @@ PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const s
   r.options = options;
   r.patches = fit_patch_skin(skin, rig, points, sides, options);
   r.tessellation = tessellate(r.patches, options.tessellation);
-  r.surface_to_skin = one_way_distance(sample_surface(r.tessellation, 1.0), MeshDistance(skin.mesh));
+  // The surface's distance to the skin and Table 4.1's figures side by side (each half serial:
+  // the skin's AABB tree, the samples' sort), each into its own field.
+  parallel_jobs(2, [&](long k) {
+    if (k == 0)
+      r.surface_to_skin = one_way_distance(sample_surface(r.tessellation, 1.0), MeshDistance(skin.mesh));
+    else
+      r.figures = patch_report_figures(r.patches, error_grid);
+  });
   if (truth) {
     const auto t_truth = std::chrono::steady_clock::now();
     const MeshDistance to_truth(truth->skin), to_surface(r.tessellation);
@@ -84,7 +92,6 @@ PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const s
   // layout's choice and the fingers held apart) on every path.
   HS_CHECK(r.patches.crossings.has_value(), "the fit measures its surface's crossings");
   r.crossings = *r.patches.crossings;
-  r.figures = patch_report_figures(r.patches, error_grid);
   if (pictures) r.pictures = patch_report_pictures(r.patches, rig);
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
