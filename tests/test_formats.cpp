@@ -184,6 +184,20 @@ TEST(HandRig, RoundTripAndAliases) {
   ASSERT_TRUE(rig.palm_normal);
   const Rig back = parse_rig(rig_to_json_text(rig), "mem");
   for (int i = 0; i < kJointCount; ++i) EXPECT_EQ(back.joints[i], rig.joints[i]);
+  // A unit palm_normal comes back bit for bit, also one that normalizing again would move (as
+  // the placement's, written to rig_auto.json: H12-s3 of the family's was, and `patches
+  // --skin-dir` built another skin on it than its run had); one that is not unit is normalized.
+  Rig tilted = rig;
+  int moved = 0;
+  for (int k = 1; k <= 200; ++k) {
+    const Eigen::Vector3d n = Eigen::Vector3d(0.001 * k, 0.0079 + 1e-5 * k, -1.0).normalized();
+    if (Eigen::Vector3d(n.normalized()) != n) ++moved;
+    tilted.palm_normal = n;
+    ASSERT_EQ(*parse_rig(rig_to_json_text(tilted), "mem").palm_normal, n) << k;
+  }
+  EXPECT_GT(moved, 0);  // the test holds such normals
+  tilted.palm_normal = Eigen::Vector3d(0, 0, -2);
+  EXPECT_EQ(*parse_rig(rig_to_json_text(tilted), "mem").palm_normal, Eigen::Vector3d(0, 0, -1));
   // Thesis aliases are accepted as joint names.
   Json j = Json::parse(rig_to_json_text(rig));
   j["joints"]["I2"] = j["joints"]["index-finger-phalanx-proximal"];

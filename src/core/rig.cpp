@@ -1,6 +1,7 @@
 #include "core/rig.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <set>
 
@@ -84,7 +85,10 @@ Rig parse_rig(const std::string& text, const std::string& file) {
   if (j.contains("palm_normal")) {
     Eigen::Vector3d n = to_vec3(j["palm_normal"], "key 'palm_normal'", file);
     if (n.norm() < 1e-9) throw InputError(file, "key 'palm_normal' must not be the zero vector");
-    rig.palm_normal = n.normalized();
+    // A unit vector is kept as written: normalizing one again moves its last bits, and a
+    // skeleton placed by a run (rig_auto.json) would not come back as the run built on it
+    // (`patches --skin-dir` then built another skin).
+    rig.palm_normal = std::abs(n.squaredNorm() - 1) <= 1e-12 ? n : Eigen::Vector3d(n.normalized());
   }
   return rig;
 }

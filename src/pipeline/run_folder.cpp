@@ -92,11 +92,18 @@ RunFolderPatches patches_for_run_folder(const std::string& dir, const Rig& rig, 
   p.rig = rig;
   progress("reading " + p.merged);
   const MergedArrays m = read_merged(p.merged);
-  if (const auto note = orient_rig_to_cloud(&p.rig, m.points, m.sides); note && !note->empty())
-    progress(rig_path + ": " + *note);
+  // The skeleton the folder's run placed (its rig_auto.json, also when given as --rig) is taken
+  // as that run took it: not turned to the cloud, its skin built as on a placed skeleton (its
+  // digits not carried to their tip joints). Any other rig is taken as a given one.
+  namespace fs = std::filesystem;
+  const fs::path auto_rig = fs::path(dir) / "rig_auto.json";
+  std::error_code ec;
+  const bool placed = fs::exists(auto_rig) && fs::equivalent(rig_path, auto_rig, ec);
+  if (!placed)
+    if (const auto note = orient_rig_to_cloud(&p.rig, m.points, m.sides); note && !note->empty())
+      progress(rig_path + ": " + *note);
   // The folder's own skin (skin.ply with skin_grid.json) when it was built on this rig;
   // otherwise (a folder from before skin_grid.json, or another --rig) it is built again.
-  namespace fs = std::filesystem;
   const std::string ply = (fs::path(dir) / "skin.ply").string(), grid = (fs::path(dir) / "skin_grid.json").string();
   std::optional<SkinResult> folder_skin;
   if (fs::exists(ply) && fs::exists(grid)) {
@@ -106,7 +113,7 @@ RunFolderPatches patches_for_run_folder(const std::string& dir, const Rig& rig, 
   }
   if (!folder_skin) progress("building the skin on " + rig_path);
   SkinOptions so = skin_options(po);
-  so.rig_given = true;  // the folder's rig, given or placed, is the one its run built on
+  so.rig_given = !placed;
   const SkinResult skin = folder_skin ? std::move(*folder_skin) : build_skin(m.points, p.rig, so);
   PatchOptions opts = patch_options(po);
   opts.layout = layout;
