@@ -553,6 +553,7 @@ Json to_json(const SkinStageResult& r) {
   j["mesh"]["watertight"] = skin.watertight();
   j["triangles_before_decimation"] = skin.triangles_before_decimation;
   j["pockets_removed"] = skin.pockets_removed;
+  j["crossings_mended"] = skin.crossings_mended;
   j["thumb_turns_slowly"] = skin.thumb_turns_slowly;
   j["fit_to_data"] = {{"points", skin.data_fit.points},
                       {"moved", skin.data_fit.moved},

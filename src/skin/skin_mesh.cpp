@@ -391,6 +391,16 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
       round_as_written(&skin);
     }
     settle_fair_figures(skin, faired, &before, &R.fair_unseen);
+    // Crossings left after the take-back are the union's (skin_steps.hpp, mend_crossings).
+    if (R.data_fit.self_intersects) {
+      R.crossings_mended = mend_crossings(&skin);
+      if (R.crossings_mended > 0) {
+        R.data_fit.self_intersects = false;
+        R.warnings.push_back("the tubes' union crossed itself at " + std::to_string(R.crossings_mended) +
+                             " pairs of triangles (slivers where a digit's tube meets the palm's); CGAL's repair "
+                             "removed them and filled the hole");
+      }
+    }
     // Most skins have 16-21 % of their vertices unseen (the webs' flanks, the fingers' sides
     // between the two views); a hand posed so that the scans miss whole sides of its digits (its
     // MCPs flexed 60 deg: 37 %, its skin 93 % within 1 mm of the truth) is told so.

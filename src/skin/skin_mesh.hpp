@@ -157,6 +157,7 @@ struct SkinResult {
   bool self_intersects = false;
   bool self_intersection_checked = false;
   int pockets_removed = 0;            ///< inner shells the union enclosed between tubes, dropped
+  int crossings_mended = 0;           ///< crossing pairs of the union mended (mend_crossings; -1: it failed)
   bool thumb_turns_slowly = false;    ///< the thumb's tube folded with its planes turning at once, and was made again
   std::vector<Eigen::Vector3d> webs;  ///< the finger webs found (palm end plane goes through them)
   WristCut wrist_cut;                 ///< the plane the palm's first ring lies in

@@ -6,6 +6,7 @@
 #include <CGAL/Polygon_mesh_processing/connected_components.h>
 #include <CGAL/Polygon_mesh_processing/corefinement.h>
 #include <CGAL/Polygon_mesh_processing/measure.h>
+#include <CGAL/Polygon_mesh_processing/repair_self_intersections.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 
 #include <algorithm>
@@ -14,6 +15,7 @@
 #include <cstdint>
 #include <cmath>
 #include <cstdlib>
+#include <set>
 
 #include "core/errors.hpp"
 
@@ -147,6 +149,23 @@ void collapse_short_edges(SM* sm, double eps) {
 }
 
 }  // namespace
+
+int mend_crossings(SM* sm) {
+  std::vector<std::pair<SM::Face_index, SM::Face_index>> pairs;
+  PMP::self_intersections(*sm, std::back_inserter(pairs));
+  if (pairs.empty()) return 0;
+  std::set<SM::Face_index> crossing;
+  for (const auto& [a, b] : pairs) crossing.insert(a), crossing.insert(b);
+  // CGAL's repair (experimental in 5.5): the crossing faces and a neighbourhood around them
+  // removed and the hole filled, or smoothed, until nothing there crosses.
+  CGAL::get_default_random() = CGAL::Random(1);
+  const bool done =
+      PMP::experimental::remove_self_intersections(crossing, *sm, CGAL::parameters::preserve_genus(true));
+  sm->collect_garbage();
+  round_as_written(sm);
+  if (!done || !CGAL::is_closed(*sm) || PMP::does_self_intersect(*sm)) return -1;
+  return static_cast<int>(pairs.size());
+}
 
 SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& Ti,
                 PositionOrigin* origin_out, int* pockets_out) {
