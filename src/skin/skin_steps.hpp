@@ -230,8 +230,8 @@ Crossings take_back_crossings(SM* sm, const std::vector<K::Point_3>& before);
 /// Every vertex rounded to single precision, as skin.ply stores it (take_back_crossings does it too).
 void round_as_written(SM* sm);
 /// The crossings the take-back leaves are the union's own (stitch_tubes): where a digit's tube
-/// meets the palm's in a near-degenerate way, the intersection points rounded to doubles can
-/// leave slivers and zero-area triangles crossing one another at one spot (R07 of
+/// meets the palm's in a near-degenerate way, the corefinement's output can hold slivers and
+/// zero-area triangles crossing one another at one spot (R07 of
 /// `scripts/random_hands_study.py --draw 70` with its rig: 27 pairs within 0.2 mm at the middle
 /// finger's root). They are mended with CGAL's self-intersection repair, the result rounded as
 /// written. Returns the crossing pairs mended, 0 when there were none, -1 when the repair
