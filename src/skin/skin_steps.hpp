@@ -234,8 +234,9 @@ void round_as_written(SM* sm);
 /// zero-area triangles crossing one another at one spot (R07 of
 /// `scripts/random_hands_study.py --draw 70` with its rig: 27 pairs within 0.2 mm at the middle
 /// finger's root). They are mended with CGAL's self-intersection repair, the result rounded as
-/// written. Returns the crossing pairs mended, 0 when there were none, -1 when the repair
-/// failed (the surface is then as the repair left it: not closed, or crossing).
+/// written. Returns the crossing pairs mended, 0 when there were none, -1 when there were more
+/// than it takes on (100: a fold, left as it is) or the repair failed (the surface is then as
+/// the repair left it: not closed, or crossing).
 int mend_crossings(SM* sm);
 /// Step 9's figures from its moves: the moves kept (mean, largest) and, given the positions
 /// the take-back restores (`before`, by vertex index), the vertices it put back.
