@@ -403,6 +403,7 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
   Json step;
   if (r.patches) outputs.update(write_patch_files(out, *r.patches, &step));
   RunWritten W;
+  HS_CHECK(gates.valid(), "the gates start once skin.ply is staged");
   W.gates = gates.get();
 
   Json report;
