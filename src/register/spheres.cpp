@@ -269,6 +269,112 @@ double fit_shared_radius(const std::vector<SharedRadiusCap>& caps, double r, dou
   return radius;
 }
 
+namespace {
+
+// The Hough search's vote grid (detect_spheres): cells of a fixed size keyed by their integer
+// coordinates.
+// The occupied cells in bricks of 8 x 8 x 8 (a brick made when a vote first falls in it),
+// found through a small open-addressing table of the bricks. Each vote is looked up ~30 times
+// by the neighbour tests below, and those of one cell lie in one brick or its neighbours:
+// a table of single cells (until 2026-12-01, 16-byte slots of key, votes and index) took a
+// cache miss per lookup, most of this search's time (docs/performance.md). A cell holds its
+// votes and the index of its vote sum, which is kept densely, in the order the cells were
+// first voted for, with its key; the peaks are sorted below, so no order reaches the result.
+struct Cell {
+  int votes = 0;
+  int index = -1;  // into the dense arrays
+};
+struct BrickGrid {
+  static constexpr int kShift = 3, kSide = 1 << kShift, kMask = kSide - 1;
+  std::vector<long> slot_key;  // per slot of the brick table: its brick's key, -1 empty
+  std::vector<int> slot_brick;
+  size_t mask = 0;
+  std::vector<std::array<Cell, kSide * kSide * kSide>> bricks;
+  std::vector<std::array<long, 3>> origin;  // per brick, its coordinates (a cell's, divided by kSide)
+  std::vector<Eigen::Vector3d> sums;    // dense, the sum of a cell's votes
+  mutable long last_key = -1;           // the brick looked up last (most lookups repeat it)
+  mutable int last_brick = -1;
+  void reset(size_t expected_bricks, size_t votes) {
+    size_t cap = 256;
+    while (cap < 2 * expected_bricks) cap <<= 1;
+    slot_key.assign(cap, -1);
+    slot_brick.assign(cap, -1);
+    mask = cap - 1;
+    bricks.clear();
+    origin.clear();
+    sums.clear();
+    // At most one cell and sum per vote, and bricks as many as a 2 mm marker's search spreads
+    // its votes over (a 512² scan: 2 900 of 73 000): reserved, so that they are not copied as
+    // they grow (their pages are touched only as they fill).
+    bricks.reserve(votes / 16);
+    origin.reserve(votes / 16);
+    sums.reserve(votes);
+    last_key = last_brick = -1;
+  }
+  static long brick_key(long a, long b, long c) {
+    return (((a >> kShift) + (1L << 20)) << 42) | (((b >> kShift) + (1L << 20)) << 21) | ((c >> kShift) + (1L << 20));
+  }
+  static int within(long a, long b, long c) {
+    return static_cast<int>(((a & kMask) << (2 * kShift)) | ((b & kMask) << kShift) | (c & kMask));
+  }
+  static size_t slot_of(long k) {
+    std::uint64_t x = static_cast<std::uint64_t>(k);
+    x ^= x >> 33;
+    x *= 0xff51afd7ed558ccdULL;
+    x ^= x >> 33;
+    return static_cast<size_t>(x);
+  }
+  int brick(long bk) const {  // -1: none
+    if (bk == last_key) return last_brick;
+    size_t i = slot_of(bk) & mask;
+    while (slot_key[i] != -1 && slot_key[i] != bk) i = (i + 1) & mask;
+    last_key = bk;
+    return last_brick = slot_key[i] == -1 ? -1 : slot_brick[i];
+  }
+  void grow() {
+    const std::vector<long> old_key = std::move(slot_key);
+    const std::vector<int> old_brick = std::move(slot_brick);
+    slot_key.assign(2 * old_key.size(), -1);
+    slot_brick.assign(2 * old_key.size(), -1);
+    mask = slot_key.size() - 1;
+    for (size_t j = 0; j < old_key.size(); ++j) {
+      if (old_key[j] == -1) continue;
+      size_t i = slot_of(old_key[j]) & mask;
+      while (slot_key[i] != -1) i = (i + 1) & mask;
+      slot_key[i] = old_key[j], slot_brick[i] = old_brick[j];
+    }
+  }
+  void vote(long a, long b, long c, const Eigen::Vector3d& v) {
+    const long bk = brick_key(a, b, c);
+    int id = brick(bk);
+    if (id < 0) {
+      if (2 * (bricks.size() + 1) > slot_key.size()) grow();
+      size_t i = slot_of(bk) & mask;
+      while (slot_key[i] != -1) i = (i + 1) & mask;
+      id = static_cast<int>(bricks.size());
+      slot_key[i] = bk, slot_brick[i] = id;
+      bricks.emplace_back();
+      origin.push_back({a >> kShift, b >> kShift, c >> kShift});
+      last_key = bk, last_brick = id;
+    }
+    Cell& cl = bricks[static_cast<size_t>(id)][static_cast<size_t>(within(a, b, c))];
+    if (cl.votes == 0) {
+      cl.index = static_cast<int>(sums.size());
+      sums.push_back(Eigen::Vector3d::Zero());
+    }
+    ++cl.votes;
+    sums[static_cast<size_t>(cl.index)] += v;
+  }
+  const Cell* find(long a, long b, long c) const {
+    const int id = brick(brick_key(a, b, c));
+    if (id < 0) return nullptr;
+    const Cell& cl = bricks[static_cast<size_t>(id)][static_cast<size_t>(within(a, b, c))];
+    return cl.votes > 0 ? &cl : nullptr;
+  }
+};
+
+}  // namespace
+
 std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions& o,
                                       std::vector<SphereCandidateReport>* report, size_t max_found) {
   std::string err;
@@ -283,85 +389,14 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
   auto key = [](long a, long b, long c) {
     return ((a + (1L << 20)) << 42) | ((b + (1L << 20)) << 21) | (c + (1L << 20));
   };
-  // An open-addressing table (linear probing) of the occupied cells: the votes are looked up
-  // ~30 times each, and std::unordered_map's node per cell made this the costliest step of
-  // registration. A slot holds the key and the votes (16 bytes: the neighbour tests read
-  // nothing else); the cells' vote sums are kept densely, in the order the cells were first
-  // voted for (a 512² scan's table: 4 MB and ~2 MB, where slots of key, votes and sum took
-  // 10 MB, touched anew by each of a radius estimate's ~20 searches). The peaks are sorted
-  // below, so neither order reaches the result.
-  struct Slot {
-    long key;  // -1: empty (keys are >= 0)
-    int votes;
-    int index;  // into the dense arrays
-  };
-  struct CellTable {
-    std::vector<Slot> slots;
-    std::vector<long> keys;               // dense, a cell's key
-    std::vector<Eigen::Vector3d> sums;    // dense, the sum of a cell's votes
-    size_t mask = 0;
-    // Sized for the cells, not the samples: votes share cells (on the fixture's scans of 73 000
-    // samples, 6 000–71 000 cells, fewer the larger the candidate radius and its cells), and a
-    // table that fits the caches is probed faster (the probes, a cache miss each, were most
-    // of this search's time: 4 MB of slots for every search before, 1 MB for most now). It
-    // starts at twice a third of the samples and doubles when half full.
-    void reset(size_t expected_cells) {
-      size_t cap = 1024;
-      while (cap < 2 * expected_cells) cap <<= 1;
-      slots.assign(cap, Slot{-1, 0, -1});
-      keys.clear();
-      sums.clear();
-      mask = cap - 1;
-    }
-    void grow() {
-      std::vector<Slot> old(2 * slots.size(), Slot{-1, 0, -1});
-      old.swap(slots);
-      mask = slots.size() - 1;
-      for (const Slot& sl : old) {
-        if (sl.key == -1) continue;
-        size_t i = slot_of(sl.key) & mask;
-        while (slots[i].key != -1) i = (i + 1) & mask;
-        slots[i] = sl;
-      }
-    }
-    static size_t slot_of(long k) {
-      std::uint64_t x = static_cast<std::uint64_t>(k);
-      x ^= x >> 33;
-      x *= 0xff51afd7ed558ccdULL;
-      x ^= x >> 33;
-      return static_cast<size_t>(x);
-    }
-    void vote(long k, const Eigen::Vector3d& v) {
-      size_t i = slot_of(k) & mask;
-      while (slots[i].key != -1 && slots[i].key != k) i = (i + 1) & mask;
-      Slot& sl = slots[i];
-      if (sl.key == -1) {
-        if (2 * (keys.size() + 1) > slots.size()) {
-          grow();
-          vote(k, v);
-          return;
-        }
-        sl = Slot{k, 0, static_cast<int>(keys.size())};
-        keys.push_back(k);
-        sums.push_back(Eigen::Vector3d::Zero());
-      }
-      ++sl.votes;
-      sums[static_cast<size_t>(sl.index)] += v;
-    }
-    const Slot* find(long k) const {
-      for (size_t i = slot_of(k) & mask; slots[i].key != -1; i = (i + 1) & mask)
-        if (slots[i].key == k) return &slots[i];
-      return nullptr;
-    }
-  };
-  CellTable grid;
-  grid.reset(s.points.size() / 3);
+  BrickGrid grid;
+  grid.reset(s.points.size() / 64, s.points.size());
   for (size_t k = 0; k < s.points.size(); ++k) {
     if (!s.has_normal(k)) continue;
     const Eigen::Vector3d v = s.points[k] - r * s.normals[k];
-    grid.vote(key(std::lround(std::floor(v.x() / cell)), std::lround(std::floor(v.y() / cell)),
-                  std::lround(std::floor(v.z() / cell))),
-              v);
+    const long a = std::lround(std::floor(v.x() / cell)), b = std::lround(std::floor(v.y() / cell)),
+               c = std::lround(std::floor(v.z() / cell));
+    grid.vote(a, b, c, v);
   }
   // Whether the central cube's votes are at least `share` of the 7 x 7 x 7 cube's about
   // cell (a, b, c): the shell around the central 3 x 3 x 3 is summed onto `central` and the
@@ -373,7 +408,7 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
       for (long db = -3; db <= 3; ++db)
         for (long dc = -3; dc <= 3; ++dc) {
           if (std::abs(da) <= 1 && std::abs(db) <= 1 && std::abs(dc) <= 1) continue;  // counted in `central`
-          if (const Slot* g = grid.find(key(a + da, b + db, c + dc))) {
+          if (const Cell* g = grid.find(a + da, b + db, c + dc)) {
             wide += g->votes;
             if (static_cast<double>(central) < share * static_cast<double>(wide)) return false;
           }
@@ -386,11 +421,32 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
     Eigen::Vector3d centre;
   };
   std::vector<Peak> peaks;
-  for (size_t cell_index = 0; cell_index < grid.keys.size(); ++cell_index) {
-    const long k = grid.keys[cell_index];
-    const long votes = grid.find(k)->votes;
-    const long a = (k >> 42) - (1L << 20), b = ((k >> 21) & ((1L << 21) - 1)) - (1L << 20),
-               c = (k & ((1L << 21) - 1)) - (1L << 20);
+  // Brick by brick (the peaks are sorted below): a cell's neighbours lie in its brick or the 26
+  // about it, found once per brick.
+  constexpr int kShift = BrickGrid::kShift, kMask = BrickGrid::kMask, kCells = BrickGrid::kSide * BrickGrid::kSide * BrickGrid::kSide;
+  for (size_t brick = 0; brick < grid.bricks.size(); ++brick) {
+    const std::array<long, 3>& at = grid.origin[brick];
+    std::array<const Cell*, 27> around;
+    for (int i = 0; i < 27; ++i) {
+      const int id = grid.brick(BrickGrid::brick_key((at[0] + i / 9 - 1) * BrickGrid::kSide, (at[1] + i / 3 % 3 - 1) * BrickGrid::kSide,
+                                                     (at[2] + i % 3 - 1) * BrickGrid::kSide));
+      around[static_cast<size_t>(i)] = id < 0 ? nullptr : grid.bricks[static_cast<size_t>(id)].data();
+    }
+    const Cell* cells = grid.bricks[brick].data();
+    for (int q = 0; q < kCells; ++q) {
+    const long votes = cells[q].votes;
+    if (votes == 0) continue;
+    const int x = q >> (2 * kShift), y = (q >> kShift) & kMask, z = q & kMask;
+    const long a = at[0] * BrickGrid::kSide + x, b = at[1] * BrickGrid::kSide + y, c = at[2] * BrickGrid::kSide + z;
+    const long k = key(a, b, c);
+    // The occupied cell (a + da, b + db, c + dc), |d| <= 1, or none.
+    const auto neighbour = [&](int da, int db, int dc) -> const Cell* {
+      const int nx = x + da, ny = y + db, nz = z + dc;
+      const Cell* in = around[static_cast<size_t>(9 * ((nx >> kShift) + 1) + 3 * ((ny >> kShift) + 1) + ((nz >> kShift) + 1))];
+      if (!in) return nullptr;
+      const Cell& n = in[((nx & kMask) << (2 * kShift)) | ((ny & kMask) << kShift) | (nz & kMask)];
+      return n.votes > 0 ? &n : nullptr;
+    };
     // A local maximum of the votes (a tie goes to the smaller key), and its central cube's
     // votes; their sum only for a maximum.
     bool is_max = true;
@@ -399,7 +455,7 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
       for (long db = -1; db <= 1 && is_max; ++db)
         for (long dc = -1; dc <= 1; ++dc) {
           const long nk = key(a + da, b + db, c + dc);
-          const Slot* n = grid.find(nk);
+          const Cell* n = neighbour(static_cast<int>(da), static_cast<int>(db), static_cast<int>(dc));
           if (!n) continue;
           if (n->votes > votes || (n->votes == votes && nk < k)) {
             is_max = false;
@@ -414,8 +470,10 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
     for (long da = -1; da <= 1; ++da)
       for (long db = -1; db <= 1; ++db)
         for (long dc = -1; dc <= 1; ++dc)
-          if (const Slot* n = grid.find(key(a + da, b + db, c + dc))) sum += grid.sums[static_cast<size_t>(n->index)];
+          if (const Cell* n = neighbour(static_cast<int>(da), static_cast<int>(db), static_cast<int>(dc)))
+            sum += grid.sums[static_cast<size_t>(n->index)];
     peaks.push_back({central, k, sum / static_cast<double>(central)});
+    }
   }
   std::sort(peaks.begin(), peaks.end(), [](const Peak& x, const Peak& y) {
     return x.votes != y.votes ? x.votes > y.votes : x.k < y.k;
