@@ -2,14 +2,13 @@
 
 #include <ceres/ceres.h>
 #include <ceres/rotation.h>
-#include <pcl/kdtree/kdtree_flann.h>
-#include <pcl/point_cloud.h>
-#include <pcl/point_types.h>
+#include <flann/flann.hpp>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 
 #include "core/errors.hpp"
 #include "register/sphere_residual.hpp"
@@ -212,23 +211,29 @@ RefineResult refine_registration(const PreparedScan& back, const PreparedScan& p
   std::vector<Eigen::Vector3d> centres;
   out.marker_rms_start = marker_sphere_rms(markers, T0, r, floor, &centres);
 
-  // Palm skin samples with normals in a k-d tree (PCL/FLANN), centred for float precision.
+  // Palm skin samples with normals in a k-d tree, centred for float precision: FLANN's single
+  // k-d tree of 15 points a leaf, as PCL's KdTreeFLANN builds it, searched directly with one
+  // result set per thread (PCL's radius search made ~6 allocations a query: 36 000 queries a
+  // round on the fixture took ~16-20 ms on two threads; docs/performance.md).
   std::vector<int> palm_ids;
-  pcl::PointCloud<pcl::PointXYZ>::Ptr tree_pts(new pcl::PointCloud<pcl::PointXYZ>);
+  std::vector<float> palm_xyz;
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();
   for (size_t k = 0; k < palm.points.size(); ++k)
     if (palm_skin[k] && palm.has_normal(k)) {
       palm_ids.push_back(static_cast<int>(k));
       origin += palm.points[k];
     }
-  pcl::KdTreeFLANN<pcl::PointXYZ> tree;
+  using Tree = flann::KDTreeSingleIndex<flann::L2_Simple<float>>;
+  std::unique_ptr<Tree> tree;
   if (!palm_ids.empty()) {
     origin /= static_cast<double>(palm_ids.size());
+    palm_xyz.reserve(3 * palm_ids.size());
     for (int k : palm_ids) {
       const Eigen::Vector3d d = palm.points[k] - origin;
-      tree_pts->push_back(pcl::PointXYZ(static_cast<float>(d.x()), static_cast<float>(d.y()), static_cast<float>(d.z())));
+      for (int c = 0; c < 3; ++c) palm_xyz.push_back(static_cast<float>(d(c)));
     }
-    tree.setInputCloud(tree_pts);
+    tree = std::make_unique<Tree>(flann::Matrix<float>(palm_xyz.data(), palm_ids.size(), 3), flann::KDTreeSingleIndexParams(15));
+    tree->buildIndex();
   }
   std::vector<int> back_ids;
   for (size_t k = 0; k < back.points.size(); k += o.surface_stride)
@@ -248,23 +253,33 @@ RefineResult refine_registration(const PreparedScan& back, const PreparedScan& p
     // --- correspondences: nearest palm skin sample, gated by distance and normal, trimmed ---
     pairs.clear();
     if (!palm_ids.empty() && o.max_iterations > 0) {
+      const long n = static_cast<long>(back_ids.size());
       std::vector<Pair> found(back_ids.size(), Pair{-1, -1, 0});
-#pragma omp parallel for schedule(static)
-      for (long k = 0; k < static_cast<long>(back_ids.size()); ++k) {
-        const int b = back_ids[k];
-        const Eigen::Vector3d x = T * back.points[b];
-        const Eigen::Vector3d d = x - origin;
-        std::vector<int> idx(1);
-        std::vector<float> d2(1);
-        // A radius search bounded by the gate: a back sample across the hand from every palm
-        // sample (most of them) is settled at once instead of by a long nearest search.
-        if (tree.radiusSearch(pcl::PointXYZ(static_cast<float>(d.x()), static_cast<float>(d.y()), static_cast<float>(d.z())),
-                              o.gate_mm, idx, d2, 1) < 1)
-          continue;
-        const int p = palm_ids[idx[0]];
-        const Eigen::Vector3d nb = T.linear() * back.normals[b];
-        if (nb.dot(palm.normals[p]) < cos_gate) continue;
-        found[k] = {b, p, std::abs(palm.normals[p].dot(x - palm.points[p]))};
+      const float gate2 = static_cast<float>(o.gate_mm * o.gate_mm);
+#pragma omp parallel
+      {
+        // A search bounded by the gate: a back sample across the hand from every palm sample
+        // (most of them) is settled at once instead of by a long nearest search. The nearest
+        // within the gate (strictly), as PCL's radius search of one neighbour finds it.
+        flann::KNNRadiusResultSet<float> within(gate2, 1);
+        const flann::SearchParams sp(-1, 0.0f, true);
+#pragma omp for schedule(static)
+        for (long k = 0; k < n; ++k) {
+          const int b = back_ids[k];
+          const Eigen::Vector3d x = T * back.points[b];
+          const Eigen::Vector3d d = x - origin;
+          const float q[3] = {static_cast<float>(d.x()), static_cast<float>(d.y()), static_cast<float>(d.z())};
+          within.clear();
+          tree->findNeighbors(within, q, sp);
+          if (within.size() < 1) continue;
+          size_t nearest = 0;
+          float d2 = 0;
+          within.copy(&nearest, &d2, 1, true);
+          const int p = palm_ids[nearest];
+          const Eigen::Vector3d nb = T.linear() * back.normals[b];
+          if (nb.dot(palm.normals[p]) < cos_gate) continue;
+          found[k] = {b, p, std::abs(palm.normals[p].dot(x - palm.points[p]))};
+        }
       }
       for (const auto& f : found)
         if (f.b >= 0) pairs.push_back(f);
