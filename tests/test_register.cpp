@@ -1,6 +1,9 @@
 // Registration: table removal, marker spheres, matching, refinement and the whole stage
 // against synthetic scans whose true transform is known.
 #include <gtest/gtest.h>
+#include <pcl/kdtree/kdtree_flann.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
 
 #include <cmath>
 #include <cstdio>
@@ -10,6 +13,7 @@
 #include "core/random.hpp"
 #include "core/transform.hpp"
 #include "pipeline/registration_stage.hpp"
+#include "register/refine.hpp"
 #include "register/registration.hpp"
 #include "register/sphere_residual.hpp"
 #include "synth/replica.hpp"
@@ -329,6 +333,54 @@ SameSide same_side_pair() {
   return out;
 }
 }  // namespace
+
+// The ICP's correspondence search (GatedNearest) finds what PCL's radius search of one
+// neighbour found before it: points on a 0.25 mm grid (so that distances tie exactly), each
+// twice (equal points), and scattered ones; queries at grid points, exactly one gate away from
+// one (the bound is strict), between grid points, and far from every point.
+TEST(Refine, GatedNearestIsPclsRadiusSearchOfOne) {
+  Rng rng(7);
+  std::vector<float> xyz;
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
+  const auto add = [&](float x, float y, float z) {
+    xyz.insert(xyz.end(), {x, y, z});
+    cloud->push_back(pcl::PointXYZ(x, y, z));
+  };
+  for (int i = 0; i < 20; ++i)
+    for (int j = 0; j < 20; ++j) {
+      add(0.25f * i, 0.25f * j, 0.0f);
+      add(0.25f * i, 0.25f * j, 0.0f);
+    }
+  for (int k = 0; k < 3000; ++k)
+    add(static_cast<float>(rng.uniform(-5, 10)), static_cast<float>(rng.uniform(-5, 10)), static_cast<float>(rng.uniform(-2, 2)));
+  std::vector<float> queries;
+  for (int k = 0; k < 4000; ++k) {
+    const int kind = k % 4;
+    const float gx = 0.25f * static_cast<float>(k % 20), gy = 0.25f * static_cast<float>((k / 20) % 20);
+    if (kind == 0) queries.insert(queries.end(), {gx, gy, 0.0f});
+    else if (kind == 1) queries.insert(queries.end(), {gx, gy, 0.5f});  // one gate above a grid point
+    else if (kind == 2) queries.insert(queries.end(), {gx + 0.125f, gy + 0.125f, 0.1f});
+    else queries.insert(queries.end(), {static_cast<float>(rng.uniform(-8, 13)), static_cast<float>(rng.uniform(-8, 13)),
+                                        static_cast<float>(rng.uniform(-4, 4))});
+  }
+  const double gate = 0.5;
+  const GatedNearest mine(xyz, gate);
+  const std::vector<int> found = mine.find(queries);
+  pcl::KdTreeFLANN<pcl::PointXYZ> pcl_tree;
+  pcl_tree.setInputCloud(cloud);
+  int within = 0, none = 0;
+  for (size_t k = 0; k < found.size(); ++k) {
+    std::vector<int> idx(1);
+    std::vector<float> d2(1);
+    const pcl::PointXYZ q(queries[3 * k], queries[3 * k + 1], queries[3 * k + 2]);
+    const int expected = pcl_tree.radiusSearch(q, gate, idx, d2, 1) < 1 ? -1 : idx[0];
+    ASSERT_EQ(found[k], expected) << "query " << k;
+    (expected < 0 ? none : within) += 1;
+  }
+  EXPECT_GT(within, 1000);
+  EXPECT_GT(none, 500);
+  EXPECT_EQ(GatedNearest({}, gate).find(queries), std::vector<int>(found.size(), -1));
+}
 
 TEST(Refine, GatedIcpPullsAPerturbedFitIn) {
   const SameSide s = same_side_pair();

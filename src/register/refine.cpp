@@ -201,6 +201,44 @@ double displacement_sigma(const Eigen::Isometry3d& T, const Eigen::Matrix<double
   return std::sqrt(sum / static_cast<double>(points.size()));
 }
 
+struct GatedNearest::Tree {
+  explicit Tree(const flann::Matrix<float>& points) : index(points, flann::KDTreeSingleIndexParams(15)) {}
+  flann::KDTreeSingleIndex<flann::L2_Simple<float>> index;
+};
+
+GatedNearest::GatedNearest(std::vector<float> points, double gate)
+    : points_(std::move(points)), gate2_(static_cast<float>(gate * gate)) {
+  HS_CHECK(points_.size() % 3 == 0, "GatedNearest: points are x, y, z rows");
+  if (points_.empty()) return;
+  tree_ = std::make_unique<Tree>(flann::Matrix<float>(points_.data(), points_.size() / 3, 3));
+  tree_->index.buildIndex();
+}
+
+GatedNearest::~GatedNearest() = default;
+
+std::vector<int> GatedNearest::find(const std::vector<float>& queries) const {
+  HS_CHECK(queries.size() % 3 == 0, "GatedNearest: queries are x, y, z rows");
+  const long n = static_cast<long>(queries.size() / 3);
+  std::vector<int> out(static_cast<size_t>(n), -1);
+  if (!tree_) return out;
+#pragma omp parallel
+  {
+    flann::KNNRadiusResultSet<float> within(gate2_, 1);
+    const flann::SearchParams sp(-1, 0.0f, true);
+#pragma omp for schedule(static)
+    for (long k = 0; k < n; ++k) {
+      within.clear();
+      tree_->index.findNeighbors(within, &queries[3 * static_cast<size_t>(k)], sp);
+      if (within.size() < 1) continue;
+      size_t nearest = 0;
+      float d2 = 0;
+      within.copy(&nearest, &d2, 1, true);
+      out[static_cast<size_t>(k)] = static_cast<int>(nearest);
+    }
+  }
+  return out;
+}
+
 RefineResult refine_registration(const PreparedScan& back, const PreparedScan& palm, const std::vector<char>& back_skin,
                                  const std::vector<char>& palm_skin, const std::vector<MarkerSamples>& markers,
                                  const Eigen::Isometry3d& T0, double r, double floor, const RefineOptions& o) {
@@ -211,10 +249,7 @@ RefineResult refine_registration(const PreparedScan& back, const PreparedScan& p
   std::vector<Eigen::Vector3d> centres;
   out.marker_rms_start = marker_sphere_rms(markers, T0, r, floor, &centres);
 
-  // Palm skin samples with normals in a k-d tree, centred for float precision: FLANN's single
-  // k-d tree of 15 points a leaf, as PCL's KdTreeFLANN builds it, searched directly with one
-  // result set per thread (PCL's radius search made ~6 allocations a query: 36 000 queries a
-  // round on the fixture took ~16-20 ms on two threads; docs/performance.md).
+  // Palm skin samples with normals in a k-d tree (GatedNearest), centred for float precision.
   std::vector<int> palm_ids;
   std::vector<float> palm_xyz;
   Eigen::Vector3d origin = Eigen::Vector3d::Zero();
@@ -223,8 +258,7 @@ RefineResult refine_registration(const PreparedScan& back, const PreparedScan& p
       palm_ids.push_back(static_cast<int>(k));
       origin += palm.points[k];
     }
-  using Tree = flann::KDTreeSingleIndex<flann::L2_Simple<float>>;
-  std::unique_ptr<Tree> tree;
+  std::unique_ptr<GatedNearest> tree;
   if (!palm_ids.empty()) {
     origin /= static_cast<double>(palm_ids.size());
     palm_xyz.reserve(3 * palm_ids.size());
@@ -232,8 +266,7 @@ RefineResult refine_registration(const PreparedScan& back, const PreparedScan& p
       const Eigen::Vector3d d = palm.points[k] - origin;
       for (int c = 0; c < 3; ++c) palm_xyz.push_back(static_cast<float>(d(c)));
     }
-    tree = std::make_unique<Tree>(flann::Matrix<float>(palm_xyz.data(), palm_ids.size(), 3), flann::KDTreeSingleIndexParams(15));
-    tree->buildIndex();
+    tree = std::make_unique<GatedNearest>(std::move(palm_xyz), o.gate_mm);
   }
   std::vector<int> back_ids;
   for (size_t k = 0; k < back.points.size(); k += o.surface_stride)
@@ -255,31 +288,20 @@ RefineResult refine_registration(const PreparedScan& back, const PreparedScan& p
     if (!palm_ids.empty() && o.max_iterations > 0) {
       const long n = static_cast<long>(back_ids.size());
       std::vector<Pair> found(back_ids.size(), Pair{-1, -1, 0});
-      const float gate2 = static_cast<float>(o.gate_mm * o.gate_mm);
-#pragma omp parallel
-      {
-        // A search bounded by the gate: a back sample across the hand from every palm sample
-        // (most of them) is settled at once instead of by a long nearest search. The nearest
-        // within the gate (strictly), as PCL's radius search of one neighbour finds it.
-        flann::KNNRadiusResultSet<float> within(gate2, 1);
-        const flann::SearchParams sp(-1, 0.0f, true);
-#pragma omp for schedule(static)
-        for (long k = 0; k < n; ++k) {
-          const int b = back_ids[k];
-          const Eigen::Vector3d x = T * back.points[b];
-          const Eigen::Vector3d d = x - origin;
-          const float q[3] = {static_cast<float>(d.x()), static_cast<float>(d.y()), static_cast<float>(d.z())};
-          within.clear();
-          tree->findNeighbors(within, q, sp);
-          if (within.size() < 1) continue;
-          size_t nearest = 0;
-          float d2 = 0;
-          within.copy(&nearest, &d2, 1, true);
-          const int p = palm_ids[nearest];
-          const Eigen::Vector3d nb = T.linear() * back.normals[b];
-          if (nb.dot(palm.normals[p]) < cos_gate) continue;
-          found[k] = {b, p, std::abs(palm.normals[p].dot(x - palm.points[p]))};
-        }
+      std::vector<float> query(3 * back_ids.size());
+#pragma omp parallel for schedule(static)
+      for (long k = 0; k < n; ++k) {
+        const Eigen::Vector3d d = T * back.points[back_ids[k]] - origin;
+        for (int c = 0; c < 3; ++c) query[3 * k + c] = static_cast<float>(d(c));
+      }
+      const std::vector<int> nearest = tree->find(query);
+#pragma omp parallel for schedule(static)
+      for (long k = 0; k < n; ++k) {
+        if (nearest[k] < 0) continue;
+        const int b = back_ids[k], p = palm_ids[nearest[k]];
+        const Eigen::Vector3d nb = T.linear() * back.normals[b];
+        if (nb.dot(palm.normals[p]) < cos_gate) continue;
+        found[k] = {b, p, std::abs(palm.normals[p].dot(T * back.points[b] - palm.points[p]))};
       }
       for (const auto& f : found)
         if (f.b >= 0) pairs.push_back(f);
