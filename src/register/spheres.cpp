@@ -304,11 +304,12 @@ struct BrickGrid {
     origin.clear();
     sums.clear();
     // At most one cell and sum per vote, and bricks as many as a 2 mm marker's search spreads
-    // its votes over (a 512² scan: 2 900 of 73 000): reserved, so that they are not copied as
-    // they grow (their pages are touched only as they fill).
-    bricks.reserve(votes / 16);
-    origin.reserve(votes / 16);
-    sums.reserve(votes);
+    // its votes over (a 512² scan: 2 900 bricks for 73 000 votes): reserved, so that they are
+    // not copied as they grow, up to a bound (64 MB of bricks, 24 MB of sums: a 4096 × 1024
+    // scan's votes would have reserved 1 GB); their pages are touched only as they fill.
+    bricks.reserve(std::min<size_t>(votes / 16, 1 << 14));
+    origin.reserve(std::min<size_t>(votes / 16, 1 << 14));
+    sums.reserve(std::min<size_t>(votes, 1 << 20));
     last_key = last_brick = -1;
   }
   static long brick_key(long a, long b, long c) {
