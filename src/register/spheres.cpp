@@ -279,10 +279,10 @@ namespace {
 // a table of single cells (until 2026-12-01, 16-byte slots of key, votes and index) took a
 // cache miss per lookup, most of this search's time (docs/performance.md). A cell holds its
 // votes and the index of its vote sum, which is kept densely, in the order the cells were
-// first voted for, with its key; the peaks are sorted below, so no order reaches the result.
+// first voted for; the peaks are sorted below, so no order reaches the result.
 struct Cell {
   int votes = 0;
-  int index = -1;  // into the dense arrays
+  int index = -1;  // into `sums`
 };
 struct BrickGrid {
   static constexpr int kShift = 3, kSide = 1 << kShift, kMask = kSide - 1;
