@@ -271,9 +271,8 @@ double fit_shared_radius(const std::vector<SharedRadiusCap>& caps, double r, dou
 
 namespace {
 
-// The Hough search's vote grid (detect_spheres): cells of a fixed size keyed by their integer
-// coordinates.
-// The occupied cells in bricks of 8 x 8 x 8 (a brick made when a vote first falls in it),
+// The Hough search's vote grid (detect_spheres): cells of a fixed size, named by their integer
+// coordinates. The occupied cells in bricks of 8 x 8 x 8 (a brick made when a vote first falls in it),
 // found through a small open-addressing table of the bricks. Each vote is looked up ~30 times
 // by the neighbour tests below, and those of one cell lie in one brick or its neighbours:
 // a table of single cells (until 2026-12-01, 16-byte slots of key, votes and index) took a
@@ -435,45 +434,44 @@ std::vector<SphereFit> detect_spheres(const PreparedScan& s, const SphereOptions
     }
     const Cell* cells = grid.bricks[brick].data();
     for (int q = 0; q < kCells; ++q) {
-    const long votes = cells[q].votes;
-    if (votes == 0) continue;
-    const int x = q >> (2 * kShift), y = (q >> kShift) & kMask, z = q & kMask;
-    const long a = at[0] * BrickGrid::kSide + x, b = at[1] * BrickGrid::kSide + y, c = at[2] * BrickGrid::kSide + z;
-    const long k = key(a, b, c);
-    // The occupied cell (a + da, b + db, c + dc), |d| <= 1, or none.
-    const auto neighbour = [&](int da, int db, int dc) -> const Cell* {
-      const int nx = x + da, ny = y + db, nz = z + dc;
-      const Cell* in = around[static_cast<size_t>(9 * ((nx >> kShift) + 1) + 3 * ((ny >> kShift) + 1) + ((nz >> kShift) + 1))];
-      if (!in) return nullptr;
-      const Cell& n = in[((nx & kMask) << (2 * kShift)) | ((ny & kMask) << kShift) | (nz & kMask)];
-      return n.votes > 0 ? &n : nullptr;
-    };
-    // A local maximum of the votes (a tie goes to the smaller key), and its central cube's
-    // votes; their sum only for a maximum.
-    bool is_max = true;
-    long central = 0;
-    for (long da = -1; da <= 1 && is_max; ++da)
-      for (long db = -1; db <= 1 && is_max; ++db)
-        for (long dc = -1; dc <= 1; ++dc) {
-          const long nk = key(a + da, b + db, c + dc);
-          const Cell* n = neighbour(static_cast<int>(da), static_cast<int>(db), static_cast<int>(dc));
-          if (!n) continue;
-          if (n->votes > votes || (n->votes == votes && nk < k)) {
-            is_max = false;
-            break;
+      const long votes = cells[q].votes;
+      if (votes == 0) continue;
+      const int x = q >> (2 * kShift), y = (q >> kShift) & kMask, z = q & kMask;
+      const long a = at[0] * BrickGrid::kSide + x, b = at[1] * BrickGrid::kSide + y, c = at[2] * BrickGrid::kSide + z;
+      const long k = key(a, b, c);
+      // The occupied cell (a + da, b + db, c + dc), |d| <= 1, or none.
+      const auto neighbour = [&](int da, int db, int dc) -> const Cell* {
+        const int nx = x + da, ny = y + db, nz = z + dc;
+        const Cell* in = around[static_cast<size_t>(9 * ((nx >> kShift) + 1) + 3 * ((ny >> kShift) + 1) + ((nz >> kShift) + 1))];
+        if (!in) return nullptr;
+        const Cell& n = in[((nx & kMask) << (2 * kShift)) | ((ny & kMask) << kShift) | (nz & kMask)];
+        return n.votes > 0 ? &n : nullptr;
+      };
+      // A local maximum of the votes (a tie goes to the smaller key), and its central cube's
+      // votes; their sum only for a maximum.
+      bool is_max = true;
+      long central = 0;
+      for (long da = -1; da <= 1 && is_max; ++da)
+        for (long db = -1; db <= 1 && is_max; ++db)
+          for (long dc = -1; dc <= 1; ++dc) {
+            const Cell* n = neighbour(static_cast<int>(da), static_cast<int>(db), static_cast<int>(dc));
+            if (!n) continue;
+            if (n->votes > votes || (n->votes == votes && key(a + da, b + db, c + dc) < k)) {
+              is_max = false;
+              break;
+            }
+            central += n->votes;
           }
-          central += n->votes;
-        }
-    if (!is_max) continue;
-    if (central < o.min_votes) continue;
-    if (!concentrated(a, b, c, central, o.min_vote_concentration)) continue;
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();  // in the same order as before: da, db, dc
-    for (long da = -1; da <= 1; ++da)
-      for (long db = -1; db <= 1; ++db)
-        for (long dc = -1; dc <= 1; ++dc)
-          if (const Cell* n = neighbour(static_cast<int>(da), static_cast<int>(db), static_cast<int>(dc)))
-            sum += grid.sums[static_cast<size_t>(n->index)];
-    peaks.push_back({central, k, sum / static_cast<double>(central)});
+      if (!is_max) continue;
+      if (central < o.min_votes) continue;
+      if (!concentrated(a, b, c, central, o.min_vote_concentration)) continue;
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();  // in the same order as before: da, db, dc
+      for (long da = -1; da <= 1; ++da)
+        for (long db = -1; db <= 1; ++db)
+          for (long dc = -1; dc <= 1; ++dc)
+            if (const Cell* n = neighbour(static_cast<int>(da), static_cast<int>(db), static_cast<int>(dc)))
+              sum += grid.sums[static_cast<size_t>(n->index)];
+      peaks.push_back({central, k, sum / static_cast<double>(central)});
     }
   }
   std::sort(peaks.begin(), peaks.end(), [](const Peak& x, const Peak& y) {
