@@ -1,5 +1,6 @@
 #include "cli/huge_pages.hpp"
 
+#include <malloc.h>
 #include <unistd.h>
 
 #include <cstdlib>
@@ -10,15 +11,23 @@
 
 namespace handskin::cli {
 
-void rerun_with_huge_pages(const char* command, char** argv) {
-  if (!command) return;
-  // Not `synth`: CGAL's mesher there (synth hand) follows the order of its objects' addresses,
-  // and on huge pages glibc places them differently from run to run: hand.ply changed from run
-  // to run (with 4 kB pages the layout, and the mesh, repeat).
+namespace {
+
+// Not `synth`: CGAL's mesher there (synth hand) follows the order of its objects' addresses,
+// and on huge pages glibc places them differently from run to run: hand.ply changed from run
+// to run (with 4 kB pages the layout, and the mesh, repeat).
+bool heavy(const char* command) {
+  if (!command) return false;
   static const char* kHeavy[] = {"run", "register", "skin", "patches"};
-  bool heavy = false;
-  for (const char* c : kHeavy) heavy = heavy || std::strcmp(command, c) == 0;
-  if (!heavy) return;
+  for (const char* c : kHeavy)
+    if (std::strcmp(command, c) == 0) return true;
+  return false;
+}
+
+}  // namespace
+
+void rerun_with_huge_pages(const char* command, char** argv) {
+  if (!heavy(command)) return;
   if (const char* off = std::getenv("HANDSKIN_HUGE_PAGES"); off && std::strcmp(off, "0") == 0) return;
   // A preloaded library (valgrind's, heaptrack's, another allocator) is a tool watching this
   // process or replacing its allocator: not started again under it.
@@ -38,6 +47,14 @@ void rerun_with_huge_pages(const char* command, char** argv) {
   // environment as it was.
   if (tunables) setenv("GLIBC_TUNABLES", had.c_str(), 1);
   else unsetenv("GLIBC_TUNABLES");
+}
+
+void reuse_freed_memory(const char* command) {
+  if (!heavy(command)) return;
+  // Blocks of any size from the heap (glibc's default maps each block over 128 kB–32 MB on its
+  // own, and unmaps it when freed), and the heap grown and trimmed 16 MB at a time.
+  mallopt(M_MMAP_THRESHOLD, 256 << 20);
+  mallopt(M_TOP_PAD, 16 << 20);
 }
 
 bool huge_pages_asked() {

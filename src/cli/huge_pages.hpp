@@ -14,6 +14,15 @@ namespace handskin::cli {
 /// Returns when it did not run the program again (or could not: the run goes on as it is).
 void rerun_with_huge_pages(const char* command, char** argv);
 
+/// For `command` in run, register, skin and patches: glibc's allocator keeps the memory a
+/// block freed for the blocks allocated after it. Every block comes from the heap, however
+/// large (M_MMAP_THRESHOLD 256 MB: by default a block over 128 kB, and later over the largest
+/// freed so far up to 32 MB, is mapped on its own and unmapped when freed, so that each new
+/// one faults its pages in again), and the heap grows and shrinks 16 MB at a time (M_TOP_PAD).
+/// A run's page faults fall from ~26 000 to ~6 000 (docs/performance.md, 2026-12-01, fourth
+/// session); its peak memory stays as it was.
+void reuse_freed_memory(const char* command);
+
 /// Whether this process's allocator was asked for huge pages (GLIBC_TUNABLES holds
 /// glibc.malloc.hugetlb=1), for `--verbose`'s last line.
 bool huge_pages_asked();

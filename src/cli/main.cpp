@@ -77,6 +77,7 @@ int fail(const std::string& command, const std::string& message, int code) {
 
 int main(int argc, char** argv) {
   cli::rerun_with_huge_pages(command_word(argc, argv), argv);
+  cli::reuse_freed_memory(command_word(argc, argv));
   silence_pcl_console();  // our errors name the file; PCL's own lines would only repeat them
   CLI::App app{"handskin: range scans of a hand -> a rigged, animatable skin (after Yasumuro 2000).\n"
                "Millimetres and degrees everywhere; see docs/ for frames and formats."};

@@ -24,17 +24,27 @@ bool PrepareOptions::IsValid(std::string* error) const {
 
 namespace {
 
-// Least-squares plane through points (PCA), normal oriented upward.
-Eigen::Vector4d fit_plane(const std::vector<Eigen::Vector3d>& pts, double* rms) {
+// Least-squares plane (PCA) through the points `each` visits, normal oriented upward. `each(f)`
+// calls f(p) for every point, in the same order each time: the mean, then the covariance about
+// it, in two passes over the scan. (The table's points were copied out first; that copy,
+// ~190 000 points grown by doubling, twice a scan, was a fresh process's largest cost of
+// preparing a scan: 18–30 ms of its ~55, its pages new to the process. The sums are the same,
+// in the same order.)
+template <class Visit>
+Eigen::Vector4d fit_plane(const Visit& each, double* rms) {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const auto& p : pts) mean += p;
-  mean /= static_cast<double>(pts.size());
+  size_t count = 0;
+  each([&](const Eigen::Vector3d& p) {
+    mean += p;
+    ++count;
+  });
+  mean /= static_cast<double>(count);
   Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (const auto& p : pts) cov += (p - mean) * (p - mean).transpose();
+  each([&](const Eigen::Vector3d& p) { cov += (p - mean) * (p - mean).transpose(); });
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
   Eigen::Vector3d n = es.eigenvectors().col(0);
   if (n.z() < 0) n = -n;
-  *rms = std::sqrt(std::max(0.0, es.eigenvalues()(0)) / static_cast<double>(pts.size()));
+  *rms = std::sqrt(std::max(0.0, es.eigenvalues()(0)) / static_cast<double>(count));
   return {n.x(), n.y(), n.z(), -n.dot(mean)};
 }
 
@@ -59,6 +69,7 @@ PreparedScan prepare_scan(const RangeScan& scan, const PrepareOptions& o, const 
   // on every 4th return, then a least-squares refit on all returns near it. The table fills
   // most of the field, so it is the dominant plane; the fixed RANSAC seed makes it repeatable.
   pcl::PointCloud<pcl::PointXYZ>::Ptr sub(new pcl::PointCloud<pcl::PointXYZ>);
+  sub->reserve(s.returns / 4 + 1);
   size_t k = 0;
   for (int i = 0; i < s.rows; ++i)
     for (int j = 0; j < s.cols; ++j)
@@ -85,16 +96,16 @@ PreparedScan prepare_scan(const RangeScan& scan, const PrepareOptions& o, const 
   double d = coeff[3] / n.norm();
   n.normalize();
   d -= n.dot(centre.cast<double>());
-  std::vector<Eigen::Vector3d> near;
-  for (int round = 0; round < 2; ++round) {
-    near.clear();
+  const auto near_table = [&](const auto& f) {  // the returns within the inlier distance of (n, d)
     for (int i = 0; i < s.rows; ++i)
       for (int j = 0; j < s.cols; ++j)
         if (scan.valid(i, j)) {
           const Eigen::Vector3d p = scan.position(i, j);
-          if (std::abs(n.dot(p) + d) < o.table_inlier_mm) near.push_back(p);
+          if (std::abs(n.dot(p) + d) < o.table_inlier_mm) f(p);
         }
-    const Eigen::Vector4d pl = fit_plane(near, &s.table_rms_mm);
+  };
+  for (int round = 0; round < 2; ++round) {
+    const Eigen::Vector4d pl = fit_plane(near_table, &s.table_rms_mm);
     n = pl.head<3>();
     d = pl(3);
   }
