@@ -1,6 +1,7 @@
 #include "register/cloud_prep.hpp"
 
 #include <pcl/sample_consensus/sac_model_plane.h>
+#include <pcl/sample_consensus/impl/sac_model_plane.hpp>
 #include <pcl/search/kdtree.h>
 
 #include <Eigen/Eigenvalues>

@@ -3,6 +3,8 @@
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 #include <pcl/sample_consensus/sac_model_perpendicular_plane.h>
+#include <pcl/sample_consensus/impl/sac_model_plane.hpp>
+#include <pcl/sample_consensus/impl/sac_model_perpendicular_plane.hpp>
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>

@@ -10,9 +10,21 @@
 /// probability 0.99, the iteration cap, serial (threads -1), then optionally the inliers'
 /// least-squares refit and the inliers taken again at the refit model. The results are the same
 /// bits.
+///
+/// Nor libpcl_sample_consensus, libpcl_search and libpcl_kdtree: the register library is built
+/// with PCL_NO_PRECOMPILE, and the templates it uses (RANSAC, the plane, perpendicular plane
+/// and sphere models, PCL's k-d tree search) are made from PCL's own template sources
+/// (`pcl/…/impl/*.hpp`) here instead of taken from those libraries. Their ~38 000 symbol
+/// relocations, made at every handskin process's start (they are linked to bind at once), took
+/// ~12 ms of each start on this project's machine (docs/performance.md, 2026-12-01, fourth
+/// session).
 
+#ifndef PCL_NO_PRECOMPILE
+#error "the register library is built with PCL_NO_PRECOMPILE (CMakeLists.txt)"
+#endif
 #include <pcl/point_cloud.h>
 #include <pcl/sample_consensus/ransac.h>
+#include <pcl/sample_consensus/impl/ransac.hpp>
 #include <pcl/sample_consensus/sac_model.h>
 
 #include <Eigen/Core>
