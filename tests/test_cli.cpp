@@ -42,6 +42,18 @@ TEST(Cli, HelpListsSubcommands) {
   EXPECT_NE(test::run(kBin, &out), 0);
 }
 
+// The heavy libraries that only some commands need are modules loaded at their first use
+// (core/module.hpp): Open CASCADE (STEP), PCL's readers and VTK behind them (cloud files),
+// cpp-httplib with OpenSSL and brotli (the studio). A process's start loads none of them: the
+// loader's own list of what it maps at start (LD_TRACE_LOADED_OBJECTS, as ldd asks it).
+TEST(Cli, AProcessStartLoadsNoneOfTheModulesLibraries) {
+  std::string out;
+  ASSERT_EQ(test::run("LD_TRACE_LOADED_OBJECTS=1 " + kBin, &out), 0) << out;
+  ASSERT_NE(out.find("libstdc++"), std::string::npos) << out;  // the list is the loader's
+  for (const char* lib : {"libTKernel", "libpcl_io", "libvtk", "libcpp-httplib", "libssl", "libbrotli"})
+    EXPECT_EQ(out.find(lib), std::string::npos) << lib << " is loaded at start:\n" << out;
+}
+
 // Bad usage exits 2 with one line naming the flag or the command (issue 40's list), and
 // writes nothing; bad data exits 1.
 TEST(Cli, EveryUsageErrorExitsTwoInOneLineNamingItsFlag) {

@@ -226,6 +226,21 @@ TEST(Studio, ServerServesOnlyItsOwnFilesAndKeepsServing) {
   EXPECT_EQ(good->status, 200);
   EXPECT_EQ(c.Get("/api/dofs")->status, 200);
   EXPECT_EQ(c.Get("/api/system")->status, 200);
+  // What nothing serves is a 404 with one line of JSON, whichever the method.
+  const auto post_file = c.Post("/index.html", "{}", "application/json");
+  ASSERT_TRUE(post_file);
+  EXPECT_EQ(post_file->status, 404);
+  EXPECT_EQ(post_file->body, R"({"error":"HTTP 404"})");
+  const auto get_api = c.Get("/api/solve");
+  ASSERT_TRUE(get_api);
+  EXPECT_EQ(get_api->status, 404);
+  EXPECT_EQ(get_api->body, R"({"error":"no such file: /api/solve"})");
+  const auto del = c.Delete("/api/dofs");
+  ASSERT_TRUE(del);
+  EXPECT_EQ(del->status, 404);
+  EXPECT_EQ(del->body, R"({"error":"HTTP 404"})");
+  EXPECT_EQ(c.Get("/model.glb")->get_header_value("Content-Type"), "model/gltf-binary");
+  EXPECT_EQ(c.Get("/studio.js")->get_header_value("Content-Type"), "text/javascript; charset=utf-8");
   server.stop();
   t.join();
 }

@@ -1,16 +1,16 @@
 #include "studio/server.hpp"
 
-// Eigen's headers (through the API) before httplib's: a system header it pulls in defines a
-// macro that breaks Eigen's product kernels when it comes first.
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
 #include "core/json_util.hpp"
+#include "core/module.hpp"
 #include "studio/api.hpp"
-
-#include <httplib.h>
+#include "studio/http_module.hpp"
 
 #include <filesystem>
 #include <map>
+#include <memory>
+#include <new>
 
 namespace handskin {
 
@@ -34,13 +34,65 @@ bool StudioOptions::IsValid(std::string* error) const {
   return true;
 }
 
+namespace {
+
+// The transport, loaded once (core/module.hpp; studio/http_module.hpp says why it is a module).
+struct HttpModule {
+  decltype(&handskin_http_create) create = nullptr;
+  decltype(&handskin_http_bind) bind = nullptr;
+  decltype(&handskin_http_listen) listen = nullptr;
+  decltype(&handskin_http_stop) stop = nullptr;
+  decltype(&handskin_http_destroy) destroy = nullptr;
+  std::string failure;
+};
+
+const HttpModule& http_module() {
+  static const HttpModule m = [] {
+    HttpModule m;
+    const LoadedModule lib = open_module(HANDSKIN_HTTP_MODULE, "libhandskin_http.so");
+    m.failure = lib.failure;
+    if (!lib.handle) return m;
+    m.create = reinterpret_cast<decltype(m.create)>(lib.symbol("handskin_http_create"));
+    m.bind = reinterpret_cast<decltype(m.bind)>(lib.symbol("handskin_http_bind"));
+    m.listen = reinterpret_cast<decltype(m.listen)>(lib.symbol("handskin_http_listen"));
+    m.stop = reinterpret_cast<decltype(m.stop)>(lib.symbol("handskin_http_stop"));
+    m.destroy = reinterpret_cast<decltype(m.destroy)>(lib.symbol("handskin_http_destroy"));
+    if (!m.create || !m.bind || !m.listen || !m.stop || !m.destroy)
+      m.failure = "libhandskin_http.so lacks its entry points";
+    return m;
+  }();
+  return m;
+}
+
+HttpReply reply_of(const ApiResponse& r) { return {r.status, r.body, r.content_type}; }
+
+}  // namespace
+
 struct StudioServer::Impl {
   StudioOptions options;
   StudioModel model;
   std::string glb;
   std::map<std::string, std::pair<std::string, std::string>> files;  // "/name" → (mime, bytes)
-  httplib::Server server;
+  HttpHandlers handlers;
+  const HttpModule* http = nullptr;
+  void* server = nullptr;
   Impl(const StudioOptions& o, RiggedSkin skin) : options(o), model(std::move(skin)) {}
+  ~Impl() {
+    if (server) http->destroy(server);
+  }
+  HttpReply answer(const std::string& method, const std::string& path, const std::string& body) const {
+    if (method == "POST") {
+      if (path == "/api/solve") return reply_of(model.solve(body));
+      if (path == "/api/animate") return reply_of(model.animate(body));
+      return {404, "", "application/json"};  // the transport's "HTTP 404"
+    }
+    if (path == "/api/dofs") return reply_of(model.dofs());
+    if (path == "/api/system") return reply_of(model.system());
+    if (path == "/model.glb") return {200, glb, "model/gltf-binary"};
+    const auto it = files.find(path);
+    if (it == files.end()) return {404, Json{{"error", "no such file: " + path}}.dump(), "application/json"};
+    return {200, it->second.second, it->second.first};
+  }
 };
 
 namespace {
@@ -52,6 +104,7 @@ RiggedSkin checked_model(const StudioOptions& o) {
 }  // namespace
 
 StudioServer::StudioServer(const StudioOptions& o) : impl_(new Impl(o, checked_model(o))) {
+  std::unique_ptr<Impl> owned(impl_);
   Impl& I = *impl_;
   I.glb = read_file(o.model);
   if (!fs::is_directory(o.web_dir) || !fs::exists(fs::path(o.web_dir) / "index.html"))
@@ -61,63 +114,39 @@ StudioServer::StudioServer(const StudioOptions& o) : impl_(new Impl(o, checked_m
       I.files["/" + e.path().filename().string()] = {mime_of(e.path().filename().string()), read_file(e.path().string())};
   I.files["/"] = I.files["/index.html"];
 
-  auto& s = I.server;
-  s.set_payload_max_length(kMaxBodyBytes);
-  s.set_tcp_nodelay(true);  // small replies at once (Nagle + delayed ACK added ~40 ms a solve)
-  const auto send = [](httplib::Response& res, const ApiResponse& r) {
-    res.status = r.status;
-    res.set_content(r.body, r.content_type.c_str());
+  I.http = &http_module();
+  if (!I.http->failure.empty())
+    throw InputError("studio", "the studio needs handskin's HTTP module (libhandskin_http.so, Debian's libcpp-httplib0.11), "
+                               "which could not be loaded: " + I.http->failure);
+  I.handlers.request = [&I](const std::string& method, const std::string& path, const std::string& body) {
+    return I.answer(method, path, body);
   };
-  s.Get("/api/dofs", [&I, send](const httplib::Request&, httplib::Response& res) { send(res, I.model.dofs()); });
-  s.Get("/api/system", [&I, send](const httplib::Request&, httplib::Response& res) { send(res, I.model.system()); });
-  s.Post("/api/solve", [&I, send](const httplib::Request& req, httplib::Response& res) { send(res, I.model.solve(req.body)); });
-  s.Post("/api/animate", [&I, send](const httplib::Request& req, httplib::Response& res) { send(res, I.model.animate(req.body)); });
-  s.Get("/model.glb", [&I](const httplib::Request&, httplib::Response& res) { res.set_content(I.glb, "model/gltf-binary"); });
-  s.Get(".*", [&I](const httplib::Request& req, httplib::Response& res) {
-    const auto it = I.files.find(req.path);
-    if (it == I.files.end()) {
-      res.status = 404;
-      res.set_content(Json{{"error", "no such file: " + req.path}}.dump(), "application/json");
-      return;
-    }
-    res.set_content(it->second.second, it->second.first.c_str());
-  });
-  // Anything else the library refuses (a body over the limit, a bad request line) gets the
+  // Anything else the transport refuses (a body over the limit, a bad request line) gets the
   // same one-line JSON; an exception in a handler is a 500, never a crash.
-  s.set_error_handler([](const httplib::Request&, httplib::Response& res) {
-    if (!res.body.empty()) return;
-    const std::string what = res.status == 413 ? "the request body is over " + std::to_string(kMaxBodyBytes) + " bytes"
-                                               : "HTTP " + std::to_string(res.status);
-    res.set_content(Json{{"error", what}}.dump(), "application/json");
-  });
-  s.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr ep) {
-    std::string what = "internal error";
-    try {
-      std::rethrow_exception(ep);
-    } catch (const std::exception& e) {
-      what = e.what();
-    } catch (...) {
-    }
-    res.status = 500;
-    res.set_content(Json{{"error", what}}.dump(), "application/json");
-  });
+  I.handlers.error = [](int status) {
+    const std::string what = status == 413 ? "the request body is over " + std::to_string(kMaxBodyBytes) + " bytes"
+                                           : "HTTP " + std::to_string(status);
+    return Json{{"error", what}}.dump();
+  };
+  I.handlers.internal_error = [](const std::string& what) { return Json{{"error", what}}.dump(); };
+  I.server = I.http->create(&I.handlers, kMaxBodyBytes);
+  if (!I.server) throw std::bad_alloc();
+  owned.release();
 }
 
 StudioServer::~StudioServer() { delete impl_; }
 
 void StudioServer::run(const std::function<void(int)>& on_listening) {
   Impl& I = *impl_;
-  int port = I.options.port;
-  if (port == 0) {
-    port = I.server.bind_to_any_port(I.options.address);
-    if (port < 0) throw InputError("--address", "cannot listen on " + I.options.address);
-  } else if (!I.server.bind_to_port(I.options.address, port)) {
-    throw InputError("--port", "cannot listen on " + I.options.address + ":" + std::to_string(port) + " (in use?)");
+  const int port = I.http->bind(I.server, I.options.address.c_str(), I.options.port);
+  if (port < 0) {
+    if (I.options.port == 0) throw InputError("--address", "cannot listen on " + I.options.address);
+    throw InputError("--port", "cannot listen on " + I.options.address + ":" + std::to_string(I.options.port) + " (in use?)");
   }
   on_listening(port);
-  I.server.listen_after_bind();
+  I.http->listen(I.server);
 }
 
-void StudioServer::stop() { impl_->server.stop(); }
+void StudioServer::stop() { impl_->http->stop(impl_->server); }
 
 }  // namespace handskin

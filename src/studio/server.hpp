@@ -1,9 +1,10 @@
 #pragma once
-/// `handskin studio`: a local web server (cpp-httplib, Debian's libcpp-httplib-dev) for the
-/// hand studio (docs/studio.md). It serves the model (`/model.glb`), the JSON API
-/// (studio/api.hpp) and the page's files, which are read once at start-up from `web_dir` into
-/// memory and served by exact name only: a request names a file of that list or gets 404, so
-/// no path (`..`, percent-encoded or not) can reach anything else.
+/// `handskin studio`: a local web server for the hand studio (docs/studio.md), its transport
+/// cpp-httplib (Debian's libcpp-httplib-dev) in the module libhandskin_http.so
+/// (studio/http_module.hpp). It serves the model (`/model.glb`), the JSON API (studio/api.hpp)
+/// and the page's files, which are read once at start-up from `web_dir` into memory and served
+/// by exact name only: a request names a file of that list or gets 404, so no path (`..`,
+/// percent-encoded or not) can reach anything else.
 #include <functional>
 #include <string>
 
