@@ -13,6 +13,13 @@ struct LoadedModule {
   std::string failure;
   /// An entry point by name (nullptr when the module lacks it or is not loaded).
   void* symbol(const char* name) const;
+  /// Sets `fn` to the entry point `name`; when the module is loaded but lacks it, `failure`
+  /// names it (so a loader binds its entries in a row, then looks at `failure` once).
+  template <class Fn>
+  void entry(Fn*& fn, const char* name) {
+    fn = reinterpret_cast<Fn*>(symbol(name));
+    if (handle && !fn) failure += (failure.empty() ? "" : "; ") + std::string("it lacks the entry point ") + name;
+  }
 };
 
 /// Opens a module: where the build put it (`built_path`), else `file_name` beside the running

@@ -25,12 +25,10 @@ struct StepModule {
 const StepModule& step_module() {
   static const StepModule m = [] {
     StepModule m;
-    const LoadedModule lib = open_module(HANDSKIN_STEP_MODULE, "libhandskin_step.so");
+    LoadedModule lib = open_module(HANDSKIN_STEP_MODULE, "libhandskin_step.so");
+    lib.entry(m.write, "handskin_step_write");
+    lib.entry(m.read, "handskin_step_read");
     m.failure = lib.failure;
-    if (!lib.handle) return m;
-    m.write = reinterpret_cast<decltype(m.write)>(lib.symbol("handskin_step_write"));
-    m.read = reinterpret_cast<decltype(m.read)>(lib.symbol("handskin_step_read"));
-    if (!m.write || !m.read) m.failure = "libhandskin_step.so lacks its entry points";
     return m;
   }();
   return m;

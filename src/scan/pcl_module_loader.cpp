@@ -12,16 +12,13 @@ struct Loaded {
 const Loaded& loaded() {
   static const Loaded m = [] {
     Loaded m;
-    const LoadedModule lib = open_module(HANDSKIN_PCL_MODULE, "libhandskin_pcl.so");
-    m.failure = lib.failure;
-    if (!lib.handle) return m;
+    LoadedModule lib = open_module(HANDSKIN_PCL_MODULE, "libhandskin_pcl.so");
     PclModule& e = m.entry;
-    e.read = reinterpret_cast<decltype(e.read)>(lib.symbol("handskin_pcl_read"));
-    e.poisson = reinterpret_cast<decltype(e.poisson)>(lib.symbol("handskin_pcl_poisson"));
-    e.voxel_grid_xyz = reinterpret_cast<decltype(e.voxel_grid_xyz)>(lib.symbol("handskin_pcl_voxel_grid_xyz"));
-    e.voxel_grid_normals = reinterpret_cast<decltype(e.voxel_grid_normals)>(lib.symbol("handskin_pcl_voxel_grid_normals"));
-    if (!e.read || !e.poisson || !e.voxel_grid_xyz || !e.voxel_grid_normals)
-      m.failure = "libhandskin_pcl.so lacks its entry points";
+    lib.entry(e.read, "handskin_pcl_read");
+    lib.entry(e.poisson, "handskin_pcl_poisson");
+    lib.entry(e.voxel_grid_xyz, "handskin_pcl_voxel_grid_xyz");
+    lib.entry(e.voxel_grid_normals, "handskin_pcl_voxel_grid_normals");
+    m.failure = lib.failure;
     return m;
   }();
   return m;

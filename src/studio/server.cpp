@@ -49,16 +49,13 @@ struct HttpModule {
 const HttpModule& http_module() {
   static const HttpModule m = [] {
     HttpModule m;
-    const LoadedModule lib = open_module(HANDSKIN_HTTP_MODULE, "libhandskin_http.so");
+    LoadedModule lib = open_module(HANDSKIN_HTTP_MODULE, "libhandskin_http.so");
+    lib.entry(m.create, "handskin_http_create");
+    lib.entry(m.bind, "handskin_http_bind");
+    lib.entry(m.listen, "handskin_http_listen");
+    lib.entry(m.stop, "handskin_http_stop");
+    lib.entry(m.destroy, "handskin_http_destroy");
     m.failure = lib.failure;
-    if (!lib.handle) return m;
-    m.create = reinterpret_cast<decltype(m.create)>(lib.symbol("handskin_http_create"));
-    m.bind = reinterpret_cast<decltype(m.bind)>(lib.symbol("handskin_http_bind"));
-    m.listen = reinterpret_cast<decltype(m.listen)>(lib.symbol("handskin_http_listen"));
-    m.stop = reinterpret_cast<decltype(m.stop)>(lib.symbol("handskin_http_stop"));
-    m.destroy = reinterpret_cast<decltype(m.destroy)>(lib.symbol("handskin_http_destroy"));
-    if (!m.create || !m.bind || !m.listen || !m.stop || !m.destroy)
-      m.failure = "libhandskin_http.so lacks its entry points";
     return m;
   }();
   return m;
