@@ -13,7 +13,10 @@ LoadedModule open_module(const std::string& built_path, const std::string& file_
   std::vector<std::string> places = {built_path};
   std::error_code ec;
   const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
-  if (!ec && (exe.parent_path() / file_name).string() != built_path) places.push_back((exe.parent_path() / file_name).string());
+  if (!ec) {
+    const std::string beside = (exe.parent_path() / file_name).string();
+    if (beside != built_path) places.push_back(beside);
+  }
   LoadedModule m;
   for (const std::string& p : places) {
     if ((m.handle = dlopen(p.c_str(), RTLD_NOW | RTLD_LOCAL))) {

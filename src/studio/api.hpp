@@ -28,17 +28,16 @@
 #include "posture/solver.hpp"
 #include "rigging/animation.hpp"
 #include "rigging/gltf.hpp"
+#include "studio/http_module.hpp"
 
 namespace handskin {
 
 constexpr size_t kMaxBodyBytes = 64 * 1024;
 constexpr int kMaxDepth = 8;
 
-struct ApiResponse {
-  int status = 200;
-  std::string body;  ///< JSON, unless content_type says otherwise
-  std::string content_type = "application/json";
-};
+/// A reply: status, body (JSON, unless content_type says otherwise), content type — the HTTP
+/// transport's own reply (studio/http_module.hpp), so the server passes it on as it is.
+using ApiResponse = HttpReply;
 
 constexpr int kMaxAnimationKeys = 500;
 constexpr int kMaxAnimationFrames = 3600;

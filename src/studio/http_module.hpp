@@ -14,7 +14,7 @@ namespace handskin {
 
 struct HttpReply {
   int status = 200;
-  std::string body;
+  std::string body;  ///< JSON, unless content_type says otherwise
   std::string content_type = "application/json";
 };
 

@@ -61,8 +61,6 @@ const HttpModule& http_module() {
   return m;
 }
 
-HttpReply reply_of(const ApiResponse& r) { return {r.status, r.body, r.content_type}; }
-
 }  // namespace
 
 struct StudioServer::Impl {
@@ -79,12 +77,12 @@ struct StudioServer::Impl {
   }
   HttpReply answer(const std::string& method, const std::string& path, const std::string& body) const {
     if (method == "POST") {
-      if (path == "/api/solve") return reply_of(model.solve(body));
-      if (path == "/api/animate") return reply_of(model.animate(body));
+      if (path == "/api/solve") return model.solve(body);
+      if (path == "/api/animate") return model.animate(body);
       return {404, "", "application/json"};  // the transport's "HTTP 404"
     }
-    if (path == "/api/dofs") return reply_of(model.dofs());
-    if (path == "/api/system") return reply_of(model.system());
+    if (path == "/api/dofs") return model.dofs();
+    if (path == "/api/system") return model.system();
     if (path == "/model.glb") return {200, glb, "model/gltf-binary"};
     const auto it = files.find(path);
     if (it == files.end()) return {404, Json{{"error", "no such file: " + path}}.dump(), "application/json"};
