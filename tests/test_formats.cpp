@@ -2,7 +2,9 @@
 #include <gtest/gtest.h>
 #include <pcl/io/ply_io.h>
 
+#include <array>
 #include <cmath>
+#include <random>
 #include <filesystem>
 #include <limits>
 #include <set>
@@ -13,6 +15,7 @@
 #include "core/png_io.hpp"
 #include "core/rig.hpp"
 #include "mesh/mesh.hpp"
+#include "mesh/point_grid.hpp"
 #include "pipeline/options.hpp"
 #include "pipeline/stage_options.hpp"
 #include "register/registration.hpp"
@@ -414,4 +417,60 @@ TEST(Formats, APngHeaderOfAnEmptyOrHugeImageIsNamed) {
   const std::string huge = test::make_png(20000, 1, 16, 0, std::vector<std::uint8_t>(40000, 0));
   EXPECT_NE(test::input_error_of([&] { decode_gray16_png(huge, "h.png", 16384); }).find("20000 x 1 pixels, larger than 16384"),
             std::string::npos);
+}
+
+// The hash grid's answers are a brute-force search's: the nearest point within a radius (ties:
+// the lower index), whether any lies within it, and every point within it — in the order the
+// grid reports them (cells shell by shell, each cell's points by ascending index), which the
+// callers' sums and first-found choices depend on. Clouds with clusters, duplicates, points on
+// cell boundaries, negative coordinates, and more cells than the table first has room for.
+TEST(PointGrid, AnswersAsABruteForceSearch) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-40, 40), small(-0.3, 0.3);
+  for (int trial = 0; trial < 4; ++trial) {
+    std::vector<Eigen::Vector3d> pts;
+    const int n = trial == 0 ? 0 : trial == 1 ? 5 : 3000 * trial;
+    for (int k = 0; k < n; ++k) {
+      if (k % 7 == 3 && !pts.empty()) pts.push_back(pts[static_cast<size_t>(k) / 2]);  // a duplicate: a tie
+      else if (k % 5 == 0) pts.push_back(Eigen::Vector3d(std::round(u(rng)), std::round(u(rng)), 2.0));  // on cell walls
+      else if (k % 3 == 0) pts.push_back(Eigen::Vector3d(10 + small(rng), -10 + small(rng), small(rng)));  // a cluster
+      else pts.push_back(Eigen::Vector3d(u(rng), u(rng), u(rng)));
+    }
+    const double cell = trial == 3 ? 0.5 : 1.5;
+    const PointGrid grid(pts, cell);
+    for (int q = 0; q < 400; ++q) {
+      const Eigen::Vector3d x = q % 4 == 0 && !pts.empty() ? pts[static_cast<size_t>(q) % pts.size()]
+                                : q % 4 == 1 ? Eigen::Vector3d(10 + small(rng), -10 + small(rng), small(rng))
+                                             : Eigen::Vector3d(u(rng), u(rng), u(rng));
+      const double r = q % 3 == 0 ? 0.7 : q % 3 == 1 ? 3.0 : 9.0;
+      int best = -1;
+      double bd2 = r * r;
+      std::set<int> inside;
+      for (size_t k = 0; k < pts.size(); ++k) {
+        const double d2 = (pts[k] - x).squaredNorm();
+        if (d2 < bd2) bd2 = d2, best = static_cast<int>(k);  // strict: the lower index keeps a tie
+        if (d2 <= r * r) inside.insert(static_cast<int>(k));
+      }
+      ASSERT_EQ(grid.nearest(x, r), best) << "trial " << trial << " query " << q;
+      bool any = false;
+      for (size_t k = 0; k < pts.size(); ++k) any = any || (pts[k] - x).squaredNorm() < r * r;
+      ASSERT_EQ(grid.any_within(x, r), any);
+      std::vector<int> got;
+      grid.within(x, r, [&](int k) { got.push_back(k); });
+      ASSERT_EQ(std::set<int>(got.begin(), got.end()), inside);
+      ASSERT_EQ(got.size(), inside.size()) << "a point reported twice";
+      // The order: by cell shell, then by cell (x, y, z ascending within the shell), then by index.
+      const auto cell_of = [&](int k) {
+        return Eigen::Vector3i(static_cast<int>(std::floor(pts[k].x() / cell)), static_cast<int>(std::floor(pts[k].y() / cell)),
+                               static_cast<int>(std::floor(pts[k].z() / cell)));
+      };
+      const Eigen::Vector3i c(static_cast<int>(std::floor(x.x() / cell)), static_cast<int>(std::floor(x.y() / cell)),
+                              static_cast<int>(std::floor(x.z() / cell)));
+      const auto rank = [&](int k) {
+        const Eigen::Vector3i d = cell_of(k) - c;
+        return std::array<int, 5>{std::max({std::abs(d.x()), std::abs(d.y()), std::abs(d.z())}), d.x(), d.y(), d.z(), k};
+      };
+      for (size_t i = 1; i < got.size(); ++i) ASSERT_LT(rank(got[i - 1]), rank(got[i])) << "trial " << trial << " query " << q;
+    }
+  }
 }
