@@ -1,4 +1,6 @@
 #pragma once
+#include <string>
+
 /// The allocator's pages (docs/performance.md, "page faults on huge pages"): the pipeline commands ask glibc
 /// to back the memory they allocate with transparent huge pages.
 namespace handskin::cli {
@@ -11,7 +13,10 @@ namespace handskin::cli {
 /// 4 kB. Only for `command` in run, register, skin and patches (the others allocate too little
 /// to gain the second start, ~0.04 s, or, `synth`, would not repeat their bytes), and not when
 /// HANDSKIN_HUGE_PAGES is "0" or a library is preloaded (LD_PRELOAD: valgrind, heaptrack…).
-/// Returns when it did not run the program again (or could not: the run goes on as it is).
+/// Nor where a 4 kB page's first touch is cheap (its median over 64 fresh pages under 6 µs:
+/// there the huge pages' own cost outweighs the faults they spare; docs/performance.md,
+/// 2026-12-02); HANDSKIN_HUGE_PAGES=1 skips that probe. Returns when it did not run the program
+/// again (or could not: the run goes on as it is).
 void rerun_with_huge_pages(const char* command, char** argv);
 
 /// For `command` in run, register, skin and patches: glibc's allocator keeps the memory a
@@ -23,8 +28,9 @@ void rerun_with_huge_pages(const char* command, char** argv);
 /// session); its peak memory stays as it was.
 void reuse_freed_memory(const char* command);
 
-/// Whether this process's allocator was asked for huge pages (GLIBC_TUNABLES holds
-/// glibc.malloc.hugetlb=1), for `--verbose`'s last line.
-bool huge_pages_asked();
+/// For `--verbose`'s last line: " (allocator on transparent huge pages)" when this process's
+/// allocator was asked for them (GLIBC_TUNABLES holds glibc.malloc.hugetlb=1), the probe's
+/// figure when it kept the 4 kB pages, else nothing.
+std::string pages_note();
 
 }  // namespace handskin::cli

@@ -147,6 +147,6 @@ int main(int argc, char** argv) {
     cli::log_line("info", command, "done in " + std::to_string(std::chrono::duration<double>(
                                                       std::chrono::steady_clock::now() - log.t0).count()).substr(0, 5) +
                                        " s, peak memory " + std::to_string(static_cast<int>(cli::peak_memory_mb())) + " MB" +
-                                       (cli::huge_pages_asked() ? " (allocator on transparent huge pages)" : ""));
+                                       cli::pages_note());
   return 0;
 }
