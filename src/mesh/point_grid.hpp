@@ -111,7 +111,7 @@ class PointGrid {
       for (int dy = -ring; dy <= ring; ++dy) {
         // On the ring's shell: every z when x or y is on it, else only its two ends.
         const bool shell = std::abs(dx) == ring || std::abs(dy) == ring;
-        for (int dz = -ring; dz <= ring; dz += shell || ring == 0 ? 1 : 2 * ring) {
+        for (int dz = -ring; dz <= ring; dz += shell ? 1 : 2 * ring) {
           const size_t s = find(pack(c + Eigen::Vector3i(dx, dy, dz)));
           if (keys_[s] == kEmpty) continue;
           const std::uint32_t cell = cell_of_slot_[s];
@@ -135,12 +135,10 @@ class PointGrid {
     std::vector<std::uint32_t> cells = std::move(cell_of_slot_);
     keys_.assign(2 * keys.size(), kEmpty);
     cell_of_slot_.assign(keys_.size(), 0);
-    bits_ = 0;
-    for (size_t s = keys_.size(); s > 1; s >>= 1) ++bits_;
+    ++bits_;
     for (size_t s = 0; s < keys.size(); ++s)
       if (keys[s] != kEmpty) {
-        size_t t = slot_of(keys[s]);
-        while (keys_[t] != kEmpty) t = (t + 1) & (keys_.size() - 1);
+        const size_t t = find(keys[s]);  // keys are distinct: the empty slot it goes to
         keys_[t] = keys[s], cell_of_slot_[t] = cells[s];
       }
   }
