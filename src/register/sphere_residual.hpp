@@ -38,41 +38,6 @@ T sphere_depth_error(const T* p, const T* c, const T& r, double floor) {
   return p[2] - c[2] - h;
 }
 
-/// Many one-residual cost functions on the same parameter blocks, as one residual block of
-/// Ceres: row k of the residuals and of each Jacobian is part k's. A cap's fit has 40–400
-/// samples; as a residual block each, Ceres's per-block work (adding them to the problem, each
-/// block's evaluation checks, the evaluator's preparation, the Jacobian writer's copy) cost
-/// more than the samples' own residuals and derivatives. Stacked, the problem, its solver and
-/// its Jacobian are the same, evaluated in one call. The parts are borrowed (`owned` keeps
-/// those made for this fit alone).
-class StackedCost final : public ceres::CostFunction {
- public:
-  explicit StackedCost(std::vector<const ceres::CostFunction*> parts,
-                       std::vector<std::unique_ptr<ceres::CostFunction>> owned = {})
-      : parts_(std::move(parts)), owned_(std::move(owned)) {
-    HS_CHECK(!parts_.empty() && parts_.front()->parameter_block_sizes().size() <= 4, "a stacked cost needs parts of at most 4 blocks");
-    for (const ceres::CostFunction* f : parts_)
-      HS_CHECK(f->num_residuals() == 1 && f->parameter_block_sizes() == parts_.front()->parameter_block_sizes(),
-               "a stacked cost's parts have one residual each, on the same blocks");
-    set_num_residuals(static_cast<int>(parts_.size()));
-    *mutable_parameter_block_sizes() = parts_.front()->parameter_block_sizes();
-  }
-  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
-    const std::vector<int32_t>& sizes = parameter_block_sizes();
-    std::array<double*, 4> row{};
-    for (size_t k = 0; k < parts_.size(); ++k) {
-      if (jacobians)
-        for (size_t b = 0; b < sizes.size(); ++b) row[b] = jacobians[b] ? jacobians[b] + k * static_cast<size_t>(sizes[b]) : nullptr;
-      if (!parts_[k]->Evaluate(parameters, residuals + k, jacobians ? row.data() : nullptr)) return false;
-    }
-    return true;
-  }
-
- private:
-  std::vector<const ceres::CostFunction*> parts_;
-  std::vector<std::unique_ptr<ceres::CostFunction>> owned_;
-};
-
 /// A sample on a sphere of known radius about a centre (the parameter block).
 struct SphereResidual {
   SphereResidual(const Eigen::Vector3d& p, double radius, double floor) : p_(p), r_(radius), floor_(floor) {}
@@ -103,9 +68,13 @@ struct SphereDistanceResidual {
     res[0] = T(w_) * (ceres::sqrt(dx * dx + dy * dy + dz * dz) - T(r_));
     return true;
   }
+  /// The sample's weight: 1 / its sphere's slope seen from `start`.
+  static double weight(const Eigen::Vector3d& p, const Eigen::Vector3d& start, double radius, double floor) {
+    return 1.0 / std::max(floor, std::abs(p.z() - start.z()) / radius);
+  }
   static ceres::CostFunction* Create(const Eigen::Vector3d& p, const Eigen::Vector3d& start, double radius, double floor) {
-    const double w = 1.0 / std::max(floor, std::abs(p.z() - start.z()) / radius);
-    return new ceres::AutoDiffCostFunction<SphereDistanceResidual, 1, 3>(new SphereDistanceResidual(p, radius, w));
+    return new ceres::AutoDiffCostFunction<SphereDistanceResidual, 1, 3>(
+        new SphereDistanceResidual(p, radius, weight(p, start, radius, floor)));
   }
 
  private:

@@ -11,11 +11,13 @@
 #include <cstdint>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <memory>
 #include <unordered_map>
 
 #include "core/errors.hpp"
 #include "register/sac.hpp"
+#include "register/small_fit.hpp"
 #include "register/sphere_residual.hpp"
 
 namespace handskin {
@@ -44,53 +46,41 @@ ceres::Solver::Options small_solver() {
   return o;
 }
 
-// A sample's depth-error residual (SphereResidual: its point, the radius and the floor only),
-// made once per sample and kept for every fine round and both starts of one cap's search: a
-// cap's fits add ~340 000 residual blocks a run, whose cost functions were ~1 million of the
-// run's ~6 million allocations.
-struct FineResiduals {
-  std::vector<std::unique_ptr<ceres::CostFunction>> at;  ///< per sample near the cap (its place in `near`)
-  ceres::CostFunction* get(const PreparedScan& s, int k, int place, double r, double floor) {
-    auto& f = at[static_cast<size_t>(place)];
-    if (!f) f.reset(SphereResidual::Create(s.points[k], r, floor));
-    return f.get();
-  }
-};
-
-// Fixed-radius centre of the samples `idx` (at `places` in the cap's sample list), by their
-// depth errors (sphere_residual.hpp), or by their distances (`coarse`: while the cap is still
-// being found).
-Eigen::Vector3d fit_centre(const PreparedScan& s, const std::vector<int>& idx, const std::vector<int>& places,
-                           const Eigen::Vector3d& start, double r, double floor, bool coarse, FineResiduals* fine) {
+// Fixed-radius centre of the samples `idx`, by their depth errors (sphere_residual.hpp), or by
+// their distances (`coarse`: while the cap is still being found); Levenberg–Marquardt as
+// Ceres's (small_fit.hpp, which says why not Ceres itself).
+Eigen::Vector3d fit_centre(const PreparedScan& s, const std::vector<int>& idx, const Eigen::Vector3d& start, double r, double floor,
+                           bool coarse) {
   double c[3] = {start.x(), start.y(), start.z()};
-  std::vector<const ceres::CostFunction*> parts;
-  std::vector<std::unique_ptr<ceres::CostFunction>> owned;  // the coarse ones (`fine` keeps its own)
-  for (size_t q = 0; q < idx.size(); ++q) {
-    const int k = idx[q];
-    if (coarse) owned.emplace_back(SphereDistanceResidual::Create(s.points[k], start, r, floor));
-    parts.push_back(coarse ? owned.back().get() : fine->get(s, k, places[q], r, floor));
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const std::array<double, 3> lo{-kInf, -kInf, -kInf}, hi{kInf, kInf, kInf};
+  const int n = static_cast<int>(idx.size());
+  if (coarse) {
+    std::vector<SphereDistanceResidual> parts;
+    parts.reserve(idx.size());
+    for (int k : idx) parts.emplace_back(s.points[k], r, SphereDistanceResidual::weight(s.points[k], start, r, floor));
+    small_fit::minimise<3>(c, n, [&](int k, const auto* x, auto* res) { parts[static_cast<size_t>(k)](x, res); }, lo, hi);
+  } else {
+    std::vector<SphereResidual> parts;
+    parts.reserve(idx.size());
+    for (int k : idx) parts.emplace_back(s.points[k], r, floor);
+    small_fit::minimise<3>(c, n, [&](int k, const auto* x, auto* res) { parts[static_cast<size_t>(k)](x, res); }, lo, hi);
   }
-  ceres::Problem problem;
-  problem.AddResidualBlock(new StackedCost(std::move(parts), std::move(owned)), nullptr, c);
-  ceres::Solver::Summary summary;
-  ceres::Solve(small_solver(), &problem, &summary);
   return {c[0], c[1], c[2]};
 }
 
+// The centre and the radius both free (the radius within [0.1, 10] × r).
 double fit_free_radius(const PreparedScan& s, const std::vector<int>& idx, const Eigen::Vector3d& start, double r,
                        double floor) {
-  double c[3] = {start.x(), start.y(), start.z()};
-  double radius = r;
-  std::vector<const ceres::CostFunction*> parts;
-  std::vector<std::unique_ptr<ceres::CostFunction>> owned;
-  for (int k : idx) owned.emplace_back(FreeRadiusResidual::Create(s.points[k], floor)), parts.push_back(owned.back().get());
-  ceres::Problem problem;
-  problem.AddResidualBlock(new StackedCost(std::move(parts), std::move(owned)), nullptr, c, &radius);
-  problem.SetParameterLowerBound(&radius, 0, 0.1 * r);
-  problem.SetParameterUpperBound(&radius, 0, 10.0 * r);
-  ceres::Solver::Summary summary;
-  ceres::Solve(small_solver(), &problem, &summary);
-  return radius;
+  double x[4] = {start.x(), start.y(), start.z(), r};
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  std::vector<FreeRadiusResidual> parts;
+  parts.reserve(idx.size());
+  for (int k : idx) parts.emplace_back(s.points[k], floor);
+  small_fit::minimise<4>(x, static_cast<int>(idx.size()),
+                         [&](int k, const auto* y, auto* res) { parts[static_cast<size_t>(k)](y, y + 3, res); },
+                         {-kInf, -kInf, -kInf, 0.1 * r}, {kInf, kInf, kInf, 10.0 * r});
+  return x[3];
 }
 
 std::string fmt(const char* f, double a, double b = 0) {
@@ -145,11 +135,9 @@ std::optional<SphereFit> fit_sphere_near(const PreparedScan& s, const Eigen::Vec
   // elsewhere is not on the cap). The start that ends with more samples wins.
   Eigen::Vector3d c = guess;
   std::vector<int> in;
-  FineResiduals fine;
-  fine.at.resize(near.size());
   for (const Eigen::Vector3d& start : starts) {
     Eigen::Vector3d cs = start;
-    std::vector<int> ins, places;
+    std::vector<int> ins;
     // Coarse to fine: the first rounds accept samples as far off as the start may be.
     // The last rounds repeat at the fine gate until the sample set settles, so that two
     // starts near the same cap end on the same samples.
@@ -162,7 +150,6 @@ std::optional<SphereFit> fit_sphere_near(const PreparedScan& s, const Eigen::Vec
       if (g >= 5 && ins == previous) break;
       previous = ins;
       ins.clear();
-      places.clear();
       for (size_t q = 0; q < near.size(); ++q) {
         const int k = near[q];
         const Eigen::Vector3d d = s.points[k] - cs;
@@ -170,10 +157,9 @@ std::optional<SphereFit> fit_sphere_near(const PreparedScan& s, const Eigen::Vec
         if (std::abs(dist - r) > gate || (gate <= o.inlier_mm && d.head<2>().squaredNorm() > outline2)) continue;
         if (s.has_normal(k) && s.normals[k].dot(d / dist) < std::cos(o.normal_gate_deg * M_PI / 180.0)) continue;
         ins.push_back(k);
-        places.push_back(static_cast<int>(q));
       }
       if (static_cast<long>(ins.size()) < o.min_points) break;
-      cs = fit_centre(s, ins, places, cs, r, o.steep_floor, gate > o.inlier_mm, &fine);
+      cs = fit_centre(s, ins, cs, r, o.steep_floor, gate > o.inlier_mm);
     }
     if (ins.size() > in.size()) {
       in = ins;
