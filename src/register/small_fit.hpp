@@ -11,8 +11,8 @@
 /// functors evaluated on Ceres's Jets, the normal equations are N × N, and the steps and the
 /// stopping rules are Ceres's trust-region Levenberg–Marquardt's (its default options: Jacobi
 /// scaling, the step's damping from the trust radius, the function, gradient and parameter
-/// tolerances, 50 iterations), so the fits end where Ceres's did to ~1e-9 mm
-/// (test `SmallFit.EndsWhereCeresEnds`).
+/// tolerances, 50 iterations), so each iteration lands where Ceres's does, to 1e-12 mm
+/// (test `SmallFit.TakesCeressStepsAndEndsWhereCeresEnds`).
 #include <ceres/jet.h>
 
 #include <Eigen/Dense>

@@ -13,14 +13,9 @@
 
 #include <Eigen/Core>
 #include <algorithm>
-#include <array>
-#include <cstdint>
-#include <memory>
 #include <cmath>
 #include <utility>
 #include <vector>
-
-#include "core/errors.hpp"
 
 namespace handskin {
 

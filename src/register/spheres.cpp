@@ -37,15 +37,6 @@ bool SphereOptions::IsValid(std::string* error) const {
 
 namespace {
 
-ceres::Solver::Options small_solver() {
-  ceres::Solver::Options o;
-  o.linear_solver_type = ceres::DENSE_QR;
-  o.max_num_iterations = 50;
-  o.logging_type = ceres::SILENT;
-  o.num_threads = 1;
-  return o;
-}
-
 // Fixed-radius centre of the samples `idx`, by their depth errors (sphere_residual.hpp), or by
 // their distances (`coarse`: while the cap is still being found); Levenberg–Marquardt as
 // Ceres's (small_fit.hpp, which says why not Ceres itself).
@@ -54,17 +45,20 @@ Eigen::Vector3d fit_centre(const PreparedScan& s, const std::vector<int>& idx, c
   double c[3] = {start.x(), start.y(), start.z()};
   constexpr double kInf = std::numeric_limits<double>::infinity();
   const std::array<double, 3> lo{-kInf, -kInf, -kInf}, hi{kInf, kInf, kInf};
-  const int n = static_cast<int>(idx.size());
+  const auto solve = [&](const auto& parts) {  // parts[k]: sample k's residual functor
+    small_fit::minimise<3>(c, static_cast<int>(parts.size()), [&](int k, const auto* x, auto* res) { parts[static_cast<size_t>(k)](x, res); },
+                           lo, hi);
+  };
   if (coarse) {
     std::vector<SphereDistanceResidual> parts;
     parts.reserve(idx.size());
     for (int k : idx) parts.emplace_back(s.points[k], r, SphereDistanceResidual::weight(s.points[k], start, r, floor));
-    small_fit::minimise<3>(c, n, [&](int k, const auto* x, auto* res) { parts[static_cast<size_t>(k)](x, res); }, lo, hi);
+    solve(parts);
   } else {
     std::vector<SphereResidual> parts;
     parts.reserve(idx.size());
     for (int k : idx) parts.emplace_back(s.points[k], r, floor);
-    small_fit::minimise<3>(c, n, [&](int k, const auto* x, auto* res) { parts[static_cast<size_t>(k)](x, res); }, lo, hi);
+    solve(parts);
   }
   return {c[0], c[1], c[2]};
 }
@@ -247,8 +241,11 @@ double fit_shared_radius(const std::vector<SharedRadiusCap>& caps, double r, dou
   }
   problem.SetParameterLowerBound(&radius, 0, 0.5 * r);
   problem.SetParameterUpperBound(&radius, 0, 2.0 * r);
-  ceres::Solver::Options o = small_solver();
+  ceres::Solver::Options o;
   o.linear_solver_type = ceres::SPARSE_SCHUR;  // independent centres, one shared radius
+  o.max_num_iterations = 50;
+  o.logging_type = ceres::SILENT;
+  o.num_threads = 1;
   ceres::Solver::Summary summary;
   ceres::Solve(o, &problem, &summary);
   double var = 0, sigma = 0;
