@@ -260,7 +260,16 @@ TEST(Cli, RunOnTheFixtureWritesItsOutputs) {
   EXPECT_EQ(report["stages"][5]["name"], "texture");  // the fixture has its photos
   EXPECT_EQ(report["stages"][5]["size"], 1024);
   EXPECT_TRUE(fs::exists(dir + "/texture.png"));
-  EXPECT_EQ(report["stages"][6]["name"], "write");
+  EXPECT_EQ(report["stages"][6]["name"], "pictures");
+  EXPECT_GT(report["stages"][6]["patches_step_seconds"].get<double>(), 0.0);
+  EXPECT_EQ(report["stages"][7]["name"], "write");
+  {  // the stages account for the run: their seconds add up to its total, but the few steps between them
+    double sum = 0;
+    for (const auto& st : report["stages"]) sum += st["seconds"].get<double>();
+    const double total = report["total_seconds"].get<double>();
+    EXPECT_LE(sum, total * (1 + 1e-9));
+    EXPECT_GT(sum, 0.9 * total) << "stages " << sum << " s of a run of " << total << " s";
+  }
   EXPECT_EQ(report["outputs"]["report"], "report.json");  // relative to the report: the folder travels
   EXPECT_EQ(load_json_object(dir + "/slices.json")["format"], "handskin-slices/1");
   // Only what the run wrote is in the folder (and the manifest of it, listing each): no

@@ -249,7 +249,12 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   // the texture and the pictures; from a copy of the patches (the rigging adds their weights).
   std::future<StepFile> patches_step;
   if (R.patches)
-    patches_step = std::async(side_launch(), [patches = R.patches->patches.patches] { return patches_step_file(patches); });
+    patches_step = std::async(side_launch(), [patches = R.patches->patches.patches, &seconds = R.step_seconds] {
+      const StageTimer t;
+      StepFile f = patches_step_file(patches);
+      seconds = t.seconds();
+      return f;
+    });
 
   // --- rigging: the skin bound to the skeleton, with the posture model (docs/rigging.md) ---
   progress(std::string("rigging: ") + (in.options.rigging.smooth ? "bone-heat weights" : "rigid binding"));
@@ -278,6 +283,8 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
     progress(R.texture_note);
   }
   // --- the pictures and the glb: everything the writer only puts into files ---
+  progress("pictures: the skin, its postures and the patches; skin.glb");
+  const StageTimer t_pictures;
   // The patches' pictures on a thread of their own beside the skin's, the posed ones and the glb.
   std::future<PatchReportPictures> patch_pictures;
   if (R.patches)
@@ -301,6 +308,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
   R.glb.assign(glb.begin(), glb.end());
   if (R.patches) R.patches->pictures = patch_pictures.get(), R.patches->step = patches_step.get();
   R.merged_png = merged_png.valid() ? merged_png.get() : std::move(merged_picture);
+  R.pictures_seconds = t_pictures.seconds();
   R.seconds = total.seconds();
   return R;
 }
@@ -458,6 +466,14 @@ RunWritten write_run_outputs(OutputSet& out, const RunResult& r) {
                       {"faces", {{"palm_chart", t.palm_chart_faces}, {"back_chart", t.back_chart_faces}, {"unseen", t.unseen_faces}}}});
   } else {
     stages.push_back({{"name", "texture"}, {"seconds", 0.0}, {"skipped", r.texture_note}});
+  }
+  {
+    // What the writer only puts into files, made after the texture (the STEP file from the
+    // patch stage's end on a thread of its own: its seconds overlap the rigging, the texture
+    // and these).
+    Json pictures = {{"name", "pictures"}, {"seconds", r.pictures_seconds}};
+    if (r.patches) pictures["patches_step_seconds"] = r.step_seconds;
+    stages.push_back(std::move(pictures));
   }
   report["inputs"]["posture_model"] = in.posture_model;
   // Paths relative to the report (the folder travels with its inputs), and absolute.

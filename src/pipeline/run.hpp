@@ -80,6 +80,11 @@ struct RunResult {
   std::string merged_png, skin_png;  ///< merged.png and skin.png, rendered
   std::string glb;                   ///< skin.glb's bytes
   double rigging_seconds = 0;
+  /// The pictures (skin.png, the posed skins, the patches' pictures), skin.glb and the wait for
+  /// patches.step, after the texture: a stage of its own in report.json, so that the stages'
+  /// seconds add up to the run's. `step_seconds`: patches.step's own making (sewing, writing,
+  /// reading back), on a thread of its own from the end of the patch stage.
+  double pictures_seconds = 0, step_seconds = 0;
   double seconds = 0;  ///< all stages, before any output is written
 };
 
