@@ -1,5 +1,6 @@
 // Registration: table removal, marker spheres, matching, refinement and the whole stage
 // against synthetic scans whose true transform is known.
+#include <ceres/rotation.h>
 #include <gtest/gtest.h>
 #include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_cloud.h>
@@ -406,6 +407,74 @@ TEST(Refine, GatedIcpPullsAPerturbedFitIn) {
   const RefineResult g = refine_registration(s.b, s.a, s.skin_b, s.skin_a, s.markers, T0, s.radius, SphereOptions{}.steep_floor, strict);
   EXPECT_FALSE(g.accepted);
   EXPECT_NE(g.note.find("strayed"), std::string::npos) << g.note;
+}
+
+namespace {
+// A back sample's depth error in its own frame, the centre carried there by the pose's inverse
+// (refine.cpp's residual, written again here for the reference solve below).
+struct BackSampleOnSphere {
+  Eigen::Vector3d p;
+  double r, floor;
+  template <typename T>
+  bool operator()(const T* pose, const T* c, T* res) const {
+    const T inverse[3] = {-pose[0], -pose[1], -pose[2]};
+    const T shifted[3] = {c[0] - pose[3], c[1] - pose[4], c[2] - pose[5]};
+    T cb[3];
+    ceres::AngleAxisRotatePoint(inverse, shifted, cb);
+    const T q[3] = {T(p.x()), T(p.y()), T(p.z())};
+    res[0] = sphere_depth_error(q, cb, T(r), floor);
+    return true;
+  }
+};
+}  // namespace
+
+// The markers' joint centres with the pose held (marker_sphere_rms, whose centres the pose's
+// covariance and registration.json use) by small_fit are where Ceres's own solve of that
+// problem ends — each marker's centre against its palm samples and its back samples carried
+// through the pose, Ceres's DENSE_QR with the function tolerance 1e-12 that marker_sphere_rms
+// gave it — and so is the RMS; the back samples count (a pose 0.3 mm off moves the centres).
+TEST(Refine, MarkerCentresWithThePoseHeldAreCeressSolve) {
+  const SameSide s = same_side_pair();
+  ASSERT_GE(s.markers.size(), 8u);
+  const double floor = SphereOptions{}.steep_floor;
+  for (const double off_mm : {0.0, 0.3}) {
+    Eigen::Isometry3d T = s.b_to_a;
+    T.pretranslate(Eigen::Vector3d(off_mm, 0, 0));
+    std::vector<Eigen::Vector3d> centres;
+    const double rms = marker_sphere_rms(s.markers, T, s.radius, floor, &centres);
+    ASSERT_EQ(centres.size(), s.markers.size());
+    double pose[6];
+    const Eigen::AngleAxisd aa(T.linear());
+    for (int k = 0; k < 3; ++k) pose[k] = aa.angle() * aa.axis()(k), pose[3 + k] = T.translation()(k);
+    double ss = 0;
+    size_t n = 0;
+    for (size_t m = 0; m < s.markers.size(); ++m) {
+      const MarkerSamples& ms = s.markers[m];
+      Eigen::Vector3d start = Eigen::Vector3d::Zero();
+      for (const auto& p : ms.palm) start += p;
+      for (const auto& p : ms.back) start += T * p;
+      start /= static_cast<double>(ms.palm.size() + ms.back.size());
+      double c[3] = {start.x(), start.y(), start.z()};
+      ceres::Problem problem;
+      for (const auto& p : ms.palm) problem.AddResidualBlock(SphereResidual::Create(p, s.radius, floor), nullptr, c);
+      for (const auto& p : ms.back)
+        problem.AddResidualBlock(new ceres::AutoDiffCostFunction<BackSampleOnSphere, 1, 6, 3>(new BackSampleOnSphere{p, s.radius, floor}), nullptr, pose, c);
+      if (!ms.back.empty()) problem.SetParameterBlockConstant(pose);
+      ceres::Solver::Options o;
+      o.linear_solver_type = ceres::DENSE_QR;
+      o.logging_type = ceres::SILENT;
+      o.max_num_iterations = 50;
+      o.function_tolerance = 1e-12;
+      ceres::Solver::Summary summary;
+      ceres::Solve(o, &problem, &summary);
+      ss += 2.0 * summary.final_cost;
+      n += ms.palm.size() + ms.back.size();
+      EXPECT_GE(summary.iterations.size(), 2u);  // the solve moved
+      EXPECT_LT((centres[m] - Eigen::Vector3d(c[0], c[1], c[2])).norm(), 1e-10) << "marker " << m << ", pose off " << off_mm;
+    }
+    EXPECT_NEAR(rms, std::sqrt(ss / static_cast<double>(n)), 1e-12);
+    if (off_mm > 0) EXPECT_GT(rms, 0.1);  // the back samples moved with the pose: the caps no longer agree
+  }
 }
 
 TEST(Refine, UngatedIcpWouldCollapseTheHandAndIsRefused) {

@@ -8,9 +8,12 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <memory>
+#include <type_traits>
 
 #include "core/errors.hpp"
+#include "register/small_fit.hpp"
 #include "register/sphere_residual.hpp"
 
 namespace handskin {
@@ -123,19 +126,35 @@ double marker_sphere_rms(const std::vector<MarkerSamples>& markers, const Eigen:
     for (const auto& p : m.back) start += T * p;
     start /= static_cast<double>(m.palm.size() + m.back.size());
     double c[3] = {start.x(), start.y(), start.z()};
-    ceres::Problem problem;
-    for (const auto& p : m.palm) problem.AddResidualBlock(SphereResidual::Create(p, r, floor), nullptr, c);
-    for (const auto& p : m.back) problem.AddResidualBlock(BackOnSphere::Create(p, r, floor), nullptr, pose, c);
-    if (!m.back.empty()) problem.SetParameterBlockConstant(pose);
-    ceres::Solver::Options o;
-    o.linear_solver_type = ceres::DENSE_QR;
-    o.logging_type = ceres::SILENT;
-    o.max_num_iterations = 50;
-    o.function_tolerance = 1e-12;
-    ceres::Solver::Summary summary;
-    ceres::Solve(o, &problem, &summary);
-    ss += 2.0 * summary.final_cost;
-    n += m.palm.size() + m.back.size();
+    // The pose held: one centre's fit, by small_fit (Ceres's steps without a Problem per
+    // marker, as the markers' own sphere fits), to Ceres's function tolerance of before.
+    std::vector<SphereResidual> palm_parts;
+    std::vector<BackOnSphere> back_parts;
+    palm_parts.reserve(m.palm.size());
+    back_parts.reserve(m.back.size());
+    for (const auto& p : m.palm) palm_parts.emplace_back(p, r, floor);
+    for (const auto& p : m.back) back_parts.emplace_back(p, r, floor);
+    const int n_palm = static_cast<int>(m.palm.size());
+    const auto residual = [&](int k, const auto* x, auto* res) {
+      using J = std::remove_cv_t<std::remove_pointer_t<decltype(x)>>;  // double or a Jet
+      if (k < n_palm) {
+        palm_parts[static_cast<size_t>(k)](x, res);
+      } else {
+        const J held[6] = {J(pose[0]), J(pose[1]), J(pose[2]), J(pose[3]), J(pose[4]), J(pose[5])};
+        back_parts[static_cast<size_t>(k - n_palm)](held, x, res);
+      }
+    };
+    const int count = n_palm + static_cast<int>(m.back.size());
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    small_fit::Options so;
+    so.function_tolerance = 1e-12;
+    small_fit::minimise<3>(c, count, residual, {-kInf, -kInf, -kInf}, {kInf, kInf, kInf}, so);
+    for (int k = 0; k < count; ++k) {
+      double res;
+      residual(k, c, &res);
+      ss += res * res;
+    }
+    n += static_cast<size_t>(count);
     if (centres) centres->emplace_back(c[0], c[1], c[2]);
   }
   return n ? std::sqrt(ss / static_cast<double>(n)) : 0.0;

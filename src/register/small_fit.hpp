@@ -1,6 +1,8 @@
 #pragma once
 /// Levenberg–Marquardt for the markers' small fits: a sphere's centre (3 parameters), or its
-/// centre and radius (4), against tens to hundreds of samples' residuals.
+/// centre and radius (4), against tens to hundreds of samples' residuals — each cap's fits in
+/// the marker search (spheres.cpp), and each marker's centre from both scans with the pose
+/// held (refine.cpp's marker_sphere_rms; test `Refine.MarkerCentresWithThePoseHeldAreCeressSolve`).
 ///
 /// Written here rather than solved by Ceres (which the registration's pose fits, the shared
 /// radius and the covariances still use): a marker search makes ~1 000 of these fits a run,
