@@ -7,6 +7,7 @@
 #include <array>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -308,15 +309,56 @@ std::string drawn_scanner(double noise, int laser_tilt, int max_incidence, doubl
 
 // The pair's skin report (`skin --truth`) on its own rig, or on the automatic skeleton checked
 // against it (`--auto-rig`).
+std::string last_pair_dir;  // study_pair_skin's last pair (expect_same_skin_with_one_thread)
 nlohmann::json study_pair_skin(const std::string& tag, const std::string& hand_options, int seed, double radius,
                                bool auto_rig, const std::string& scan_options = "") {
   const std::string dir = study_pair(tag, hand_options, seed, radius, scan_options);
+  last_pair_dir = dir;
   std::string out;
   const std::string args = "skin --merged " + dir + "/reg/merged.ply --rig " + dir + "/pair/rig.json" +
                            (auto_rig ? " --auto-rig" : "") + " --truth " + dir + "/pair/truth.json --out " + dir + "/skin";
   if (test::run(std::string(HANDSKIN_BINARY) + " -q " + args, &out) != 0) throw std::runtime_error(args + ": " + out);
   std::ifstream in(dir + "/skin/skin_report.json");
   return nlohmann::json::parse(in);
+}
+
+// The automatic placement's second skin is built beside the first (docs/skin.md, step 7): the
+// pair's skin again with one thread (no build beside another) must be the same bytes, and its
+// report the same but for the timings and the folders' names; the two-thread run's progress must show `shown` (the
+// path that builds a second skin). On study_pair_skin's last pair.
+void expect_same_skin_with_one_thread(const std::string& shown) {
+  const std::string dir = last_pair_dir;
+  std::string out;
+  const auto skin = [&](int threads, const std::string& to) {
+    const std::string args = " --threads " + std::to_string(threads) + " skin --merged " + dir + "/reg/merged.ply --rig " +
+                             dir + "/pair/rig.json --auto-rig --truth " + dir + "/pair/truth.json --out " + dir + "/" + to;
+    if (test::run(std::string(HANDSKIN_BINARY) + args, &out) != 0) throw std::runtime_error(args + ": " + out);
+  };
+  skin(2, "skin2");
+  EXPECT_NE(out.find(shown), std::string::npos) << out;
+  skin(1, "skin1");
+  for (const char* f : {"skin.ply", "skin.obj", "rig_auto.json"})
+    EXPECT_EQ(read_file(dir + "/skin1/" + f), read_file(dir + "/skin2/" + f)) << f;
+  const auto untimed = [](nlohmann::json j) {
+    std::function<void(nlohmann::json&)> drop = [&](nlohmann::json& x) {
+      if (x.is_object()) {
+        for (auto it = x.begin(); it != x.end();) {
+          const std::string& k = it.key();
+          const bool timing = k == "seconds" || k == "timings_ms" || (k.size() > 8 && k.compare(k.size() - 8, 8, "_seconds") == 0);
+          const bool path = k == "measure" || k == "inputs_absolute";  // they name the two folders
+          if (timing || path) it = x.erase(it);
+          else drop(*it++);
+        }
+      } else if (x.is_array()) {
+        for (auto& e : x) drop(e);
+      }
+    };
+    drop(j);
+    j.erase("outputs");
+    j.erase("inputs");
+    return j;
+  };
+  EXPECT_EQ(untimed(load_json_object(dir + "/skin1/skin_report.json")), untimed(load_json_object(dir + "/skin2/skin_report.json")));
 }
 
 nlohmann::json study_pair_auto_skin(const std::string& tag, const std::string& hand_options, int seed, double radius) {
@@ -619,6 +661,7 @@ TEST(Family, AFingerCurledPastItsQuadraticLineIsPlacedByItsTracedLine) {
   EXPECT_LE(e["max_joint_error_mm"].get<double>(), 10.0);
   EXPECT_LE(r["truth"]["skin_to_truth_mm"]["mean"].get<double>(), 0.3);
   EXPECT_GE(r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.94);
+  expect_same_skin_with_one_thread("building the skin on them too");
 }
 
 // A left hand drawn at random (R08 of scripts/random_hands_study.py: the thumb at 29 deg, its
@@ -636,6 +679,7 @@ TEST(Family, AThumbWhoseTubeFoldsOnEveryPlacementIsCentredOnItsSections) {
   EXPECT_TRUE(r["mesh"]["watertight"].get<bool>());
   print_skin_truth("thumb folding on every placement, automatic", r);
   EXPECT_GE(r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.97);
+  expect_same_skin_with_one_thread("skeleton with its digits' joints moved onto their sections' middles");
 }
 
 // Every finger flexed 60 deg at its MCP, straight beyond: neither scan sees the fingers' backs

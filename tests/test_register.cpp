@@ -409,25 +409,6 @@ TEST(Refine, GatedIcpPullsAPerturbedFitIn) {
   EXPECT_NE(g.note.find("strayed"), std::string::npos) << g.note;
 }
 
-namespace {
-// A back sample's depth error in its own frame, the centre carried there by the pose's inverse
-// (refine.cpp's residual, written again here for the reference solve below).
-struct BackSampleOnSphere {
-  Eigen::Vector3d p;
-  double r, floor;
-  template <typename T>
-  bool operator()(const T* pose, const T* c, T* res) const {
-    const T inverse[3] = {-pose[0], -pose[1], -pose[2]};
-    const T shifted[3] = {c[0] - pose[3], c[1] - pose[4], c[2] - pose[5]};
-    T cb[3];
-    ceres::AngleAxisRotatePoint(inverse, shifted, cb);
-    const T q[3] = {T(p.x()), T(p.y()), T(p.z())};
-    res[0] = sphere_depth_error(q, cb, T(r), floor);
-    return true;
-  }
-};
-}  // namespace
-
 // The markers' joint centres with the pose held (marker_sphere_rms, whose centres the pose's
 // covariance and registration.json use) by small_fit are where Ceres's own solve of that
 // problem ends — each marker's centre against its palm samples and its back samples carried
@@ -458,7 +439,7 @@ TEST(Refine, MarkerCentresWithThePoseHeldAreCeressSolve) {
       ceres::Problem problem;
       for (const auto& p : ms.palm) problem.AddResidualBlock(SphereResidual::Create(p, s.radius, floor), nullptr, c);
       for (const auto& p : ms.back)
-        problem.AddResidualBlock(new ceres::AutoDiffCostFunction<BackSampleOnSphere, 1, 6, 3>(new BackSampleOnSphere{p, s.radius, floor}), nullptr, pose, c);
+        problem.AddResidualBlock(BackOnSphere::Create(p, s.radius, floor), nullptr, pose, c);
       if (!ms.back.empty()) problem.SetParameterBlockConstant(pose);
       ceres::Solver::Options o;
       o.linear_solver_type = ceres::DENSE_QR;

@@ -4,9 +4,12 @@
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
+#include <future>
+#include <optional>
 
 #include "core/atomic_file.hpp"
 #include "core/errors.hpp"
+#include "core/threads.hpp"
 #include "patches/layout.hpp"
 #include "render/preview.hpp"
 #include "pipeline/figures_json.hpp"
@@ -25,6 +28,16 @@ constexpr double kTracedTipGapMm = 6.0;
 // by 166 deg at its tip; the curled middle finger the traced lines are for (R05 of draw 70)
 // gave one 25 % nearer.
 constexpr double kTracedNearerShare = 0.05;
+
+// The largest distance between two rigs' fingertips (the thumb's left out).
+double tip_gap(const Rig& a, const Rig& b) {
+  double gap = 0;
+  for (int f = 1; f < kFingerCount; ++f) {
+    const int tip = finger_chain(static_cast<Finger>(f)).back();
+    gap = std::max(gap, (a.joints[tip] - b.joints[tip]).norm());
+  }
+  return gap;
+}
 
 // What an error caught in flight says (an InputError's detail, else its message).
 std::string error_line(const std::exception_ptr& e) {
@@ -245,12 +258,24 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
     if (thinned.empty()) thinned = thinned_points(in.points, kCloudToSkinPoints);
     return one_way_distance(thinned, MeshDistance(R.skin.mesh)).mean;
   };
-  auto build = [&](const Rig& rig, const std::function<void()>& beside = {}) {
+  // One skin built on `rig`: its result or its error, which the stage's state takes in the
+  // order a run of one build after another takes them (`apply`). A build can run on a thread
+  // of its own beside another (`build_beside`): its progress lines are kept and said when it is
+  // applied, and it touches nothing of the stage's until then.
+  struct BuildOutcome {
+    std::optional<SkinResult> skin;  // built
+    std::exception_ptr error;        // else why not
+    std::string refused;             // the error, when it refused the rig
+    int folded = -1;                 // the digit (0 the thumb) whose tube folded
+    double seconds = 0;
+    std::vector<std::string> lines;  // its progress, when built beside
+  };
+  auto try_build = [&](const Rig& rig, const std::function<void(const std::string&)>& say,
+                       const std::function<void()>& beside, const std::function<void()>& accepted) {
+    BuildOutcome b;
     const auto tb = std::chrono::steady_clock::now();
-    build_error = nullptr;
-    rig_refused.clear();
     try {
-      R.skin = build_skin(in.points, rig, so, progress, beside);
+      SkinResult skin = build_skin(in.points, rig, so, say, beside, accepted);
       // A placed skeleton must also carry the patches' layout: its corners are cast from the
       // joints onto the skin, and a placement whose curled finger's tip it put short of the
       // true one (past the DIP, along the finger's line where the finger turned down) built a
@@ -258,29 +283,76 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
       // stage (R10 of `scripts/random_hands_study.py --draw 70`). Such a placement is refused
       // like one whose links miss their sections, and the next is tried.
       if (R.automatic) try {
-          (void)hand_patch_layout(R.skin, rig, in.points, in.sides);
+          (void)hand_patch_layout(skin, rig, in.points, in.sides);
         } catch (const InputError& e) {
           throw InputError("rig", "the patch layout cannot be laid on its skin: " + e.detail());
         }
+      b.skin = std::move(skin);
     } catch (const TubeFoldsError& e) {
-      build_error = std::current_exception();
-      if (R.automatic) rig_refused = e.detail();  // says the same of a placed skeleton as a refusal
-      if (R.automatic && e.tube >= 1 && std::find(folded.begin(), folded.end(), e.tube - 1) == folded.end())
-        folded.push_back(e.tube - 1);
+      b.error = std::current_exception();
+      if (R.automatic) b.refused = e.detail();  // says the same of a placed skeleton as a refusal
+      if (R.automatic && e.tube >= 1) b.folded = e.tube - 1;
     } catch (const InputError& e) {
-      build_error = std::current_exception();
-      if (e.where() == "rig") rig_refused = e.detail();
+      b.error = std::current_exception();
+      if (e.where() == "rig") b.refused = e.detail();
     } catch (...) {
-      build_error = std::current_exception();
+      b.error = std::current_exception();
     }
-    R.build_seconds = since(tb);
+    b.seconds = since(tb);
+    return b;
+  };
+  auto apply = [&](BuildOutcome b) {
+    for (const std::string& line : b.lines) progress(line);
+    build_error = b.error;
+    rig_refused = std::move(b.refused);
+    if (b.skin) R.skin = std::move(*b.skin);
+    if (b.folded >= 0 && std::find(folded.begin(), folded.end(), b.folded) == folded.end()) folded.push_back(b.folded);
+    R.build_seconds = b.seconds;
+  };
+  auto build = [&](const Rig& rig, const std::function<void()>& beside = {}, const std::function<void()>& accepted = {}) {
+    apply(try_build(rig, progress, beside, accepted));
+  };
+  // The automatic placement builds a second skin on another placement in two places (the
+  // traced fingers' lines, the two centred placements), each independent of the first but for
+  // the first's outcome, which decides whether it is needed. It is started on the second
+  // thread as soon as the first has passed the check of its links (build_skin's `accepted`),
+  // and runs beside the first's union and later steps, which keep one thread busy: on the
+  // random hands of `scripts/random_hands_study.py --draw 73` the skin stage's automatic runs
+  // took one build less of wall time (docs/performance.md). Not needed, it is dropped (with
+  // one thread, a deferred build never runs). Its skin is the one a later build makes: the same
+  // bytes either way.
+  auto build_beside = [&](const Rig& rig) {
+    return std::async(side_launch(), [&, rig] {
+      std::vector<std::string> lines;
+      BuildOutcome b = try_build(rig, [&lines](const std::string& m) { lines.push_back(m); }, {}, {});
+      b.lines = std::move(lines);
+      return b;
+    });
   };
   progress("building the strips (" + std::to_string(so.slicing.planes) + " planes, " +
            std::to_string(so.slicing.points_per_segment) + " points per segment)");
   if (R.automatic) {
     place();
     R.rig = R.placed->rig;
-    build(R.rig);
+    // The fingers' lines traced in their flexion planes (below; also one of the fallbacks
+    // after a refusal): placed beside the first skin's build.
+    std::future<std::optional<AutoRig>> tracing = std::async(side_launch(), [&]() -> std::optional<AutoRig> {
+      try {
+        return place_skeleton(in.points, in.sides, DigitParting::Silhouette, CentreLines::Traced);
+      } catch (const InputError&) {
+        return std::nullopt;
+      }
+    });
+    std::optional<std::optional<AutoRig>> traced_placement;  // got once
+    auto traced_rig_placement = [&]() -> const std::optional<AutoRig>& {
+      if (!traced_placement) traced_placement = tracing.get();
+      return *traced_placement;
+    };
+    std::future<BuildOutcome> traced_build;  // the traced placement's skin, built beside the first
+    build(R.rig, {}, [&] {
+      const std::optional<AutoRig>& traced = traced_rig_placement();
+      if (traced && tip_gap(traced->rig, R.rig) > kTracedTipGapMm) traced_build = build_beside(traced->rig);
+    });
     // The skin took the placement. But a finger curled past ~45 deg at its PIP can be followed
     // by the quadratic centre line and still be missed: the line runs on past the curl, and the
     // fingertip lands 15 mm beyond the true one, along the finger's first direction, in flesh
@@ -290,17 +362,8 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
     // one, the skin is built on them too, and kept if it lies nearer the cloud (mean) by more
     // than kTracedNearerShare.
     if (!build_error && rig_refused.empty()) {
-      std::optional<AutoRig> traced;
-      try {
-        traced = place_skeleton(in.points, in.sides, DigitParting::Silhouette, CentreLines::Traced);
-      } catch (const InputError&) {
-      }
-      double gap = 0;
-      if (traced)
-        for (int f = 1; f < kFingerCount; ++f) {
-          const int tip = finger_chain(static_cast<Finger>(f)).back();
-          gap = std::max(gap, (traced->rig.joints[tip] - R.rig.joints[tip]).norm());
-        }
+      const std::optional<AutoRig>& traced = traced_rig_placement();
+      const double gap = traced ? tip_gap(traced->rig, R.rig) : 0.0;
       if (gap > kTracedTipGapMm) {
         char line[400];
         std::snprintf(line, sizeof line,
@@ -312,7 +375,10 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
         SkinResult first_skin = std::move(R.skin);
         double build_seconds = R.build_seconds;  // every build's, for the report
         Rig traced_rig = traced->rig;
-        build(traced_rig);
+        if (traced_build.valid())
+          apply(traced_build.get());
+        else
+          build(traced_rig);
         build_seconds += R.build_seconds;
         // Refused (a digit's links off its sections: the middle finger above, 2.8 mm, allowed
         // 2.7), those digits' joints moved onto their sections' middles, as the last fallback
@@ -402,10 +468,7 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
         // deg: their tips were put on the DIPs' knuckles): their lines traced in their
         // flexion planes.
         progress("trying the skeleton placed with the fingers' lines traced in their flexion planes");
-        try {
-          traced = place_skeleton(in.points, in.sides, DigitParting::Silhouette, CentreLines::Traced);
-        } catch (const InputError&) {
-        }
+        traced = traced_rig_placement();
         const std::string traced_note = "the fingers' centre lines traced in their flexion planes: with their quadratic lines, ";
         ok = traced && (attempt(*traced, traced->rig, traced_note) ||
                         attempt(*traced, traced->thumb_base_on_line, traced_note + "and " + base_note));
@@ -440,15 +503,31 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
           double cloud_mean_mm = 0;
         };
         std::vector<Built> built;
-        for (const Centring& c : order) {
-          std::optional<Rig> centred;
+        const auto centre = [&](const Centring& c) -> std::optional<Rig> {
           try {
-            centred = centre_digit_links(in.points, c.placed->rig, so, folded);
+            return centre_digit_links(in.points, c.placed->rig, so, folded);
           } catch (const InputError&) {
+            return std::nullopt;
           }
+        };
+        // The second placement's skin is built beside the first's (build_beside) when its
+        // centring does not wait on the first's outcome: it takes the digits that folded, and
+        // is made again (and built after) when the first's build adds one.
+        const std::vector<int> folded_before = folded;
+        std::optional<Rig> next_centred;
+        std::future<BuildOutcome> next_build;
+        for (size_t k = 0; k < order.size(); ++k) {
+          const Centring& c = order[k];
+          std::optional<Rig> centred = k > 0 && folded == folded_before && next_centred ? next_centred : centre(c);
           if (!centred) continue;
           progress(std::string("trying the ") + c.which + " skeleton with its digits' joints moved onto their sections' middles");
-          build(*centred);
+          if (k > 0 && next_build.valid() && folded == folded_before) {
+            apply(next_build.get());
+          } else {
+            build(*centred, {}, [&] {
+              if (k + 1 < order.size() && (next_centred = centre(order[k + 1]))) next_build = build_beside(*next_centred);
+            });
+          }
           if (build_error) continue;
           const double mean = cloud_mean();
           built.push_back({std::move(R.skin), *centred, placed_as(*c.placed, *centred, c.note), mean});

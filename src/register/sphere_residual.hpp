@@ -10,6 +10,7 @@
 /// caps of 2.5–4 mm, σ 0.05–0.1 mm, step 0.2 mm), where the depth error is unbiased
 /// (docs/registration.md).
 #include <ceres/ceres.h>
+#include <ceres/rotation.h>
 
 #include <Eigen/Core>
 #include <algorithm>
@@ -93,6 +94,28 @@ struct FreeRadiusResidual {
  private:
   Eigen::Vector3d p_;
   double floor_;
+};
+
+/// pose = (angle-axis, translation): q = R p + t, back frame → palm frame. A back sample's
+/// depth error is measured in the back scanner's frame, against the centre carried there:
+/// c_back = Rᵀ (c − t).
+struct BackOnSphere {
+  BackOnSphere(const Eigen::Vector3d& p, double r, double floor) : p_(p), r_(r), floor_(floor) {}
+  template <typename T>
+  bool operator()(const T* pose, const T* c, T* res) const {
+    const T inverse[3] = {-pose[0], -pose[1], -pose[2]};
+    const T shifted[3] = {c[0] - pose[3], c[1] - pose[4], c[2] - pose[5]};
+    T cb[3];
+    ceres::AngleAxisRotatePoint(inverse, shifted, cb);
+    const T p[3] = {T(p_.x()), T(p_.y()), T(p_.z())};
+    res[0] = sphere_depth_error(p, cb, T(r_), floor_);
+    return true;
+  }
+  static ceres::CostFunction* Create(const Eigen::Vector3d& p, double r, double floor) {
+    return new ceres::AutoDiffCostFunction<BackOnSphere, 1, 6, 3>(new BackOnSphere(p, r, floor));
+  }
+  Eigen::Vector3d p_;
+  double r_, floor_;
 };
 
 /// The covariance of one parameter block (`size` values) of a solved problem, (JᵀJ)⁻¹ scaled

@@ -5,6 +5,7 @@
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 
 #include <algorithm>
+#include <atomic>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -265,7 +266,14 @@ std::optional<Rig> centre_digit_links(const std::vector<Eigen::Vector3d>& points
 }
 
 SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const SkinOptions& o,
-                      const std::function<void(const std::string&)>& progress, const std::function<void()>& beside) {
+                      const std::function<void(const std::string&)>& progress, const std::function<void()>& beside,
+                      const std::function<void()>& accepted) {
+  // Fault injection (the header): this call's ordinal, taken before anything can throw.
+  static std::atomic<int> builds{0};
+  const int build_no = ++builds;
+  bool fault_fold = false;
+  if (const char* f = std::getenv("HANDSKIN_FAULT"); f && std::string(f) == "fold:" + std::to_string(build_no))
+    fault_fold = true;
   std::string err;
   if (!o.IsValid(&err)) throw InputError("skin options", err);
   if (points.size() < 1000)
@@ -300,10 +308,11 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
     tubes = build_tubes(H, tube_points, webs, h, o, false, &R);
     R.seconds_rings = since(t0);
     say("rings resampled (" + std::to_string(static_cast<int>(R.seconds_rings * 1000)) + " ms)");
+    if (accepted) accepted();  // the rig's links lie on their sections (build_tubes' check)
     // 6. the tubes' meshes united into one surface
     const auto t1 = Clock::now();
     try {
-      skin = stitch_tubes(tubes, H.T.inverse(), &origin, &R.pockets_removed);
+      skin = stitch_tubes(tubes, H.T.inverse(), &origin, &R.pockets_removed, fault_fold);
     } catch (const TubeFoldsError& e) {
       // The thumb's planes turn at once through its joints (a finger's over two tip radii):
       // its wide root turning slowly cost a raised thumb 0.3 % within 1 mm, and turned so

@@ -210,9 +210,17 @@ class TubeFoldsError : public InputError {
 /// which two threads make hardly faster) run on one; the skin stage's check of a given rig,
 /// its sections and the run's picture of the merged cloud go there. It is run once, also
 /// when those steps throw (their error is the one thrown).
+///
+/// `accepted`, when given, is called once, on the thread of the first steps, when the rig has
+/// passed the check of its links against the digits' sections (before the tubes' union, the
+/// longest step, which runs on one thread): the skin stage starts the next placement's skin
+/// there, on the second thread.
+///
+/// Fault injection for tests (docs/architecture.md): HANDSKIN_FAULT=fold:N has the N-th call
+/// of the process (counted as they start) find the palm tube folded at its union.
 SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const SkinOptions& options,
                       const std::function<void(const std::string&)>& progress = {},
-                      const std::function<void()>& beside = {});
+                      const std::function<void()>& beside = {}, const std::function<void()>& accepted = {});
 
 /// skin.ply: binary PLY with per-vertex int properties `bone`, `tube` and `ring`; written
 /// through a temporary file. The bone names are in the report (`skin.bones`).
