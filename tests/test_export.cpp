@@ -54,6 +54,31 @@ TEST(Step, TheRunsPatchesAreOneClosedSolidOfNamedFaces) {
   EXPECT_EQ(r["outputs"]["patches_step"], "patches.step");
 }
 
+TEST(Step, AFileThatIsASolidOnlyOnceRepairedIsReadAsItIs) {
+  // The run's patches.step with one face written turned over (its ADVANCED_FACE's same_sense
+  // flag .T. -> .F.): OCCT's default reading heals it (ShapeFix_Shell turns the face back) and
+  // finds a valid solid; read_step takes the file as written and finds the shell's faces
+  // disagree (BRepCheck: bad orientation), so a file a CAD program must repair is not passed.
+  const std::string run = test::default_fixture_run();
+  std::string text = read_file(run + "/patches.step");
+  const size_t face = text.find("ADVANCED_FACE('palm.0.back1'");
+  ASSERT_NE(face, std::string::npos);
+  const size_t flag = text.find(".T.);", face);
+  ASSERT_NE(flag, std::string::npos);
+  ASSERT_LT(flag, text.find('\n', face));
+  text.replace(flag, 3, ".F.");
+  const std::string dir = test::temp_dir("step-turned");
+  write_file_atomic(dir + "/turned.step", text);
+  const StepSummary turned = read_step(dir + "/turned.step");
+  EXPECT_EQ(turned.faces, 98);
+  EXPECT_FALSE(turned.valid);
+  // The file as the run wrote it reads as a valid closed solid without any repair.
+  const StepSummary as_written = read_step(run + "/patches.step");
+  EXPECT_TRUE(as_written.valid);
+  EXPECT_EQ(as_written.closed_shells, 1);
+  EXPECT_EQ(as_written.solids, 1);
+}
+
 TEST(Step, AnOpenSheetStaysAnOpenShellWithItsFreeEdges) {
   // Two flat patches sharing one border: sewn into one shell, open, not a solid; 6 free edges.
   const std::string dir = test::temp_dir("step-open");

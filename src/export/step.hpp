@@ -43,7 +43,9 @@ struct StepFile {
 StepFile patches_step_file(const std::vector<BezierPatch>& patches, double sew_tolerance_mm = 1e-3);
 
 /// Reads a STEP file with OCCT and summarises its shape (faces, shells, the box, the faces'
-/// names). Throws InputError naming the path when it cannot be read.
+/// names) as the file holds it: without the shape healing OCCT's reader applies by default
+/// (a CAD program's), so a shape that is valid and closed only once repaired is not found so.
+/// Throws InputError naming the path when it cannot be read.
 StepSummary read_step(const std::string& path);
 
 }  // namespace handskin

@@ -42,6 +42,8 @@
 #include <XSControl_TransferReader.hxx>
 #include <XSControl_TransferWriter.hxx>
 #include <XSControl_WorkSession.hxx>
+#include <XSAlgo.hxx>
+#include <XSAlgo_AlgoContainer.hxx>
 #include <Standard_Failure.hxx>
 #include <TColgp_Array2OfPnt.hxx>
 #include <TCollection_HAsciiString.hxx>
@@ -107,6 +109,49 @@ void summarise(const TopoDS_Shape& shape, HsStepSummary* out) {
   }
   out->valid = BRepCheck_Analyzer(shape).IsValid() ? 1 : 0;
 }
+
+// The read-back takes the file as written: OCCT's reader otherwise heals every shape it
+// translates (ShapeFix_Shape through XSAlgo's ProcessShape: wires, faces, shells, the solid
+// made again from its shell), ~70 % of its translation's time on the fixture's 98 faces. A
+// CAD program heals what it reads; the check here is of what the file holds, before any
+// repair: a closed, valid solid as written is one after healing too, and a file that needs
+// healing to be one fails the check rather than passing it. XSAlgo's algorithm container is
+// OCCT's hook for exactly this (XSAlgo::SetAlgoContainer); ours returns each shape as it was
+// translated and records no healing history. It is installed for the read only, under the
+// OCCT lock, and the one before it put back however the read ends.
+class AsWritten : public XSAlgo_AlgoContainer {
+ public:
+  TopoDS_Shape ProcessShape(const TopoDS_Shape& shape, const Standard_Real, const Standard_Real, const Standard_CString,
+                            const Standard_CString, Handle(Standard_Transient)& info, const Message_ProgressRange&,
+                            const Standard_Boolean) const override {
+    info.Nullify();
+    return shape;
+  }
+  void MergeTransferInfo(const Handle(Transfer_TransientProcess)& tp, const Handle(Standard_Transient)& info,
+                         const Standard_Integer start) const override {
+    if (!info.IsNull()) XSAlgo_AlgoContainer::MergeTransferInfo(tp, info, start);
+  }
+  void MergeTransferInfo(const Handle(Transfer_FinderProcess)& fp, const Handle(Standard_Transient)& info) const override {
+    if (!info.IsNull()) XSAlgo_AlgoContainer::MergeTransferInfo(fp, info);
+  }
+};
+
+class ReadAsWritten {
+ public:
+  ReadAsWritten() {
+    XSAlgo::Init();  // once per process; the reader's controller has called it already
+    before_ = XSAlgo::AlgoContainer();
+    Handle(XSAlgo_AlgoContainer) mine = new AsWritten;
+    mine->SetToolContainer(before_->ToolContainer());
+    XSAlgo::SetAlgoContainer(mine);
+  }
+  ~ReadAsWritten() { XSAlgo::SetAlgoContainer(before_); }
+  ReadAsWritten(const ReadAsWritten&) = delete;
+  ReadAsWritten& operator=(const ReadAsWritten&) = delete;
+
+ private:
+  Handle(XSAlgo_AlgoContainer) before_;
+};
 
 }  // namespace
 
@@ -194,7 +239,8 @@ extern "C" int handskin_step_read(const char* path, HsStepSummary* out, char* na
   std::lock_guard<std::mutex> lock(occt_lock());
   try {
     quiet();
-    STEPControl_Reader reader;
+    STEPControl_Reader reader;  // first: it initialises XSAlgo, whose container is swapped
+    const ReadAsWritten as_written;
     if (reader.ReadFile(path) != IFSelect_RetDone) return say(out, std::string(path) + ": not a STEP file OCCT can read"), 1;
     if (reader.TransferRoots() == 0) return say(out, std::string(path) + ": OCCT could not translate it"), 1;
     const TopoDS_Shape all = reader.OneShape();
