@@ -1,7 +1,7 @@
 #pragma once
-/// The patch stage (issue 13, in progress): bicubic Bézier patches fitted on the skin's ring
-/// grid and the merged cloud, their figures, and their files (patches.json, patches.obj,
-/// patches.ply). `handskin patches` runs it; `run` will.
+/// The patch stage (issue 13): bicubic Bézier patches fitted on the skin's ring grid and the
+/// merged cloud, their figures, and their files (patches.json, patches.obj, patches.ply,
+/// patches.step, report.html). `handskin patches` and `run` run it.
 #include <optional>
 #include <string>
 #include <vector>
