@@ -23,17 +23,13 @@ constexpr double kSheetLinkMm = 2.0;
 constexpr size_t kSheetPoints = 200;
 
 
-// Points linked through points within `link` mm of each other, over a hash grid of
-// `link`-sized cells: labels spread breadth first from every labelled point of `idx` (indices
-// into h; label[i] >= 0) at once to the unlabelled ones (-1), each taking the label of the
-// point it is reached from. Points no label reaches keep -1. With no label given, `fresh`
-// starts a new label at each point not yet reached (in idx's order): the pieces the links
-// connect.
 // The grid's cells are only looked up, never walked in order: a hash map (std::map's ordered
 // search over ~20 000 cells, 27 lookups a point, was most of the sheets' parting, which runs
 // for each of up to ~40 distances: 0.45 s of a random hand's automatic run, R04 of
 // `scripts/random_hands_study.py --draw 73`). Each cell's points are in idx's order either way,
-// so the labels are the same.
+// so the labels are the same. (mesh/point_grid.hpp's PointGrid is such a grid, flatter, but
+// it visits a point's own cell before the 26 round it: another order of the neighbours, which
+// in the spread from many labels at once can give a contested point the other label.)
 struct CellHash {
   size_t operator()(const std::array<long, 3>& k) const {
     std::uint64_t x = static_cast<std::uint64_t>(k[0]) * 0x9E3779B97F4A7C15ull;
@@ -43,6 +39,12 @@ struct CellHash {
   }
 };
 
+// Points linked through points within `link` mm of each other, over a hash grid of
+// `link`-sized cells: labels spread breadth first from every labelled point of `idx` (indices
+// into h; label[i] >= 0) at once to the unlabelled ones (-1), each taking the label of the
+// point it is reached from. Points no label reaches keep -1. With no label given, `fresh`
+// starts a new label at each point not yet reached (in idx's order): the pieces the links
+// connect.
 void spread_labels(const std::vector<Eigen::Vector3d>& h, const std::vector<size_t>& idx, double link,
                    std::vector<int>* label, bool fresh = false) {
   auto key = [link](const Eigen::Vector3d& p) {
