@@ -664,6 +664,29 @@ TEST(Family, AFingerCurledPastItsQuadraticLineIsPlacedByItsTracedLine) {
   expect_same_skin_with_one_thread("building the skin on them too");
 }
 
+// A right hand drawn at random (R04 of `scripts/random_hands_study.py --draw 73`: its ring finger
+// curled 44/49/4 deg at MCP, PIP and DIP, its distal phalanges standing up from the palm) with
+// no rig. Seen along the palm's normal the ring finger is a stub (its piece beyond the palm's
+// opening 23.5 by 14.9 mm, its tip over its own proximal phalanx), whose principal axis lay 57
+// deg off its neighbours': every placement put the finger along that line (its MCP 16 mm aside,
+// its tip 28 mm off; the skin 0.95 mm mean from the truth, the cloud 8.0 mm from the skin). Such
+// a stub now takes its neighbours' direction (docs/skin.md, step 3).
+TEST(Family, AFingerCurledToAStubTakesItsNeighboursDirection) {
+  const auto r = study_pair_skin("family-stub",
+                                 DrawnHand{"right", 183, 1.11, 1.06, 1.07, 7.1, 46,
+                                           {3, 50, 6, 2, 12, 25, 44, 49, 4, 14, 38, 3}, {12, 17, 8}}
+                                     .options(),
+                                 39, 4.0, true, drawn_scanner(0.054, 19, 71, 1.2));
+  EXPECT_EQ(r["skeleton"]["used"], "automatic");
+  const auto& e = print_joint_error("ring finger curled to a stub", r);
+  print_skin_truth("ring finger curled to a stub", r);
+  EXPECT_TRUE(r["mesh"]["watertight"].get<bool>());
+  EXPECT_LE(e["max_joint_error_mm"].get<double>(), 10.0);             // measured 5.3 (28.1 before)
+  EXPECT_LE(r["cloud_to_skin_mm"]["max"].get<double>(), 3.0);         // 2.3 (8.0)
+  EXPECT_LE(r["truth"]["skin_to_truth_mm"]["mean"].get<double>(), 0.4);  // 0.277 (0.947)
+  EXPECT_GE(r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.95);  // 96.0 % (94.8)
+}
+
 // A left hand drawn at random (R08 of scripts/random_hands_study.py: the thumb at 29 deg, its
 // MCP flexed 29 deg, fingers spread 12 deg) with no rig: every placement folded the thumb's
 // tube, none left a digit's links off its sections, so none was centred, and the skin stage

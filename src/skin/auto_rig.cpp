@@ -358,6 +358,7 @@ AutoRig place_skeleton(const std::vector<Eigen::Vector3d>& pts, const std::vecto
   DigitCells cells = find_digit_cells(pts, sides, parting, &frame, &h, &out);
   std::vector<Digit> digits = collect_digits(cells, h);
   orient_digits(&frame, &h, &cells.pc, &digits, &out);
+  digit_directions(h, cells.pc, &digits);
   for (size_t k = 0; k < digits.size(); ++k) trace_centre_line(h, cells.pc, k < 4, lines == CentreLines::Traced && k < 4, &digits[k]);
   Chains chains = place_chains(h, digits);
   centre_thumb_joints(h, digits[4], chains.s, &chains.joints[0]);

@@ -1,6 +1,7 @@
 // Step 5 of the automatic skeleton (auto_rig_steps.hpp): each digit's centre line through the
 // middles of its sections.
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "core/errors.hpp"
@@ -223,11 +224,25 @@ std::vector<Eigen::Vector2d> track_in_flexion_plane(const std::vector<Eigen::Vec
     // Over a gap the far side's centres are those of one-sided sections (the distal
     // phalanx's nail side): their direction is a guess. The tip is the far side's point
     // farthest from where the gap starts, the joint before it (V1's fingertips: 2.3-8.3 mm
-    // off along the last direction, 2.0-3.4 mm so).
+    // off along the last direction, 2.0-3.4 mm so), or the last centre if it lies farther.
+    // But a last centre beyond every point along the line's last direction lies past the
+    // skin (a slab square to a finger that points along the palm's normal holds the dome of
+    // its end, and its centre ran 1.8 mm past it: R04 of scripts/random_hands_study.py --draw
+    // 73, whose ring tip joint then lay on the skin and the patch layout's cap folded by 175
+    // deg): then the tip is that centre moved back along the last direction to the points'
+    // reach, and the centres beyond it are dropped.
     Eigen::Vector2d tip = c;
+    double ahead = -1e300;
     for (const auto& q : p)
-      if ((q.head<2>() - c).norm() < 2 * window && (q.head<2>() - *gap_from).norm() > (tip - *gap_from).norm())
-        tip = q.head<2>();
+      if ((q.head<2>() - c).norm() < 2 * window) {
+        ahead = std::max(ahead, (q.head<2>() - c).dot(d));
+        if ((q.head<2>() - *gap_from).norm() > (tip - *gap_from).norm()) tip = q.head<2>();
+      }
+    if (ahead < 0 && ahead > -1e300) {
+      tip = c + ahead * d;
+      const double reach = (tip - *gap_from).norm();
+      while (line.size() > 2 && (line.back() - *gap_from).norm() >= reach) line.pop_back();
+    }
     line.push_back(tip);
   } else {
     double reach = -1e300;
@@ -238,6 +253,56 @@ std::vector<Eigen::Vector2d> track_in_flexion_plane(const std::vector<Eigen::Vec
   return line;
 }
 }  // namespace
+
+// A finger whose piece beyond the palm's opening is hardly longer than it is wide (a finger
+// curled so far that seen along the palm's normal it is a stub: its tip lies over its own
+// proximal phalanx) may have no direction of its own in the silhouette: its piece's principal
+// axis can lie anywhere (R04 of scripts/random_hands_study.py --draw 73, its ring finger
+// curled 44 deg at the MCP and 49 at the PIP: its piece 23.5 by 14.9 mm, its axis 57 deg off
+// its neighbours', and the finger's joints were placed along that line, its MCP 16 mm aside
+// and its tip 28 mm off). Such a finger whose axis lies more than kStrayDeg off the direction
+// of its neighbours that have one on either side (interpolated by their order across the
+// hand) takes that direction. Neighbouring fingers' directions differ by 15 deg in a spread
+// hand, and a stub within kStrayDeg keeps its own: of draw 73's two other short ring fingers
+// (R05 12 deg off, R10 22 deg), the neighbours' direction made R05's joints worse and both
+// skins farther from the truth (0.174 -> 0.202 and 0.184 -> 0.205 mm). A direction from one
+// side only (an edge finger, or a neighbour's that is a stub too) is not carried on: R03 of
+// draw 70, its little, ring and middle fingers curled to stubs, took the index's direction
+// for its ring finger and its skin went 0.430 -> 0.766 mm from the truth.
+void digit_directions(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector2d& pc, std::vector<Digit>* digits) {
+  constexpr double kElongated = 1.6;  // length over width of a piece whose axis is the finger's
+  constexpr double kStrayDeg = 30;
+  constexpr int kFingers = 4;         // digits[0..3]; digits[4] is the thumb
+  std::array<Eigen::Vector2d, kFingers> dir;
+  std::array<bool, kFingers> own{};
+  for (int k = 0; k < kFingers && k < static_cast<int>(digits->size()); ++k) {
+    std::vector<Eigen::Vector2d> p2;
+    for (size_t i : (*digits)[k].points) p2.push_back(h[i].head<2>());
+    Eigen::Matrix2d ax;
+    Eigen::Vector2d m2;
+    principal_axes<2>(p2, &ax, &m2);
+    dir[k] = ax.col(0);
+    if (dir[k].dot(m2 - pc) < 0) dir[k] = -dir[k];
+    double a0 = 1e300, a1 = -1e300, b0 = 1e300, b1 = -1e300;
+    for (const auto& q : p2) {
+      const Eigen::Vector2d r = q - m2;
+      a0 = std::min(a0, r.dot(ax.col(0))), a1 = std::max(a1, r.dot(ax.col(0)));
+      b0 = std::min(b0, r.dot(ax.col(1))), b1 = std::max(b1, r.dot(ax.col(1)));
+    }
+    own[k] = a1 - a0 >= kElongated * (b1 - b0);
+  }
+  for (int k = 0; k < kFingers && k < static_cast<int>(digits->size()); ++k) {
+    if (own[k]) continue;
+    int lo = k - 1, hi = k + 1;
+    while (lo >= 0 && !own[lo]) --lo;
+    while (hi < kFingers && !own[hi]) ++hi;
+    if (lo < 0 || hi >= kFingers) continue;  // a direction on one side only is not carried on
+    Eigen::Vector2d d =
+        (static_cast<double>(hi - k) * dir[lo] + static_cast<double>(k - lo) * dir[hi]) / static_cast<double>(hi - lo);
+    d.normalize();
+    if (std::acos(std::clamp(d.dot(dir[k]), -1.0, 1.0)) > kStrayDeg * M_PI / 180) (*digits)[k].along = d;
+  }
+}
 
 // The digit's sections every 3 mm along its principal axis; their middles (the lateral offset
 // a line, the height a quadratic where the digit curls) make its centre line, from well
@@ -250,7 +315,7 @@ void trace_centre_line(const std::vector<Eigen::Vector3d>& h, const Eigen::Vecto
   Eigen::Matrix2d ax;
   Eigen::Vector2d m2;
   principal_axes<2>(p2, &ax, &m2);
-  Eigen::Vector2d d2 = ax.col(0);
+  Eigen::Vector2d d2 = dg->along ? *dg->along : Eigen::Vector2d(ax.col(0));
   if (d2.dot(m2 - pc) < 0) d2 = -d2;
   const Eigen::Vector2d n2(-d2.y(), d2.x());
   double t0 = 1e300, t1 = -1e300;
@@ -310,6 +375,10 @@ void trace_centre_line(const std::vector<Eigen::Vector3d>& h, const Eigen::Vecto
       centres.erase(centres.begin(), centres.begin() + static_cast<long>(first));
       widths.erase(widths.begin(), widths.begin() + static_cast<long>(first));
     }
+  }
+  if (centres.size() < 4 && dg->along) {  // across its neighbours' direction the stub gives too few sections
+    dg->along.reset(), dg->width = 0;
+    return trace_centre_line(h, pc, finger, traced, dg);
   }
   if (centres.size() < 4) throw InputError("merged cloud", "a digit is too short to find its axis; give a rig");
   // The lateral line is fitted to these centres and to more toward the palm: the opening

@@ -120,6 +120,9 @@ struct Digit {
   std::vector<size_t> points;
   double angle = 0;
   double width = 0;  // the median width of its measured sections (across it, in the silhouette)
+  // Its direction in the silhouette (h's first two coordinates) when its own piece's principal
+  // axis does not give it (digit_directions).
+  std::optional<Eigen::Vector2d> along;
   // Centre line (hand coordinates) from well inside the palm to the skin's tip, sampled
   // every 0.25 mm, with its arc length: a curled or arched digit's axis is a curve.
   std::vector<Eigen::Vector3d> curve;
@@ -159,6 +162,7 @@ DigitCells find_digit_cells(const std::vector<Eigen::Vector3d>& pts, const std::
 std::vector<Digit> collect_digits(const DigitCells& dc, const std::vector<Eigen::Vector3d>& h);
 void orient_digits(HandFrame* frame, std::vector<Eigen::Vector3d>* h, Eigen::Vector2d* pc, std::vector<Digit>* digits,
                    AutoRig* out);
+void digit_directions(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector2d& pc, std::vector<Digit>* digits);
 void trace_centre_line(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector2d& pc, bool finger, bool trace_curled,
                        Digit* dg);
 Chains place_chains(const std::vector<Eigen::Vector3d>& h, const std::vector<Digit>& digits);
