@@ -269,23 +269,27 @@ std::vector<Eigen::Vector2d> track_in_flexion_plane(const std::vector<Eigen::Vec
 // side only (an edge finger, or a neighbour's that is a stub too) is not carried on: R03 of
 // draw 70, its little, ring and middle fingers curled to stubs, took the index's direction
 // for its ring finger and its skin went 0.430 -> 0.766 mm from the truth.
+// Every digit's piece's principal axis (away from the palm's centre `pc`) and mean are set
+// here once, for this and for trace_centre_line.
 void digit_directions(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector2d& pc, std::vector<Digit>* digits) {
   constexpr double kElongated = 1.6;  // length over width of a piece whose axis is the finger's
   constexpr double kStrayDeg = 30;
   constexpr int kFingers = 4;         // digits[0..3]; digits[4] is the thumb
   std::array<Eigen::Vector2d, kFingers> dir;
   std::array<bool, kFingers> own{};
-  for (int k = 0; k < kFingers && k < static_cast<int>(digits->size()); ++k) {
+  for (size_t k = 0; k < digits->size(); ++k) {
+    Digit& dg = (*digits)[k];
     std::vector<Eigen::Vector2d> p2;
-    for (size_t i : (*digits)[k].points) p2.push_back(h[i].head<2>());
+    for (size_t i : dg.points) p2.push_back(h[i].head<2>());
     Eigen::Matrix2d ax;
-    Eigen::Vector2d m2;
-    principal_axes<2>(p2, &ax, &m2);
-    dir[k] = ax.col(0);
-    if (dir[k].dot(m2 - pc) < 0) dir[k] = -dir[k];
+    principal_axes<2>(p2, &ax, &dg.mean);
+    dg.axis = ax.col(0);
+    if (dg.axis.dot(dg.mean - pc) < 0) dg.axis = -dg.axis;
+    if (k >= static_cast<size_t>(kFingers)) continue;
+    dir[k] = dg.axis;
     double a0 = 1e300, a1 = -1e300, b0 = 1e300, b1 = -1e300;
     for (const auto& q : p2) {
-      const Eigen::Vector2d r = q - m2;
+      const Eigen::Vector2d r = q - dg.mean;
       a0 = std::min(a0, r.dot(ax.col(0))), a1 = std::max(a1, r.dot(ax.col(0)));
       b0 = std::min(b0, r.dot(ax.col(1))), b1 = std::max(b1, r.dot(ax.col(1)));
     }
@@ -304,22 +308,22 @@ void digit_directions(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector
   }
 }
 
-// The digit's sections every 3 mm along its principal axis; their middles (the lateral offset
+// The digit's sections every 3 mm along its principal axis (or its neighbours' direction;
+// both set by digit_directions, which runs first); their middles (the lateral offset
 // a line, the height a quadratic where the digit curls) make its centre line, from well
 // inside the palm to the skin's tip. `finger`: not the thumb (its line is not carried on into
 // the palm between its neighbours' grooves).
 void trace_centre_line(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector2d& pc, bool finger, bool traced,
                        Digit* dg) {
-  std::vector<Eigen::Vector2d> p2;
-  for (size_t i : dg->points) p2.push_back(h[i].head<2>());
-  Eigen::Matrix2d ax;
-  Eigen::Vector2d m2;
-  principal_axes<2>(p2, &ax, &m2);
-  Eigen::Vector2d d2 = dg->along ? *dg->along : Eigen::Vector2d(ax.col(0));
+  const Eigen::Vector2d m2 = dg->mean;
+  Eigen::Vector2d d2 = dg->along.value_or(dg->axis);
   if (d2.dot(m2 - pc) < 0) d2 = -d2;
   const Eigen::Vector2d n2(-d2.y(), d2.x());
   double t0 = 1e300, t1 = -1e300;
-  for (const auto& q : p2) t0 = std::min(t0, (q - m2).dot(d2)), t1 = std::max(t1, (q - m2).dot(d2));
+  for (size_t i : dg->points) {
+    const double t = (h[i].head<2>() - m2).dot(d2);
+    t0 = std::min(t0, t), t1 = std::max(t1, t);
+  }
   std::vector<Eigen::Vector3d> centres;  // (t, lateral offset, z)
   std::vector<double> widths;            // each section's width across the digit
   for (double t = t0 + 2; t < t1 - 6; t += 3) {

@@ -10,7 +10,9 @@
 ///   3. collect_digits      each digit's points; five, or an error (auto_rig_digits.cpp)
 ///   4. orient_digits       the fingers' end and the hand's side (a left hand is mirrored)
 ///                          (auto_rig_digits.cpp)
-///   5. trace_centre_line   each digit's centre line through its sections' middles
+///   5. digit_directions    each digit's piece's axis; a finger curled to a stub takes its
+///                          neighbours' direction (auto_rig_axes.cpp)
+///      trace_centre_line   each digit's centre line through its sections' middles
 ///                          (auto_rig_axes.cpp)
 ///   6. place_chains        scale, wrist and every digit's joints by the proportions, in three
 ///                          rounds of wrist → scale → joints → frame
@@ -120,8 +122,10 @@ struct Digit {
   std::vector<size_t> points;
   double angle = 0;
   double width = 0;  // the median width of its measured sections (across it, in the silhouette)
-  // Its direction in the silhouette (h's first two coordinates) when its own piece's principal
-  // axis does not give it (digit_directions).
+  // Its piece's mean and principal axis (away from the palm's centre) in the silhouette (h's
+  // first two coordinates), and its direction there when that axis does not give it
+  // (digit_directions).
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero(), axis = Eigen::Vector2d::UnitX();
   std::optional<Eigen::Vector2d> along;
   // Centre line (hand coordinates) from well inside the palm to the skin's tip, sampled
   // every 0.25 mm, with its arc length: a curled or arched digit's axis is a curve.
