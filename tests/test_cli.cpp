@@ -338,6 +338,16 @@ TEST(Cli, SkinFromAMergedCloudWithAndWithoutARig) {
       << out;
   EXPECT_NE(out.find("the palm tube folds into itself"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(dir6));
+  // Folded on every placement: the automatic skeleton's failure, with the way on.
+  const std::string dir6b = test::temp_dir("skin6b") + "/out";
+  EXPECT_EQ(test::run("HANDSKIN_FAULT=fold:all " + kBin + " -q skin --merged " + reg + "/merged.ply --pipeline " + pipe +
+                          " --out " + dir6b,
+                      &out),
+            1)
+      << out;
+  EXPECT_NE(out.find("error: automatic skeleton: the palm tube folds into itself"), std::string::npos) << out;
+  EXPECT_NE(out.find("give its rig (--rig)"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir6b));
   // A placed skeleton that misses the hand (HANDSKIN_FAULT=placement-off: 25 mm aside, its
   // links off their sections) is no evidence against the given rig, on which the skin builds:
   // the rig is used, with a warning -q shows, and the report says the placement failed.

@@ -687,6 +687,29 @@ TEST(Family, AFingerCurledToAStubTakesItsNeighboursDirection) {
   EXPECT_GE(r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.95);  // 96.0 % (94.8)
 }
 
+// A right hand in a relaxed curl (R06 of scripts/random_hands_study.py --draw 72: every finger
+// 22-38 deg at the MCP, the middle one 50 deg at its PIP) with no rig. Every finger is a stub
+// beyond the palm's opening, and the middle finger's piece is a sliver elongated across the
+// hand (23.8 by 16.5 mm, its axis 78 deg off its neighbours', which agree within 17 deg): every
+// placement put the finger along that line and was refused (its proximal phalanx more than 15
+// mm outside the cloud; "give its rig"). An inner finger across its agreeing neighbours now
+// takes their direction (docs/skin.md, step 3).
+TEST(Family, AnInnerFingerLyingAcrossItsNeighboursTakesTheirDirection) {
+  const auto r = study_pair_skin("family-across",
+                                 DrawnHand{"right", 162, 1.24, 1.09, 1.11, 6.6, 55,
+                                           {38, 28, 4, 28, 50, 7, 30, 6, 25, 22, 28, 18}, {16, 20, 18}}
+                                     .options(),
+                                 38, 3.5, true, drawn_scanner(0.091, 16, 75, 1.3));
+  EXPECT_EQ(r["skeleton"]["used"], "automatic");
+  const auto& e = print_joint_error("middle finger across its neighbours", r);
+  print_skin_truth("middle finger across its neighbours", r);
+  EXPECT_TRUE(r["mesh"]["watertight"].get<bool>());
+  EXPECT_LE(e["mean_joint_error_mm"].get<double>(), 6.0);  // measured 4.16 (every placement refused before)
+  EXPECT_LE(e["max_joint_error_mm"].get<double>(), 15.0);  // 11.8, the middle tip
+  EXPECT_LE(r["truth"]["skin_to_truth_mm"]["mean"].get<double>(), 0.35);  // 0.240
+  EXPECT_GE(r["truth"]["truth_to_skin_mm"]["within_1mm"].get<double>(), 0.90);  // 92.9 %
+}
+
 // A left hand drawn at random (R08 of scripts/random_hands_study.py: the thumb at 29 deg, its
 // MCP flexed 29 deg, fingers spread 12 deg) with no rig: every placement folded the thumb's
 // tube, none left a digit's links off its sections, so none was centred, and the skin stage

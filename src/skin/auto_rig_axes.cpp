@@ -15,6 +15,7 @@ namespace {
 // A digit's section middle more than this (mm) beside the line through those beyond it
 // toward the tip is not across the digit.
 constexpr double kLateralStrayMm = 1.5;
+constexpr double kShortStep = 1.5;  // mm between a stub's sections across its neighbours' direction
 
 // A finger's section centres carried toward the palm from its first one (at t = lateral's
 // front), through the whole cloud `h`: every 3 mm, the finger lies between the lowest points
@@ -269,11 +270,21 @@ std::vector<Eigen::Vector2d> track_in_flexion_plane(const std::vector<Eigen::Vec
 // side only (an edge finger, or a neighbour's that is a stub too) is not carried on: R03 of
 // draw 70, its little, ring and middle fingers curled to stubs, took the index's direction
 // for its ring finger and its skin went 0.430 -> 0.766 mm from the truth.
+// An inner finger (middle or ring) whose axis lies more than kAcrossDeg off the mean of its two
+// neighbours' axes, while those agree within kAgreeDeg, takes that mean too, however elongated
+// its piece or theirs: in a relaxed curl every finger can be a stub, and a piece can be a
+// sliver elongated across the hand (R06 of draw 72, every finger 22-38 deg at the MCP: the
+// middle finger's piece 23.8 by 16.5 mm, its axis 78 deg off its neighbours', which agree within
+// 17 deg; its joints were placed along that line, and every placement was refused, its
+// proximal phalanx more than 15 mm outside the cloud). Across the neighbours' direction such a
+// stub gives few sections 3 mm apart: trace_centre_line takes them kShortStep apart before it
+// gives the direction up.
 // Every digit's piece's principal axis (away from the palm's centre `pc`) and mean are set
 // here once, for this and for trace_centre_line.
 void digit_directions(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector2d& pc, std::vector<Digit>* digits) {
   constexpr double kElongated = 1.6;  // length over width of a piece whose axis is the finger's
   constexpr double kStrayDeg = 30;
+  constexpr double kAgreeDeg = 25, kAcrossDeg = 45;
   constexpr int kFingers = 4;         // digits[0..3]; digits[4] is the thumb
   std::array<Eigen::Vector2d, kFingers> dir;
   std::array<bool, kFingers> own{};
@@ -306,6 +317,15 @@ void digit_directions(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector
     d.normalize();
     if (std::acos(std::clamp(d.dot(dir[k]), -1.0, 1.0)) > kStrayDeg * M_PI / 180) (*digits)[k].along = d;
   }
+  // An inner finger whose neighbours on both sides agree, each with its own axis or not, and
+  // whose axis lies across theirs.
+  for (int k = 1; k + 1 < kFingers && k + 1 < static_cast<int>(digits->size()); ++k) {
+    if ((*digits)[k].along) continue;
+    const double agree = std::acos(std::clamp(dir[k - 1].dot(dir[k + 1]), -1.0, 1.0)) * 180 / M_PI;
+    const Eigen::Vector2d d = (dir[k - 1] + dir[k + 1]).normalized();
+    const double off = std::acos(std::clamp(d.dot(dir[k]), -1.0, 1.0)) * 180 / M_PI;
+    if (agree <= kAgreeDeg && off > kAcrossDeg) (*digits)[k].along = d;
+  }
 }
 
 // The digit's sections every 3 mm along its principal axis (or its neighbours' direction;
@@ -314,7 +334,7 @@ void digit_directions(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector
 // inside the palm to the skin's tip. `finger`: not the thumb (its line is not carried on into
 // the palm between its neighbours' grooves).
 void trace_centre_line(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector2d& pc, bool finger, bool traced,
-                       Digit* dg) {
+                       Digit* dg, double step) {
   const Eigen::Vector2d m2 = dg->mean;
   Eigen::Vector2d d2 = dg->along.value_or(dg->axis);
   if (d2.dot(m2 - pc) < 0) d2 = -d2;
@@ -326,7 +346,7 @@ void trace_centre_line(const std::vector<Eigen::Vector3d>& h, const Eigen::Vecto
   }
   std::vector<Eigen::Vector3d> centres;  // (t, lateral offset, z)
   std::vector<double> widths;            // each section's width across the digit
-  for (double t = t0 + 2; t < t1 - 6; t += 3) {
+  for (double t = t0 + 2; t < t1 - 6; t += step) {
     double a = 1e300, b = -1e300, zl = 1e300, zh = -1e300;
     int n = 0;
     for (size_t i : dg->points) {
@@ -380,7 +400,9 @@ void trace_centre_line(const std::vector<Eigen::Vector3d>& h, const Eigen::Vecto
       widths.erase(widths.begin(), widths.begin() + static_cast<long>(first));
     }
   }
-  if (centres.size() < 4 && dg->along) {  // across its neighbours' direction the stub gives too few sections
+  if (centres.size() < 4 && dg->along) {  // along its neighbours' direction the stub gives too few sections:
+    // closer sections, then its own axis
+    if (step > kShortStep) return trace_centre_line(h, pc, finger, traced, dg, kShortStep);
     dg->along.reset(), dg->width = 0;
     return trace_centre_line(h, pc, finger, traced, dg);
   }

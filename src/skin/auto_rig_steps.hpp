@@ -168,7 +168,7 @@ void orient_digits(HandFrame* frame, std::vector<Eigen::Vector3d>* h, Eigen::Vec
                    AutoRig* out);
 void digit_directions(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector2d& pc, std::vector<Digit>* digits);
 void trace_centre_line(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector2d& pc, bool finger, bool trace_curled,
-                       Digit* dg);
+                       Digit* dg, double step = 3);
 Chains place_chains(const std::vector<Eigen::Vector3d>& h, const std::vector<Digit>& digits);
 void centre_thumb_joints(const std::vector<Eigen::Vector3d>& h, const Digit& thumb, double s,
                          std::vector<Eigen::Vector3d>* js);

@@ -272,7 +272,8 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
   static std::atomic<int> builds{0};
   const int build_no = ++builds;
   bool fault_fold = false;
-  if (const char* f = std::getenv("HANDSKIN_FAULT"); f && std::string(f) == "fold:" + std::to_string(build_no))
+  if (const char* f = std::getenv("HANDSKIN_FAULT");
+      f && (std::string(f) == "fold:" + std::to_string(build_no) || std::string(f) == "fold:all"))
     fault_fold = true;
   std::string err;
   if (!o.IsValid(&err)) throw InputError("skin options", err);

@@ -217,7 +217,8 @@ class TubeFoldsError : public InputError {
 /// there, on the second thread.
 ///
 /// Fault injection for tests (docs/architecture.md): HANDSKIN_FAULT=fold:N has the N-th call
-/// of the process (counted as they start) find the palm tube folded at its union.
+/// of the process (counted as they start) find the palm tube folded at its union; fold:all
+/// every call.
 SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig, const SkinOptions& options,
                       const std::function<void(const std::string&)>& progress = {},
                       const std::function<void()>& beside = {}, const std::function<void()>& accepted = {});
