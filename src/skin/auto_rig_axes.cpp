@@ -15,7 +15,7 @@ namespace {
 // A digit's section middle more than this (mm) beside the line through those beyond it
 // toward the tip is not across the digit.
 constexpr double kLateralStrayMm = 1.5;
-constexpr double kShortStep = 1.5;  // mm between a stub's sections across its neighbours' direction
+constexpr double kShortStep = 1.5;  // mm between a stub's sections along its neighbours' direction
 
 // A finger's section centres carried toward the palm from its first one (at t = lateral's
 // front), through the whole cloud `h`: every 3 mm, the finger lies between the lowest points
@@ -276,7 +276,7 @@ std::vector<Eigen::Vector2d> track_in_flexion_plane(const std::vector<Eigen::Vec
 // sliver elongated across the hand (R06 of draw 72, every finger 22-38 deg at the MCP: the
 // middle finger's piece 23.8 by 16.5 mm, its axis 78 deg off its neighbours', which agree within
 // 17 deg; its joints were placed along that line, and every placement was refused, its
-// proximal phalanx more than 15 mm outside the cloud). Across the neighbours' direction such a
+// proximal phalanx more than 15 mm outside the cloud). Along the neighbours' direction such a
 // stub gives few sections 3 mm apart: trace_centre_line takes them kShortStep apart before it
 // gives the direction up.
 // Every digit's piece's principal axis (away from the palm's centre `pc`) and mean are set
@@ -328,7 +328,8 @@ void digit_directions(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector
   }
 }
 
-// The digit's sections every 3 mm along its principal axis (or its neighbours' direction;
+// The digit's sections every `step` mm (3; kShortStep for a stub whose neighbours' direction
+// gives too few) along its principal axis (or its neighbours' direction;
 // both set by digit_directions, which runs first); their middles (the lateral offset
 // a line, the height a quadratic where the digit curls) make its centre line, from well
 // inside the palm to the skin's tip. `finger`: not the thumb (its line is not carried on into
