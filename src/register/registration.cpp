@@ -697,15 +697,15 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
   std::exception_ptr first_error;
   std::vector<Eigen::Vector3d> cb, cp;
   double r = 0;
+  const auto t_markers = Clock::now();  // markers_ms: both searches' when there are two
   for (;;) {
     try {
-      t = Clock::now();
       settle_radius(back, palm, &o, hints, both, progress, &d.radius);
       r = o.spheres.radius_mm;
       out.marker_radius_mm = r;
       progress("finding the marker spheres (radius " + fmt("%.2f", r) + " mm)");
       find_both_markers(back, palm, o, hints, back_file, palm_file, &d, &out.warnings);
-      timings.emplace_back("markers_ms", ms_since(t));
+      timings.emplace_back("markers_ms", ms_since(t_markers));
 
       progress("matching the markers");
       t = Clock::now();
