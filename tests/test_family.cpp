@@ -699,8 +699,7 @@ TEST(Family, SmallMarkersOnANoisyScanAreFoundWithFewerVotes) {
                                                {-2, 3, 10, -2, 41, 4, 10, 26, 3, 43, 15, 17}, {6, 7, 19}}
                                          .options(),
                                      91, 2.5, drawn_scanner(0.086, 25, 77, 1.3));
-  std::ifstream in(dir + "/reg/registration.json");
-  const auto r = nlohmann::json::parse(in);
+  const auto r = load_json_object(dir + "/reg/registration.json");
   std::printf("[family] small noisy markers: %zu pairs, rotation %.4f deg, skin mean %.4f mm\n",
               r["matching"]["pairs_back_palm"].size(), r["against_truth"]["chosen"]["rotation_deg"].get<double>(),
               r["against_truth"]["chosen"]["skin_mean_mm"].get<double>());

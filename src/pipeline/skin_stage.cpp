@@ -216,12 +216,10 @@ SkinStageResult run_skin_stage(const SkinStageInputs& in, const PipelineOptions&
   auto renamed = [&](const InputError& e) {
     // A tube folding on every placement (R12 of scripts/random_hands_study.py --draw 72) is the
     // placement's failure too: the way on is the same.
-    if (R.automatic && dynamic_cast<const TubeFoldsError*>(&e)) {
-      const std::string d = e.detail();
-      return InputError("automatic skeleton", d.substr(0, d.find("; the rig may")) +
-                                                  " on every placement tried; the automatic placement missed this hand: "
-                                                  "give its rig (--rig)");
-    }
+    if (const auto* fold = dynamic_cast<const TubeFoldsError*>(&e); fold && R.automatic)
+      return InputError("automatic skeleton", std::string("the ") + skin_tube_name(fold->tube) +
+                                                  " tube folds into itself on every placement tried; the automatic "
+                                                  "placement missed this hand: give its rig (--rig)");
     if (e.where() == "rig" && R.automatic)
       return InputError("automatic skeleton", e.detail() + "; the automatic placement missed this hand: give its rig (--rig)");
     if (e.where() == "rig") {  // a hint where the step gave none

@@ -720,8 +720,7 @@ Registration register_scans(const RangeScan& back_scan, const RangeScan& palm_sc
     }
     progress("no 3 markers matched: searching the scans again with fewer votes per sphere (" +
              std::to_string(kFewVotes) + ")");
-    d = d_before;
-    d.used = options;
+    d = d_before;  // its `used` the options as given
     d.used.spheres.min_votes = kFewVotes;
     out.warnings.resize(warnings_before);
     timings = timings_before;

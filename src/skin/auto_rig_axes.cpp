@@ -286,6 +286,9 @@ void digit_directions(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector
   constexpr double kStrayDeg = 30;
   constexpr double kAgreeDeg = 25, kAcrossDeg = 45;
   constexpr int kFingers = 4;         // digits[0..3]; digits[4] is the thumb
+  const auto deg_between = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {  // unit vectors
+    return std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180 / M_PI;
+  };
   std::array<Eigen::Vector2d, kFingers> dir;
   std::array<bool, kFingers> own{};
   for (size_t k = 0; k < digits->size(); ++k) {
@@ -315,16 +318,14 @@ void digit_directions(const std::vector<Eigen::Vector3d>& h, const Eigen::Vector
     Eigen::Vector2d d =
         (static_cast<double>(hi - k) * dir[lo] + static_cast<double>(k - lo) * dir[hi]) / static_cast<double>(hi - lo);
     d.normalize();
-    if (std::acos(std::clamp(d.dot(dir[k]), -1.0, 1.0)) > kStrayDeg * M_PI / 180) (*digits)[k].along = d;
+    if (deg_between(d, dir[k]) > kStrayDeg) (*digits)[k].along = d;
   }
   // An inner finger whose neighbours on both sides agree, each with its own axis or not, and
   // whose axis lies across theirs.
   for (int k = 1; k + 1 < kFingers && k + 1 < static_cast<int>(digits->size()); ++k) {
     if ((*digits)[k].along) continue;
-    const double agree = std::acos(std::clamp(dir[k - 1].dot(dir[k + 1]), -1.0, 1.0)) * 180 / M_PI;
     const Eigen::Vector2d d = (dir[k - 1] + dir[k + 1]).normalized();
-    const double off = std::acos(std::clamp(d.dot(dir[k]), -1.0, 1.0)) * 180 / M_PI;
-    if (agree <= kAgreeDeg && off > kAcrossDeg) (*digits)[k].along = d;
+    if (deg_between(dir[k - 1], dir[k + 1]) <= kAgreeDeg && deg_between(d, dir[k]) > kAcrossDeg) (*digits)[k].along = d;
   }
 }
 
