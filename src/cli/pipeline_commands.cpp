@@ -223,6 +223,7 @@ void patches_command(const PatchesArgs& a, const Progress& progress) {
               r.surface_to_skin.p95, r.surface_to_skin.max);
   if (const auto note = layout_note(s)) std::printf("%s\n", note->c_str());
   if (const auto note = separation_note(s)) std::printf("patches: %s\n", note->c_str());
+  if (const auto note = fairness_note(s)) std::printf("patches: %s\n", note->c_str());
   if (r.surface_to_truth)
     std::printf("against the truth: surface->truth mean %.3f p95 %.3f mm; truth->surface within 1 mm %.2f %%\n",
                 r.surface_to_truth->mean, r.surface_to_truth->p95, 100 * r.truth_to_surface->within_1mm);

@@ -33,6 +33,7 @@ inline void carry_fit_choices(PatchSkin* from, PatchSkin* to) {
   to->thumb_ring_shift = from->thumb_ring_shift;
   to->layout_try_turns = std::move(from->layout_try_turns);
   to->thumb_turn_deg = from->thumb_turn_deg;
+  to->crossings_before_fairness = from->crossings_before_fairness;
 }
 
 /// The Bernstein basis of degree 3 at t (B), and its derivatives (D, when given).
@@ -149,6 +150,11 @@ class NetFit {
 /// The finger a patch of the hand's layout belongs to ("index.0.ulnar/v1" → "index"), or ""
 /// when it is not one of the four fingers' (the thumb's tube meets the palm, not a finger).
 std::string finger_of(const std::string& name);
+/// Of c's pairs of crossing patches, those not between two fingers' tubes (fingers pressed
+/// together cross there until fit_patch_skin holds their walls apart): a patch of the palm or
+/// the thumb in the pair, or two of one finger's. The refinement answers for these while it
+/// runs; fit_patch_skin raises the fairness only where they are all there are.
+size_t crossings_not_between_fingers(const PatchSkin& s, const PatchCrossings& c);
 
 /// Refinement to a tolerance (refine.cpp): while a patch's measured points lie farther than
 /// o.tolerance_mm, the patches that miss are split (balance_cuts, split_layout) and `refit`

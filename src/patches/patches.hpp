@@ -154,6 +154,11 @@ struct PatchSkin {
   /// The polygon skin's samples' weight it was fitted with (fit_patches): PatchOptions::skin_weight,
   /// or 0.05 where fit_patch_skin's fit crossed itself and one with 0.05 crossed less.
   double skin_weight_used = 0;
+  /// The fairness it was fitted with: PatchOptions::fairness, or that raised 1.5, 2 or 3 times
+  /// where fit_patch_skin's fit still crossed itself and one so fitted crossed less.
+  double fairness_used = 0;
+  /// Pairs of triangles that crossed in the fit before the fairness was raised; 0 when it was not.
+  size_t crossings_before_fairness = 0;
   /// The kept surface tessellated at PatchOptions::tessellation passing through itself, as
   /// fit_patch_skin measured it for the choice of layout and the fingers held apart (on every
   /// path; none once posed).

@@ -239,10 +239,6 @@ std::vector<double> patch_max_error(const PatchSkin& s) {
 
 namespace patch_steps {
 
-namespace {
-// The crossing pairs the refinement answers for while it runs: all but those between two
-// fingers' tubes (fingers pressed together cross there until fit_patch_skin holds their walls
-// apart, after the refinement).
 size_t crossings_not_between_fingers(const PatchSkin& s, const PatchCrossings& c) {
   size_t n = 0;
   for (const auto& [a, b] : c.patch_pairs) {
@@ -251,7 +247,6 @@ size_t crossings_not_between_fingers(const PatchSkin& s, const PatchCrossings& c
   }
   return n;
 }
-}  // namespace
 
 void refine_to_tolerance(PatchSkin* s, const PatchOptions& o, const std::function<PatchSkin(const LayoutSplit&)>& refit,
                          const std::function<void(PatchSkin*)>& finish) {

@@ -64,6 +64,16 @@ std::optional<std::string> separation_note(const PatchSkin& s) {
          " pairs of triangles: fingers pressed together); fitted again held apart by the plane between them (docs/patches.md)";
 }
 
+std::optional<std::string> fairness_note(const PatchSkin& s) {
+  if (s.crossings_before_fairness == 0) return std::nullopt;
+  char b[300];
+  std::snprintf(b, sizeof b,
+                "the surface passed through itself within a digit or the palm (%zu pairs of triangles: a patch folded into "
+                "a crease); fitted again with the fairness term raised to %g, crossing nowhere (docs/patches.md)",
+                s.crossings_before_fairness, s.fairness_used);
+  return std::string(b);
+}
+
 PatchStageResult run_patch_stage(const SkinResult& skin, const Rig& rig, const std::vector<Eigen::Vector3d>& points,
                                  const std::vector<std::uint32_t>& sides, const PatchOptions& options,
                                  const TruthSkin* truth, int error_grid, bool pictures) {
@@ -127,6 +137,7 @@ Json to_json(const PatchStageResult& r) {
             {"thumb_ring_shift", s.thumb_ring_shift},
             {"thumb_turn_deg", s.thumb_turn_deg},
             {"skin_weight_used", s.skin_weight_used},
+            {"fairness_used", s.fairness_used},
             {"separations", [&] {
                Json a = Json::array();
                for (const Separation& sep : s.separations)

@@ -50,6 +50,8 @@ Json to_json(const PatchReportFigures& f);
 std::optional<std::string> layout_note(const PatchSkin& s);
 /// What the fit did when two fingers' tubes passed through each other (PatchSkin::separations), or nothing.
 std::optional<std::string> separation_note(const PatchSkin& s);
+/// Why the fit kept has a raised fairness (PatchSkin::fairness_used), when it has.
+std::optional<std::string> fairness_note(const PatchSkin& s);
 
 struct PatchStageResult {
   PatchSkin patches;

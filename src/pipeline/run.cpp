@@ -244,6 +244,7 @@ RunResult run_pipeline(const RunInputs& in, const ProgressFn& progress) {
     }
     if (const auto note = layout_note(R.patches->patches)) progress("patches: " + *note);
     if (const auto note = separation_note(R.patches->patches)) progress("patches: " + *note);
+    if (const auto note = fairness_note(R.patches->patches)) progress("patches: " + *note);
   }
   // patches.step (Open CASCADE: sewing, writing, reading back, ~0.2 s of CPU) beside the rigging,
   // the texture and the pictures; from a copy of the patches (the rigging adds their weights).
