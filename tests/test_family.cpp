@@ -430,12 +430,10 @@ TEST(Family, FingersPressedTogetherGiveAPatchSurfaceThatDoesNotPassThroughItself
     const std::string args = "run --back " + dir + "/pair/back --palm " + dir + "/pair/palm --rig " + dir +
                              "/pair/rig.json --truth " + dir + "/pair/truth.json --out " + dir + "/run";
     ASSERT_EQ(test::run(std::string(HANDSKIN_BINARY) + " -q " + args, &out), 0) << out;
-    std::ifstream in(dir + "/run/report.json");
-    const auto r = nlohmann::json::parse(in);
-    nlohmann::json st;
-    for (const auto& x : r["stages"])
-      if (x["name"] == "patches") st = x;
-    ASSERT_TRUE(st.is_object());
+    const auto r = load_json_object(dir + "/run/report.json");
+    const Json* patches = test::report_stage(r, "patches");
+    ASSERT_NE(patches, nullptr);
+    const Json& st = *patches;
     std::printf("[family] %s: crossings %d (before the separation %d), separations %zu, truth within 1 mm %.2f %%\n", c.tag,
                 st["self_intersections"]["crossing_pairs"].get<int>(), st["crossing_pairs_before_separation"].get<int>(),
                 st["separations"].size(), 100 * st["truth"]["truth_to_surface_mm"]["within_1mm"].get<double>());
@@ -907,10 +905,9 @@ TEST(Family, APatchFoldedIntoACreaseIsFittedAgainFairer) {
                            "/pair/rig.json --truth " + dir + "/pair/truth.json --out " + dir + "/run";
   ASSERT_EQ(test::run(std::string(HANDSKIN_BINARY) + " -q " + args, &out), 0) << out;
   const auto r = load_json_object(dir + "/run/report.json");
-  nlohmann::json st;
-  for (const auto& x : r["stages"])
-    if (x["name"] == "patches") st = x;
-  ASSERT_TRUE(st.is_object());
+  const Json* patches = test::report_stage(r, "patches");
+  ASSERT_NE(patches, nullptr);
+  const Json& st = *patches;
   const auto& t = st["truth"];
   std::printf("[family] fold in a crease: fairness %g, crossings %d, surface -> truth mean %.4f p95 %.3f, within 1 mm %.2f %%\n",
               st["fairness_used"].get<double>(), st["self_intersections"]["crossing_pairs"].get<int>(),

@@ -75,9 +75,7 @@ TEST(Texture, TheFixturesSkinTakesTheHandsOwnColoursFromBothPhotos) {
   EXPECT_LT(flat, s.mesh.faces.size() / 20);
   // The report's figures: both photos used, a blend across the flanks, little unseen.
   const Json report = load_json_object(fixture_run() + "/report.json");
-  const Json* stage = nullptr;
-  for (const auto& st : report["stages"])
-    if (st["name"] == "texture") stage = &st;
+  const Json* stage = test::report_stage(report, "texture");
   ASSERT_NE(stage, nullptr);
   EXPECT_GT((*stage)["area_palm_photo_only"].get<double>(), 0.35);
   EXPECT_GT((*stage)["area_back_photo_only"].get<double>(), 0.35);

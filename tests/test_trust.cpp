@@ -183,12 +183,6 @@ Verdict independent_check(const Soup& s) {
   return v;
 }
 
-const Json* stage(const Json& report, const std::string& name) {
-  for (const auto& s : report["stages"])
-    if (s["name"] == name) return &s;
-  return nullptr;
-}
-
 const Json* gate(const Json& report, const std::string& name) {
   for (const auto& g : report["gates"])
     if (g["name"] == name) return &g;
@@ -199,7 +193,7 @@ const Json* gate(const Json& report, const std::string& name) {
 void expect_verdicts_hold(const std::string& run_dir) {
   SCOPED_TRACE(run_dir);
   const Json report = load_json_object(run_dir + "/report.json");
-  const Json& mesh = (*stage(report, "skin"))["mesh"];
+  const Json& mesh = (*test::report_stage(report, "skin"))["mesh"];
   const Verdict v = independent_check(read_ply_soup(run_dir + "/skin.ply"));
   EXPECT_EQ(mesh["self_intersections"].get<bool>(), v.crossing_pairs > 0) << v.crossing_pairs << " crossing pairs";
   EXPECT_EQ(mesh["watertight"].get<bool>(), v.closed_and_oriented && v.volume_mm3 > 0 && v.crossing_pairs == 0);
@@ -269,7 +263,7 @@ TEST(Trust, TheReportDescribesTheWrittenSkinOfTheFixture) {
   expect_verdicts_hold(dir);
   const Json report = load_json_object(dir + "/report.json");
   EXPECT_TRUE(report["gates_passed"].get<bool>()) << report["gates"].dump(1);
-  EXPECT_EQ((*stage(report, "skin"))["mesh"]["measured_on"], "the written file");
+  EXPECT_EQ((*test::report_stage(report, "skin"))["mesh"]["measured_on"], "the written file");
   for (const char* g : {"skin.closed", "skin.manifold", "skin.outward", "skin.self_intersections", "cloud_to_skin.p95",
                         "cloud_to_skin.max", "patches_to_skin.p95", "patches_to_skin.max", "patches.g0_gap",
                         "registration.rotation_1sigma", "registration.displacement_1sigma"}) {
@@ -294,7 +288,7 @@ TEST(Trust, ADeliberatelyCrossedSkinIsReportedAsCrossedAndStrictWritesNothing) {
   EXPECT_NE(out.find("warning: quality gate skin.self_intersections failed"), std::string::npos) << out;
   expect_verdicts_hold(dir);
   const Json report = load_json_object(dir + "/report.json");
-  EXPECT_TRUE((*stage(report, "skin"))["mesh"]["self_intersections"].get<bool>());
+  EXPECT_TRUE((*test::report_stage(report, "skin"))["mesh"]["self_intersections"].get<bool>());
   EXPECT_FALSE(report["gates_passed"].get<bool>());
   // --strict: exit 3, one error line, the folder as it was.
   const auto before = snapshot(dir);
@@ -364,9 +358,9 @@ TEST(Trust, VerdictsHoldOnFamilyHandsGivenTheirRigAndPlaced) {
               0)
         << out;
     const Json r = load_json_object(o + "/report.json");
-    EXPECT_NE((*stage(r, "skin"))["skeleton"].value("given_rig_orientation", "").find("taken from the scans"),
+    EXPECT_NE((*test::report_stage(r, "skin"))["skeleton"].value("given_rig_orientation", "").find("taken from the scans"),
               std::string::npos);
-    const Json& t = (*stage(r, "patches"))["truth"];
+    const Json& t = (*test::report_stage(r, "patches"))["truth"];
     EXPECT_LT(t["surface_to_truth_mm"]["mean"].get<double>(), 0.2);
     EXPECT_LT(t["surface_to_truth_mm"]["p95"].get<double>(), 0.6);
     EXPECT_LT(t["surface_to_truth_mm"]["max"].get<double>(), 3.0);

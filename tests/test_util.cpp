@@ -19,6 +19,12 @@
 
 namespace handskin::test {
 
+const Json* report_stage(const Json& report, const std::string& name) {
+  for (const auto& s : report["stages"])
+    if (s["name"] == name) return &s;
+  return nullptr;
+}
+
 namespace {
 // The folders temp_dir made in this process, removed once every test has run when all passed
 // (a suite run had left ~3 000 of them, 13 GB, in /tmp); kept, and named, when one failed or

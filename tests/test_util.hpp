@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "core/errors.hpp"
+#include "core/json_util.hpp"
 #include "mesh/mesh.hpp"
 #include "synth/scanner.hpp"
 
@@ -27,6 +28,8 @@ void write_text(const std::string& path, const std::string& text);
 /// Every file under `dir`: relative name -> bytes ("(folder)" for a folder); a missing folder
 /// is {"(absent)": ""}. For comparing an output folder before and after a command.
 std::map<std::string, std::string> snapshot(const std::string& dir);
+/// The stage named `name` in a report.json's "stages" (run's report), or nullptr.
+const Json* report_stage(const Json& report, const std::string& name);
 /// Scene objects with exact geometry for the scanner and registration tests.
 /// The message of the InputError `f` throws, or "(no error)".
 template <class F>
