@@ -155,7 +155,8 @@ struct PatchSkin {
   /// or 0.05 where fit_patch_skin's fit crossed itself and one with 0.05 crossed less.
   double skin_weight_used = 0;
   /// The fairness it was fitted with: PatchOptions::fairness, or that raised 1.5, 2 or 3 times
-  /// where fit_patch_skin's fit still crossed itself and one so fitted crossed less.
+  /// where fit_patch_skin's fit still crossed itself within a digit or the palm and the fit so
+  /// raised crossed nowhere (the first such raise).
   double fairness_used = 0;
   /// Pairs of triangles that crossed in the fit before the fairness was raised; 0 when it was not.
   size_t crossings_before_fairness = 0;

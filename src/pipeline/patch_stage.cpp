@@ -69,7 +69,7 @@ std::optional<std::string> fairness_note(const PatchSkin& s) {
   char b[300];
   std::snprintf(b, sizeof b,
                 "the surface passed through itself within a digit or the palm (%zu pairs of triangles: a patch folded into "
-                "a crease); fitted again with the fairness term raised to %g, crossing nowhere (docs/patches.md)",
+                "a crease); fitted again with the fairness term raised to %g, which crossed nowhere (docs/patches.md)",
                 s.crossings_before_fairness, s.fairness_used);
   return std::string(b);
 }
