@@ -361,6 +361,16 @@ void expect_same_skin_with_one_thread(const std::string& shown) {
   EXPECT_EQ(untimed(load_json_object(dir + "/skin1/skin_report.json")), untimed(load_json_object(dir + "/skin2/skin_report.json")));
 }
 
+// `run` on a study pair (study_pair's folder) with its own rig and truth, into <dir>/run: its
+// report.json. A run that fails throws, naming its arguments and output.
+Json run_pair_with_its_rig(const std::string& dir) {
+  std::string out;
+  const std::string args = "run --back " + dir + "/pair/back --palm " + dir + "/pair/palm --rig " + dir +
+                           "/pair/rig.json --truth " + dir + "/pair/truth.json --out " + dir + "/run";
+  if (test::run(std::string(HANDSKIN_BINARY) + " -q " + args, &out) != 0) throw std::runtime_error(args + ": " + out);
+  return load_json_object(dir + "/run/report.json");
+}
+
 nlohmann::json study_pair_auto_skin(const std::string& tag, const std::string& hand_options, int seed, double radius) {
   return study_pair_skin(tag, hand_options, seed, radius, true);
 }
@@ -426,11 +436,7 @@ TEST(Family, FingersPressedTogetherGiveAPatchSurfaceThatDoesNotPassThroughItself
                         Case{"family-pressed-h12", "--hand-length 195 --width 1.3 --thickness 1.1 --spread 3", "", 2.5}}) {
     SCOPED_TRACE(c.tag);
     const std::string dir = study_pair(c.tag, c.hand, 1, c.radius, c.scan);
-    std::string out;
-    const std::string args = "run --back " + dir + "/pair/back --palm " + dir + "/pair/palm --rig " + dir +
-                             "/pair/rig.json --truth " + dir + "/pair/truth.json --out " + dir + "/run";
-    ASSERT_EQ(test::run(std::string(HANDSKIN_BINARY) + " -q " + args, &out), 0) << out;
-    const auto r = load_json_object(dir + "/run/report.json");
+    const auto r = run_pair_with_its_rig(dir);
     const Json* patches = test::report_stage(r, "patches");
     ASSERT_NE(patches, nullptr);
     const Json& st = *patches;
@@ -900,11 +906,7 @@ TEST(Family, APatchFoldedIntoACreaseIsFittedAgainFairer) {
                                                {25, 35, 0, 11, 6, 9, 34, 27, 22, 40, 19, 12}, {1, 17, 19}}
                                          .options(),
                                      67, 3.5, drawn_scanner(0.078, 23, 76, 0.5));
-  std::string out;
-  const std::string args = "run --back " + dir + "/pair/back --palm " + dir + "/pair/palm --rig " + dir +
-                           "/pair/rig.json --truth " + dir + "/pair/truth.json --out " + dir + "/run";
-  ASSERT_EQ(test::run(std::string(HANDSKIN_BINARY) + " -q " + args, &out), 0) << out;
-  const auto r = load_json_object(dir + "/run/report.json");
+  const auto r = run_pair_with_its_rig(dir);
   const Json* patches = test::report_stage(r, "patches");
   ASSERT_NE(patches, nullptr);
   const Json& st = *patches;
