@@ -313,7 +313,7 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
     // 6. the tubes' meshes united into one surface
     const auto t1 = Clock::now();
     try {
-      skin = stitch_tubes(tubes, H.T.inverse(), &origin, &R.pockets_removed, fault_fold);
+      skin = stitch_tubes(tubes, H.T.inverse(), &origin, &R.pockets_removed, o.rig_given, fault_fold);
     } catch (const TubeFoldsError& e) {
       // The thumb's planes turn at once through its joints (a finger's over two tip radii):
       // its wide root turning slowly cost a raised thumb 0.3 % within 1 mm, and turned so
@@ -324,7 +324,7 @@ SkinResult build_skin(const std::vector<Eigen::Vector3d>& points, const Rig& rig
       say("the thumb's tube folds where its planes turn at once: its planes turned over its bends");
       R.warnings.resize(warnings), R.tubes.clear(), R.grid.clear(), origin.clear();
       tubes = build_tubes(H, tube_points, webs, h, o, true, &R);
-      skin = stitch_tubes(tubes, H.T.inverse(), &origin, &R.pockets_removed);
+      skin = stitch_tubes(tubes, H.T.inverse(), &origin, &R.pockets_removed, o.rig_given);
       R.thumb_turns_slowly = true;
     }
     R.seconds_union = since(t1);

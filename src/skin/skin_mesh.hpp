@@ -93,7 +93,8 @@ struct SkinOptions {
   /// The rig was given, not placed: its digits are held to their sections as these show them
   /// (SkinTubeReport::axis_offset_seen_mm), sections seen from one side only included. A
   /// placed skeleton is held to the sections seen round (axis_offset_mm), as its placement's
-  /// retries expect. Set by the skin stage.
+  /// retries expect. A given rig's tube that folds is also made again with its ends closed
+  /// on their rings (stitch_tubes' mend_caps); a placement's is refused. Set by the skin stage.
   bool rig_given = false;
   bool IsValid(std::string* error) const;
 };

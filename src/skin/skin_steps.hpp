@@ -196,10 +196,13 @@ using PositionOrigin = std::unordered_map<std::array<double, 3>, std::pair<int, 
 /// Step 6: each tube's triangles (strips, caps), then one corefinement union. `origin` maps
 /// every tube vertex's exact position (rig frame) to its (tube, ring); `pockets` counts the
 /// inner shells dropped. Throws InputError naming a tube that folds into itself, or when the
-/// tubes do not join into one surface. `palm_folds` (fault injection for tests: build_skin's
-/// HANDSKIN_FAULT=fold:N) has it find the palm tube folded.
+/// tubes do not join into one surface. With `mend_caps` a tube that folds is first made again
+/// with its open ends closed on their rings' own vertices (docs/skin.md, step 8): the given
+/// rig's skin (an automatic placement whose tube folds is refused, and another tried).
+/// `palm_folds` (fault injection for tests: build_skin's HANDSKIN_FAULT=fold:N) has it find
+/// the palm tube folded.
 SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& hand_to_rig,
-                PositionOrigin* origin, int* pockets, bool palm_folds = false);
+                PositionOrigin* origin, int* pockets, bool mend_caps, bool palm_folds = false);
 
 /// Step 7: quadric-error decimation of a closed mesh to `max_faces`, moving it by at most
 /// about `tolerance_mm`; each vertex's (tube, ring) in `origin` follows it.

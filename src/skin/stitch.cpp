@@ -1,6 +1,9 @@
 #include "skin/skin_steps.hpp"
 
+#include <CGAL/Constrained_Delaunay_triangulation_2.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Random.h>
+#include <CGAL/Triangulation_vertex_base_with_info_2.h>
 #include <CGAL/boost/graph/Euler_operations.h>
 
 #include <CGAL/Polygon_mesh_processing/connected_components.h>
@@ -51,10 +54,58 @@ void straddle(std::vector<Eigen::Vector3d>* ring, const Eigen::Vector3d& centre)
   }
 }
 
+// A planar ring (`ids` into V, in the tube's order) triangulated on its own vertices, inside
+// the polygon only: the constrained Delaunay triangulation of its outline in its plane (CGAL),
+// the triangles whose centroid lies inside kept, each wound as `outward` asks (the ring's own
+// order when true). Empty when the outline is not a simple polygon (two vertices in one place,
+// or edges that cross: the triangulation then has other vertices or other than n − 2 triangles).
+std::vector<std::array<int, 3>> flat_cap(const std::vector<Eigen::Vector3d>& V, const std::vector<int>& ids, bool outward) {
+  using K2 = CGAL::Exact_predicates_inexact_constructions_kernel;
+  using Vb = CGAL::Triangulation_vertex_base_with_info_2<int, K2>;
+  using Tds = CGAL::Triangulation_data_structure_2<Vb, CGAL::Constrained_triangulation_face_base_2<K2>>;
+  using CDT = CGAL::Constrained_Delaunay_triangulation_2<K2, Tds, CGAL::No_constraint_intersection_tag>;
+  const int n = static_cast<int>(ids.size());
+  Eigen::Vector3d c = Eigen::Vector3d::Zero(), normal = Eigen::Vector3d::Zero();
+  for (int id : ids) c += V[id];
+  c /= n;
+  for (int j = 0; j < n; ++j) normal += (V[ids[j]] - c).cross(V[ids[(j + 1) % n]] - c);  // Newell: along the ring's own winding
+  if (normal.norm() < 1e-12) return {};
+  normal.normalize();
+  const Eigen::Vector3d e1 = normal.unitOrthogonal(), e2 = normal.cross(e1);
+  std::vector<K2::Point_2> q(n);
+  for (int j = 0; j < n; ++j) q[j] = K2::Point_2((V[ids[j]] - c).dot(e1), (V[ids[j]] - c).dot(e2));
+  std::vector<std::array<int, 3>> tris;
+  try {
+    CDT cdt;
+    std::vector<CDT::Vertex_handle> vh(n);
+    for (int j = 0; j < n; ++j) vh[j] = cdt.insert(q[j]), vh[j]->info() = j;
+    if (static_cast<int>(cdt.number_of_vertices()) != n) return {};
+    for (int j = 0; j < n; ++j) cdt.insert_constraint(vh[j], vh[(j + 1) % n]);
+    if (static_cast<int>(cdt.number_of_vertices()) != n) return {};
+    for (auto f = cdt.finite_faces_begin(); f != cdt.finite_faces_end(); ++f) {
+      const K2::Point_2 m = CGAL::centroid(f->vertex(0)->point(), f->vertex(1)->point(), f->vertex(2)->point());
+      if (CGAL::bounded_side_2(q.begin(), q.end(), m, K2()) != CGAL::ON_BOUNDED_SIDE) continue;
+      std::array<int, 3> t{f->vertex(0)->info(), f->vertex(1)->info(), f->vertex(2)->info()};
+      // In the (e1, e2) frame the ring winds counter-clockwise (the normal is its Newell
+      // normal); the triangulation's faces are counter-clockwise too.
+      if (!outward) std::swap(t[1], t[2]);
+      tris.push_back({ids[t[0]], ids[t[1]], ids[t[2]]});
+    }
+  } catch (const std::exception&) {  // constraints that intersect (No_constraint_intersection_tag)
+    return {};
+  }
+  if (static_cast<int>(tris.size()) != n - 2) return {};
+  return tris;
+}
+
 // The tube's triangles (outward): strips between consecutive rings (each quad split along
 // its shorter diagonal), a flat fan over the first ring, a pole fan or a flat fan at the end.
+// With `flat_caps` an end without a pole is instead triangulated on the ring's own vertices
+// (flat_cap), where that ring is a simple polygon: a fan from the centroid of a ring that is
+// not star-shaped from it (a palm section cut where a low thumb or a bent finger leaves a deep
+// notch in its outline) folds over itself.
 void tube_mesh(const TubeBuild& t, std::vector<Eigen::Vector3d>* V, std::vector<std::array<int, 3>>* F,
-               std::vector<int>* ring_of) {
+               std::vector<int>* ring_of, bool flat_caps = false) {
   const int M = static_cast<int>(t.rings.front().size());
   V->clear(), F->clear(), ring_of->clear();
   for (size_t k = 0; k < t.rings.size(); ++k) {
@@ -76,13 +127,27 @@ void tube_mesh(const TubeBuild& t, std::vector<Eigen::Vector3d>* V, std::vector<
     for (const auto& p : t.rings[k]) c += p;
     return Eigen::Vector3d(c / M);
   };
-  const int root = static_cast<int>(V->size());
-  V->push_back(centroid(0)), ring_of->push_back(-1);
-  for (int j = 0; j < M; ++j) F->push_back({root, id(0, j + 1), id(0, j)});
   const size_t L = t.rings.size() - 1;
-  const int end = static_cast<int>(V->size());
-  V->push_back(t.pole ? *t.pole : centroid(L)), ring_of->push_back(-1);
-  for (int j = 0; j < M; ++j) F->push_back({end, id(L, j), id(L, j + 1)});
+  const auto ring_ids = [&](size_t k) {
+    std::vector<int> ids(M);
+    for (int j = 0; j < M; ++j) ids[j] = id(k, j);
+    return ids;
+  };
+  // The first ring's cap faces back along the tube (against the ring's winding), the end's on.
+  std::vector<std::array<int, 3>> first = flat_caps ? flat_cap(*V, ring_ids(0), false) : std::vector<std::array<int, 3>>();
+  std::vector<std::array<int, 3>> last = flat_caps && !t.pole ? flat_cap(*V, ring_ids(L), true) : std::vector<std::array<int, 3>>();
+  if (first.empty()) {
+    const int root = static_cast<int>(V->size());
+    V->push_back(centroid(0)), ring_of->push_back(-1);
+    for (int j = 0; j < M; ++j) F->push_back({root, id(0, j + 1), id(0, j)});
+  }
+  F->insert(F->end(), first.begin(), first.end());
+  if (last.empty()) {
+    const int end = static_cast<int>(V->size());
+    V->push_back(t.pole ? *t.pole : centroid(L)), ring_of->push_back(-1);
+    for (int j = 0; j < M; ++j) F->push_back({end, id(L, j), id(L, j + 1)});
+  }
+  F->insert(F->end(), last.begin(), last.end());
 }
 
 SM to_surface_mesh(const std::vector<Eigen::Vector3d>& V, const std::vector<std::array<int, 3>>& F) {
@@ -172,7 +237,7 @@ int mend_crossings(SM* sm) {
 }
 
 SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& Ti,
-                PositionOrigin* origin_out, int* pockets_out, bool fault_palm_folds) {
+                PositionOrigin* origin_out, int* pockets_out, bool mend_caps, bool fault_palm_folds) {
   auto& origin = *origin_out;
   *pockets_out = 0;
   // CGAL's box intersection (inside the self-intersection checks and the corefinement) draws
@@ -187,18 +252,32 @@ SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& Ti
   // folds; if none does, two digits touch (e.g. the thumb lying on the index) and they are
   // stitched one by one instead.
   std::vector<SM> parts;
+  std::vector<const TubeBuild*> part_build;
   std::vector<int> part_tube;
-  for (const auto& t : tubes) {
-    if (!t.report.present) continue;
+  const auto make_part = [&](const TubeBuild& t, bool flat_caps) {
     std::vector<Eigen::Vector3d> V;
     std::vector<std::array<int, 3>> F;
     std::vector<int> ring_of;
-    tube_mesh(t, &V, &F, &ring_of);
+    tube_mesh(t, &V, &F, &ring_of, flat_caps);
     for (auto& p : V) p = Ti * p;
     for (size_t i = 0; i < V.size(); ++i) origin[{V[i].x(), V[i].y(), V[i].z()}] = {t.id, ring_of[i]};
-    parts.push_back(to_surface_mesh(V, F));
+    return to_surface_mesh(V, F);
+  };
+  for (const auto& t : tubes) {
+    if (!t.report.present) continue;
+    parts.push_back(make_part(t, false));
+    part_build.push_back(&t);
     part_tube.push_back(t.id);
   }
+  // A part that folds is made again with its open ends triangulated on their rings (tube_mesh's
+  // flat_caps): a fan over a notched ring is the one fold this can mend. True when it no longer folds.
+  const auto unfold_caps = [&](size_t k) {
+    if (!mend_caps) return false;
+    SM again = make_part(*part_build[k], true);
+    if (again.number_of_faces() == parts[k].number_of_faces() || PMP::does_self_intersect(again)) return false;
+    parts[k] = std::move(again);
+    return true;
+  };
   auto folds = [&](size_t k) {
     return TubeFoldsError("merged cloud",
                           std::string("the ") + skin_tube_name(part_tube[k]) +
@@ -231,6 +310,7 @@ SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& Ti
 #pragma omp section
     digits_cross = parts.size() > 1 && PMP::does_self_intersect(digits);
   }
+  if (palm_folds && !fault_palm_folds) palm_folds = !unfold_caps(0);
   if (fault_palm_folds) palm_folds = true;  // fault injection (build_skin)
   if (palm_folds) throw folds(0);
   CGAL::get_default_random() = CGAL::Random(1);  // the tests drew from it (the union's order, below)
@@ -239,7 +319,7 @@ SM stitch_tubes(const std::vector<TubeBuild>& tubes, const Eigen::Isometry3d& Ti
     skin = unite(skin, digits, "digits");
   } else {
     for (size_t k = 1; k < parts.size(); ++k)
-      if (PMP::does_self_intersect(parts[k])) throw folds(k);
+      if (PMP::does_self_intersect(parts[k]) && !unfold_caps(k)) throw folds(k);
     for (size_t k = 1; k < parts.size(); ++k) skin = unite(skin, parts[k], skin_tube_name(part_tube[k]) + std::string(" tube"));
   }
   // The union's boundary also bounds any pocket the tubes enclose between them: inward-facing
