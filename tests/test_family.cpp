@@ -926,3 +926,52 @@ TEST(Family, APatchFoldedIntoACreaseIsFittedAgainFairer) {
   EXPECT_GE(t["truth_to_surface_mm"]["within_1mm"].get<double>(), 0.975);   // 98.08 % (98.93 % folded)
   EXPECT_LE(st["continuity"]["g0_gap_mm"].get<double>(), 1e-9);
 }
+
+// Two random hands whose runs stopped with their own rigs (`scripts/random_hands_study.py`):
+// draw 69's R02 (a low thumb, the middle finger bent 40° at its MCP beside straight
+// neighbours) ends its palm in a notched section, and the fan closing it folded ("the palm
+// tube folds into itself"): its ends are now closed on the ring's own vertices (docs/skin.md,
+// step 8). Draw 76's R06 (its thumb spread 59°, the middle finger bent 40° at its MCP) built its
+// skin but its patch layout put two corners of a palm ring 0.5 mm apart where that ring runs
+// inside the thumb's tube ("two corners within 0.5 mm"): the lane now looks past that ring
+// point (docs/patches.md, the layout). Both runs now write everything; their gates say what
+// is poor (both: the patch surface crosses itself between the bent middle finger and its
+// neighbours).
+TEST(Family, RunsThatStoppedOnTheirOwnRigsWriteTheirSkins) {
+  struct Case {
+    const char* tag;
+    DrawnHand hand;
+    int seed;
+    double radius;
+    std::string scanner;
+    double within_1mm;  // the skin's truth within 1 mm, at least
+  };
+  const Case cases[] = {
+      {"drawn-69-R02", DrawnHand{"right", 171, 1.16, 1.06, 1.16, 0.8, 29, {2, 45, 8, 40, 31, 2, 11, 13, 16, 16, 13, 22}, {9, 27, 26}},
+       35, 3.0, drawn_scanner(0.077, 21, 74, 0.6), 0.95},  // 96.35 %: the flat cap shows beside the bent finger
+      {"drawn-76-R06", DrawnHand{"right", 162, 1.22, 0.89, 1.12, 1.1, 59, {34, 28, 12, 40, 11, 18, 4, 7, 2, 4, 0, 10}, {5, 12, 20}},
+       96, 3.5, drawn_scanner(0.049, 17, 70, 2.7), 0.98},  // 98.62 %
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.tag);
+    const std::string dir = study_pair(c.tag, c.hand.options(), c.seed, c.radius, c.scanner);
+    const Json r = run_pair_with_its_rig(dir);  // threw on a non-zero exit before
+    const Json* skin = test::report_stage(r, "skin");
+    const Json* patches = test::report_stage(r, "patches");
+    ASSERT_NE(skin, nullptr);
+    ASSERT_NE(patches, nullptr);
+    const auto& t = (*skin)["truth"]["truth_to_skin_mm"];
+    std::printf("[family] %s with its rig: skin truth within 1 mm %.2f %%, patches %d, crossings %d\n", c.tag,
+                100 * t["within_1mm"].get<double>(), (*patches)["patches"].get<int>(),
+                (*patches)["self_intersections"]["crossing_pairs"].get<int>());
+    EXPECT_TRUE((*skin)["mesh"]["watertight"].get<bool>());
+    EXPECT_FALSE((*skin)["mesh"]["self_intersections"].get<bool>());
+    EXPECT_GE(t["within_1mm"].get<double>(), c.within_1mm);
+    EXPECT_EQ((*patches)["patches"].get<int>(), 98);
+    EXPECT_LE((*patches)["continuity"]["g0_gap_mm"].get<double>(), 1e-9);
+    // The gates say what is poor: the patch surface crossing itself is reported, not hidden.
+    for (const auto& g : r["gates"])
+      if (g["name"] == "patches.self_intersections")
+        EXPECT_EQ(g["pass"].get<bool>(), (*patches)["self_intersections"]["crossing_pairs"].get<int>() == 0);
+  }
+}

@@ -19,6 +19,11 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kCapTilt = 1.0;  // tan of the fingertip rays' tilt toward the tip (45°)
+// Two corners of a face nearer than this are refused (HandLayout::finish); a palm ring's lane
+// looks past its nearest ring point for one whose corner lies farther from the level's others,
+// among its kLaneCandidates nearest by angle (the palm's rings have 80 points: ~36°).
+constexpr double kCornersApartMm = 0.5;
+constexpr size_t kLaneCandidates = 8;
 
 using EdgeKey = std::pair<int, int>;
 
@@ -615,17 +620,33 @@ void HandLayout::palm_rings(int thumb_ring_shift, double thumb_turn_deg) {
     std::sort(tp.begin(), tp.end(), std::greater<double>());
     // Round the loop b0…b4 p4…p0 the angles increase: each lane takes the ring point nearest
     // its angle among those no earlier lane took, so that no two corners coincide however the
-    // section is shaped.
+    // section is shaped. Two ring points can still meet the skin at one place where the ring
+    // runs inside the thumb's tube (the union left that stretch of the palm's ring in the
+    // thenar): R06 of `scripts/random_hands_study.py --draw 76` (its thumb spread 59°) put the
+    // level's two palm-side corners 0.5 mm apart, and the layout was refused. A lane whose
+    // nearest ring point meets the skin within kCornersApartMm of a corner this level placed
+    // takes the next nearest by angle that does not, of its kLaneCandidates nearest (the first,
+    // if none: finish() refuses it).
     std::vector<char> taken(ring.size(), 0);
+    std::vector<Eigen::Vector3d> placed;
     auto at_angle = [&](double target) {
-      size_t best = 0;
-      double bd = 1e300;
-      for (size_t i = 0; i < ring.size(); ++i) {
-        const double d = std::abs(std::remainder(th[i] - target, 2 * kPi));
-        if (!taken[i] && d < bd) bd = d, best = i;
+      std::vector<std::pair<double, size_t>> by_angle;
+      for (size_t i = 0; i < ring.size(); ++i)
+        if (!taken[i]) by_angle.push_back({std::abs(std::remainder(th[i] - target, 2 * kPi)), i});
+      std::sort(by_angle.begin(), by_angle.end());
+      HS_CHECK(!by_angle.empty(), "a palm ring has fewer points than the layout's lanes");
+      const auto apart = [&](const Eigen::Vector3d& p) {
+        return std::none_of(placed.begin(), placed.end(), [&](const Eigen::Vector3d& q) { return (p - q).norm() < kCornersApartMm; });
+      };
+      size_t best = by_angle.front().second;
+      Eigen::Vector3d at = caster.nearest(ring[best]);
+      for (size_t k = 1; k < std::min(by_angle.size(), kLaneCandidates) && !apart(at); ++k) {
+        const Eigen::Vector3d next = caster.nearest(ring[by_angle[k].second]);
+        if (apart(next)) best = by_angle[k].second, at = next;
       }
       taken[best] = 1;
-      return add(caster.nearest(ring[best]));
+      placed.push_back(at);
+      return add(at);
     };
     for (int k = 0; k < 5; ++k) pb[level][k] = at_angle(tb[k]);
     for (int k = 4; k >= 0; --k) pp[level][k] = at_angle(tp[k]);
@@ -704,7 +725,7 @@ PatchLayout HandLayout::finish() {
   // area: refused rather than fitted.
   for (size_t f = 0; f < L.faces.size(); ++f)
     for (int s = 0; s < 4; ++s)
-      if ((L.vertices[L.faces[f][s]] - L.vertices[L.faces[f][(s + 1) % 4]]).norm() < 0.5)
+      if ((L.vertices[L.faces[f][s]] - L.vertices[L.faces[f][(s + 1) % 4]]).norm() < kCornersApartMm)
         throw InputError("patches", "the patch layout's face " + L.names[f] +
                                         " has two corners within 0.5 mm of each other; the rig may not fit this skin");
   orient_layout(&L, "patch layout");
